@@ -1,0 +1,1 @@
+"""Regenerates algid's generated estimator modules: ``python -m derivation``."""

@@ -1,0 +1,47 @@
+"""``python -m derivation [--out DIR]``: write every generated file, byte for byte.
+
+Run from the repository root.  Without ``--out`` the files go to
+``src/algid/generated/``; a test writes them to a temporary folder and compares.
+"""
+
+import argparse
+import sys
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT / "src"))
+
+from algid.symbolic.codegen import numpy_module_source, registry_source  # noqa: E402
+from algid.symbolic.derivation import derive  # noqa: E402
+from algid.symbolic.models import BUILTIN_MODELS, builtin_model  # noqa: E402
+
+
+def generated_files():
+    """Map relative file name -> text of every generated file."""
+    files = {}
+    for name in BUILTIN_MODELS:
+        files[f"{name}.py"] = numpy_module_source(derive(builtin_model(name)))
+    files["__init__.py"] = registry_source(BUILTIN_MODELS)
+    return files
+
+
+def write(out: Path) -> list:
+    out.mkdir(parents=True, exist_ok=True)
+    written = []
+    for rel, text in generated_files().items():
+        path = out / rel
+        path.write_text(text, encoding="utf-8", newline="\n")
+        written.append(path)
+    return written
+
+
+def main(argv=None):
+    parser = argparse.ArgumentParser(prog="python -m derivation", description=__doc__)
+    parser.add_argument("--out", type=Path, default=ROOT / "src" / "algid" / "generated")
+    args = parser.parse_args(argv)
+    for path in write(args.out):
+        print(f"wrote {path}")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,307 @@
+"""Command line interface: ``algid simulate``, ``algid estimate`` and ``algid derive``.
+
+Errors caused by the user (bad data, bad file, unknown model) are printed as one line
+``algid: error: <message>`` on standard error with exit code 2; usage errors are
+reported by :mod:`argparse`, also with exit code 2.  Optional dependencies
+(python-control for ``simulate``, SymPy for ``derive``) are imported only by the
+command that needs them.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import json
+import math
+import sys
+
+from .errors import AlgidError, InputDataError
+
+__all__ = ["main", "build_parser"]
+
+PROG = "algid"
+
+
+class _MissingDependency(Exception):
+    """An optional dependency needed by a subcommand is not installed."""
+
+
+def _version() -> str:
+    try:
+        from importlib.metadata import PackageNotFoundError, version
+    except ImportError:  # pragma: no cover
+        return "unknown"
+    try:
+        return version("algid")
+    except PackageNotFoundError:
+        import algid
+
+        return getattr(algid, "__version__", "unknown")
+
+
+# --------------------------------------------------------------------- arg types
+
+
+def _number(text):
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
+    if not math.isfinite(value):
+        raise argparse.ArgumentTypeError(f"not a finite number: {text!r}")
+    return value
+
+
+def _positive(text):
+    value = _number(text)
+    if value <= 0:
+        raise argparse.ArgumentTypeError(f"must be positive, got {text!r}")
+    return value
+
+
+def _nonnegative(text):
+    value = _number(text)
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"must not be negative, got {text!r}")
+    return value
+
+
+def _nonnegative_int(text):
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not an integer: {text!r}") from None
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"must not be negative, got {text!r}")
+    return value
+
+
+# ------------------------------------------------------------------------ parser
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """Build the argument parser of the ``algid`` command.
+
+    Returns
+    -------
+    argparse.ArgumentParser
+        The parser, with one sub-parser per command; each sets ``handler``.
+    """
+    parser = argparse.ArgumentParser(
+        prog=PROG,
+        description=(
+            "Algebraic identification of continuous-time linear systems: estimate "
+            "B and K of x'' + B x' + K x = f from measured f and x."
+        ),
+    )
+    parser.add_argument("--version", action="version", version=f"{PROG} {_version()}")
+    commands = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
+
+    sim = commands.add_parser(
+        "simulate",
+        help="simulate a mass-spring-damper and write t, f, x to a CSV file",
+        description="Simulate m x'' + c x' + k x = f and write columns t, f, x to CSV.",
+    )
+    sim.add_argument("--input", choices=("step", "sine"), default="step",
+                     help="input force shape (default: step)")
+    sim.add_argument("--amplitude", type=_number, default=1.0, metavar="A",
+                     help="input amplitude (default: 1)")
+    sim.add_argument("--frequency", type=_positive, default=1.0, metavar="W",
+                     help="sine frequency in rad/s (default: 1)")
+    sim.add_argument("--mass", type=_positive, default=1.0, metavar="M",
+                     help="mass m (default: 1)")
+    sim.add_argument("--damping", type=_number, default=2.0, metavar="C",
+                     help="damping c (default: 2)")
+    sim.add_argument("--stiffness", type=_number, default=3.0, metavar="K",
+                     help="stiffness k (default: 3)")
+    sim.add_argument("--duration", type=_positive, default=5.0, metavar="S",
+                     help="duration in seconds (default: 5)")
+    sim.add_argument("--rate", type=_positive, default=1000.0, metavar="HZ",
+                     help="sampling rate in Hz (default: 1000)")
+    sim.add_argument("--x0", type=_number, default=0.0, metavar="X",
+                     help="initial displacement (default: 0)")
+    sim.add_argument("--v0", type=_number, default=0.0, metavar="V",
+                     help="initial velocity (default: 0)")
+    sim.add_argument("--noise-std", type=_nonnegative, default=0.0, metavar="S",
+                     help="standard deviation of noise added to x (default: 0, no noise)")
+    sim.add_argument("--seed", type=_nonnegative_int, default=None, metavar="N",
+                     help="seed of the noise generator")
+    sim.add_argument("--out", required=True, metavar="FILE.csv", help="output CSV file")
+    sim.set_defaults(handler=_cmd_simulate)
+
+    est = commands.add_parser(
+        "estimate",
+        help="estimate the parameters from a measured experiment",
+        description=(
+            "Read t, f, x from a CSV/text or MATLAB .mat file and estimate the "
+            "parameters algebraically. The sampling must be uniform."
+        ),
+    )
+    est.add_argument("file", metavar="FILE", help="data file (.csv, .txt or .mat)")
+    timing = est.add_mutually_exclusive_group()
+    timing.add_argument("--time", default=None, metavar="COL",
+                        help="time column (default: t)")
+    timing.add_argument("--rate", type=_positive, default=None, metavar="HZ",
+                        help="sampling rate in Hz, for files without a time column")
+    est.add_argument("--input", default="f", metavar="COL", help="input column (default: f)")
+    est.add_argument("--output", default="x", metavar="COL", help="output column (default: x)")
+    est.add_argument("--mass", type=_positive, default=None, metavar="M",
+                     help="known mass: the input column is the force F, and c, k are "
+                          "reported too")
+    est.add_argument("--filter-order", type=_nonnegative_int, default=None, metavar="P",
+                     help="order p of the invariant filter 1/s**p, 0 for none "
+                          "(default: the estimator's)")
+    est.add_argument("--model", default="msd", metavar="NAME", help="model (default: msd)")
+    est.add_argument("--json", action="store_true", help="print one JSON object")
+    est.set_defaults(handler=_cmd_estimate)
+
+    der = commands.add_parser(
+        "derive",
+        help="print the symbolic derivation of an estimator (needs SymPy)",
+        description="Print the symbolic derivation of the algebraic estimator of a model.",
+    )
+    der.add_argument("--model", default="msd", metavar="NAME", help="model (default: msd)")
+    der.add_argument("--format", choices=("text", "latex", "markdown"), default="text",
+                     help="output format (default: text)")
+    der.set_defaults(handler=_cmd_derive)
+    return parser
+
+
+# ---------------------------------------------------------------------- commands
+
+
+def _require(module, message):
+    """Import an optional dependency, raising _MissingDependency when it is absent."""
+    try:
+        importlib.import_module(module)
+    except ModuleNotFoundError as exc:
+        if exc.name and exc.name.split(".")[0] == module:
+            raise _MissingDependency(message) from None
+        raise
+
+
+def _cmd_simulate(args) -> int:
+    _require("control", "algid simulate needs python-control: pip install 'algid[simulate]'")
+    simulation = importlib.import_module("algid.simulation")
+    result = simulation.simulate(
+        args.input,
+        m=args.mass,
+        c=args.damping,
+        k=args.stiffness,
+        duration=args.duration,
+        rate=args.rate,
+        amplitude=args.amplitude,
+        frequency=args.frequency,
+        initial_state=(args.x0, args.v0),
+        noise_std=args.noise_std,
+        seed=args.seed,
+    )
+    try:
+        result.to_csv(args.out)
+    except OSError as exc:
+        raise AlgidError(f"{args.out}: cannot write file ({exc.strerror or exc})") from None
+    print(
+        f"wrote {len(result.t)} samples to {args.out} ({args.input} input, "
+        f"m={args.mass:g} c={args.damping:g} k={args.stiffness:g}, "
+        f"{args.duration:g} s at {args.rate:g} Hz)"
+    )
+    return 0
+
+
+def _finite_or_none(value):
+    value = float(value)
+    return value if math.isfinite(value) else None
+
+
+def _cmd_estimate(args) -> int:
+    from .io import read_experiment
+    from .validation import check_experiment
+
+    time = "t" if args.time is None else args.time
+    t, f, x = read_experiment(
+        args.file, time=time, input=args.input, output=args.output, rate=args.rate
+    )
+    try:
+        t, f, x, _ = check_experiment(t, f, x, names=(time, args.input, args.output))
+    except InputDataError as exc:
+        raise InputDataError(f"{args.file}: {exc}") from None
+
+    estimator = importlib.import_module("algid.estimator")
+    options = {"model": args.model, "mass": args.mass}
+    if args.filter_order is not None:
+        options["filter_order"] = args.filter_order
+    result = estimator.estimate(t, f, x, **options)
+
+    final = result.final()
+    names = tuple(result.parameters)
+    t_valid = float(result.t_valid)
+    if args.json:
+        payload = {name: _finite_or_none(final[name]) for name in names}
+        payload["t_valid"] = _finite_or_none(t_valid)
+        payload["n_samples"] = int(result.n_samples)
+        print(json.dumps(payload, allow_nan=False))
+        return 0
+
+    model = getattr(result, "model", args.model)
+    order = getattr(result, "filter_order", None)
+    details = [f"model {model}"]
+    if order is not None:
+        details.append(f"filter order {order}")
+    details.append(f"{int(result.n_samples)} samples")
+    print(f"{args.file}: {', '.join(details)}")
+    width = max([len("parameter")] + [len(name) for name in names])
+    print(f"{'parameter':<{width}}  estimate")
+    for name in names:
+        print(f"{name:<{width}}  {float(final[name]):.6g}")
+    if math.isfinite(t_valid):
+        print(f"estimates valid from t = {t_valid:.6g} s")
+    else:
+        print("no valid estimate: the record gave no usable sample")
+    return 0
+
+
+def _cmd_derive(args) -> int:
+    _require("sympy", "algid derive needs SymPy: pip install 'algid[derive]'")
+    symbolic = importlib.import_module("algid.symbolic")
+    text = symbolic.derivation_report(args.model, args.format)
+    print(str(text).rstrip("\n"))
+    return 0
+
+
+# -------------------------------------------------------------------------- main
+
+
+def _error(message) -> None:
+    line = " ".join(str(message).splitlines()).strip()
+    print(f"{PROG}: error: {line}", file=sys.stderr)
+
+
+def main(argv=None) -> int:
+    """Run the ``algid`` command line.
+
+    Parameters
+    ----------
+    argv : list of str, optional
+        Arguments without the program name; ``sys.argv[1:]`` when omitted.
+
+    Returns
+    -------
+    int
+        Exit status: 0 on success, 2 on a usage error or bad input (the message is
+        printed as one line ``algid: error: ...`` on standard error), 130 when
+        interrupted.
+    """
+    parser = build_parser()
+    try:
+        args = parser.parse_args(argv)
+    except SystemExit as exc:  # --help, --version and usage errors
+        code = exc.code
+        return code if isinstance(code, int) else (0 if code is None else 1)
+    try:
+        return int(args.handler(args) or 0)
+    except (AlgidError, _MissingDependency) as exc:
+        _error(str(exc) or type(exc).__name__)
+        return 2
+    except KeyboardInterrupt:
+        _error("interrupted")
+        return 130

@@ -1,0 +1,188 @@
+"""Batch algebraic estimation: ``algid.estimate``.
+
+Runs the generated estimator of a model on measured signals: the kernels (iterated
+integrals of ``t**k`` times the signals, see :mod:`algid.quadrature`), the linear system
+``P(t) theta = Q(t)``, Cramer's rule, and the invariant filter ``1/s**p`` applied to the
+numerators and the common denominator alike before dividing.  NumPy only.
+"""
+
+from __future__ import annotations
+
+import importlib
+
+import numpy as np
+
+from algid.errors import InputDataError, ModelError
+from algid.generated import MODULES
+from algid.quadrature import iterated_integrals, startup_samples
+from algid.result import EstimationResult
+from algid.validation import check_experiment
+
+__all__ = ["estimate", "available_models", "load_model", "DEFAULT_FILTER_ORDER",
+           "DEFAULT_QUADRATURE_ORDER", "kernel_values"]
+
+#: Default order ``p`` of the invariant filter ``1/s**p``.
+DEFAULT_FILTER_ORDER = 2
+#: Default number of points of the cumulative quadrature rule.
+DEFAULT_QUADRATURE_ORDER = 6
+
+
+def available_models():
+    """Names of the models that have a generated estimator."""
+    return tuple(MODULES)
+
+
+def load_model(name):
+    """The generated estimator module of model ``name``.
+
+    Raises
+    ------
+    ModelError
+        If no estimator was generated for ``name``.
+    """
+    if not isinstance(name, str) or name not in MODULES:
+        raise ModelError(f"unknown model {name!r} (known: {', '.join(MODULES)})")
+    return importlib.import_module(MODULES[name])
+
+
+def _check_options(filter_order, quadrature_order):
+    if isinstance(filter_order, bool) or not isinstance(filter_order, (int, np.integer)) \
+            or filter_order < 0:
+        raise InputDataError(f"filter_order must be an integer >= 0, got {filter_order!r}")
+    from algid.quadrature import QUADRATURE_ORDERS
+    if quadrature_order not in QUADRATURE_ORDERS:
+        raise InputDataError(f"quadrature_order must be one of {QUADRATURE_ORDERS}, "
+                             f"got {quadrature_order!r}")
+
+
+def kernel_values(module, signals, tau, h, *, order):
+    """Values of every kernel of a generated model on uniformly sampled signals.
+
+    Parameters
+    ----------
+    module : module
+        Generated estimator (see :func:`load_model`).
+    signals : dict
+        Signal name -> samples.
+    tau : ndarray
+        Time since the first sample.
+    h : float
+        Sampling step.
+    order : int
+        Quadrature rule (number of points).
+
+    Returns
+    -------
+    dict
+        Kernel name -> array.
+    """
+    values = {}
+    for signal, power, depth in module.CHAINS:
+        weighted = signals[signal] if power == 0 else tau**power * signals[signal]
+        for level, arr in enumerate(iterated_integrals(weighted, h, depth, order=order)):
+            values[module.kernel_name(signal, power, level)] = arr
+    return values
+
+
+def _unpack_timeresponse(data):
+    t = np.asarray(data.time, dtype=float)
+    u = np.asarray(data.inputs, dtype=float)
+    y = np.asarray(data.outputs, dtype=float)
+    if u.ndim != 1 or y.ndim != 1:
+        raise InputDataError(
+            f"TimeResponseData must have one input and one output (got input shape {u.shape}, "
+            f"output shape {y.shape}); squeeze it or pick the signals")
+    return t, u, y
+
+
+def estimate(t, f=None, x=None, *, model="msd", filter_order=DEFAULT_FILTER_ORDER, mass=None,
+             quadrature_order=DEFAULT_QUADRATURE_ORDER):
+    """Estimate the parameters of a model from its input and output, algebraically.
+
+    The estimate at each instant uses only the data up to that instant and does not
+    depend on the initial conditions.
+
+    Parameters
+    ----------
+    t : array_like or control.TimeResponseData
+        Sample times [s], strictly increasing and uniformly spaced.  May be a
+        python-control ``TimeResponseData``, whose input and output are then used and
+        ``f``, ``x`` must be omitted.
+    f : array_like
+        Model input.  For ``model="msd"`` this is the force per unit mass ``F/m``,
+        unless ``mass`` is given, in which case it is the force ``F`` [N].  For
+        ``model="msd_mass"`` it is the force ``F``.
+    x : array_like
+        Measured displacement [m].
+    model : str, optional
+        ``"msd"`` (``x'' + B x' + K x = f``, default) or ``"msd_mass"``
+        (``m x'' + c x' + k x = F``); see :func:`available_models`.
+    filter_order : int, optional
+        ``p`` of the invariant low-pass filter ``1/s**p`` applied to numerators and
+        denominator alike (0 = none).  Default 2.
+    mass : float, optional
+        Known mass [kg] (model ``"msd"`` only): ``f`` is then the force, and the result
+        also holds ``c = B m`` and ``k = K m``.
+    quadrature_order : int, optional
+        Points of the cumulative quadrature rule (2 = trapezoid).  Default 6.
+
+    Returns
+    -------
+    EstimationResult
+        Estimates over ``r.t`` as attributes named after the parameters (``r.B``,
+        ``r.K``, ...), NaN where not yet defined; ``r.t_valid`` is the first instant
+        with an estimate.
+
+    Raises
+    ------
+    InputDataError
+        Bad signals: NaN or inf, different lengths, time not strictly increasing or not
+        uniform, too few samples, no excitation; or a bad option.
+    ModelError
+        Unknown model, or ``mass`` given for a model that estimates the mass.
+
+    Examples
+    --------
+    >>> import numpy as np, algid
+    >>> t = np.linspace(0, 5, 5001)
+    >>> r = algid.estimate(algid.simulate("step", m=1, c=2, k=3).to_timeresponse())
+    >>> round(r.final()["B"], 6), round(r.final()["K"], 6)
+    (2.0, 3.0)
+    """
+    if hasattr(t, "time") and hasattr(t, "outputs"):
+        if f is not None or x is not None:
+            raise InputDataError("give either a TimeResponseData or the arrays t, f, x, not both")
+        t, f, x = _unpack_timeresponse(t)
+    elif f is None or x is None:
+        raise InputDataError("estimate needs the input f and the output x")
+    gen = load_model(model)
+    _check_options(filter_order, quadrature_order)
+    if mass is not None:
+        if "m" in gen.PARAMETERS:
+            raise ModelError(f"model {model!r} estimates the mass: do not give mass")
+        if not np.isfinite(mass) or mass <= 0:
+            raise InputDataError(f"mass must be a positive number, got {mass!r}")
+    min_samples = max(2 * quadrature_order, 8)
+    t, f, x, h = check_experiment(t, f, x, min_samples=min_samples)
+
+    n = t.size
+    tau = np.arange(n) * h  # time origin at the first sample: the method allows it
+    u = f / mass if mass is not None else f
+    kern = kernel_values(gen, {gen.INPUT: u, gen.OUTPUT: x}, tau, h, order=quadrature_order)
+    P, Q = gen.regressors(kern)
+    numerators, denominator = gen.cramer(P, Q)
+    if filter_order:
+        numerators = [iterated_integrals(num, h, filter_order, order=quadrature_order)[-1]
+                      for num in numerators]
+        denominator = iterated_integrals(denominator, h, filter_order,
+                                         order=quadrature_order)[-1]
+    undefined = ~np.isfinite(denominator) | (denominator == 0)
+    undefined[: startup_samples(quadrature_order)] = True
+    with np.errstate(divide="ignore", invalid="ignore"):
+        estimates = {name: np.where(undefined, np.nan, num / denominator)
+                     for name, num in zip(gen.PARAMETERS, numerators)}
+    if mass is not None:
+        estimates["c"] = estimates["B"] * mass
+        estimates["k"] = estimates["K"] * mass
+    return EstimationResult(t=t, estimates=estimates, model=model, filter_order=int(filter_order),
+                            quadrature_order=quadrature_order, mass=mass)

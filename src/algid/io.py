@@ -1,0 +1,264 @@
+"""Reading measured experiments from CSV/text and MATLAB files.
+
+Only file-specific problems are reported here (missing file, unreadable format,
+missing or non-numeric column).  Checks on the signals themselves (NaN, lengths,
+time axis, excitation) are made by :func:`algid.validation.check_experiment`.
+Every :class:`~algid.errors.DataFileError` message starts with the file name.
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+import os
+from pathlib import Path
+
+import numpy as np
+
+from .errors import DataFileError, InputDataError
+
+__all__ = ["read_experiment", "CSV_SUFFIXES", "MAT_SUFFIXES"]
+
+CSV_SUFFIXES = (".csv", ".txt")
+MAT_SUFFIXES = (".mat",)
+
+
+def read_experiment(path, *, time="t", input="f", output="x", rate=None):
+    """Read the time, input and output signals of one experiment from a file.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        A ``.csv``/``.txt`` file with a header line of column names, or a MATLAB
+        ``.mat`` file (up to version 7.2) whose variables are named like the columns.
+    time : str, optional
+        Name of the time column.  Ignored when ``rate`` is given.
+    input : str, optional
+        Name of the input (force) column.
+    output : str, optional
+        Name of the output (displacement) column.
+    rate : float, optional
+        Sampling rate in Hz.  When given, the file has no time column and the time is
+        ``arange(n) / rate`` with ``n`` the number of samples of the input.
+
+    Returns
+    -------
+    t, f, x : numpy.ndarray
+        The time, input and output signals as 1-D ``float64`` arrays.  They are not
+        checked for NaN, equal lengths or a valid time axis; use
+        :func:`algid.validation.check_experiment` for that.
+
+    Raises
+    ------
+    DataFileError
+        If the file is missing or unreadable, has an unknown extension, is empty or has
+        no data rows, lacks a requested column (the message lists the available ones),
+        or holds a non-numeric value (the message gives the column and the 1-based line
+        number for CSV files).
+    InputDataError
+        If ``rate`` is not a positive finite number.
+
+    Examples
+    --------
+    >>> t, f, x = read_experiment("silverbox.csv", input="V1", output="V2",
+    ...                           rate=610.35)  # doctest: +SKIP
+    """
+    label = os.fspath(path)
+    if isinstance(label, bytes):
+        label = os.fsdecode(label)
+    p = Path(label)
+    if rate is not None:
+        rate = _check_rate(rate)
+    suffix = p.suffix.lower()
+    if suffix not in CSV_SUFFIXES + MAT_SUFFIXES:
+        supported = ", ".join(CSV_SUFFIXES + MAT_SUFFIXES)
+        shown = f"extension {p.suffix!r}" if p.suffix else "no extension"
+        raise DataFileError(f"{label}: unknown file type ({shown}); supported: {supported}")
+    if not p.exists():
+        raise DataFileError(f"{label}: file not found")
+    if p.is_dir():
+        raise DataFileError(f"{label}: is a directory, not a data file")
+
+    wanted = [input, output] if rate is not None else [time, input, output]
+    if suffix in MAT_SUFFIXES:
+        columns = _read_mat(p, label, wanted, time if rate is None else None)
+    else:
+        columns = _read_csv(p, label, wanted, time if rate is None else None)
+
+    f = columns[input]
+    x = columns[output]
+    if rate is not None:
+        t = np.arange(f.size, dtype=np.float64) / rate
+    else:
+        t = columns[time]
+    return t, f, x
+
+
+def _check_rate(rate) -> float:
+    try:
+        value = float(rate)
+    except (TypeError, ValueError):
+        raise InputDataError(f"rate must be a number of Hz, got {rate!r}") from None
+    if not (math.isfinite(value) and value > 0):
+        raise InputDataError(f"rate must be a positive finite number of Hz, got {rate!r}")
+    return value
+
+
+def _missing(label, kind, name, available, time_name):
+    """Build the error for a requested column/variable that is not in the file."""
+    listing = ", ".join(available) if available else "none"
+    plural = "columns" if kind == "column" else "variables"
+    if time_name is not None and name == time_name:
+        return DataFileError(
+            f"{label}: time {kind} {name!r} not found ({plural}: {listing}); "
+            f"name it with --time, or give the sampling rate with --rate HZ "
+            f"if the file has no time {kind}"
+        )
+    return DataFileError(f"{label}: {kind} {name!r} not found ({plural}: {listing})")
+
+
+# --------------------------------------------------------------------------- CSV
+
+
+def _split_lines(text):
+    """Yield (line_number, line) for lines that are neither blank nor comments."""
+    for number, line in enumerate(text.splitlines(), start=1):
+        stripped = line.strip()
+        if not stripped or stripped.startswith("#"):
+            continue
+        yield number, line
+
+
+def _delimiter(header_line):
+    for candidate in (",", ";", "\t"):
+        if candidate in header_line:
+            return candidate
+    return None  # whitespace separated
+
+
+def _fields(line, delimiter):
+    if delimiter is None:
+        return line.split()
+    if '"' in line:
+        row = next(csv.reader([line], delimiter=delimiter, skipinitialspace=True))
+    else:
+        row = line.split(delimiter)
+    row = [cell.strip() for cell in row]
+    while row and row[-1] == "":
+        row.pop()  # trailing delimiter ("1,2,")
+    return row
+
+
+def _is_number(text):
+    try:
+        float(text)
+    except ValueError:
+        return False
+    return True
+
+
+def _read_csv(p, label, wanted, time_name):
+    try:
+        text = p.read_text(encoding="utf-8-sig")
+    except UnicodeDecodeError:
+        raise DataFileError(f"{label}: not a UTF-8 text file") from None
+    except OSError as exc:
+        raise DataFileError(f"{label}: cannot read file ({exc.strerror or exc})") from None
+
+    lines = _split_lines(text)
+    try:
+        header_number, header_line = next(lines)
+    except StopIteration:
+        raise DataFileError(f"{label}: file is empty") from None
+
+    delimiter = _delimiter(header_line)
+    try:
+        header = _fields(header_line, delimiter)
+    except csv.Error as exc:
+        raise DataFileError(f"{label}: line {header_number}: cannot parse header ({exc})") from None
+    if header and all(_is_number(cell) for cell in header):
+        raise DataFileError(
+            f"{label}: line {header_number} holds numbers, expected a header line "
+            f"with column names"
+        )
+    for position, name in enumerate(header, start=1):
+        if name == "":
+            raise DataFileError(
+                f"{label}: line {header_number}: column {position} has an empty name"
+            )
+    for name in dict.fromkeys(wanted):
+        if name not in header:
+            raise _missing(label, "column", name, header, time_name)
+        if header.count(name) > 1:
+            raise DataFileError(f"{label}: column {name!r} appears more than once in the header")
+
+    index = {name: header.index(name) for name in dict.fromkeys(wanted)}
+    values = {name: [] for name in index}
+    ncols = len(header)
+    for number, line in lines:
+        try:
+            row = _fields(line, delimiter)
+        except csv.Error as exc:
+            raise DataFileError(f"{label}: line {number}: cannot parse ({exc})") from None
+        if len(row) != ncols:
+            raise DataFileError(
+                f"{label}: line {number} has {len(row)} fields but the header has {ncols} columns"
+            )
+        for name, col in index.items():
+            cell = row[col]
+            try:
+                values[name].append(float(cell))
+            except ValueError:
+                shown = "an empty cell" if cell == "" else repr(cell)
+                raise DataFileError(
+                    f"{label}: column {name!r}, line {number}: {shown} is not a number"
+                ) from None
+
+    if not values[wanted[0]]:
+        raise DataFileError(f"{label}: no data rows after the header (line {header_number})")
+    return {name: np.asarray(column, dtype=np.float64) for name, column in values.items()}
+
+
+# --------------------------------------------------------------------------- MAT
+
+
+def _read_mat(p, label, wanted, time_name):
+    from scipy.io import loadmat
+
+    try:
+        contents = loadmat(p, squeeze_me=False)
+    except NotImplementedError:
+        raise DataFileError(
+            f"{label}: MATLAB v7.3 (HDF5) files are not supported; save with '-v7'"
+        ) from None
+    except OSError as exc:
+        raise DataFileError(f"{label}: cannot read file ({exc.strerror or exc})") from None
+    except Exception as exc:  # scipy raises several types on corrupt files
+        reason = " ".join(str(exc).split()) or type(exc).__name__
+        raise DataFileError(f"{label}: not a readable MATLAB file ({reason})") from None
+
+    available = [key for key in contents if not key.startswith("__")]
+    columns = {}
+    for name in dict.fromkeys(wanted):
+        if name not in contents or name.startswith("__"):
+            raise _missing(label, "variable", name, available, time_name)
+        columns[name] = _mat_vector(label, name, contents[name])
+    return columns
+
+
+def _mat_vector(label, name, value):
+    arr = np.asarray(value)
+    kind = arr.dtype.kind
+    if kind == "c":
+        raise DataFileError(f"{label}: variable {name!r} is complex, expected real numbers")
+    if kind not in "biuf":
+        kinds = {"U": "text", "S": "text", "O": "a cell array", "V": "a struct"}
+        what = kinds.get(kind, "not numeric")
+        raise DataFileError(f"{label}: variable {name!r} is {what}, expected a numeric vector")
+    if arr.size == 0:
+        raise DataFileError(f"{label}: variable {name!r} is empty")
+    squeezed = arr.squeeze()
+    if squeezed.ndim > 1:
+        shape = "x".join(str(n) for n in arr.shape)
+        raise DataFileError(f"{label}: variable {name!r} is a {shape} matrix, expected a vector")
+    return np.atleast_1d(squeezed).astype(np.float64)

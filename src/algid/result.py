@@ -1,0 +1,144 @@
+"""The result of an estimation: estimates over time, named after the parameters."""
+
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = ["EstimationResult", "convergence_time"]
+
+
+def convergence_time(t, estimate, true_value, rtol):
+    """First instant from which ``estimate`` stays within ``rtol`` of ``true_value``.
+
+    Parameters
+    ----------
+    t, estimate : ndarray
+        Times and estimates (NaN counts as outside).
+    true_value : float
+        Nonzero reference value.
+    rtol : float
+        Relative tolerance.
+
+    Returns
+    -------
+    float
+        The time, or NaN if the estimate is outside the band at the last sample.
+    """
+    err = np.abs(np.asarray(estimate) / true_value - 1.0)
+    bad = ~(err <= rtol)
+    if bad[-1]:
+        return float("nan")
+    idx = np.flatnonzero(bad)
+    return float(t[0] if idx.size == 0 else t[idx[-1] + 1])
+
+
+class EstimationResult:
+    """Estimates of a model's parameters over time.
+
+    Attributes
+    ----------
+    t : ndarray
+        Sample times (as given).
+    estimates : dict
+        Parameter name -> ndarray of estimates over ``t``; NaN where not yet defined.
+        Each is also an attribute: ``r.B``, ``r.K``, ...
+    parameters : tuple of str
+        Names of the estimated quantities, in order (model parameters, then ``c``, ``k``
+        when the mass was given).
+    t_valid : float
+        First instant with a defined estimate (NaN if none).
+    n_samples : int
+    model : str
+    filter_order : int
+    quadrature_order : int
+    mass : float or None
+    """
+
+    def __init__(self, *, t, estimates, model, filter_order, quadrature_order, mass=None):
+        self.t = t
+        self.estimates = dict(estimates)
+        self.parameters = tuple(self.estimates)
+        self.model = model
+        self.filter_order = filter_order
+        self.quadrature_order = quadrature_order
+        self.mass = mass
+        defined = np.all([np.isfinite(v) for v in self.estimates.values()], axis=0)
+        idx = np.flatnonzero(defined)
+        self.valid_index = int(idx[0]) if idx.size else None
+        self.t_valid = float(t[idx[0]]) if idx.size else float("nan")
+
+    @property
+    def n_samples(self) -> int:
+        return int(self.t.size)
+
+    def __getattr__(self, name):
+        estimates = self.__dict__.get("estimates", {})
+        if name in estimates:
+            return estimates[name]
+        raise AttributeError(f"{type(self).__name__} has no attribute {name!r} "
+                             f"(parameters: {', '.join(estimates)})")
+
+    def __dir__(self):
+        return sorted(set(super().__dir__()) | set(self.estimates))
+
+    def final(self) -> dict:
+        """Estimates at the last sample, as ``{name: float}``."""
+        return {k: float(v[-1]) for k, v in self.estimates.items()}
+
+    def at(self, time) -> dict:
+        """Estimates at the last sample at or before ``time``."""
+        i = int(np.searchsorted(self.t, time, side="right")) - 1
+        if i < 0:
+            raise ValueError(f"time {time} is before the first sample {self.t[0]}")
+        return {k: float(v[i]) for k, v in self.estimates.items()}
+
+    def convergence_times(self, true_values: dict, rtol: float) -> dict:
+        """For each parameter in ``true_values``, the first instant from which the
+        estimate stays within ``rtol`` of it (see :func:`convergence_time`)."""
+        return {k: convergence_time(self.t, self.estimates[k], v, rtol)
+                for k, v in true_values.items()}
+
+    def to_dict(self) -> dict:
+        """Final estimates plus ``t_valid`` and ``n_samples`` (NaN as None), JSON-ready."""
+        out = {k: (v if np.isfinite(v) else None) for k, v in self.final().items()}
+        out["t_valid"] = self.t_valid if np.isfinite(self.t_valid) else None
+        out["n_samples"] = self.n_samples
+        return out
+
+    def plot(self, *, true_values=None, ax=None, parameters=None):
+        """Plot the estimates over time (needs matplotlib).
+
+        Parameters
+        ----------
+        true_values : dict, optional
+            Reference values drawn as dashed lines.
+        ax : matplotlib Axes, optional
+        parameters : sequence of str, optional
+            Which estimates to draw (default: the model's parameters).
+
+        Returns
+        -------
+        matplotlib Axes
+        """
+        import matplotlib.pyplot as plt
+
+        if ax is None:
+            _, ax = plt.subplots(figsize=(7, 4))
+        names = parameters or [p for p in self.parameters if p not in ("c", "k")
+                               or self.model != "msd"]
+        for name in names:
+            line, = ax.plot(self.t, self.estimates[name], label=f"{name} (estimate)")
+            if true_values and name in true_values:
+                ax.axhline(true_values[name], color=line.get_color(), ls="--", lw=1,
+                           label=f"{name} = {true_values[name]:g}")
+        ax.set_xlabel("time [s]")
+        ax.set_ylabel("estimate")
+        ax.set_title(f"algebraic estimates, model {self.model!r}, filter 1/s^{self.filter_order}")
+        ax.legend(loc="best")
+        ax.grid(True, alpha=0.3)
+        return ax
+
+    def __repr__(self):
+        final = ", ".join(f"{k}={v:.6g}" for k, v in self.final().items())
+        return (f"<EstimationResult model={self.model!r} n_samples={self.n_samples} "
+                f"t_valid={self.t_valid:.6g} final: {final}>")

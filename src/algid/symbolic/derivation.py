@@ -1,0 +1,297 @@
+"""The algebraic derivation: from a linear ODE to ``P(t) theta = Q(t)``.
+
+The steps are those of Fliess and Sira-Ramirez, each kept as a field of
+:class:`Derivation` so that reports and tests can look at every one of them:
+
+1. Laplace transform with symbolic initial conditions.
+2. ``d^n/ds^n`` (``n`` the order of the model): the initial conditions enter as a
+   polynomial of degree ``n - 1`` in ``s`` and are annihilated.
+3. Multiplication by ``s^-N`` (``N`` the highest remaining power of ``s``), so that only
+   integrations remain.
+4. Back to the time domain through the operator table ``d/ds -> x(-t)`` and
+   ``1/s -> integral from 0``; never through an inverse Laplace transform.
+5. Further integration of the equation until there are as many equations as unknowns.
+6. The linear system ``P theta = Q`` and its Cramer solution.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import sympy as sp
+
+from algid.symbolic.model import LAPLACE, TIME, LinearODEModel
+
+__all__ = ["IteratedIntegral", "Kernel", "Derivation", "derive", "evaluate_kernel"]
+
+s, t = LAPLACE, TIME
+
+
+class IteratedIntegral(sp.Function):
+    """``IteratedIntegral(g, k)``: the ``k``-fold integral of ``g`` from 0 to ``t``.
+
+    ``k = 0`` is ``g`` itself.  Kept unevaluated: it names a filter of the measured
+    signals, not something SymPy should integrate.
+    """
+
+    nargs = 2
+
+    def _latex(self, printer):
+        integrand, order = self.args
+        body = printer._print(integrand)
+        if order == 0:
+            return body
+        if order == 1:
+            return r"\int %s" % _paren(integrand, body)
+        return r"\int^{(%s)} %s" % (printer._print(order), _paren(integrand, body))
+
+    def _sympystr(self, printer):
+        integrand, order = self.args
+        if order == 0:
+            return printer._print(integrand)
+        return "int%s(%s)" % ("" if order == 1 else f"^{order}", printer._print(integrand))
+
+
+def _paren(expr, text):
+    return f"\\left({text}\\right)" if expr.is_Add or expr.is_Mul else text
+
+
+@dataclass(frozen=True, order=True)
+class Kernel:
+    """One filtered signal: ``k``-fold integral of ``t**power * signal``."""
+
+    signal: str
+    power: int
+    order: int
+
+    @property
+    def name(self) -> str:
+        """Identifier used in generated code, e.g. ``x_t2_i1``."""
+        return f"{self.signal}_t{self.power}_i{self.order}"
+
+    def expression(self):
+        """The kernel as a SymPy :class:`IteratedIntegral` of ``t**power * signal(t)``."""
+        return IteratedIntegral(t**self.power * sp.Function(self.signal)(t), self.order)
+
+
+@dataclass(frozen=True)
+class Derivation:
+    """Every step of the algebraic derivation for one model.
+
+    Attributes
+    ----------
+    model : LinearODEModel
+    initial_conditions : tuple of sympy.Symbol
+        Symbols for the initial values of the signals and their derivatives.
+    laplace : sympy.Expr
+        The model in the Laplace domain, ``lhs - rhs`` (equal to zero), with the
+        initial conditions.
+    n_derivatives : int
+        How often the equation is differentiated with respect to ``s``.
+    differentiated : list of sympy.Expr
+        The equation after each differentiation (``differentiated[-1]`` is free of the
+        initial conditions).
+    s_power : int
+        ``N``: the equation is multiplied by ``s**-N``.
+    multiplied : sympy.Expr
+        The equation after that multiplication (only non-positive powers of ``s``).
+    time_equations : list of sympy.Expr
+        The equations in the time domain (each equal to zero), the first one and its
+        successive integrals.
+    P, Q : sympy.Matrix
+        The linear system ``P theta = Q``; entries are linear combinations of kernels.
+    kernels : tuple of Kernel
+        Every filtered signal that appears in ``P`` and ``Q``, sorted.
+    """
+
+    model: LinearODEModel
+    initial_conditions: tuple
+    laplace: sp.Expr
+    n_derivatives: int
+    differentiated: list
+    s_power: int
+    multiplied: sp.Expr
+    time_equations: list
+    P: sp.Matrix
+    Q: sp.Matrix
+    kernels: tuple
+
+    @property
+    def parameters(self):
+        return self.model.parameters
+
+    @property
+    def transforms(self):
+        """The Laplace-domain functions of the output and the input, ``X(s)``, ``F(s)``."""
+        return _transform(self.model.output), _transform(self.model.input)
+
+    def kernel_symbols(self):
+        """Map each kernel expression to a plain symbol named after the kernel."""
+        return {k.expression(): sp.Symbol(k.name) for k in self.kernels}
+
+    def entry_symbols(self):
+        """Symbols ``p_i_j`` and ``q_i`` standing for the entries of ``P`` and ``Q``."""
+        n, m = self.P.shape
+        Ps = sp.Matrix(n, m, lambda i, j: sp.Symbol(f"p_{i}_{j}"))
+        Qs = sp.Matrix(n, 1, lambda i, j: sp.Symbol(f"q_{i}"))
+        return Ps, Qs
+
+    def cramer(self):
+        """Cramer's rule on symbolic entries: ``(numerators, denominator)``.
+
+        ``theta_i = numerators[i] / denominator``, expressed in ``p_i_j`` and ``q_i``.
+        Only for square systems.
+        """
+        Ps, Qs = self.entry_symbols()
+        if Ps.shape[0] != Ps.shape[1]:
+            raise ValueError("Cramer's rule needs as many equations as unknowns")
+        den = sp.expand(Ps.det(method="berkowitz"))
+        nums = []
+        for j in range(Ps.shape[1]):
+            Pj = Ps.copy()
+            Pj[:, j] = Qs
+            nums.append(sp.expand(Pj.det(method="berkowitz")))
+        return tuple(nums), den
+
+    def solution(self):
+        """The closed-form estimate of each parameter in terms of the kernels."""
+        nums, den = self.cramer()
+        Ps, Qs = self.entry_symbols()
+        subs = {Ps[i, j]: self.P[i, j] for i in range(Ps.shape[0]) for j in range(Ps.shape[1])}
+        subs.update({Qs[i]: self.Q[i] for i in range(Qs.shape[0])})
+        return tuple(sp.Eq(p, num.subs(subs) / den.subs(subs))
+                     for p, num in zip(self.parameters, nums))
+
+
+def _transform(signal: str):
+    return sp.Function(signal.upper() if signal.upper() != signal else signal + "_L")(s)
+
+
+def _laplace_of_derivative(signal: str, order: int, ics: dict):
+    """``L[y^(order)] = s^order Y - sum_k s^(order-1-k) y^(k)(0)`` with symbolic ``y^(k)(0)``."""
+    Y = _transform(signal)
+    expr = s**order * Y
+    for k in range(order):
+        expr -= s ** (order - 1 - k) * ics[(signal, k)]
+    return expr
+
+
+def _initial_condition_symbols(model: LinearODEModel):
+    ics = {}
+    for sig, coeffs in ((model.output, model.output_coefficients),
+                        (model.input, model.input_coefficients)):
+        for k in range(len(coeffs) - 1):
+            ics[(sig, k)] = sp.Symbol(f"{sig}{'_' + 'd' * k if k else ''}0")
+    return ics
+
+
+def derive(model: LinearODEModel, *, extra_equations: int = 0) -> Derivation:
+    """Derive the algebraic estimator of ``model``.
+
+    Parameters
+    ----------
+    model : LinearODEModel
+    extra_equations : int, optional
+        Equations beyond the number of unknowns (each one more integration), for a
+        least-squares solution.  ``0`` gives a square system.
+
+    Returns
+    -------
+    Derivation
+    """
+    if extra_equations < 0:
+        raise ValueError("extra_equations must be >= 0")
+    ics = _initial_condition_symbols(model)
+    n_out = len(model.output_coefficients) - 1
+    n_in = len(model.input_coefficients) - 1
+    lhs = sum(c * _laplace_of_derivative(model.output, n_out - i, ics)
+              for i, c in enumerate(model.output_coefficients))
+    rhs = sum(c * _laplace_of_derivative(model.input, n_in - j, ics)
+              for j, c in enumerate(model.input_coefficients))
+    laplace = lhs - rhs
+
+    # The initial conditions form a polynomial of degree order-1 in s: d^order/ds^order
+    # removes it whatever the values.
+    n = model.order
+    differentiated = [laplace]
+    for _ in range(n):
+        differentiated.append(sp.expand(sp.diff(differentiated[-1], s)))
+    final = differentiated[-1]
+    leftover = final.free_symbols & set(ics.values())
+    if leftover:  # pragma: no cover - impossible for a linear model, kept as a guard
+        raise AssertionError(f"initial conditions {leftover} survived differentiation")
+
+    terms = _split_terms(final, model)
+    N = max(power for (_, _, power) in terms)
+    multiplied = sp.expand(final * s**(-N))
+
+    first = sum(coeff * Kernel(sig, b, N - power).expression() * (-1) ** b
+                for (sig, b, power), coeff in terms.items())
+    n_eq = len(model.parameters) + extra_equations
+    time_equations = [_integrate_equation(first, r) for r in range(n_eq)]
+    P, Q = sp.linear_eq_to_matrix([sp.expand(e) for e in time_equations], list(model.parameters))
+    P, Q = P.applyfunc(sp.expand), Q.applyfunc(sp.expand)
+    kernels = sorted({_kernel_of(a) for a in (P.atoms(IteratedIntegral) | Q.atoms(IteratedIntegral))})
+    return Derivation(model=model, initial_conditions=tuple(ics.values()), laplace=laplace,
+                      n_derivatives=n, differentiated=differentiated, s_power=N,
+                      multiplied=multiplied, time_equations=time_equations, P=P, Q=Q,
+                      kernels=tuple(kernels))
+
+
+def _split_terms(expr, model):
+    """Write ``expr`` as ``sum coeff * s**power * d^b/ds^b SIGNAL(s)``.
+
+    Returns ``{(signal, b, power): coeff}`` with coefficients free of ``s``.
+    """
+    out = {}
+    for sig in (model.output, model.input):
+        Y = _transform(sig)
+        derivs = {b: (Y if b == 0 else sp.Derivative(Y, (s, b))) for b in range(model.order + 1)}
+        dummies = {b: sp.Dummy(f"{sig}{b}") for b in derivs}
+        e = sp.expand(expr.subs({derivs[b]: dummies[b] for b in sorted(derivs, reverse=True)}))
+        for b, d in dummies.items():
+            c = sp.expand(e.coeff(d))
+            if c == 0:
+                continue
+            for term in sp.Add.make_args(c):
+                coeff, power = term.as_coeff_exponent(s)
+                if coeff.has(s) or not power.is_integer:
+                    raise AssertionError(f"unexpected term {term}")  # pragma: no cover
+                key = (sig, b, int(power))
+                out[key] = out.get(key, 0) + coeff
+    return {k: v for k, v in out.items() if v != 0}
+
+
+def _kernel_of(ii):
+    integrand, order = ii.args
+    fn = next(iter(integrand.atoms(sp.core.function.AppliedUndef)))
+    power = sp.degree(sp.powsimp(integrand / fn), t)
+    return Kernel(fn.func.__name__, int(power), int(order))
+
+
+def _integrate_equation(expr, times):
+    """Integrate a time-domain equation ``times`` more times (raise every kernel order)."""
+    if times == 0:
+        return expr
+    return expr.replace(IteratedIntegral, lambda g, k: IteratedIntegral(g, k + times))
+
+
+def evaluate_kernel(kernel: Kernel, signals: dict):
+    """Evaluate a kernel exactly for closed-form signals.
+
+    Parameters
+    ----------
+    kernel : Kernel
+    signals : dict
+        Signal name -> SymPy expression in ``t``.
+
+    Returns
+    -------
+    sympy.Expr
+        The ``kernel.order``-fold integral from 0 to ``t`` of ``t**power * signal``.
+    """
+    tau = sp.Dummy("tau", nonnegative=True)
+    g = t**kernel.power * signals[kernel.signal]
+    for _ in range(kernel.order):
+        g = sp.integrate(g.subs(t, tau), (tau, 0, t))
+    return g
