@@ -1,0 +1,23 @@
+"""algid: algebraic identification of continuous-time linear systems.
+
+The estimator (:func:`estimate`) needs only NumPy and SciPy.  Simulation needs
+python-control (``algid[simulate]``), the symbolic derivation SymPy (``algid[derive]``),
+figures matplotlib (``algid[plot]``).
+"""
+
+from algid.errors import AlgidError, DataFileError, InputDataError, ModelError
+from algid.estimator import available_models, estimate
+from algid.result import EstimationResult
+
+__version__ = "0.1.0"
+
+__all__ = ["estimate", "simulate", "available_models", "EstimationResult", "AlgidError",
+           "InputDataError", "DataFileError", "ModelError", "__version__"]
+
+
+def __getattr__(name):
+    # simulate needs python-control, an optional extra: import it on first use
+    if name == "simulate":
+        from algid.simulation import simulate
+        return simulate
+    raise AttributeError(f"module 'algid' has no attribute {name!r}")

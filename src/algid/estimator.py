@@ -13,6 +13,7 @@ import importlib
 import numpy as np
 
 from algid.errors import InputDataError, ModelError
+from algid.filters import as_lowpass
 from algid.generated import MODULES
 from algid.quadrature import iterated_integrals, startup_samples
 from algid.result import EstimationResult
@@ -96,7 +97,7 @@ def _unpack_timeresponse(data):
 
 
 def estimate(t, f=None, x=None, *, model="msd", filter_order=DEFAULT_FILTER_ORDER, mass=None,
-             quadrature_order=DEFAULT_QUADRATURE_ORDER):
+             quadrature_order=DEFAULT_QUADRATURE_ORDER, lowpass=None):
     """Estimate the parameters of a model from its input and output, algebraically.
 
     The estimate at each instant uses only the data up to that instant and does not
@@ -125,6 +126,12 @@ def estimate(t, f=None, x=None, *, model="msd", filter_order=DEFAULT_FILTER_ORDE
         also holds ``c = B m`` and ``k = K m``.
     quadrature_order : int, optional
         Points of the cumulative quadrature rule (2 = trapezoid).  Default 6.
+    lowpass : tuple, scipy.signal.lti or python-control system, optional
+        A strictly proper, stable, continuous-time SISO filter (e.g. ``([100], [1, 20,
+        100])`` for ``100/(s + 10)**2``; see :func:`algid.filters.as_lowpass`) applied,
+        with zero initial state at the first sample, to the numerators and the
+        denominator alike after ``1/s**filter_order``; the estimate stays exact.  Use
+        ``filter_order=0`` for this filter alone.  Default: none.
 
     Returns
     -------
@@ -137,7 +144,8 @@ def estimate(t, f=None, x=None, *, model="msd", filter_order=DEFAULT_FILTER_ORDE
     ------
     InputDataError
         Bad signals: NaN or inf, different lengths, time not strictly increasing or not
-        uniform, too few samples, no excitation; or a bad option.
+        uniform, too few samples, no excitation; or a bad option (also a ``lowpass``
+        filter that is not strictly proper, not stable or not continuous-time).
     ModelError
         Unknown model, or ``mass`` given for a model that estimates the mass.
 
@@ -157,6 +165,7 @@ def estimate(t, f=None, x=None, *, model="msd", filter_order=DEFAULT_FILTER_ORDE
         raise InputDataError("estimate needs the input f and the output x")
     gen = load_model(model)
     _check_options(filter_order, quadrature_order)
+    lowpass_filter = None if lowpass is None else as_lowpass(lowpass)
     if mass is not None:
         if "m" in gen.PARAMETERS:
             raise ModelError(f"model {model!r} estimates the mass: do not give mass")
@@ -176,6 +185,10 @@ def estimate(t, f=None, x=None, *, model="msd", filter_order=DEFAULT_FILTER_ORDE
                       for num in numerators]
         denominator = iterated_integrals(denominator, h, filter_order,
                                          order=quadrature_order)[-1]
+    if lowpass_filter is not None:
+        numerators = [lowpass_filter.apply(num, h, order=quadrature_order)
+                      for num in numerators]
+        denominator = lowpass_filter.apply(denominator, h, order=quadrature_order)
     undefined = ~np.isfinite(denominator) | (denominator == 0)
     undefined[: startup_samples(quadrature_order)] = True
     with np.errstate(divide="ignore", invalid="ignore"):

@@ -6,6 +6,7 @@ itself never does.
 
 from algid.symbolic.derivation import Derivation, IteratedIntegral, Kernel, derive, evaluate_kernel
 from algid.symbolic.model import LAPLACE, TIME, LinearODEModel
+from algid.symbolic.report import derivation_report
 
 __all__ = ["Derivation", "IteratedIntegral", "Kernel", "LinearODEModel", "TIME", "LAPLACE",
-           "derive", "evaluate_kernel"]
+           "derive", "evaluate_kernel", "derivation_report"]

@@ -1,0 +1,190 @@
+"""Figure helpers: experiments (input and response) and estimates over time.
+
+The figures are built as :class:`matplotlib.figure.Figure` objects without pyplot, so
+they need no display, touch no global pyplot state and can be drawn from any thread;
+:func:`save_figure` writes them with the Agg renderer.  This module needs matplotlib
+(``pip install algid[plot]``).
+"""
+
+from __future__ import annotations
+
+import pathlib
+
+import numpy as np
+from matplotlib.figure import Figure
+
+__all__ = ["plot_input_response", "plot_responses", "plot_estimates", "save_figure"]
+
+#: Colours of the parameters (matplotlib's default cycle, fixed so figures agree).
+PARAMETER_COLORS = {"B": "C0", "K": "C3", "c": "C0", "k": "C3", "m": "C2"}
+
+
+def plot_input_response(t, f, x, *, title=None, force_label="Force (N)",
+                        position_label="Position (m)", figsize=(7.0, 5.0)):
+    """Input force and response in two stacked panels, (a) and (b).
+
+    Parameters
+    ----------
+    t, f, x : array_like
+        Time [s], force, position.
+    title : str, optional
+        Figure title.
+    force_label, position_label : str, optional
+        Y-axis labels.
+    figsize : (float, float), optional
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+    """
+    fig = Figure(figsize=figsize, layout="constrained")
+    ax_f, ax_x = fig.subplots(2, 1, sharex=True)
+    ax_f.plot(t, f, color="C0")
+    ax_f.set_ylabel(force_label)
+    ax_f.set_title("(a) input", loc="left", fontsize="medium")
+    ax_x.plot(t, x, color="C1")
+    ax_x.set_ylabel(position_label)
+    ax_x.set_xlabel("Time (s)")
+    ax_x.set_title("(b) response", loc="left", fontsize="medium")
+    for ax in (ax_f, ax_x):
+        ax.grid(True, alpha=0.3)
+        ax.set_xlim(t[0], t[-1])
+    _pad_constant(ax_f, f)
+    if title:
+        fig.suptitle(title)
+    return fig
+
+
+def _pad_constant(ax, y):
+    """Give a constant signal a visible y-range around its value."""
+    y = np.asarray(y, dtype=float)
+    lo, hi = float(np.min(y)), float(np.max(y))
+    if hi - lo < 1e-12 * max(1.0, abs(hi)):
+        pad = max(abs(hi), 1.0) * 0.5
+        ax.set_ylim(min(0.0, lo - pad), hi + pad)
+
+
+def plot_responses(panels, *, title=None, position_label="Position (m)",
+                   figsize=(7.0, 5.0)):
+    """Measured responses, one panel each, with the noise-free response overlaid.
+
+    Parameters
+    ----------
+    panels : sequence of (t, x_measured, x_true or None, label)
+        One panel per entry.
+    title : str, optional
+    position_label : str, optional
+    figsize : (float, float), optional
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+    """
+    fig = Figure(figsize=figsize, layout="constrained")
+    axes = np.atleast_1d(fig.subplots(len(panels), 1, sharex=True))
+    for ax, (t, x, x_true, label) in zip(axes, panels):
+        ax.plot(t, x, color="C1", lw=0.6, label="measured")
+        if x_true is not None:
+            ax.plot(t, x_true, color="k", lw=1.0, ls="--", label="noise-free")
+        ax.set_ylabel(position_label)
+        ax.set_title(label, loc="left", fontsize="medium")
+        ax.grid(True, alpha=0.3)
+        ax.set_xlim(t[0], t[-1])
+        ax.legend(loc="best", fontsize="small")
+    axes[-1].set_xlabel("Time (s)")
+    if title:
+        fig.suptitle(title)
+    return fig
+
+
+def plot_estimates(result, *, true_values=None, parameters=None, t_max=None, ylim=None,
+                   reference=None, label="estimate", reference_label="reference",
+                   marks=(), spans=(), title=None, ax=None, figsize=(7.5, 5.0)):
+    """Estimates over time with the true values as dashed lines.
+
+    Parameters
+    ----------
+    result : algid.result.EstimationResult
+        The estimates to show.
+    true_values : dict, optional
+        Parameter -> true value, drawn as dashed horizontal lines.
+    parameters : sequence of str, optional
+        Which estimates to draw (default: those in ``true_values``, else all).
+    t_max : float, optional
+        Right end of the time axis (default: end of the record).
+    ylim : (float, float), optional
+        View limits of the estimates; the early estimate is ill-conditioned and
+        would otherwise set the scale.
+    reference : algid.result.EstimationResult, optional
+        A second estimation drawn thin and dotted for comparison.
+    label, reference_label : str, optional
+        Legend text of the two estimations.
+    marks : sequence of (float, str), optional
+        Vertical lines at the given times, with their legend text.
+    spans : sequence of (float, float, str), optional
+        Shaded time intervals, with their legend text.
+    title : str, optional
+    ax : matplotlib.axes.Axes, optional
+        Draw into this axes instead of a new figure.
+    figsize : (float, float), optional
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        The figure of the axes drawn into.
+    """
+    own = ax is None
+    if own:
+        fig = Figure(figsize=figsize, layout="constrained")
+        ax = fig.subplots()
+    else:
+        fig = ax.figure
+    names = list(parameters or (true_values or result.estimates))
+    t_end = result.t[-1] if t_max is None else t_max
+    for name in names:
+        color = PARAMETER_COLORS.get(name)
+        if reference is not None and name in reference.estimates:
+            ax.plot(reference.t, reference.estimates[name], color=color, lw=0.9, ls=":",
+                    alpha=0.8, label=f"{name} {reference_label}")
+        ax.plot(result.t, result.estimates[name], color=color, lw=1.4,
+                label=f"{name} {label}")
+        if true_values and name in true_values:
+            ax.axhline(true_values[name], color="k", ls="--", lw=0.9, zorder=3,
+                       label=f"true {name} = {true_values[name]:g}")
+    styles = ("-.", (0, (1, 1)), "--")
+    for i, (when, text) in enumerate(marks):
+        ax.axvline(when, color="0.35", lw=0.9, ls=styles[i % len(styles)], label=text)
+    for start, stop, text in spans:
+        ax.axvspan(start, stop, color="0.5", alpha=0.12, lw=0, label=text)
+    ax.set_xlim(result.t[0], t_end)
+    if ylim is not None:
+        ax.set_ylim(*ylim)
+    ax.set_xlabel("Time (s)")
+    ax.set_ylabel(", ".join(names))
+    ax.grid(True, alpha=0.3)
+    if own:  # below the axes: the early estimate fills the top of the view
+        fig.legend(loc="outside lower center", fontsize="small", ncol=3, frameon=False)
+    else:
+        ax.legend(loc="upper right", fontsize="small", ncol=2)
+    if title:
+        ax.set_title(title)
+    return fig
+
+
+def save_figure(fig, path, *, dpi=120):
+    """Write a figure to a file (format from the suffix, e.g. PNG).
+
+    Parameters
+    ----------
+    fig : matplotlib.figure.Figure
+    path : str or path-like
+    dpi : float, optional
+
+    Returns
+    -------
+    pathlib.Path
+        The path written.
+    """
+    path = pathlib.Path(path)
+    fig.savefig(path, dpi=dpi)
+    return path
