@@ -59,7 +59,7 @@ def test_msd_first_equation_by_hand():
     I = IteratedIntegral
     assert sp.expand(d.P[0, 0] - (-2 * I(t * x, 2) + I(t**2 * x, 1))) == 0
     assert sp.expand(d.P[0, 1] - I(t**2 * x, 2)) == 0
-    assert sp.expand(d.Q[0] - (I(t**2 * f, 2) - 2 * I(x, 2) + 4 * I(t * x, 1) - t**2 * x)) == 0
+    assert sp.expand(d.Q[0] - (I(t**2 * f, 2) - 2 * I(x, 2) + 4 * I(t * x, 1) - I(t**2 * x, 0))) == 0
     # the second equation is the first one integrated once more
     assert sp.expand(d.P[1, 1] - I(t**2 * x, 3)) == 0
 

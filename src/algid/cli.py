@@ -16,7 +16,7 @@ import json
 import math
 import sys
 
-from .errors import AlgidError, InputDataError
+from .errors import AlgidError, InputDataError, ModelError
 
 __all__ = ["main", "build_parser"]
 
@@ -164,6 +164,13 @@ def build_parser() -> argparse.ArgumentParser:
     der.add_argument("--model", default="msd", metavar="NAME", help="model (default: msd)")
     der.add_argument("--format", choices=("text", "latex", "markdown"), default="text",
                      help="output format (default: text)")
+    der.add_argument("--equation", default=None, metavar="TEXT",
+                     help="your own model instead of --model, e.g. \"y'' + a*y' + b*y = u\" "
+                          "(derivatives with primes)")
+    der.add_argument("--parameters", default=None, metavar="NAMES",
+                     help="unknowns of --equation, e.g. \"a b\"")
+    der.add_argument("--signals", nargs=2, default=("f", "x"), metavar=("INPUT", "OUTPUT"),
+                     help="names of the input and output in --equation (default: f x)")
     der.set_defaults(handler=_cmd_derive)
 
     pap = commands.add_parser(
@@ -282,7 +289,14 @@ def _cmd_estimate(args) -> int:
 def _cmd_derive(args) -> int:
     _require("sympy", "algid derive needs SymPy: pip install 'algid[derive]'")
     symbolic = importlib.import_module("algid.symbolic")
-    text = symbolic.derivation_report(args.model, args.format)
+    model = args.model
+    if args.equation is not None or args.parameters is not None:
+        if args.equation is None or args.parameters is None:
+            raise ModelError("--equation and --parameters go together")
+        model = symbolic.LinearODEModel.from_equation(
+            args.equation, parameters=args.parameters, input=args.signals[0],
+            output=args.signals[1], name="custom")
+    text = symbolic.derivation_report(model, args.format)
     print(str(text).rstrip("\n"))
     return 0
 
@@ -339,3 +353,8 @@ def main(argv=None) -> int:
     except KeyboardInterrupt:
         _error("interrupted")
         return 130
+    except BrokenPipeError:
+        # the reader (e.g. `| head`) went away: stop quietly, as Unix tools do
+        import os
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 0

@@ -34,12 +34,12 @@ from fractions import Fraction
 from functools import lru_cache
 
 import numpy as np
-import scipy.linalg
 import scipy.signal
 
 from algid.errors import InputDataError
 
-__all__ = ["LowpassFilter", "as_lowpass", "lti_response", "interval_input_matrices"]
+__all__ = ["LowpassFilter", "as_lowpass", "lti_response", "interval_input_matrices",
+           "expm_small"]
 
 
 # --------------------------------------------------------------------------------------
@@ -53,6 +53,40 @@ def _check_order(order):
     if isinstance(order, bool) or order not in QUADRATURE_ORDERS:
         raise InputDataError(f"quadrature order must be one of {QUADRATURE_ORDERS}, "
                              f"got {order!r}")
+
+
+#: Terms of the Taylor series of the matrix exponential (after scaling to norm <= 1/2
+#: the remainder is below ``0.5**17 / 17! < 1e-17``).
+_TAYLOR_TERMS = 17
+
+
+def expm_small(M):
+    """Matrix exponential of a small matrix, by scaling, Taylor series and squaring.
+
+    NumPy products only.  For the matrices of this module (a few tens of rows, norm of
+    order one) it is as accurate as :func:`scipy.linalg.expm` and, when the BLAS runs
+    multi-threaded on a busy machine, much faster.
+
+    Parameters
+    ----------
+    M : ndarray, shape (n, n)
+
+    Returns
+    -------
+    ndarray, shape (n, n)
+    """
+    M = np.asarray(M, dtype=float)
+    norm = np.linalg.norm(M, 1)
+    squarings = int(max(0, np.ceil(np.log2(norm / 0.5)))) if norm > 0.5 else 0
+    X = M / 2.0**squarings
+    term = np.eye(M.shape[0])
+    out = term.copy()
+    for k in range(1, _TAYLOR_TERMS + 1):
+        term = term @ X / k
+        out += term
+    for _ in range(squarings):
+        out = out @ out
+    return out
 
 
 @lru_cache(maxsize=None)
@@ -113,7 +147,7 @@ def interval_input_matrices(A, b, h, *, order=6):
     M[:n, :n] = A * h
     M[:n, n] = b
     M[n + np.arange(q - 1), n + 1 + np.arange(q - 1)] = 1.0
-    E = scipy.linalg.expm(M)
+    E = expm_small(M)
     Phi = E[:n, :n]
     factorial = np.cumprod(np.r_[1.0, np.arange(1, q)])  # d!
     moments = E[:n, n:] * factorial  # column d: int_0^1 expm(hA(1-v)) b v**d dv

@@ -27,6 +27,7 @@ TIME = sp.Symbol("t", nonnegative=True)
 LAPLACE = sp.Symbol("s")
 
 _NAME = re.compile(r"^[A-Za-z][A-Za-z0-9_]*$")
+_FUNCTIONS = {"sqrt", "exp", "log", "sin", "cos", "pi"}
 _PRIMES = re.compile(r"\b([A-Za-z][A-Za-z0-9_]*)('+)")
 
 
@@ -205,6 +206,11 @@ class LinearODEModel:
             local[sig] = sp.Symbol(f"{sig}__d0")
             for k in range(1, 10):
                 local[f"{sig}__d{k}"] = sp.Symbol(f"{sig}__d{k}")
+        # every other identifier is a plain symbol (not SymPy's Q, S, E, N, ...), so
+        # that an unknown name is reported as such
+        for ident in set(re.findall(r"\b[A-Za-z_][A-Za-z0-9_]*\b", expr_text)):
+            if ident not in local and ident not in _FUNCTIONS:
+                local[ident] = sp.Symbol(ident)
         try:
             expr = sp.expand(sp.sympify(expr_text, locals=local))
         except (sp.SympifyError, TypeError, SyntaxError) as exc:
@@ -212,6 +218,10 @@ class LinearODEModel:
         sig_syms = {sig: [local[f"{sig}__d{k}"] if k else local[sig] for k in range(10)]
                     for sig in (output, input)}
         all_sig = set(sig_syms[output] + sig_syms[input])
+        for u in all_sig:
+            for v in all_sig:
+                if sp.diff(expr, u, v) != 0:
+                    raise ModelError(f"equation {equation!r} is not linear in {output!r} and {input!r}")
         stray = expr.free_symbols - all_sig - set(names.values())
         if stray:
             raise ModelError(f"equation {equation!r} uses unknown names {sorted(map(str, stray))}")

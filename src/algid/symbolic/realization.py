@@ -335,15 +335,28 @@ class Realization:
                 for name, y in self.output_equations().items()}
 
     def where(self) -> dict:
-        """State -> name of another output whose value it carries (as the literature notes)."""
+        """Shared values: for each chain of the ``"entries"`` layout, its first state
+        that carries the value of an earlier output or of a state of an earlier chain.
+
+        Returns
+        -------
+        dict
+            State -> name of the output (preferred) or state with the same value; the
+            rest of the chain then repeats that one (the remarks "where ..." of the
+            literature).
+        """
+        if self.layout != "entries":
+            return {}
         form = self.integral_form()
         found = {}
-        owner = {z: name for name in self.outputs for z in self._states_of(name)}
-        for z in self.states:
-            for name in self.outputs:
-                if name != owner.get(z) and form[z] != 0 and \
-                        same_integral_form(form[z], self.targets[name]):
-                    found[z] = name
+        for i, name in enumerate(self.outputs):
+            earlier = list(self.outputs[:i])
+            others = earlier + [w for n in earlier for w in self._states_of(n)]
+            for z in self._states_of(name):
+                match = next((o for o in others if form[z] != 0 and same_integral_form(
+                    form[z], self.targets[o] if isinstance(o, str) else form[o])), None)
+                if match is not None:
+                    found[z] = str(match)
                     break
         return found
 

@@ -1,0 +1,344 @@
+"""Tests of algid.online: the streaming estimator and the re-anchoring of its origin."""
+
+import math
+
+import numpy as np
+import pytest
+
+from algid.errors import InputDataError, ModelError
+from algid.estimator import estimate, load_model
+from algid.online import TRACKING_RESET_PERIOD, OnlineEstimator, run_stream
+from algid.simulation import simulate
+
+from conftest import exact_response
+
+RATE = 1000.0
+H = 1.0 / RATE
+# For comparisons with the batch estimator: a step that is exact in binary, so that the
+# step the batch estimator infers from any part of a record, (t[-1] - t[0]) / (n - 1),
+# is the stream's step to the last bit (at 1 kHz it may differ by an ulp, which the
+# ill-conditioned early or low-excitation estimates magnify to ~1e-7).
+EXACT_RATE = 1024.0
+
+# The streaming estimator performs the batch estimator's floating-point operations in
+# the same order, so the two agree to round-off (bit for bit in practice).  Early
+# estimates are ill-conditioned (det P ~ t**k), which can magnify a different
+# summation order of a few units of round-off; 1e-9 leaves room for that.
+RTOL_BATCH = 1e-9
+
+
+def _record(duration=1.0, **kw):
+    """Exact sine response with non-zero initial state (no special start), sampled at
+    EXACT_RATE."""
+    return exact_response("sine", duration=duration, rate=EXACT_RATE, x0=0.1, v0=-0.2, **kw)
+
+
+def _chunks(n, kind, rng=None):
+    """Chunk sizes that add up to n."""
+    if kind == "random":
+        sizes = []
+        while sum(sizes) < n:
+            sizes.append(int(rng.integers(1, 60)))
+        sizes[-1] -= sum(sizes) - n
+        return [s for s in sizes if s]
+    if kind == "all":
+        return [n]
+    size = int(kind)
+    return [size] * (n // size) + ([n % size] if n % size else [])
+
+
+def _feed(est, t, f, x, sizes):
+    """Feed the record in chunks; concatenate the returned estimates."""
+    results, start = [], 0
+    for size in sizes:
+        r = est.update(t[start:start + size], f[start:start + size], x[start:start + size])
+        assert r.t.size == size
+        np.testing.assert_array_equal(r.t, t[start:start + size])
+        results.append(r)
+        start += size
+    assert start == t.size
+    return {k: np.concatenate([r.estimates[k] for r in results]) for k in results[0].estimates}
+
+
+def _assert_same_estimates(stream, batch, rtol=RTOL_BATCH):
+    assert set(stream) == set(batch)
+    for name, ref in batch.items():
+        got = stream[name]
+        np.testing.assert_array_equal(np.isnan(got), np.isnan(ref), err_msg=name)
+        ok = ~np.isnan(ref)
+        np.testing.assert_allclose(got[ok], ref[ok], rtol=rtol, atol=0, err_msg=name)
+
+
+# --------------------------------------------------------------------------- chunking
+
+
+@pytest.mark.parametrize("model, mass", [("msd", None), ("msd", 2.0), ("msd_mass", None)])
+@pytest.mark.parametrize("filter_order", [0, 2])
+@pytest.mark.parametrize("quadrature_order", [2, 6])
+def test_any_chunking_gives_the_batch_estimates(model, mass, filter_order, quadrature_order):
+    t, f, x = _record(duration=0.6)
+    batch = estimate(t, f, x, model=model, mass=mass, filter_order=filter_order,
+                     quadrature_order=quadrature_order).estimates
+    rng = np.random.default_rng(12345)
+    for kind in ("1", "7", "1000", "all", "random"):
+        est = OnlineEstimator(model, mass=mass, filter_order=filter_order,
+                              quadrature_order=quadrature_order)
+        got = _feed(est, t, f, x, _chunks(t.size, kind, rng))
+        _assert_same_estimates(got, batch)
+        assert est.n_seen == t.size
+
+
+def test_chunking_with_given_rate_and_long_record():
+    t, f, x = exact_response("step", duration=3.0, rate=EXACT_RATE, x0=-0.05, v0=0.3)
+    batch = estimate(t, f, x).estimates
+    est = OnlineEstimator(rate=EXACT_RATE)
+    _assert_same_estimates(_feed(est, t, f, x, _chunks(t.size, "1000")), batch)
+    assert est.dt == 1 / EXACT_RATE
+
+
+def test_scalars_and_empty_chunks():
+    t, f, x = _record(duration=0.05)
+    batch = estimate(t, f, x).estimates
+    est = OnlineEstimator()
+    got = {"B": [], "K": []}
+    for ti, fi, xi in zip(t.tolist(), f.tolist(), x.tolist()):
+        r = est.update(ti, fi, xi)
+        assert r.t.shape == (1,)
+        for k in got:
+            got[k].append(r.estimates[k][0])
+        empty = est.update([], [], [])
+        assert empty.t.size == 0 and empty.B.size == 0
+    _assert_same_estimates({k: np.array(v) for k, v in got.items()}, batch)
+
+
+# --------------------------------------------------------------------------- start-up
+
+
+@pytest.mark.parametrize("q", [2, 3, 4, 5, 6, 7, 8])
+def test_startup_is_nan_until_sample_q_minus_1(q):
+    t, f, x = _record(duration=0.05)
+    est = OnlineEstimator(quadrature_order=q)
+    assert est.startup_samples == q - 1
+    for n in range(q - 1):
+        r = est.update(t[n], f[n], x[n])
+        assert np.isnan(r.B[0]) and np.isnan(r.K[0])
+    r = est.update(t[q - 1], f[q - 1], x[q - 1])  # the call delivering sample q - 1
+    batch = estimate(t, f, x, quadrature_order=q)
+    if q > 2:
+        assert np.isfinite(r.B[0]) and np.isfinite(r.K[0])
+        assert batch.valid_index == q - 1
+        assert r.B[0] == pytest.approx(batch.B[q - 1], rel=RTOL_BATCH)
+    else:
+        # the trapezoid's two first samples give a singular P (det = 0), in batch too
+        assert np.isnan(r.B[0]) and batch.valid_index == 2
+
+
+def test_startup_split_across_chunks():
+    t, f, x = _record(duration=0.05)
+    est = OnlineEstimator()
+    first = est.update(t[:3], f[:3], x[:3])
+    assert np.all(np.isnan(first.B))
+    second = est.update(t[3:9], f[3:9], x[3:9])  # holds samples 3..8; 5 = q - 1 is first
+    assert np.isnan(second.B[:2]).all() and np.isfinite(second.B[2:]).all()
+    assert second.t_valid == t[5]
+
+
+# --------------------------------------------------------------------------- reset()
+
+
+def test_reset_starts_a_new_stream():
+    t, f, x = _record(duration=0.3)
+    est = OnlineEstimator(rate=EXACT_RATE)
+    est.update(t, f, x)
+    est.reset()
+    assert est.n_seen == 0 and math.isnan(est.t_origin)
+    # the new stream starts anywhere in time: only the time since its origin matters
+    t2 = t[100:] + 7.0
+    got = _feed(est, t2, f[100:], x[100:], _chunks(t2.size, "7"))
+    _assert_same_estimates(got, estimate(t2, f[100:], x[100:]).estimates)
+    assert est.t_origin == t2[0]
+
+
+# --------------------------------------------------------------------------- re-anchoring
+
+
+def test_reanchored_estimates_are_batch_estimates_from_the_window_origin():
+    t, f, x = _record(duration=0.7)
+    est = OnlineEstimator(rate=EXACT_RATE, reset_period=0.0977)  # rounded to 2 * 50 samples
+    assert est.reset_period == 100 / EXACT_RATE
+    half, period = 50, 100
+    rng = np.random.default_rng(7)
+    got = _feed(est, t, f, x, _chunks(t.size, "random", rng))
+    n = np.arange(t.size)
+    # estimator A restarts at 0, 100, 200, ...; B at 50, 150, ...; the older is reported
+    origin = np.where(n < half, 0, (n - half) // half * half)
+    assert np.all((n - origin >= half) | (n < half)) and np.all(n - origin < period)
+    for o in np.unique(origin):
+        sel = origin == o
+        ref = estimate(t[o:o + period], f[o:o + period], x[o:o + period]).estimates
+        idx = n[sel] - o
+        for name in ("B", "K"):
+            np.testing.assert_allclose(got[name][sel], ref[name][idx], rtol=RTOL_BATCH, atol=0)
+    assert np.isnan(got["B"][:5]).all() and np.isfinite(got["B"][5:]).all()
+    # the last sample (n = 716) is reported by the window started at 650
+    assert est.t_origin == t[650]
+    assert sorted(est.window_origins) == [t[650], t[700]]
+
+
+def _changed_record(kind, before, after, t_change, duration):
+    """Exact response whose parameters change at t_change: the second segment starts
+    from the state [x, x'] the first one ends in."""
+    n1, n = int(round(t_change * RATE)), int(round(duration * RATE))
+    t = np.arange(n + 1) / RATE
+    a = simulate(kind, m=1.0, c=before[0], k=before[1], timepts=t[:n1 + 1])
+    b = simulate(kind, m=1.0, c=after[0], k=after[1], timepts=t[n1:],
+                 initial_state=(a.x_true[-1], a.v_true[-1]))
+    assert b.t[0] == a.t[-1]
+    return t, np.concatenate([a.f[:-1], b.f]), np.concatenate([a.x_true[:-1], b.x_true])
+
+
+@pytest.mark.parametrize("kind", ["step", "sine"])
+@pytest.mark.parametrize("after", [(2.0, 5.0), (1.0, 3.0)], ids=["K 3->5", "B 2->1"])
+def test_parameter_change_is_followed_within_a_tenth_of_a_second(kind, after):
+    t_change = 1.013  # not on a restart boundary
+    t, f, x = _changed_record(kind, (2.0, 3.0), after, t_change, t_change + 0.3)
+    est = OnlineEstimator(rate=RATE, reset_period=TRACKING_RESET_PERIOD)
+    got = _feed(est, t, f, x, _chunks(t.size, "100"))
+    B, K = got["B"], got["K"]
+    settled = (t >= est.reset_period / 2) & (t < t_change)
+    assert np.max(np.abs(B[settled] / 2.0 - 1)) <= 1e-3
+    assert np.max(np.abs(K[settled] / 3.0 - 1)) <= 1e-3
+    # required: within 0.1 % no later than 0.1 s after the change; by design: once the
+    # reported window starts after the change, at most one period after it
+    for deadline in (0.1, est.reset_period):
+        late = t >= t_change + deadline - 1e-9
+        assert np.max(np.abs(B[late] / after[0] - 1)) <= 1e-3
+        assert np.max(np.abs(K[late] / after[1] - 1)) <= 1e-3
+
+
+class _Bound:
+    """Upper bound of |value| carried through the generated polynomial arithmetic."""
+
+    def __init__(self, v):
+        self.v = abs(float(v))
+
+    @staticmethod
+    def _of(other):
+        return other.v if isinstance(other, _Bound) else abs(float(other))
+
+    def __add__(self, other):
+        return _Bound(self.v + self._of(other))
+
+    __radd__ = __sub__ = __rsub__ = __add__
+
+    def __mul__(self, other):
+        return _Bound(self.v * self._of(other))
+
+    __rmul__ = __mul__
+
+    def __neg__(self):
+        return self
+
+
+def _state_bound(model, filter_order, window, max_u, max_x):
+    """Bound of every integral and carried sample of a window no longer than `window`:
+    the l-fold integral of tau**p * s over [0, T] is at most max|s| T**(p+l) p!/(p+l)!."""
+    gen = load_model(model)
+    sig = {gen.INPUT: max_u, gen.OUTPUT: max_x}
+    kern = {}
+    for s, p, depth in gen.CHAINS:
+        for level in range(depth + 1):
+            kern[gen.kernel_name(s, p, level)] = (
+                sig[s] * window ** (p + level) * math.factorial(p) / math.factorial(p + level))
+    bounds = list(kern.values())
+    P, Q = gen.regressors({k: _Bound(v) for k, v in kern.items()})
+    numerators, denominator = gen.cramer(P, Q)
+    for b in (*numerators, denominator):
+        bounds += [b.v * window ** j / math.factorial(j) for j in range(filter_order + 1)]
+    return max(bounds)
+
+
+def test_long_stream_stays_accurate_and_bounded():
+    # shortened version of the 10**7-sample stream: 2e5 samples at 1 kHz
+    period, chunk = 2.0, 1000
+    s = simulate("sine", m=1.0, c=2.0, k=3.0, duration=200.0, rate=RATE)
+    t, f, x = s.t[:200_000], s.f[:200_000], s.x_true[:200_000]
+    est = OnlineEstimator(rate=RATE, reset_period=period)
+    chunks = ((t[i:i + chunk], f[i:i + chunk], x[i:i + chunk])
+              for i in range(0, t.size, chunk))
+    summary = run_stream(est, chunks, true_values={"B": 2.0, "K": 3.0},
+                         settle_time=period / 2)
+    assert summary["n_samples"] == t.size and summary["n_undefined"] == 0
+    # converged windows (age >= period / 2) of exact data: quadrature error O(h**6)
+    assert summary["max_rel_error"]["B"] <= 1e-6
+    assert summary["max_rel_error"]["K"] <= 1e-6
+    # the state never exceeds what a window of one period can hold (plus round-off and
+    # quadrature error, far below 1e-6 relative)
+    bound = _state_bound("msd", 2, period, np.max(np.abs(f)), np.max(np.abs(x)))
+    assert summary["max_state_magnitude"] <= bound * (1 + 1e-6)
+    assert est.state_magnitude <= bound * (1 + 1e-6)
+    # whereas without re-anchoring the integrals grow like a power of the time
+    plain = OnlineEstimator(rate=RATE)
+    plain.update(t[:20_000], f[:20_000], x[:20_000])
+    assert plain.state_magnitude > 1e3 * bound
+
+
+# --------------------------------------------------------------------------- bad input
+
+
+def _one_line_error(match, func, *args):
+    with pytest.raises(InputDataError, match=match) as info:
+        func(*args)
+    assert "\n" not in str(info.value)
+    return str(info.value)
+
+
+def test_bad_chunks_are_refused_and_leave_the_state_unchanged():
+    t, f, x = _record(duration=0.1)
+    est = OnlineEstimator()
+    est.update(t[:50], f[:50], x[:50])
+    bad_f = f[50:60].copy()
+    bad_f[3] = np.nan
+    msg = _one_line_error("signal 'f' has NaN at row 3", est.update, t[50:60], bad_f, x[50:60])
+    assert "stream sample 50" in msg
+    _one_line_error("must be 1-D", est.update, t[50:60], f[50:60], x[50:60, None])
+    _one_line_error("different lengths", est.update, t[50:60], f[50:59], x[50:60])
+    _one_line_error("not numeric", est.update, t[50:60], ["a"] * 10, x[50:60])
+    jitter = t[50:60].copy()
+    jitter[4] += 0.1 * H
+    _one_line_error("not uniformly sampled at stream sample 54", est.update,
+                    jitter, f[50:60], x[50:60])
+    _one_line_error("not uniformly sampled at stream sample 50", est.update,
+                    t[51:61], f[51:61], x[51:61])  # a sample is missing
+    _one_line_error("not increasing at stream sample 50", est.update,
+                    t[40:50], f[40:50], x[40:50])  # time going backwards
+    _one_line_error("not increasing at stream sample 50", est.update, t[49], f[49], x[49])
+    _one_line_error("has inf at row 0", est.update, t[50], np.inf, x[50])
+    assert est.n_seen == 50
+    rest = est.update(t[50:], f[50:], x[50:])
+    np.testing.assert_allclose(rest.B, estimate(t, f, x).B[50:], rtol=RTOL_BATCH, atol=0)
+
+
+def test_given_step_is_enforced():
+    t, f, x = _record(duration=0.05)
+    est = OnlineEstimator(dt=2 * H)
+    _one_line_error("not uniformly sampled", est.update, t, f, x)
+
+
+def test_bad_options():
+    with pytest.raises(ModelError):
+        OnlineEstimator("spring")
+    with pytest.raises(ModelError):
+        OnlineEstimator("msd_mass", mass=1.0)
+    for kwargs, match in [({"mass": -1.0}, "mass"), ({"dt": 0.0}, "dt"),
+                          ({"rate": np.nan}, "rate"), ({"dt": H, "rate": RATE}, "at most one"),
+                          ({"filter_order": -1}, "filter_order"),
+                          ({"quadrature_order": 9}, "quadrature_order"),
+                          ({"reset_period": 0.0}, "reset_period"),
+                          ({"reset_period": 0.01, "rate": RATE}, "too short")]:
+        _one_line_error(match, lambda kw=kwargs: OnlineEstimator(**kw))
+    # a reset period too short for a step learnt from the data: refused at the update
+    est = OnlineEstimator(reset_period=0.01)
+    t, f, x = _record(duration=0.05)
+    _one_line_error("too short", est.update, t, f, x)
+    assert est.n_seen == 0
