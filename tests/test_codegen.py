@@ -84,3 +84,15 @@ def test_kernel_names_and_chains_are_consistent():
         for signal, power, order in module.KERNELS:
             assert order <= depth[(signal, power)]
         assert set(module.PARAMETERS) == {str(p) for p in builtin_model(name).parameters}
+
+
+def test_packed_regressors_equal_named_ones():
+    rng = np.random.default_rng(3)
+    for name in BUILTIN_MODELS:
+        module = load_model(name)
+        values = rng.standard_normal((len(module.KERNELS), 5))
+        named = {module.kernel_name(*k): values[i] for i, k in enumerate(module.KERNELS)}
+        P1, Q1 = module.regressors(named)
+        P2, Q2 = module.regressors_packed(values)
+        np.testing.assert_array_equal(np.array(P1), np.array(P2))
+        np.testing.assert_array_equal(np.array(Q1), np.array(Q2))

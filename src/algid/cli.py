@@ -1,5 +1,5 @@
-"""Command line interface: ``algid simulate``, ``algid estimate``, ``algid derive`` and
-``algid paper``.
+"""Command line interface: ``algid simulate``, ``algid estimate``, ``algid derive``,
+``algid paper`` and ``algid errata``.
 
 Errors caused by the user (bad data, bad file, unknown model) are printed as one line
 ``algid: error: <message>`` on standard error with exit code 2; usage errors are
@@ -190,6 +190,20 @@ def build_parser() -> argparse.ArgumentParser:
                      help="noise realisations for medians and RMSEs (default: 20)")
     pap.add_argument("--json", action="store_true", help="print the summary as JSON")
     pap.set_defaults(handler=_cmd_paper)
+
+    err = commands.add_parser(
+        "errata",
+        help="check the printed equations of Becedas et al. (2007), Section 2 (needs SymPy)",
+        description=(
+            "Check each printed equation (1)-(33) of Section 2 and the footnote on iterated "
+            "integrals against a symbolic computation; print OK / WRONG, the reason and "
+            "the corrected forms."
+        ),
+    )
+    err.add_argument("--json", action="store_true",
+                     help="print a JSON list of {number, correct, printed, corrected, "
+                          "explanation}")
+    err.set_defaults(handler=_cmd_errata)
     return parser
 
 
@@ -313,6 +327,14 @@ def _cmd_paper(args) -> int:
         return 0
     print(result.table())
     print(f"wrote {len(result.figures)} figures and summary.json to {result.out}")
+    return 0
+
+
+def _cmd_errata(args) -> int:
+    _require("sympy", "algid errata needs SymPy: pip install 'algid[derive]'")
+    errata = importlib.import_module("algid.symbolic.errata")
+    verdicts = errata.errata_report()
+    print(errata.format_errata(verdicts, "json" if args.json else "text"))
     return 0
 
 

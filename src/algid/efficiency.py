@@ -71,12 +71,14 @@ def crlb_study(n_runs=200, horizons=(1, 2.5, 5), inputs=("step", "sine"), noise_
     rows = []
     for i_input, name in enumerate(inputs):
         errors = {(T, method): [] for T in horizons for method in ("algebraic", "refined")}
+        sim = simulate(name, m=1.0, c=B, k=K, duration=duration, rate=rate,
+                       initial_state=initial_state)
         for run in range(n_runs):
-            sim = simulate(name, m=1.0, c=B, k=K, duration=duration, rate=rate,
-                           initial_state=initial_state, noise_std=noise_std,
-                           seed=np.random.SeedSequence([seed, i_input, run]))
+            # the noise algid.simulate would add with this seed, on the same response
+            rng = np.random.default_rng(np.random.SeedSequence([seed, i_input, run]))
+            x_run = sim.x_true + rng.normal(0.0, noise_std, size=sim.t.size)
             for T, n in zip(horizons, lengths):
-                t, f, x = sim.t[:n], sim.f[:n], sim.x[:n]
+                t, f, x = sim.t[:n], sim.f[:n], x_run[:n]
                 alg = estimate(t, f, x, filter_order=filter_order,
                                quadrature_order=quadrature_order).final()
                 errors[T, "algebraic"].append([alg["B"] - B, alg["K"] - K])
@@ -88,7 +90,6 @@ def crlb_study(n_runs=200, horizons=(1, 2.5, 5), inputs=("step", "sine"), noise_
                     else:
                         errors[T, "refined"].append([np.nan, np.nan])
         for T, n in zip(horizons, lengths):
-            # the input does not depend on the noise: that of the last run serves
             bound = crlb(sim.t[:n], sim.f[:n], B=B, K=K, x0=initial_state[0],
                          v0=initial_state[1], noise_std=noise_std,
                          quadrature_order=quadrature_order)

@@ -58,9 +58,9 @@ that of the estimator whose window is the older one, of age between ``N/2`` and
 
 The price is a second estimator (twice the arithmetic) and the loss of the averaging
 over the whole record, which matters with noisy data.  ``reset_period=None`` (the
-default) never restarts and reproduces the batch estimator.  For tracking noise-free
-or lightly noisy data at 1 kHz, :data:`TRACKING_RESET_PERIOD` is a good choice; see
-its description.
+default) never restarts and reproduces the batch estimator.  For tracking changes in
+noise-free or nearly noise-free data at about 1 kHz, :data:`TRACKING_RESET_PERIOD` is a
+good choice; see its description.
 
 Examples
 --------
@@ -80,7 +80,7 @@ import numbers
 
 import numpy as np
 
-from algid.errors import InputDataError
+from algid.errors import InputDataError, ModelError
 from algid.estimator import (DEFAULT_FILTER_ORDER, DEFAULT_QUADRATURE_ORDER, _check_options,
                              load_model)
 from algid.quadrature import rule_weights, startup_samples
@@ -92,10 +92,11 @@ __all__ = ["OnlineEstimator", "run_stream", "TRACKING_RESET_PERIOD", "VECTOR_MIN
 #: Reset period [s] suggested for following changes of the parameters in noise-free
 #: or nearly noise-free data at about 1 kHz with the default options (filter order 2,
 #: 6-point rule).  Measured on the paper's system (B = 2, K = 3) and after changes to
-#: K = 5 or B = 1, for step and sine inputs: a restarted window comes within 0.1 % at
-#: its first estimate, 5 ms after its origin (within 1e-6 after 5-20 ms), well inside
-#: the half period of 25 ms before it is reported, and the estimates are within 0.1 %
-#: of new values at most 47 ms after a change.  Short windows do not average
+#: K = 5 or B = 1, for step and sine inputs: a window started in mid-stream comes
+#: within 0.1 % 5-7 ms after its origin (13 ms for a sine from rest; within 1e-6 after
+#: 5-20 ms, 68 ms for a step response that has settled), inside the half period of
+#: 25 ms before it is reported, and the estimates are within 0.1 % of the new values
+#: at most 47 ms after a change.  Short windows do not average
 #: measurement noise: with noise of 1e-4 m on ``x`` they are useless at this period,
 #: and periods of seconds are needed.
 TRACKING_RESET_PERIOD = 0.05
@@ -293,7 +294,7 @@ class _Window:
         q = self.order
         if self.n < q:  # start-up: wait for sample q - 1
             if self.n + m < q:
-                self.buffer.append((u, x))
+                self.buffer.append((u.copy(), x.copy()))
                 self.n += m
                 return [np.full(m, np.nan) for _ in self.gen.PARAMETERS]
             old = self.n
@@ -353,7 +354,7 @@ class _Window:
             y = [signals[sig] if power == 0 else
                  tau * signals[sig] if power == 1 else
                  tau * tau * signals[sig] if power == 2 else
-                 float(np.array([tau]) ** power) * signals[sig]
+                 float((np.array([tau]) ** power)[0]) * signals[sig]
                  for sig, power in rows]
             levels = _step_lists(y, c_sums, c_hist, w, h)
             P, Q = gen.regressors({name: levels[level][c] for name, c, level in index})
@@ -437,8 +438,6 @@ class OnlineEstimator:
     def __init__(self, model="msd", *, filter_order=DEFAULT_FILTER_ORDER,
                  quadrature_order=DEFAULT_QUADRATURE_ORDER, mass=None, dt=None, rate=None,
                  reset_period=None):
-        from algid.errors import ModelError
-
         self._gen = gen = load_model(model)
         _check_options(filter_order, quadrature_order)
         if mass is not None:
@@ -476,7 +475,6 @@ class OnlineEstimator:
             else self._half_period(self._h)
         self._n = 0
         self._t_last = None
-        self._t_first = float("nan")
         self._reported = 0
         for w in self._windows:
             w.restart(origin_time=float("nan"))
@@ -650,9 +648,7 @@ class OnlineEstimator:
         m = t.size
         if m:
             if self._n == 0:
-                self._t_first = float(t[0])
-                for w in self._windows[:1]:
-                    w.origin_time = float(t[0])
+                self._windows[0].origin_time = float(t[0])
             self._t_last = float(t[-1])
         u = f / self.mass if self.mass is not None else f
         if self._requested_period is None:

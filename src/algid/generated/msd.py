@@ -80,6 +80,32 @@ def regressors(k):
     return ((p_0_0, p_0_1,), (p_1_0, p_1_1,),), (q_0, q_1,)
 
 
+def regressors_packed(kv):
+    """:func:`regressors` with the kernels given by position, in KERNELS order.
+
+    ``kv`` is any sequence (or array whose first axis runs over the kernels);
+    plain indexing and arithmetic only, so that a JIT compiler can inline it.
+    """
+    f_t2_i2 = kv[0]
+    f_t2_i3 = kv[1]
+    x_t0_i2 = kv[2]
+    x_t0_i3 = kv[3]
+    x_t1_i1 = kv[4]
+    x_t1_i2 = kv[5]
+    x_t1_i3 = kv[6]
+    x_t2_i0 = kv[7]
+    x_t2_i1 = kv[8]
+    x_t2_i2 = kv[9]
+    x_t2_i3 = kv[10]
+    p_0_0 = -2*x_t1_i2 + x_t2_i1
+    p_0_1 = x_t2_i2
+    p_1_0 = -2*x_t1_i3 + x_t2_i2
+    p_1_1 = x_t2_i3
+    q_0 = f_t2_i2 - 2*x_t0_i2 + 4*x_t1_i1 - x_t2_i0
+    q_1 = f_t2_i3 - 2*x_t0_i3 + 4*x_t1_i2 - x_t2_i1
+    return ((p_0_0, p_0_1,), (p_1_0, p_1_1,),), (q_0, q_1,)
+
+
 def cramer(P, Q):
     """Cramer's rule: ``theta[i] = numerators[i] / denominator``.
 

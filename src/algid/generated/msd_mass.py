@@ -94,6 +94,42 @@ def regressors(k):
     return ((p_0_0, p_0_1, p_0_2,), (p_1_0, p_1_1, p_1_2,), (p_2_0, p_2_1, p_2_2,),), (q_0, q_1, q_2,)
 
 
+def regressors_packed(kv):
+    """:func:`regressors` with the kernels given by position, in KERNELS order.
+
+    ``kv`` is any sequence (or array whose first axis runs over the kernels);
+    plain indexing and arithmetic only, so that a JIT compiler can inline it.
+    """
+    F_t2_i2 = kv[0]
+    F_t2_i3 = kv[1]
+    F_t2_i4 = kv[2]
+    x_t0_i2 = kv[3]
+    x_t0_i3 = kv[4]
+    x_t0_i4 = kv[5]
+    x_t1_i1 = kv[6]
+    x_t1_i2 = kv[7]
+    x_t1_i3 = kv[8]
+    x_t1_i4 = kv[9]
+    x_t2_i0 = kv[10]
+    x_t2_i1 = kv[11]
+    x_t2_i2 = kv[12]
+    x_t2_i3 = kv[13]
+    x_t2_i4 = kv[14]
+    p_0_0 = 2*x_t0_i2 - 4*x_t1_i1 + x_t2_i0
+    p_0_1 = -2*x_t1_i2 + x_t2_i1
+    p_0_2 = x_t2_i2
+    p_1_0 = 2*x_t0_i3 - 4*x_t1_i2 + x_t2_i1
+    p_1_1 = -2*x_t1_i3 + x_t2_i2
+    p_1_2 = x_t2_i3
+    p_2_0 = 2*x_t0_i4 - 4*x_t1_i3 + x_t2_i2
+    p_2_1 = -2*x_t1_i4 + x_t2_i3
+    p_2_2 = x_t2_i4
+    q_0 = F_t2_i2
+    q_1 = F_t2_i3
+    q_2 = F_t2_i4
+    return ((p_0_0, p_0_1, p_0_2,), (p_1_0, p_1_1, p_1_2,), (p_2_0, p_2_1, p_2_2,),), (q_0, q_1, q_2,)
+
+
 def cramer(P, Q):
     """Cramer's rule: ``theta[i] = numerators[i] / denominator``.
 

@@ -90,6 +90,19 @@ def numpy_module_source(derivation: Derivation) -> str:
     rows = ", ".join("(" + ", ".join(f"p_{i}_{j}" for j in range(n_par)) + ",)" for i in range(n_eq))
     qs = ", ".join(f"q_{i}" for i in range(n_eq))
     lines += [f"    return ({rows},), ({qs},)", "", ""]
+    lines += ["def regressors_packed(kv):",
+              '    """:func:`regressors` with the kernels given by position, in KERNELS order.', "",
+              "    ``kv`` is any sequence (or array whose first axis runs over the kernels);",
+              "    plain indexing and arithmetic only, so that a JIT compiler can inline it.",
+              '    """']
+    for idx, kern in enumerate(derivation.kernels):
+        lines.append(f"    {kern.name} = kv[{idx}]")
+    for i in range(n_eq):
+        for j in range(n_par):
+            lines.append(f"    p_{i}_{j} = {_code(P[i, j])}")
+    for i in range(n_eq):
+        lines.append(f"    q_{i} = {_code(Q[i])}")
+    lines += [f"    return ({rows},), ({qs},)", "", ""]
     lines += ["def cramer(P, Q):",
               '    """Cramer\'s rule: ``theta[i] = numerators[i] / denominator``.', "",
               "    Numerators and denominator are returned separately so that the same filter",
