@@ -10,32 +10,31 @@ import pytest
 from algid.crlb import covariance_from_sensitivities, crlb, fisher_information
 from algid.errors import InputDataError
 from algid.sensitivity import SENSITIVITY_PARAMETERS, output_sensitivities
-from algid.simulation import simulate
 
-from conftest import exact_response
+from msd_reference import analytic_response
 
 EPS = np.finfo(float).eps
 TRUE = dict(B=2.0, K=3.0, x0=0.05, v0=-0.1)
 
 
-def _simulated_x(kind, B, K, x0, v0, duration=2.0):
-    """Exact response from algid.simulate (Sylvester/closed form, independent code)."""
-    return simulate(kind, m=1.0, c=B, k=K, duration=duration, initial_state=(x0, v0)).x_true
+def _reference_x(kind, B, K, x0, v0, duration=2.0):
+    """Closed-form response (tests/msd_reference.py, independent of algid)."""
+    return analytic_response(kind, B=B, K=K, x0=x0, v0=v0, duration=duration)[2]
 
 
 @pytest.mark.parametrize("kind", ["step", "sine"])
 def test_model_output_is_exact(kind):
     # Step: the constant input is interpolated exactly, so the response is exact up to
     # round-off.  Sine: the interpolation error is O(h**6) ~ 1e-18.  Reference: the
-    # matrix-exponential solution of tests/conftest.py.
-    t, f, x = exact_response(kind, duration=1.0, x0=0.3, v0=-0.7)
+    # closed-form solution of tests/msd_reference.py.
+    t, f, x = analytic_response(kind, duration=1.0, x0=0.3, v0=-0.7)
     xhat, _ = output_sensitivities(t, f, B=2.0, K=3.0, x0=0.3, v0=-0.7)
     assert np.max(np.abs(xhat - x)) <= 1e3 * EPS * np.max(np.abs(x))
 
 
 @pytest.mark.parametrize("kind", ["step", "sine"])
 def test_sensitivities_match_finite_differences(kind):
-    # Central differences of the exact response of algid.simulate (independent code).
+    # Central differences of the closed-form response (independent code).
     # Their truncation error is O(e**2): with steps e and e/2 the error of the finer
     # one is a third of the difference between the two, so that difference (plus the
     # round-off floor eps * |x| / e) bounds it.
@@ -48,7 +47,7 @@ def test_sensitivities_match_finite_differences(kind):
             plus, minus = dict(TRUE), dict(TRUE)
             plus[name] += e
             minus[name] -= e
-            fd.append((_simulated_x(kind, **plus) - _simulated_x(kind, **minus)) / (2 * e))
+            fd.append((_reference_x(kind, **plus) - _reference_x(kind, **minus)) / (2 * e))
         bound = np.max(np.abs(fd[0] - fd[1])) + 1e3 * EPS / 5e-4
         assert np.max(np.abs(fd[1] - S[:, j])) <= bound, name
         assert np.max(np.abs(S[:, j])) > 1e3 * bound  # the check is not vacuous
@@ -64,8 +63,8 @@ def test_bound_matches_a_finite_difference_fisher_matrix():
         plus, minus = dict(TRUE), dict(TRUE)
         plus[name] += 1e-5
         minus[name] -= 1e-5
-        columns.append((_simulated_x("step", duration=2.5, **plus)
-                        - _simulated_x("step", duration=2.5, **minus)) / 2e-5)
+        columns.append((_reference_x("step", duration=2.5, **plus)
+                        - _reference_x("step", duration=2.5, **minus)) / 2e-5)
     J = np.column_stack(columns)
     std_fd = np.sqrt(np.diag(np.linalg.inv(J.T @ J))) * 0.01
     bound = crlb(t, f, noise_std=0.01, **TRUE)
@@ -135,11 +134,11 @@ def test_unidentifiable_data_are_rejected():
 def test_study_rows_are_consistent():
     from algid.efficiency import crlb_study, format_study
 
-    rows = crlb_study(n_runs=3, horizons=(0.5, 1.0), inputs=("step",), seed=5)
+    rows = crlb_study(n_runs=3, horizons=(0.5, 1.0), inputs=("sine",), seed=5)
     assert [(r["horizon"], r["method"]) for r in rows] == [
         (0.5, "algebraic"), (0.5, "refined"), (1.0, "algebraic"), (1.0, "refined")]
     t = np.arange(1001) * 1e-3
-    bound = crlb(t, np.ones_like(t), B=2.0, K=3.0, noise_std=0.01)
+    bound = crlb(t, np.sin(t), B=2.0, K=3.0, noise_std=0.01)
     for r in rows:
         assert r["n_valid"] == 3
         assert r["ratio_B"] == pytest.approx(r["rmse_B"] / r["crlb_B"], rel=1e-12)

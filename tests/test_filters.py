@@ -9,6 +9,8 @@ from algid.estimator import estimate
 from algid.filters import as_lowpass, lti_response
 from algid.quadrature import cumulative_integral
 
+from msd_reference import analytic_response
+
 EPS = np.finfo(float).eps
 H = 1e-3
 
@@ -98,13 +100,13 @@ def test_specifications_give_the_same_filter(kind):
     (2, ([100.0], [1.0, 20.0, 100.0])),
     (1, ([1.0, 3.0], [1.0, 6.0, 25.0, 20.0])),  # zero at -3, poles -1.0, -2.5 +/- 3.97j
 ])
-def test_noise_free_estimates_stay_exact(kind, filter_order, lowpass, step_data, sine_data):
+def test_noise_free_estimates_stay_exact(kind, filter_order, lowpass):
     # The same filter on numerators and denominator keeps n_i = theta_i d, so the noise-
     # free estimate is exact.  The data are exact to round-off and the quadrature error
     # is O(h**6) ~ 1e-18 relative, so what remains is round-off amplified by the
     # conditioning of det P, which is large only at the very start (the bound is the
     # one the invariant filter alone meets on the same data, with a factor 10 slack).
-    t, f, x = step_data if kind == "step" else sine_data
+    t, f, x = analytic_response(kind, duration=5.0)
     r = estimate(t, f, x, filter_order=filter_order, lowpass=lowpass)
     ref = estimate(t, f, x, filter_order=2)
     for time in (0.2, 1.0, 5.0):
@@ -119,10 +121,9 @@ def test_noisy_estimate_with_lowpass_is_close():
     # second-order low-pass filter is within about ten times the Cramer-Rao bound
     # (0.0053 for B, 0.0016 for K at sigma = 0.01): more than 4 standard deviations
     # even for an estimator twice as noisy as an efficient one.
-    from algid.simulation import simulate
-
-    sim = simulate("step", noise_std=0.01, seed=7)
-    r = estimate(sim.t, sim.f, sim.x, filter_order=1, lowpass=([4.0], [1.0, 4.0, 4.0]))
+    t, f, x = analytic_response("step", duration=5.0)
+    x = x + np.random.default_rng(7).normal(0.0, 0.01, t.size)
+    r = estimate(t, f, x, filter_order=1, lowpass=([4.0], [1.0, 4.0, 4.0]))
     final = r.final()
     assert abs(final["B"] - 2.0) < 0.05 and abs(final["K"] - 3.0) < 0.02
 
@@ -159,7 +160,7 @@ def test_bad_control_filters_are_rejected():
         as_lowpass(control.ss([[1.0]], [[1.0]], [[1.0]], [[0.0]]))
 
 
-def test_estimate_rejects_a_bad_lowpass(step_data):
-    t, f, x = step_data
+def test_estimate_rejects_a_bad_lowpass():
+    t, f, x = analytic_response("step", duration=0.5)
     with pytest.raises(InputDataError, match="lowpass is not stable"):
         estimate(t, f, x, lowpass=([1.0], [1.0, -2.0]))

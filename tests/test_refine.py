@@ -7,20 +7,26 @@ import scipy.stats
 from algid.crlb import crlb
 from algid.errors import InputDataError
 from algid.refine import RefinementResult, refine
-from algid.simulation import simulate
+
+from msd_reference import analytic_response
 
 X0, V0 = 0.05, -0.1
+TRUE = {"B": 2.0, "K": 3.0, "x0": X0, "v0": V0}
 
 
-def _round_off_bound(sim, horizon=None):
+def _data(kind, duration=2.0):
+    """Noise-free ``t, f, x`` with the initial state ``(X0, V0)`` (closed form)."""
+    return analytic_response(kind, x0=X0, v0=V0, duration=duration)
+
+
+def _round_off_bound(t, f):
     """Deviation from the truth that round-off can explain, per parameter.
 
     The noise-free data and the model output are exact up to a few 1e-16 per sample;
     the least-squares solution moves by the Cramer-Rao standard deviation of that
     level of noise.  Taken generously as 1e-12 per sample and 10 standard deviations.
     """
-    bound = crlb(sim.t, sim.f, B=sim.B, K=sim.K, x0=X0, v0=V0, noise_std=1e-12,
-                 horizon=horizon)
+    bound = crlb(t, f, noise_std=1e-12, **TRUE)
     return {name: 10 * value for name, value in bound.items()}
 
 
@@ -29,18 +35,19 @@ def _round_off_bound(sim, horizon=None):
 def test_noise_free_data_give_the_exact_parameters(kind, start):
     # Perturbed start (B, K off by up to 20 %; x0, v0 unknown or wrong) or the
     # algebraic start: the refinement lands on the true parameters and initial state.
-    sim = simulate(kind, duration=2.0, initial_state=(X0, V0))
-    r = refine(sim.t, sim.f, sim.x, start=start)
-    bound = _round_off_bound(sim)
-    for name, true in (("B", 2.0), ("K", 3.0), ("x0", X0), ("v0", V0)):
+    t, f, x = _data(kind)
+    r = refine(t, f, x, start=start)
+    bound = _round_off_bound(t, f)
+    for name, true in TRUE.items():
         assert abs(r.parameters[name] - true) <= bound[name], (name, r.parameters[name])
     assert r.converged
     assert r.cost[-1] <= r.cost[0]
 
 
 def test_cost_never_increases():
-    sim = simulate("sine", duration=2.0, initial_state=(X0, V0), noise_std=0.01, seed=3)
-    r = refine(sim.t, sim.f, sim.x, start=(3.0, 2.0))
+    t, f, x = _data("sine")
+    x = x + np.random.default_rng(3).normal(0.0, 0.01, t.size)
+    r = refine(t, f, x, start=(3.0, 2.0))
     assert np.all(np.diff(r.cost) <= 0)
     assert isinstance(r, RefinementResult) and r.iterations >= 1
 
@@ -48,18 +55,19 @@ def test_cost_never_increases():
 def test_zero_iterations_fit_only_the_initial_conditions():
     # xhat is affine in (x0, v0): with the true B, K the linear least-squares start is
     # exact on noise-free data.
-    sim = simulate("step", duration=1.0, initial_state=(X0, V0))
-    r = refine(sim.t, sim.f, sim.x, start={"B": 2.0, "K": 3.0}, iterations=0)
-    bound = _round_off_bound(sim)
+    t, f, x = _data("step", duration=1.0)
+    r = refine(t, f, x, start={"B": 2.0, "K": 3.0}, iterations=0)
+    bound = _round_off_bound(t, f)
     assert (r.B, r.K, r.iterations) == (2.0, 3.0, 0)
     assert abs(r.x0 - X0) <= bound["x0"] and abs(r.v0 - V0) <= bound["v0"]
 
 
 def test_known_mass():
+    # m x'' + c x' + k x = F has the same response as x'' + B x' + K x = F/m
     m = 2.5
-    sim = simulate("step", m=m, c=2.0 * m, k=3.0 * m, duration=2.0, initial_state=(X0, V0))
-    r = refine(sim.t, sim.f, sim.x, mass=m, start=(2.2, 2.8))
-    per_mass = refine(sim.t, sim.f / m, sim.x, start=(2.2, 2.8))
+    t, f, x = _data("step")
+    r = refine(t, m * f, x, mass=m, start=(2.2, 2.8))
+    per_mass = refine(t, f, x, start=(2.2, 2.8))
     assert r.B == pytest.approx(per_mass.B, rel=1e-12)
     assert r.c == pytest.approx(m * r.B, rel=1e-15)
     assert r.k == pytest.approx(m * r.K, rel=1e-15)
@@ -76,28 +84,28 @@ def test_known_mass():
     (dict(mass=-1.0), "mass"),
 ])
 def test_bad_options_are_rejected(kwargs, fragment):
-    sim = simulate("step", duration=0.5)
+    t, f, x = _data("step", duration=0.5)
     with pytest.raises(InputDataError, match=fragment):
-        refine(sim.t, sim.f, sim.x, **kwargs)
+        refine(t, f, x, **kwargs)
 
 
 @pytest.mark.parametrize("kind", ["step", "sine"])
 def test_refined_rmse_attains_the_crlb(kind):
-    # 30 seeded runs of 2.5 s at 1 kHz, sigma = 0.01, unknown non-zero initial state.
-    # For an efficient unbiased estimator with Gaussian errors, n * (RMSE / CRLB)**2 is
-    # chi-square with n degrees of freedom; the band below holds with probability
-    # 1 - 1e-3 per parameter.  (A full study with 1000 runs puts the ratios at
-    # 0.97 .. 1.03, see algid.efficiency.crlb_study.)
-    n, horizon = 30, 2.5
+    # 30 seeded runs of 2.5 s at 1 kHz, sigma = 0.01, unknown non-zero initial state,
+    # algebraic start.  For an efficient unbiased estimator with Gaussian errors,
+    # n * (RMSE / CRLB)**2 is chi-square with n degrees of freedom; the band below
+    # holds with probability 1 - 1e-3 per parameter.  (A study with 1000 runs puts
+    # the ratios at 0.97 .. 1.03, see algid.efficiency.crlb_study.)
+    n, sigma = 30, 0.01
     lo, hi = np.sqrt(scipy.stats.chi2.ppf([5e-4, 1 - 5e-4], n) / n)
+    t, f, x_true = _data(kind, duration=2.5)
     errors, reported = [], []
-    sim = simulate(kind, duration=horizon, initial_state=(X0, V0))
     for run in range(n):
-        x = sim.x_true + np.random.default_rng([2024, run]).normal(0.0, 0.01, sim.t.size)
-        r = refine(sim.t, sim.f, x)
+        x = x_true + np.random.default_rng([2024, run]).normal(0.0, sigma, t.size)
+        r = refine(t, f, x)
         errors.append([r.B - 2.0, r.K - 3.0])
         reported.append([r.std["B"], r.std["K"]])
-    bound = crlb(sim.t, sim.f, B=2.0, K=3.0, x0=X0, v0=V0, noise_std=0.01)
+    bound = crlb(t, f, noise_std=sigma, **TRUE)
     rmse = np.sqrt(np.mean(np.square(errors), axis=0))
     ratio = rmse / np.array([bound["B"], bound["K"]])
     assert np.all((lo <= ratio) & (ratio <= hi)), ratio

@@ -173,7 +173,8 @@ def _prefix_scan(Phi, w):
     while shift < n_samples:
         z[shift:] = z[shift:] + z[:-shift] @ power.T
         shift *= 2
-        power = power @ power
+        if shift < n_samples:
+            power = power @ power
     return z
 
 

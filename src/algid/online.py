@@ -567,6 +567,9 @@ class OnlineEstimator:
     def _check_chunk(self, t, f, x):
         if all(isinstance(v, numbers.Real) for v in (t, f, x)):
             return self._check_sample(t, f, x)
+        if all(isinstance(v, np.ndarray) and v.shape == (1,) and v.dtype.kind in "fiu"
+               for v in (t, f, x)):
+            return self._check_sample(t[0], f[0], x[0])
         where = f"in the chunk starting at stream sample {self._n}"
         arrays = []
         for name, values in (("t", t), ("f", f), ("x", x)):
@@ -670,25 +673,27 @@ class OnlineEstimator:
         if half is None:  # only the first sample, step not known yet
             self._n += m
             return self._windows[0].feed(u, x, h)
-        est = [np.empty(m) for _ in self._gen.PARAMETERS]
-        pos = 0
-        while pos < m:
-            n = self._n
-            k = n // half  # index of the half period holding sample n
-            if n % half == 0 and n > 0:
-                self._windows[k % 2].restart(origin_time=float(t[pos]))
-            end = min(m, pos + (k + 1) * half - n)
-            reported = 0 if k == 0 else (k + 1) % 2
-            for i, w in enumerate(self._windows):
-                if i == 1 and k == 0:
-                    continue  # B starts half a period after A
-                out = w.feed(u[pos:end], x[pos:end], h)
-                if i == reported:
-                    for e, o in zip(est, out):
-                        e[pos:end] = o
-            self._reported = reported
-            self._n += end - pos
-            pos = end
+        n0, period = self._n, 2 * half
+        n = n0 + np.arange(m)
+        k = n // half  # index of the half period holding each sample
+        # the older window is reported: A (0) in half periods 0, 1, 3, 5, ...; B (1) in 2, 4, ...
+        reported = np.where((k == 0) | (k % 2 == 1), 0, 1)
+        est = [np.full(m, np.nan) for _ in self._gen.PARAMETERS]
+        for i, window in enumerate(self._windows):
+            phase = i * half  # A restarts at samples 0, N, 2N, ...; B at N/2, 3N/2, ...
+            pos = max(0, phase - n0)  # B waits for sample N/2
+            while pos < m:
+                age = (n0 + pos - phase) % period
+                if age == 0:
+                    window.restart(origin_time=float(t[pos]))
+                end = min(m, pos + period - age)
+                out = window.feed(u[pos:end], x[pos:end], h)
+                take = reported[pos:end] == i
+                for e, o in zip(est, out):
+                    e[pos:end][take] = o[take]
+                pos = end
+        self._reported = int(reported[-1]) if m else self._reported
+        self._n += m
         return est
 
 

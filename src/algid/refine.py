@@ -197,8 +197,12 @@ def refine(t, f, x, *, start=None, iterations=10, mass=None, filter_order=2,
 
     theta = np.array([float(values["B"]), float(values["K"]),
                       float(values["x0"] or 0.0), float(values["v0"] or 0.0)])
-    xhat, S = output_sensitivities(t, u, B=theta[0], K=theta[1], x0=theta[2], v0=theta[3],
-                                   order=quadrature_order)
+    with np.errstate(over="ignore", invalid="ignore"):
+        xhat, S = output_sensitivities(t, u, B=theta[0], K=theta[1], x0=theta[2],
+                                       v0=theta[3], order=quadrature_order)
+    if not (np.all(np.isfinite(xhat)) and np.all(np.isfinite(S))):
+        raise InputDataError(f"the model response from the start B={theta[0]:.6g}, "
+                             f"K={theta[1]:.6g} overflows on this record; give a better start")
     missing = [i for i, name in ((2, "x0"), (3, "v0")) if values[name] is None]
     if missing:  # linear least squares for the unknown initial conditions
         coef, *_ = np.linalg.lstsq(S[:, missing], x - xhat, rcond=None)
@@ -215,10 +219,12 @@ def refine(t, f, x, *, start=None, iterations=10, mass=None, filter_order=2,
         accepted = False
         for _ in range(_MAX_HALVINGS):
             trial = theta + step
-            x_trial, S_trial = output_sensitivities(
-                t, u, B=trial[0], K=trial[1], x0=trial[2], v0=trial[3], order=quadrature_order)
-            r_trial = x - x_trial
-            c_trial = float(r_trial @ r_trial)
+            with np.errstate(over="ignore", invalid="ignore"):  # a wild trial is rejected
+                x_trial, S_trial = output_sensitivities(
+                    t, u, B=trial[0], K=trial[1], x0=trial[2], v0=trial[3],
+                    order=quadrature_order)
+                r_trial = x - x_trial
+                c_trial = float(r_trial @ r_trial)
             if np.isfinite(c_trial) and c_trial <= cost[-1]:
                 accepted = True
                 break

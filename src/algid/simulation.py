@@ -348,7 +348,7 @@ def _exosystem_response(
             early = tau * np.linalg.norm(M, 1) < 1.0
             if np.any(early):
                 z0 = np.concatenate([x0, W[:, 0]])
-                out[:, early] = (_expm_times(M, tau[early]) @ z0)[:, :n].T
+                out[:, early] = _free_response(M, z0, t[early])[:, :n].T
             return out
     z = _free_response(M, np.concatenate([x0, W[:, 0]]), t)
     return z[:, :n].T
