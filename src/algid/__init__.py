@@ -7,12 +7,16 @@ figures matplotlib (``algid[plot]``).
 
 from algid.errors import AlgidError, DataFileError, InputDataError, ModelError
 from algid.estimator import available_models, estimate
+from algid.online import OnlineEstimator
+from algid.crlb import crlb
+from algid.refine import refine
 from algid.result import EstimationResult
 
 __version__ = "0.1.0"
 
-__all__ = ["estimate", "simulate", "available_models", "EstimationResult", "AlgidError",
-           "InputDataError", "DataFileError", "ModelError", "__version__"]
+__all__ = ["estimate", "simulate", "available_models", "EstimationResult", "OnlineEstimator",
+           "AlgidError", "InputDataError", "DataFileError", "ModelError", "__version__",
+           "refine", "crlb"]
 
 
 def __getattr__(name):

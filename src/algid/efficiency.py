@@ -8,8 +8,9 @@ estimator has ``RMSE / CRLB`` close to 1; with ``n`` runs the RMSE itself has a
 relative standard deviation of about ``1 / sqrt(2 n)`` (5 % for 200 runs).
 
 The estimate at horizon ``T`` is computed from the samples ``0 <= t <= T`` only (a run
-of length ``T``: the first samples of the run of the longest horizon).  This module
-simulates with :func:`algid.simulate`, which needs the ``control`` package.
+of length ``T``: the first samples of the run of the longest horizon).  The noise-free
+response comes from :func:`algid.simulate` (which needs the ``control`` package), once
+per input; each run adds the noise ``simulate`` would add with the run's seed.
 """
 
 from __future__ import annotations
@@ -21,7 +22,7 @@ __all__ = ["crlb_study", "format_study"]
 
 def crlb_study(n_runs=200, horizons=(1, 2.5, 5), inputs=("step", "sine"), noise_std=0.01,
                seed=0, filter_order=2, *, B=2.0, K=3.0, initial_state=(0.0, 0.0),
-               rate=1000.0, refined=True, iterations=10, quadrature_order=6):
+               rate=1000.0, refined=True, iterations=10, quadrature_order=6, lowpass=None):
     """RMSE of the algebraic and refined estimates against the Cramér–Rao bound.
 
     Parameters
@@ -51,6 +52,9 @@ def crlb_study(n_runs=200, horizons=(1, 2.5, 5), inputs=("step", "sine"), noise_
         Largest number of Gauss–Newton iterations of the refinement.
     quadrature_order : int, optional
         Quadrature rule of both estimators.
+    lowpass : optional
+        Extra LTI filter of the algebraic estimator (``lowpass`` of
+        :func:`algid.estimate`).
 
     Returns
     -------
@@ -58,9 +62,11 @@ def crlb_study(n_runs=200, horizons=(1, 2.5, 5), inputs=("step", "sine"), noise_
         One row per input, horizon and method (``"algebraic"``, ``"refined"``) with
         keys ``input, horizon, method, filter_order, n_runs, n_valid, bias_B, bias_K,
         rmse_B, rmse_K, crlb_B, crlb_K, ratio_B, ratio_K``.  Runs whose estimate is
-        undefined (NaN) are left out of the statistics (``n_valid`` counts the others).
+        undefined (NaN), or whose refinement cannot start from it, are left out of the
+        statistics of that method (``n_valid`` counts the others).
     """
     from algid.crlb import crlb
+    from algid.errors import InputDataError
     from algid.estimator import estimate
     from algid.refine import refine
     from algid.simulation import simulate
@@ -79,15 +85,15 @@ def crlb_study(n_runs=200, horizons=(1, 2.5, 5), inputs=("step", "sine"), noise_
             x_run = sim.x_true + rng.normal(0.0, noise_std, size=sim.t.size)
             for T, n in zip(horizons, lengths):
                 t, f, x = sim.t[:n], sim.f[:n], x_run[:n]
-                alg = estimate(t, f, x, filter_order=filter_order,
+                alg = estimate(t, f, x, filter_order=filter_order, lowpass=lowpass,
                                quadrature_order=quadrature_order).final()
                 errors[T, "algebraic"].append([alg["B"] - B, alg["K"] - K])
                 if refined:
-                    if np.isfinite(alg["B"]) and np.isfinite(alg["K"]):
+                    try:
                         ref = refine(t, f, x, start=alg, iterations=iterations,
                                      quadrature_order=quadrature_order)
                         errors[T, "refined"].append([ref.B - B, ref.K - K])
-                    else:
+                    except InputDataError:  # undefined or unusable start
                         errors[T, "refined"].append([np.nan, np.nan])
         for T, n in zip(horizons, lengths):
             bound = crlb(sim.t[:n], sim.f[:n], B=B, K=K, x0=initial_state[0],

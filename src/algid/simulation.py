@@ -162,6 +162,8 @@ def _is_uniform(t: np.ndarray) -> bool:
     deviation times the speed, which is round-off.
     """
     n = t.size
+    if n < 3:
+        return True
     dt = (t[-1] - t[0]) / (n - 1)
     ideal = t[0] + np.arange(n) * dt
     tol = 8.0 * np.finfo(np.float64).eps * max(abs(t[0]), abs(t[-1]))
@@ -235,6 +237,8 @@ def _free_response(M: np.ndarray, z0: np.ndarray, t: np.ndarray) -> np.ndarray:
     """
     n = t.size
     tau = t - t[0]
+    if n == 1:
+        return z0[None, :].astype(float)
     if _is_uniform(t):
         dt = (t[-1] - t[0]) / (n - 1)
         L = int(np.ceil(np.sqrt(n)))

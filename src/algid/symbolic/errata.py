@@ -270,7 +270,7 @@ def _is_zero(expr) -> bool:
         return True
     symbols = sorted(expr.free_symbols, key=str)
     if not _signals(expr) and not expr.has(sp.MatrixSymbol):
-        for shift, probe in enumerate(_PROBES):
+        for shift in range(len(_PROBES)):
             point = {sym: _PROBES[(i + shift) % len(_PROBES)] for i, sym in enumerate(symbols)}
             value = sp.N(expr.xreplace(point), 30)
             if value.is_number and abs(value) > 1e-12:
@@ -356,7 +356,7 @@ def _check_against(reference, label, forbidden=()):
             scale = "" if ratio == 1 else f" (times {show(ratio)})"
             return True, None, f"equivalent to {label}{scale}"
         # the model, scaled like the printed equation's highest derivative
-        top = max((d for d in (ref_l - ref_r).atoms(sp.Derivative)), key=lambda d: d.derivative_count)
+        top = max((ref_l - ref_r).atoms(sp.Derivative), key=lambda d: d.derivative_count)
         scale = sp.simplify(sp.expand(lhs - rhs).coeff(top) / sp.expand(ref_l - ref_r).coeff(top))
         if scale == 0 or not _is_constant(scale, forbidden):
             scale = 1
@@ -416,7 +416,8 @@ def _check_mass_relation(printed, filters):
     for p, v in sol.items():
         if lhs in v.free_symbols:
             corrected = (lhs, sp.solve(sp.Eq(p, v), lhs)[0])
-    return False, (corrected,), f"contradicts {', '.join(f'{p} = {show(v)}' for p, v in sol.items())}"
+    relations = ', '.join(f'{p} = {show(v)}' for p, v in sol.items())
+    return False, (corrected,), f"contradicts {relations}"
 
 
 # ---------------------------------------------------- checks: the Laplace domain
@@ -462,7 +463,8 @@ def _check_identity(printed, filters):
     bad = [side for side in sides[1:] if not _is_zero(side.doit() - ref)]
     if not bad:
         return True, None, f"differentiating gives {show(ref)}"
-    return False, ((sides[0], ref),), f"differentiating gives {show(ref)}, not {', '.join(map(show, bad))}"
+    return False, ((sides[0], ref),), (f"differentiating gives {show(ref)}, not "
+                                       f"{', '.join(map(show, bad))}")
 
 
 # ------------------------------------------- the linear comparison, group by group
@@ -505,6 +507,11 @@ def _compare_linear(printed_rel, ref_groups, params, evaluate, label, forbidden=
     if ratio is not None:
         scale = "" if ratio == 1 else f" (times {show(ratio)})"
         return True, None, f"agrees with {label}{scale}"
+
+    if any(printed[g].has(*params) for g in printed):
+        corrected = ((sum((p * ref_groups[p] for p in params), sp.Integer(0)), -ref_groups[1]),)
+        return False, corrected, (f"not linear in {', '.join(map(str, params))}; correct: "
+                                  f"{show(corrected[0])} ({label})")
 
     def differing(sign):
         return [g for g in gl if not _is_zero(printed[g] - sign * ref[g])]
@@ -628,7 +635,9 @@ def _time_equation_check(rows):
         corrected = tuple(c[0] if c else (lhs, rhs) for (_, c, _), (lhs, rhs)
                           in zip(results, _rows(printed)))
         text = "; ".join(text for ok, _, text in results if not ok)
-        return False, corrected, f"fails on an exact trajectory: {text}"
+        if not all(_is_zero((lhs - rhs).xreplace(values)) for lhs, rhs in _rows(printed)):
+            text = f"fails on an exact trajectory: {text}"
+        return False, corrected, text
     return check
 
 
@@ -670,7 +679,8 @@ def _check_definitions(printed, filters):
                          f"(= {show(labels[match[0]])}); {head} = {show(labels[head])}")
             corrected.append((match[0],) + tuple(rel[i] for i in bad))
         else:
-            notes.append(f"{head} is {show(labels[head])}, not {', '.join(show(rel[i]) for i in bad)}")
+            printed_sides = ', '.join(show(rel[i]) for i in bad)
+            notes.append(f"{head} is {show(labels[head])}, not {printed_sides}")
             corrected.append((head, labels[head]))
     if ok:
         return True, None, "the same kernels as the derivation's entries"
@@ -729,7 +739,8 @@ def _check_filtered(printed, filters, orders=(1, 2)):
     if not failed and agrees:
         return True, None, (f"with F(s) = 1/s^p (p = {', '.join(map(str, orders))}) applied to "
                             "numerator and denominator alike the quotient is still exactly "
-                            f"{param} on an exact trajectory (read F(s)[.] as the time-domain filter)")
+                            f"{param} on an exact trajectory (read F(s)[.] as the time-domain "
+                            "filter)")
     num, den = sp.fraction(_cramer_solution()[param])
     corrected = ((param, LowPass(num) / LowPass(den)),)
     why = []

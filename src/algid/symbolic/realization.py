@@ -456,7 +456,8 @@ def realize(derivation: Derivation, *, layout: str = "entries") -> Realization:
         for sig, p, d in chains:
             B[pos[sp.Symbol(Kernel(sig, p, 1).name)], index[sig]] = t**p
             for l in range(2, d + 1):
-                A[pos[sp.Symbol(Kernel(sig, p, l).name)], pos[sp.Symbol(Kernel(sig, p, l - 1).name)]] = 1
+                here, before = (sp.Symbol(Kernel(sig, p, j).name) for j in (l, l - 1))
+                A[pos[here], pos[before]] = 1
         C = sp.zeros(len(names), len(states))
         D = sp.zeros(len(names), len(inputs))
         for r, name in enumerate(names):

@@ -1,0 +1,216 @@
+"""Markdown tables and target checks from the results of a benchmark run."""
+
+from __future__ import annotations
+
+import math
+
+__all__ = ["targets", "markdown"]
+
+#: Targets of the benchmark: name -> (description, limit).
+TARGETS = {
+    "convergence": ("algid default, noise-free: both within 0.1 % from (s)", 0.005),
+    "efficiency": ("refined estimate: RMSE/CRLB (worst of B, K, inputs, horizons)", 1.1),
+    "long_stream": ("long stream with re-anchoring: max relative error after convergence",
+                    1e-6),
+    "tracking": ("parameter change: time until within 0.1 % (s)", 0.1),
+}
+
+
+def _num(value, fmt=".3g"):
+    if value is None:
+        return "—"
+    if isinstance(value, float) and math.isnan(value):
+        return "nan"
+    if isinstance(value, float) and math.isinf(value):
+        return "inf"
+    return format(value, fmt)
+
+
+def _time(value):
+    if value is None:
+        return "—"
+    if isinstance(value, float) and math.isnan(value):
+        return "not reached"
+    return f"{value:.3f}"
+
+
+def targets(results):
+    """Check the targets against the results.
+
+    Parameters
+    ----------
+    results : dict
+        The results of :func:`benchmarks.run.run`.
+
+    Returns
+    -------
+    list of dict
+        ``name, description, limit, measured, met`` (``met`` is None when the section
+        did not run).
+    """
+    out = []
+
+    def add(name, measured, detail=""):
+        description, limit = TARGETS[name]
+        met = None if measured is None else bool(measured <= limit)
+        out.append({"name": name, "description": description, "limit": limit,
+                    "measured": measured, "met": met, "detail": detail})
+
+    acc = results.get("accuracy")
+    if acc:
+        conv = [r["convergence_time"] for r in acc["rows"]
+                if r["method"] == "algid" and r["experiment"] in ("step", "sine")]
+        worst = math.inf if any(math.isnan(c) for c in conv) else max(conv)
+        add("convergence", worst, "step and sine from rest, 1 kHz")
+    eff = results.get("efficiency")
+    if eff:
+        ratios = [max(r["ratio_B"], r["ratio_K"]) for r in eff["rows"]
+                  if r["method"] == "refined"]
+        add("efficiency", max(ratios) if ratios else None,
+            f"{eff['n_runs']} runs per input, noise {eff['noise_std']:g}")
+    ls = results.get("long_stream")
+    if ls and "rows" in ls:
+        row = next(r for r in ls["rows"] if r["method"] == "online_reset")
+        add("long_stream", max(row["max_rel_error"].values()),
+            f"{ls['n_samples']} samples, {row['label']}")
+    tr = results.get("tracking")
+    if tr and "rows" in tr:
+        times = [r["tracking_time"] for r in tr["rows"] if r["method"] == "online_reset"]
+        add("tracking", math.inf if any(math.isnan(v) for v in times) else max(times),
+            "worst of step/sine and the three changes")
+    return out
+
+
+def _table(head, rows):
+    lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    lines += ["| " + " | ".join(str(c) for c in row) + " |" for row in rows]
+    return "\n".join(lines)
+
+
+def markdown(results):
+    """All the tables of a run, as Markdown.
+
+    Parameters
+    ----------
+    results : dict
+
+    Returns
+    -------
+    str
+    """
+    parts = []
+    acc = results.get("accuracy")
+    if acc:
+        exps = list(dict.fromkeys(r["experiment"] for r in acc["rows"]))
+        methods = list(dict.fromkeys(r["method"] for r in acc["rows"]))
+        by = {(r["method"], r["experiment"]): r for r in acc["rows"]}
+        rows = []
+        for m in methods:
+            first = by[m, exps[0]]
+            cells = [first["label"]]
+            for e in exps:
+                r = by[m, e]
+                cells.append(f"{_time(r['convergence_time'])} / "
+                             f"{_num(max(r['error_B'], r['error_K']), '.1e')}")
+            rows.append(cells)
+        parts.append(f"### 1. Noise-free accuracy ({acc['duration']:g} s at "
+                     f"{acc['rate']:g} Hz): time [s] from which B and K stay within 0.1 % / "
+                     f"final relative error (worst of B, K)\n\n"
+                     f"`_ic`: initial state (x0, v0) = {tuple(acc['initial_state_ic'])}, "
+                     f"unknown to the estimators; '—': batch method.\n\n"
+                     + _table(["method"] + exps, rows))
+        pred = acc["svf_predicted_bias"]
+        meas = {r["experiment"]: r for r in acc["rows"] if r["method"] == "svf_ls"}
+        rows = [[e, f"{meas[e]['final_B'] - 2.0:.3e}", f"{pred[e]['B']:.3e}",
+                 f"{meas[e]['final_K'] - 3.0:.3e}", f"{pred[e]['K']:.3e}"] for e in exps]
+        parts.append("SVF least-squares bias, measured vs. predicted from the filter's "
+                     "initial-condition transient:\n\n"
+                     + _table(["experiment", "B measured", "B predicted", "K measured",
+                               "K predicted"], rows))
+    eff = results.get("efficiency")
+    if eff:
+        cols = [(i, h) for i in ("step", "sine") for h in eff["horizons"]]
+        methods = list(dict.fromkeys(r["method"] for r in eff["rows"]))
+        by = {(r["method"], r["input"], r["horizon"]): r for r in eff["rows"]}
+        rows = []
+        for m in methods:
+            any_row = next(r for r in eff["rows"] if r["method"] == m)
+            cells = [any_row["label"]]
+            for i, h in cols:
+                r = by.get((m, i, h))
+                cells.append("—" if r is None else
+                             f"{_num(r['ratio_B'], '.2f')} / {_num(r['ratio_K'], '.2f')}")
+            rows.append(cells)
+        head = ["method"] + [f"{i} T={h:g}" for i, h in cols]
+        parts.append(f"### 2. RMSE / CRLB (B / K), noise σ = {eff['noise_std']:g} on x, "
+                     f"{eff['n_runs']} seeded runs per input (study: {eff['study']})\n\n"
+                     + _table(head, rows))
+        crlb_rows = [[f"{i} T={h:g}", f"{by[methods[-1], i, h]['crlb_B']:.3g}",
+                      f"{by[methods[-1], i, h]['crlb_K']:.3g}"] for i, h in cols]
+        parts.append("CRLB (standard deviation) per experiment:\n\n"
+                     + _table(["experiment", "CRLB B", "CRLB K"], crlb_rows))
+    perf = results.get("performance")
+    if perf:
+        rows = []
+        for r in perf["batch"]:
+            if "not_available" in r:
+                rows.append([r["label"], "—", "—", "—", "—", f"not available: {r['not_available']}"])
+                continue
+            rows.append([r["label"], f"{r['n_samples']:.0e}", f"{r['throughput']:.3g}",
+                         f"{r['throughput_ratio']:.3g}", f"{r['memory_ratio']:.3g}", ""])
+        parts.append(f"### 3. Batch throughput and peak memory (sine record; best of "
+                     f"{perf['repeats']}; ratio 1.0 = naive NumPy trapezoid)\n\n"
+                     + _table(["method", "samples", "samples/s", "throughput ratio",
+                               "peak memory / input bytes", "note"], rows))
+        rows = []
+        for r in perf["streaming"]:
+            if "not_available" in r:
+                rows.append([r["label"], "—", "—", "—", f"not available: {r['not_available']}"])
+                continue
+            rows.append([r["label"], r["chunk"], f"{r['n_samples']:.0e}",
+                         f"{r['cost_per_sample'] * 1e6:.3g}", f"{r['cost_ratio']:.3g}"])
+        parts.append("Streaming cost per sample (ratio: to the naive NumPy batch cost per "
+                     "sample):\n\n"
+                     + _table(["method", "chunk", "samples", "µs / sample", "cost ratio"],
+                              rows))
+    ls = results.get("long_stream")
+    if ls:
+        if "rows" not in ls:
+            parts.append(f"### 4. Long stream: not available ({ls['not_available']})")
+        else:
+            rows = [[r["label"], f"{r['settle_time']:g}",
+                     _num(max(r["max_rel_error"].values()), ".2e"), r["n_undefined"],
+                     _num(r["peak_bytes_first_tenth"] / 1e6 if r["peak_bytes_first_tenth"]
+                          else None, ".3g"),
+                     _num(r["peak_bytes"] / 1e6, ".3g"),
+                     _num(r["max_state_magnitude"], ".3g"), f"{r['elapsed']:.3g}"]
+                    for r in ls["rows"]]
+            parts.append(f"### 4. Long stream: {ls['n_samples']:.0e} samples of the sine "
+                         f"experiment, noise-free, chunks of {ls['chunk']}\n\n"
+                         + _table(["estimator", "errors from t [s]", "max rel. error",
+                                   "NaN", "peak MB (first 10 %)", "peak MB (all)",
+                                   "max |state|", "time [s]"], rows))
+    tr = results.get("tracking")
+    if tr:
+        if "rows" not in tr:
+            parts.append(f"### 5. Tracking: not available ({tr['not_available']})")
+        else:
+            cols = list(dict.fromkeys((r["input"], r["change"]) for r in tr["rows"]))
+            methods = list(dict.fromkeys(r["method"] for r in tr["rows"]))
+            by = {(r["method"], r["input"], r["change"]): r for r in tr["rows"]}
+            rows = []
+            for m in methods:
+                label = next(r["label"] for r in tr["rows"] if r["method"] == m)
+                rows.append([label] + [_time(by[m, i, c]["tracking_time"]) for i, c in cols])
+            parts.append(f"### 5. Tracking a change at t = {tr['duration'] / 2:g} s "
+                         f"({tr['duration']:g} s stream, noise-free): time [s] after the "
+                         f"change until both within 0.1 %\n\n"
+                         + _table(["estimator"] + [f"{i}, {c}" for i, c in cols], rows))
+    tg = results.get("targets")
+    if tg:
+        rows = [[t["description"], f"≤ {t['limit']:g}", _num(t["measured"], ".3g"),
+                 {True: "met", False: "missed", None: "not run"}[t["met"]], t["detail"]]
+                for t in tg]
+        parts.append("### Targets\n\n" + _table(["target", "limit", "measured", "", "detail"],
+                                                rows))
+    return "\n\n".join(parts) + "\n"
