@@ -26,8 +26,9 @@ def exact_response(kind, *, B=2.0, K=3.0, duration=5.0, rate=1000.0, x0=0.0, v0=
     else:
         raise ValueError(kind)
     t = np.arange(n) * h
-    # exact at each sample: expm(A t_i) z0, evaluated directly (no error accumulation)
-    states = np.array([expm(A * ti) @ z for ti in t])
+    # exact at each sample: expm(A t_i) z0, evaluated directly (no error accumulation),
+    # all samples in one stacked call
+    states = expm(A[None, :, :] * t[:, None, None]) @ z
     f = np.full(n, amplitude) if kind == "step" else amplitude * np.sin(omega * t)
     return t, f, states[:, 0]
 
