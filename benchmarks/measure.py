@@ -114,7 +114,8 @@ def piecewise_stream(kind, segments, *, rate=1000.0, block=100_000, chunk=1000):
     rate : float, optional
         Sampling rate [Hz].
     block : int, optional
-        Samples simulated at once.
+        Samples simulated at once (at most; the memory of the generator is that of
+        one block).
     chunk : int, optional
         Samples per yielded chunk.
 
@@ -136,8 +137,11 @@ def piecewise_stream(kind, segments, *, rate=1000.0, block=100_000, chunk=1000):
             state = (float(sim.x_true[-1]), float(sim.v_true[-1]))
             sl = slice(0 if first else 1, None)
             t, f, x = sim.t[sl], sim.f[sl], sim.x[sl]
+            del sim
             for i in range(0, m, chunk):
-                yield t[i:i + chunk], f[i:i + chunk], x[i:i + chunk]
+                # copies: a chunk the consumer keeps must not keep the block alive
+                yield t[i:i + chunk].copy(), f[i:i + chunk].copy(), x[i:i + chunk].copy()
+            del t, f, x  # freed before the next block is simulated
             done += m
             index += m
 

@@ -110,9 +110,9 @@ def test_smoke_long_stream_and_tracking(smoke):
     from algid.online import TRACKING_RESET_PERIOD
 
     # noise-free, a change is followed once the reported window starts after it: at the
-    # latest one period later
+    # latest one period later (with a persistently exciting input)
     for r in tr["rows"]:
-        if r["method"] == "online_reset":
+        if r["method"] == "online_reset" and r["input"] == "sine":
             assert r["tracking_time"] is not None
             assert 0 < r["tracking_time"] <= TRACKING_RESET_PERIOD + 1e-9
 
@@ -159,8 +159,10 @@ def test_naive_algebraic_is_the_trapezoid_estimator():
     for p in (0, 1):
         B, K = bl.naive_algebraic(t, f, x, filter_order=p)
         r = algid.estimate(t, f, x, quadrature_order=2, filter_order=p)
-        np.testing.assert_allclose(B[10:], r.B[10:], rtol=1e-8)
-        np.testing.assert_allclose(K[10:], r.K[10:], rtol=1e-8)
+        # the same arithmetic in another order: round-off, magnified by the conditioning
+        # of P (det P ~ t**k at early times; it also passes near zero later)
+        np.testing.assert_allclose(B[10:], r.B[10:], rtol=1e-6)
+        np.testing.assert_allclose(K[10:], r.K[10:], rtol=1e-6)
 
 
 def test_rls_information_form_equals_covariance_form_and_chunking():
@@ -192,7 +194,9 @@ def test_svf_bias_is_the_predicted_transient_bias():
 def test_output_error_model_is_exact_for_a_step():
     sim = simulate("step", duration=3.0, initial_state=IC)
     x = bl.OutputErrorModel(sim.t, sim.f).response([2.0, 3.0, *IC])
-    np.testing.assert_allclose(x, sim.x_true, rtol=0, atol=1e-12)
+    # exact up to round-off, which the poles at exp(-(1 +- 1.4j) h) near 1 amplify by
+    # about 1 / (B h)**2 = 2.5e5 in the recursion of lfilter
+    np.testing.assert_allclose(x, sim.x_true, rtol=0, atol=1e-10)
 
 
 @pytest.mark.parametrize("kind", ["step", "sine"])

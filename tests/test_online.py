@@ -53,7 +53,7 @@ def _feed(est, t, f, x, sizes):
     for size in sizes:
         r = est.update(t[start:start + size], f[start:start + size], x[start:start + size])
         assert r.t.size == size
-        np.testing.assert_array_equal(r.t, t[start:start + size])
+        assert np.array_equal(r.t, t[start:start + size])
         results.append(r)
         start += size
     assert start == t.size

@@ -21,7 +21,7 @@ Within a chunk the step is vectorised (``numpy.correlate`` over the carried samp
 and the chunk, then a cumulative sum from the carried sum), and the arithmetic is done
 in the same order as in the batch estimator, so the estimates do not depend on how the
 stream is cut into chunks and equal those of :func:`algid.estimate` on the same
-samples to round-off (in practice bit for bit).  Chunks of fewer than
+samples to round-off (bit for bit with the same sampling step).  Chunks of fewer than
 :data:`VECTOR_MIN_CHUNK` samples take a per-sample loop over Python floats instead,
 which is faster for them and computes the same numbers.
 
@@ -96,9 +96,9 @@ __all__ = ["OnlineEstimator", "run_stream", "TRACKING_RESET_PERIOD", "VECTOR_MIN
 #: within 0.1 % 5-7 ms after its origin (13 ms for a sine from rest; within 1e-6 after
 #: 5-20 ms, 68 ms for a step response that has settled), inside the half period of
 #: 25 ms before it is reported, and the estimates are within 0.1 % of the new values
-#: at most 47 ms after a change.  Short windows do not average
-#: measurement noise: with noise of 1e-4 m on ``x`` they are useless at this period,
-#: and periods of seconds are needed.
+#: once the reported window starts after the change: 25-48 ms after it (at most one
+#: period).  Short windows do not average measurement noise: with noise of 1e-4 m on
+#: ``x`` they are useless at this period, and periods of seconds are needed.
 TRACKING_RESET_PERIOD = 0.05
 
 #: Chunks of at least this many samples are processed vectorised; shorter ones with a
@@ -416,6 +416,16 @@ class OnlineEstimator:
     ----------
     parameters : tuple of str
         Names of the estimates returned (as in :func:`algid.estimate`).
+
+    Notes
+    -----
+    The equality with :func:`algid.estimate` is bit for bit when both use the same
+    step.  The batch estimator takes ``(t[-1] - t[0]) / (n - 1)``; on a grid such as
+    ``np.arange(n) / 1000`` that may differ from ``dt`` by an ulp, and ill-conditioned
+    estimates (the first few samples, or weak excitation) magnify that to about 1e-7
+    relative.  Memory is constant: per integrator its running sum and its last
+    ``quadrature_order - 1`` integrand samples, plus a start-up buffer of fewer than
+    ``quadrature_order`` samples.
 
     Raises
     ------

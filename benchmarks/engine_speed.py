@@ -1,0 +1,165 @@
+"""Throughput and memory of the two estimation engines (``python -m benchmarks.engine_speed``).
+
+Measures, in one process (the machine is shared: ratios are what to compare):
+
+- samples per second of :func:`algid.estimate` with ``engine="numpy"`` and
+  ``engine="numba"`` (validation and result included), and of the compiled loop alone
+  (:func:`algid.engine.run_chunk` on one chunk);
+- streaming in chunks of 1000 samples through :func:`algid.engine.run_chunk`, as a
+  ratio to one chunk; the cost per call of chunks of one sample;
+- the peak of traced memory (:mod:`tracemalloc`) of each engine, as a ratio to the
+  bytes of the input arrays ``t``, ``f``, ``x``;
+- the compile time of the loop (in a fresh process with an empty cache) and the time
+  to load it from the cache.
+
+Times are the minimum over repeats of the process CPU time (``time.process_time``),
+which other users of the machine disturb less than the wall time; the wall time is
+given as well.  Options: ``--sizes 1e6 1e7``, ``--model msd``, ``--repeats 3``,
+``--skip-numpy-above 2e7``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import subprocess
+import sys
+import tempfile
+import time
+import tracemalloc
+
+import numpy as np
+
+import algid
+from algid import engine
+from algid.estimator import load_model
+
+
+def _signals(n, h=1e-3):
+    t = np.arange(n) * h
+    f = np.sin(1.3 * t) + 0.5 * np.sin(0.37 * t)
+    x = 0.4 * np.sin(1.3 * t - 0.8) + 0.2 * np.sin(0.37 * t - 0.1)
+    return t, f, x
+
+
+def _best(func, repeats):
+    cpu = wall = float("inf")
+    for _ in range(repeats):
+        c0, w0 = time.process_time(), time.perf_counter()
+        func()
+        cpu = min(cpu, time.process_time() - c0)
+        wall = min(wall, time.perf_counter() - w0)
+    return cpu, wall
+
+
+def _peak(func):
+    tracemalloc.start()
+    try:
+        base, _ = tracemalloc.get_traced_memory()
+        tracemalloc.reset_peak()
+        func()
+        _, peak = tracemalloc.get_traced_memory()
+    finally:
+        tracemalloc.stop()
+    return peak - base
+
+
+def _stream(state, f, x, chunk, out):
+    for start in range(0, f.size, chunk):
+        stop = min(start + chunk, f.size)
+        engine.run_chunk(state, f[start:stop], x[start:stop], out=out[:, start:stop])
+
+
+def _compile_times(model, q):
+    code = ("import time, sys; t0 = time.perf_counter(); from algid import engine; "
+            "from algid.estimator import load_model; "
+            f"engine.prepare(load_model({model!r}), {q}); "
+            "print(time.perf_counter() - t0)")
+    with tempfile.TemporaryDirectory() as tmp:
+        env = dict(os.environ, ALGID_CACHE_DIR=tmp)
+        cold = float(subprocess.run([sys.executable, "-c", code], env=env, check=True,
+                                    capture_output=True, text=True).stdout)
+        warm = float(subprocess.run([sys.executable, "-c", code], env=env, check=True,
+                                    capture_output=True, text=True).stdout)
+    return cold, warm
+
+
+def main(argv=None):
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--sizes", type=float, nargs="+", default=[1e6, 1e7])
+    parser.add_argument("--model", default="msd")
+    parser.add_argument("--filter-order", type=int, default=2)
+    parser.add_argument("--quadrature-order", type=int, default=6)
+    parser.add_argument("--repeats", type=int, default=3)
+    parser.add_argument("--skip-numpy-above", type=float, default=2e7)
+    parser.add_argument("--no-compile", action="store_true", help="skip the compile timing")
+    args = parser.parse_args(argv)
+    model, p, q = args.model, args.filter_order, args.quadrature_order
+    gen = load_model(model)
+    opts = dict(model=model, filter_order=p, quadrature_order=q)
+
+    if not args.no_compile:
+        cold, warm = _compile_times(model, q)
+        print(f"compile (fresh process, empty cache): {cold:.2f} s wall; "
+              f"load from cache (import of numba included): {warm:.2f} s wall")
+    engine.prepare(gen, q)
+
+    for n in (int(v) for v in args.sizes):
+        t, f, x = _signals(n)
+        h = float((t[-1] - t[0]) / (n - 1))
+        in_bytes = t.nbytes + f.nbytes + x.nbytes
+        print(f"\n== {model}, q={q}, p={p}, n={n:.0e} samples (input {in_bytes / 1e6:.0f} MB)")
+        rows = []
+        if n <= args.skip_numpy_above:
+            cpu, wall = _best(lambda: algid.estimate(t, f, x, engine="numpy", **opts), 1)
+            rows.append(("estimate, engine='numpy'", cpu, wall))
+        cpu, wall = _best(lambda: algid.estimate(t, f, x, engine="numba", **opts),
+                          args.repeats)
+        rows.append(("estimate, engine='numba'", cpu, wall))
+        out = np.empty((len(gen.PARAMETERS), n))
+
+        def core():
+            state = engine.make_state(gen, q, p, step=h)
+            engine.run_chunk(state, f, x, out=out)
+
+        def chunked():
+            state = engine.make_state(gen, q, p, step=h)
+            _stream(state, f, x, 1000, out)
+
+        cpu_core, wall_core = _best(core, args.repeats)
+        rows.append(("engine loop, one chunk", cpu_core, wall_core))
+        cpu_ch, wall_ch = _best(chunked, args.repeats)
+        rows.append(("engine loop, chunks of 1000", cpu_ch, wall_ch))
+        for name, cpu, wall in rows:
+            print(f"  {name:30s} {n / cpu / 1e6:8.2f} M samples/s CPU "
+                  f"({n / wall / 1e6:6.2f} wall)")
+        if n <= args.skip_numpy_above:
+            print(f"  speed-up numba/numpy (estimate, CPU): {rows[0][1] / rows[1][1]:.1f}")
+        print(f"  chunk-1000 / one-chunk time (CPU): {cpu_ch / cpu_core:.2f}")
+
+        m = min(n, 20_000)
+        state = engine.make_state(gen, q, p, step=h)
+        f1, x1 = f[:m], x[:m]
+
+        def single():
+            state.reset()
+            for i in range(m):
+                engine.run_chunk(state, f1[i:i + 1], x1[i:i + 1])
+
+        cpu1, wall1 = _best(single, 2)
+        print(f"  chunks of 1 sample: {cpu1 / m * 1e6:.2f} us per call CPU "
+              f"({wall1 / m * 1e6:.2f} wall)")
+
+        if n <= args.skip_numpy_above:
+            peak_np = _peak(lambda: algid.estimate(t, f, x, engine="numpy", **opts))
+            print(f"  peak traced memory, numpy: {peak_np / 1e6:8.0f} MB = "
+                  f"{peak_np / in_bytes:5.1f} x input")
+        peak_nb = _peak(lambda: algid.estimate(t, f, x, engine="numba", **opts))
+        print(f"  peak traced memory, numba: {peak_nb / 1e6:8.0f} MB = "
+              f"{peak_nb / in_bytes:5.1f} x input "
+              f"(result {len(gen.PARAMETERS) * 8 * n / 1e6:.0f} MB)")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
