@@ -318,7 +318,10 @@ def efficiency(config):
     -------
     dict
         ``rows`` (one per method, input and horizon), ``noise_std``, ``n_runs``,
-        ``study`` (module of the study function, or a reason why it is missing).
+        ``study`` (module of the study function, or a reason why it is missing),
+        ``same_data_check`` (per input: relative difference between the study's
+        algebraic RMSE at the longest horizon and the same RMSE recomputed here from
+        the rebuilt records; round-off if the data are the same).
     """
     from algid.crlb import crlb
 
@@ -339,6 +342,7 @@ def efficiency(config):
                                                      "ratio_K")}})
     duration = max(horizons)
     lengths = {T: int(round(T * RATE)) + 1 for T in horizons}
+    same_data = {}
     for i_input, name in enumerate(_INPUTS):
         sim = simulate(name, m=1.0, c=TRUE["B"], k=TRUE["K"], duration=duration, rate=RATE)
         for T, n in lengths.items():
@@ -347,6 +351,7 @@ def efficiency(config):
                     sim.t[:n], sim.f[:n], B=TRUE["B"], K=TRUE["K"],
                     noise_std=config.noise_std).items() if k in TRUE}
         errors = {(key, T): [] for key in EFFICIENCY_BASELINES for T in horizons}
+        check = []  # the study's algebraic estimate at the longest horizon, recomputed
         for run in range(config.n_runs):
             rng = np.random.default_rng(np.random.SeedSequence([config.seed, i_input, run]))
             x_run = sim.x_true + rng.normal(0.0, config.noise_std, size=sim.t.size)
@@ -355,14 +360,23 @@ def efficiency(config):
                 for key in EFFICIENCY_BASELINES:
                     est = _baseline_final(key, t, f, x)
                     errors[key, T].append([est["B"] - TRUE["B"], est["K"] - TRUE["K"]])
+            final = algid.estimate(sim.t, sim.f, x_run).final()
+            check.append([final["B"] - TRUE["B"], final["K"] - TRUE["K"]])
         for key, label in EFFICIENCY_BASELINES.items():
             for T in horizons:
                 rows.append({"method": key, "label": label, "input": name, "horizon": T,
                              "n_runs": config.n_runs,
                              **_stats(errors[key, T], bounds[name, T])})
+        study_row = next((r for r in rows if r["method"] == "algebraic"
+                          and r["input"] == name and r["horizon"] == duration), None)
+        if study_row is not None:
+            mine = _stats(check, bounds[name, duration])
+            same_data[name] = max(abs(mine[k] / study_row[k] - 1.0)
+                                  for k in ("rmse_B", "rmse_K"))
     return {"noise_std": config.noise_std, "n_runs": config.n_runs, "seed": config.seed,
             "horizons": list(horizons),
-            "study": module or "not available (no crlb_study in algid)", "rows": rows}
+            "study": module or "not available (no crlb_study in algid)",
+            "same_data_check": same_data, "rows": rows}
 
 
 # --------------------------------------------------------------------------------------
@@ -515,12 +529,27 @@ def performance(config):
 # --------------------------------------------------------------------------------------
 
 
-def _run_stream(factory, chunks, settle_time, *, checkpoint=None):
+def _resident_bytes():
+    """Resident memory of this process [bytes] (Linux), or None."""
+    try:
+        with open("/proc/self/statm") as fh:
+            pages = int(fh.read().split()[1])
+    except (OSError, ValueError, IndexError):
+        return None
+    import os
+
+    return pages * os.sysconf("SC_PAGE_SIZE")
+
+
+def _run_stream(factory, chunks, settle_time, *, n_samples):
     """Feed a stream; keep the largest error after ``settle_time`` and the memory.
 
-    Returns the largest relative errors, the traced memory peak after the first
-    ``checkpoint`` samples and at the end, and the largest internal magnitude (for
-    estimators that report one).
+    Memory is traced (:mod:`tracemalloc`, which slows Python code several times) only
+    over the first and the last tenth of the stream: the peak of the allocations made
+    in each (estimator and stream generation together; equal peaks mean that the
+    cost of a chunk does not grow), and the resident memory of the process after the
+    first tenth and at the end (its growth would reveal memory kept from chunk to
+    chunk).
     """
     import tracemalloc
 
@@ -529,11 +558,19 @@ def _run_stream(factory, chunks, settle_time, *, checkpoint=None):
     n_undefined = 0
     n = 0
     max_state = 0.0
-    peak_at_checkpoint = None
     final = {}
+    tenth = max(1, n_samples // 10)
+    peaks = {}
+    rss = {}
+    gc_collect = __import__("gc").collect
+    gc_collect()
     tracemalloc.start()
     try:
         for t, f, x in chunks:
+            if ("first" in peaks and "last" not in peaks
+                    and n + t.size > n_samples - tenth):
+                tracemalloc.start()
+                peaks["last"] = None
             out = est.update(t, f, x)
             values = out.estimates if hasattr(out, "estimates") else dict(zip(("B", "K"), out))
             n += t.size
@@ -547,14 +584,23 @@ def _run_stream(factory, chunks, settle_time, *, checkpoint=None):
                     n_undefined += int(bad.sum())
                     worst[k] = max(worst[k], math.inf if bad.any() else float(e.max()))
             final = {k: float(np.asarray(values[k])[-1]) for k in TRUE}
-            if checkpoint is not None and peak_at_checkpoint is None and n >= checkpoint:
-                peak_at_checkpoint = tracemalloc.get_traced_memory()[1]
-        peak = tracemalloc.get_traced_memory()[1]
+            if "first" not in peaks and n >= tenth:
+                peaks["first"] = tracemalloc.get_traced_memory()[1]
+                tracemalloc.stop()
+                gc_collect()
+                rss["first"] = _resident_bytes()
+        if tracemalloc.is_tracing():
+            peaks["last"] = tracemalloc.get_traced_memory()[1]
     finally:
         tracemalloc.stop()
+    del out, values
+    gc_collect()
+    rss["end"] = _resident_bytes()
+    growth = None if None in (rss.get("first"), rss["end"]) else rss["end"] - rss["first"]
     return {"n_samples": n, "max_rel_error": worst, "n_undefined": n_undefined,
-            "final": final, "peak_bytes_first_tenth": peak_at_checkpoint,
-            "peak_bytes": peak, "max_state_magnitude": max_state if max_state else None}
+            "final": final, "peak_bytes_first_tenth": peaks.get("first"),
+            "peak_bytes_last_tenth": peaks.get("last"), "rss_growth_bytes": growth,
+            "max_state_magnitude": max_state if max_state else None}
 
 
 def long_stream(config):
@@ -564,8 +610,9 @@ def long_stream(config):
     stream).  With re-anchoring every ``TRACKING_RESET_PERIOD`` (and every 1 s), the
     error is measured after the first period (from then on every reported window has
     had half a period to converge); without re-anchoring and for the recursive least
-    squares, after 1 s.  Memory: the :mod:`tracemalloc` peak (estimator and stream
-    generation together) after the first tenth of the stream and at its end.
+    squares, after 1 s.  Memory: the :mod:`tracemalloc` peaks of the first and of the
+    last tenth of the stream (estimator and stream generation together) and the
+    growth of the resident memory between the end of the first tenth and the end.
 
     Returns
     -------
@@ -593,7 +640,7 @@ def long_stream(config):
         # blocks small enough that the first tenth holds several (steady memory)
         block = max(2000, min(100_000, config.n_long // 20))
         out = _run_stream(factory, sine_stream(config.n_long, rate=RATE, block=block), settle,
-                          checkpoint=config.n_long // 10)
+                          n_samples=config.n_long)
         rows.append({"method": key, "label": label, "settle_time": settle,
                      "elapsed": time.perf_counter() - start, **out})
     return {"n_samples": config.n_long, "input": "sine", "chunk": 1000, "rows": rows}

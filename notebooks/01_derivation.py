@@ -235,7 +235,6 @@ display(sp.Eq(d.time_equations[0], 0))
 # up by one.
 
 # %%
-display(sp.Eq(d.time_equations[1], 0))
 def integrate_once(expr):
     """Integrate a time-domain equation once: every kernel order goes up by one."""
     return from_kernel_terms({(sig, power, order + 1): coeff
@@ -243,7 +242,8 @@ def integrate_once(expr):
 
 
 assert sp.expand(integrate_once(d.time_equations[0]) - d.time_equations[1]) == 0
-print("second equation = first equation integrated once")
+print("second equation = first equation integrated once:")
+display(sp.Eq(d.time_equations[1], 0))
 
 # %% [markdown]
 # ## 1.7 The linear system $P(t)\,\theta = Q(t)$
@@ -262,8 +262,9 @@ for i in range(2):
     display(sp.Eq(q_sym[i], d.Q[i]))
 
 # %% [markdown]
-# These are the paper's $p_{11}, p_{12}, q_1$ (equations 16-18) and $p_{21} = \int p_{11}$,
-# $p_{22} = \int p_{12}$, $q_2 = \int q_1$ (21-23).  The toolkit also checks every
+# The engine numbers rows and columns from 0: its $p_{00}, p_{01}, q_0$ are the paper's
+# $p_{11}, p_{12}, q_1$ (equations 16-18), and its second row is the paper's
+# $p_{21} = \int p_{11}$, $p_{22} = \int p_{12}$, $q_2 = \int q_1$ (21-23).  The toolkit also checks every
 # printed equation of the paper against this derivation (`algid.symbolic.errata`);
 # here are the verdicts for the equations of this section:
 
@@ -301,8 +302,10 @@ for eq in solution:
     display(eq)
 
 # %% [markdown]
-# The estimate is defined as soon as $\det P(t) \ne 0$, which is the case for every
-# $t > 0$ for a system that is excited, and it is exact there: nothing is asymptotic.
+# The estimate is defined wherever $\det P(t) \ne 0$ and is exact there: nothing is
+# asymptotic.  For an excited system $\det P(t)$ is nonzero for small $t > 0$; it may
+# cross zero at isolated instants later (section 1.9 shows an example), where the
+# quotient has to be read as a limit.
 # Against measurement noise, the numerators and the denominator may both be passed
 # through the same low-pass filter (for instance $1/s^p$, $p$ more integrations) without
 # changing the quotient; notebook 3 studies that filter.
@@ -343,6 +346,7 @@ assert trajectory.subs(t, 0) == x0_val and sp.simplify(trajectory.diff(t).subs(t
 # %%
 def exponential_form(expr):
     """``expr`` as a sum of c * t**n * exp(a*t), each exponential in one piece."""
+    expr = sp.expand_trig(expr)  # sin(t + pi/4) -> sin(t) cos(pi/4) + ...
     expr = sp.expand(sp.powsimp(sp.expand(expr.rewrite(sp.exp))), power_exp=False)
     return sp.powsimp(expr)
 
@@ -358,7 +362,11 @@ def closed_integral(expr):
             if base == t:
                 n += int(exp_)
             elif isinstance(factor, sp.exp):
-                a += sp.diff(factor.args[0], t)
+                rate = sp.diff(factor.args[0], t)
+                if rate.has(t):
+                    raise ValueError(f"exponent of {factor} is not linear in t")
+                a += rate
+                coeff *= sp.expand_complex(sp.exp(factor.args[0].subs(t, 0)))
             elif factor != 1:
                 raise ValueError(f"unexpected factor {factor}")
         if a == 0:
@@ -395,7 +403,7 @@ def exact_kernels(derivation, signals):
 
 
 kernel_values = exact_kernels(d, {"x": trajectory, "f": f_closed})
-print(f"{len(kernel_values)} kernels evaluated exactly, e.g. int(t^2 x) =")
+print(f"{len(kernel_values)} levels of the integrator chains evaluated exactly, e.g. int(t^2 x) =")
 display(kernel_values[Kernel("x", 2, 1).expression()])
 
 # %% [markdown]
@@ -444,18 +452,32 @@ for when in (sp.Rational(1, 100), sp.Rational(1, 10), sp.Integer(1)):
 RESULTS["msd_estimates_at"] = estimates_at
 
 # %% [markdown]
-# The quotient is exact, but look at the size of the denominator $\det P(t)$ near
-# $t=0$: it starts from zero like a high power of $t$.  In exact arithmetic that does
-# not matter; with sampled data, every numerical error of the integrals is divided by
+# The quotient is exact, but look at the size of the denominator $\det P(t)$.  Near
+# $t=0$ it starts from zero like a high power of $t$; in exact arithmetic that does not
+# matter, but with sampled data every numerical error of the integrals is divided by
 # this tiny number, which is why the very first milliseconds of a numerical estimate
-# are unreliable (notebook 2).
+# are unreliable (notebook 2).  Later, $\det P(t)$ may also change sign (the dips of
+# $|\det P|$ on the log scale below): at those isolated instants numerator and
+# denominator vanish together.
 
 # %%
-det_function = sp.lambdify(t, den_t, "numpy")
-t_plot = np.logspace(-3, 1, 200)
-det_values = np.real(det_function(t_plot.astype(complex)))
-slope = np.polyfit(np.log(t_plot[:40]), np.log(np.abs(det_values[:40])), 1)[0]
+import mpmath
+
+# det P is a sum of many exponential terms that nearly cancel for small t: evaluate
+# it with 60 significant digits rather than in double precision
+mpmath.mp.dps = 60
+det_function = sp.lambdify(t, den_t, "mpmath")
+t_plot = np.logspace(-3, 1, 120)
+det_values = np.array([float(mpmath.re(det_function(mpmath.mpf(float(v))))) for v in t_plot])
+small = t_plot < 1e-2
+slope = np.polyfit(np.log(t_plot[small]), np.log(np.abs(det_values[small])), 1)[0]
 RESULTS["det_P_small_t_power"] = float(slope)
+changes = np.flatnonzero(np.sign(det_values[1:]) != np.sign(det_values[:-1]))
+sign_changes = [float(mpmath.findroot(lambda v: mpmath.re(det_function(v)),
+                                      (t_plot[i], t_plot[i + 1]), solver="anderson"))
+                for i in changes]
+print(f"det P(t) ~ t^{slope:.2f} near t = 0; it changes sign at t =",
+      ", ".join(f"{v:.4f} s" for v in sign_changes) or "(nowhere on the grid)")
 
 x_function = sp.lambdify(t, trajectory, "numpy")
 fig, (ax_x, ax_det) = plt.subplots(1, 2, figsize=(11, 4), layout="constrained")
@@ -469,7 +491,9 @@ ax_x.set_title("exact trajectory used for the check")
 ax_x.legend()
 ax_x.grid(alpha=0.3)
 ax_det.loglog(t_plot, np.abs(det_values), label=r"$|\det P(t)|$")
-ax_det.loglog(t_plot[:40], np.abs(det_values[0]) * (t_plot[:40] / t_plot[0]) ** slope, "k--",
+for v in sign_changes:
+    ax_det.axvline(v, color="0.5", ls=":", lw=1)
+ax_det.loglog(t_plot[small], np.abs(det_values[0]) * (t_plot[small] / t_plot[0]) ** slope, "k--",
               lw=0.8, label=f"slope {slope:.2f} near $t=0$")
 ax_det.set_xlabel("time $t$ [s]")
 ax_det.set_ylabel(r"$|\det P(t)|$")
@@ -555,12 +579,10 @@ for (sig, power), n_levels in depth.items():
         numeric[Kernel(sig, power, order).name] = values
 
 args = [kernel_symbols[k.expression()] for k in d_custom.kernels]
-P_fn = sp.lambdify(args, d_custom.P.xreplace(kernel_symbols), "numpy")
-Q_fn = sp.lambdify(args, d_custom.Q.xreplace(kernel_symbols), "numpy")
-arrays = [numeric[k.name] for k in d_custom.kernels]
-P_num = np.broadcast_arrays(*[np.asarray(e, dtype=float) for e in P_fn(*arrays).flat])
-Q_num = np.broadcast_arrays(*[np.asarray(e, dtype=float) for e in Q_fn(*arrays).flat])
-(p00, p01, p10, p11), (q0, q1) = P_num[:4], Q_num[:2]
+entries = list(d_custom.P.xreplace(kernel_symbols)) + list(d_custom.Q.xreplace(kernel_symbols))
+entries_fn = sp.lambdify(args, entries, "numpy")  # P row by row, then Q
+p00, p01, p10, p11, q0, q1 = (np.broadcast_to(np.asarray(v, dtype=float), tau.shape)
+                              for v in entries_fn(*[numeric[k.name] for k in d_custom.kernels]))
 
 det = p00 * p11 - p01 * p10
 with np.errstate(divide="ignore", invalid="ignore"):
@@ -574,21 +596,29 @@ print("final estimates:", final)
 RESULTS["custom_final"] = final
 assert abs(final["a"] - 3) < 1e-6 and abs(final["b"] - 2) < 1e-6
 
-fig, ax = plt.subplots(figsize=(8, 4), layout="constrained")
+fig, (ax, ax_err) = plt.subplots(1, 2, figsize=(12, 4), layout="constrained")
 ax.plot(tau, a_hat, color="C0", label=r"$\hat a(t)$")
 ax.plot(tau, b_hat, color="C3", label=r"$\hat b(t)$")
-ax.axhline(3, color="C0", ls="--", lw=0.9, label="true $a = 3$")
-ax.axhline(2, color="C3", ls="--", lw=0.9, label="true $b = 2$")
+ax.axhline(3, color="k", ls="--", lw=0.9, label="true $a = 3$, $b = 2$")
+ax.axhline(2, color="k", ls="--", lw=0.9)
 ax.set_ylim(0, 5)
 ax.set_xlabel("time $t$ [s]")
 ax.set_ylabel("estimate")
-ax.set_title(r"estimator derived for $y'' + a y' + b y = u' + u$, noise-free samples")
-ax.legend(ncol=2)
+ax.set_title(r"estimates for $y'' + a y' + b y = u' + u$")
+ax.legend()
 ax.grid(alpha=0.3)
+ax_err.semilogy(tau, np.abs(a_hat / 3 - 1), color="C0", label=r"$|\hat a/a - 1|$")
+ax_err.semilogy(tau, np.abs(b_hat / 2 - 1), color="C3", label=r"$|\hat b/b - 1|$")
+ax_err.set_xlabel("time $t$ [s]")
+ax_err.set_ylabel("relative error")
+ax_err.set_title("relative error (noise-free samples, 1 kHz, 6-point rule)")
+ax_err.legend()
+ax_err.grid(alpha=0.3, which="both")
 
 # %% [markdown]
 # Apart from the first few milliseconds, where $\det P$ is tiny (section 1.9), the
-# estimates sit on the true values, and they were obtained without knowing $y(0)$,
+# estimates sit on the true values; what is left is the error of the numerical
+# integrals, and they were obtained without knowing $y(0)$,
 # $\dot y(0)$ or $u(0)$.  The built-in models `"msd"` and `"msd_mass"` are derived the
 # same way; `algid.estimate` runs their generated estimators, and notebook 2 looks at
 # them on the paper's experiments.

@@ -80,6 +80,9 @@ def test_smoke_efficiency(smoke):
     assert {"svf_ls", "svf_rls", "oe_nls", "algid_trap_p0", "algid_trap_p1"} <= methods
     if eff["study"].startswith("algid."):
         assert {"algebraic", "refined"} <= methods
+        # the baselines ran on the study's records: its RMSE is reproduced exactly
+        for diff in eff["same_data_check"].values():
+            assert diff < 1e-12
     for r in eff["rows"]:
         assert r["crlb_B"] > 0 and r["crlb_K"] > 0
         assert r["n_valid"] <= r["n_runs"]

@@ -29,10 +29,14 @@ levels of these chains.  For every sample the engine
    finite.
 
 Each integrator keeps its running sum and the last ``q - 1`` values of its integrand.
-The loop is written out per model and rule (straight-line code for the chains, whose
-window values stay in registers; a small ring buffer per filter integrator, so that
-``p`` is a run-time value) from ``CHAINS`` and ``KERNELS``, compiled once per model
-and rule, and cached on disk (see :data:`CACHE_DIR`).
+The loop is written out per model and rule from ``CHAINS`` and ``KERNELS`` (the
+weights are literals), compiled once, and cached on disk (see :data:`CACHE_DIR`).  It
+works on blocks of :data:`_BLOCK` samples: for each level of the chains, the
+increments of all samples of the block are computed first (a loop the compiler
+vectorises, each increment summed in the rule's order), then the running sums (one
+dependency chain per integrator, interleaved across chains).  The block arrays stay
+in the first-level cache; memory traffic is the reading of ``f``, ``x`` and the
+writing of the estimates.
 
 The rule of ``q`` points integrates the first ``q - 2`` intervals with the polynomial
 through samples ``0 .. q - 1`` (see :mod:`algid.quadrature`), so the first ``q - 1``
@@ -93,7 +97,7 @@ from algid.errors import InputDataError
 from algid.quadrature import rule_weights
 
 __all__ = ["available", "prepare", "EngineState", "make_state", "run_chunk",
-           "estimate_arrays", "INSTALL_HINT", "CACHE_DIR"]
+           "estimate_arrays", "check_experiment", "INSTALL_HINT", "CACHE_DIR"]
 
 #: How to install the optional dependency of this engine.
 INSTALL_HINT = 'pip install "algid[fast]" (or: pip install "numba>=0.59")'
@@ -106,6 +110,11 @@ INSTALL_HINT = 'pip install "algid[fast]" (or: pip install "numba>=0.59")'
 CACHE_DIR = os.environ.get("ALGID_CACHE_DIR") or os.path.join(
     os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache"),
     "algid", "engine")
+
+#: Samples per block of the compiled loop: every level of every chain is computed for
+#: a block at a time (the increments vectorised over the block), in arrays that stay
+#: in the first-level cache.
+_BLOCK = 256
 
 # u, x, out, sums, windows, n0, h, divisor, p
 _SIGNATURE = ("void(float64[::1], float64[::1], float64[:, :], float64[::1], "
@@ -139,98 +148,136 @@ def _chain_integrators(module):
 
 def _kernel_source(module, q, *, embed):
     """Python source of the module that holds the compiled loop of ``module`` with the
-    ``q``-point rule.  With ``embed`` the generated ``regressors_packed`` and ``cramer``
-    are copied in (a self-contained, cacheable file); otherwise the namespace must
-    provide them."""
+    ``q``-point rule (see :func:`_compiled`).  With ``embed`` the generated
+    ``regressors_packed`` and ``cramer`` are copied in verbatim (a self-contained,
+    cacheable file); otherwise the namespace must provide them."""
     regular, _ = rule_weights(q)
     w = [repr(float(v)) for v in regular]
     m = q - 1
-    names = {module.INPUT: "uval", module.OUTPUT: "xval"}
     n_par = len(module.PARAMETERS)
-    lanes = n_par + 1  # numerators and denominator
+    lanes = n_par + 1  # numerators, then the denominator
+    chains = module.CHAINS
+    n_chains = len(chains)
+    depth = max(d for _, _, d in chains)
     chain_ints = _chain_integrators(module)
-    n_chain = len(chain_ints)
+    n_chain_ints = len(chain_ints)
+    value = {module.INPUT: "uval", module.OUTPUT: "xval"}
 
-    body = []  # the loop body, one indentation level inside the loop
-    level_value = {}
-    for c, (signal, power, depth) in enumerate(module.CHAINS):
-        body.append(f"# chain {c}: integrals of t**{power} * {signal}")
-        factor = "1.0"
-        for _ in range(power):  # tau**power as in NumPy: ((1 * tau) * tau) ...
-            factor = f"({factor} * tau)"
-        value = names[signal] if power == 0 else f"{factor} * {names[signal]}"
-        body.append(f"v{c}_0 = {value}")
-        level_value[(signal, power, 0)] = f"v{c}_0"
-        for level in range(1, depth + 1):
-            y = f"v{c}_{level - 1}"
-            win = [f"w{c}_{level}_{j}" for j in range(m)] + [y]
-            increment = " + ".join(f"{w[j]} * {win[j]}" for j in range(q))
-            body.append(f"s{c}_{level} = s{c}_{level} + ({increment})")
-            body.append(f"{', '.join(win[:m])} = {', '.join(win[1:])}"
-                        if m > 1 else f"{win[0]} = {y}")
-            body.append(f"v{c}_{level} = s{c}_{level} * h")
-            level_value[(signal, power, level)] = f"v{c}_{level}"
-    kernels = [level_value[kernel] for kernel in module.KERNELS]
-    body.append(f"kv = ({', '.join(kernels)},)")
-    body.append("P, Q = _regressors_packed(kv)")
-    body.append("nums, den = _cramer(P, Q)")
-    for r in range(lanes):
-        body.append(f"y{r} = {f'nums[{r}]' if r < n_par else 'den'}")
-    body.append("k = 0")
-    body.append("for _ in range(p):  # filter integrators, ring buffers fr[k, pos:pos + m]")
-    for r in range(lanes):
-        increment = " + ".join([f"{w[j]} * fr[k, pos + {j}]" for j in range(m)]
-                               + [f"{w[m]} * y{r}"])
-        body += [f"    s = fs[k] + ({increment})", "    fs[k] = s",
-                 f"    fr[k, pos] = y{r}", f"    fr[k, pos + {m}] = y{r}",
-                 f"    y{r} = s * h", "    k += 1"]
-    body.append(f"if y{n_par} == 0.0 or not math.isfinite(y{n_par}):")
-    body += [f"    out[{r}, i] = nan" for r in range(n_par)]
-    body.append("else:")
-    body += [f"    out[{r}, i] = y{r} / y{n_par}" for r in range(n_par)]
-    body += ["pos += 1", f"if pos == {m}:", "    pos = 0"]
+    def fir(buf):  # the increment w[0] y[b] + ... + w[q-1] y[b+q-1], in this order
+        return " + ".join(f"{w[j]} * {buf}, b + {j}]" for j in range(q))
 
     src = [f'"""Compiled estimation loop of model {module.MODEL!r}, {q}-point rule.',
            "",
-           "Written by algid.engine from the generated module "
-           f"{module.__name__}; do not edit.",
+           f"Written by algid.engine from {module.__name__}; do not edit.",
            '"""', "", "import math", "", "import numba", "import numpy as np", ""]
     if embed:
-        src += ["CACHE = True", "", "# ---- from the generated module, verbatim", ""]
-        src += [inspect.getsource(module.regressors_packed),
+        src += ["CACHE = True", "", "# ---- from the generated module, verbatim", "",
+                inspect.getsource(module.regressors_packed),
                 inspect.getsource(module.cramer), "# ----", ""]
     else:
         src += ["CACHE = False", ""]
     src += ["_regressors_packed = numba.njit(cache=CACHE, nogil=True)(regressors_packed)",
             "_cramer = numba.njit(cache=CACHE, nogil=True)(cramer)", "",
-            f"SIGNATURE = {_SIGNATURE!r}", "",
-            "",
+            f"SIGNATURE = {_SIGNATURE!r}", f"BLOCK = {_BLOCK}", f"M = {m}", "", "",
             "@numba.njit(SIGNATURE, cache=CACHE, nogil=True)",
-            "def advance(u, x, out, sums, windows, n0, h, divisor, p):",
-            "    nan = np.nan"]
+            "def advance(u, x, out, sums, windows, n0, h, divisor, p):"]
+    a = src.append
+    a("    # cb[c, l, :M] holds the last M values of level l of chain c before the block,")
+    a("    # cb[c, l, M + b] its value at sample b of the block; fb likewise for the")
+    a("    # filter levels of the numerators and the denominator (level 0: unfiltered)")
+    a(f"    cb = np.empty(({n_chains}, {depth + 1}, M + BLOCK))")
+    a(f"    fb = np.empty((p + 1, {lanes}, M + BLOCK))")
+    a(f"    inc = np.empty(({max(n_chains, lanes)}, BLOCK))")
+    a(f"    cs = np.empty(({n_chains}, {depth + 1}))")
+    a(f"    fs = np.empty((p + 1, {lanes}))")
     for k, (c, level) in enumerate(chain_ints):
-        src.append(f"    s{c}_{level} = sums[{k}]")
-        src += [f"    w{c}_{level}_{j} = windows[{k}, {j}]" for j in range(m)]
-    src += [f"    nf = {lanes} * p",
-            "    fs = sums[" + str(n_chain) + ":].copy()",
-            f"    fr = np.empty((nf, {2 * m}))",
-            "    for k in range(nf):",
-            f"        for j in range({m}):",
-            f"            fr[k, j] = windows[{n_chain} + k, j]",
-            f"            fr[k, j + {m}] = windows[{n_chain} + k, j]",
-            "    pos = 0",
-            "    for i in range(u.shape[0]):",
-            "        tau = (n0 + i) * h",
-            "        uval = u[i] / divisor",
-            "        xval = x[i]"]
-    src += ["        " + line for line in body]
+        a(f"    cs[{c}, {level}] = sums[{k}]")
+        a("    for j in range(M):")
+        a(f"        cb[{c}, {level - 1}, j] = windows[{k}, j]")
+    a("    for lev in range(p):")
+    a(f"        for r in range({lanes}):")
+    a(f"            fs[lev + 1, r] = sums[{n_chain_ints} + lev * {lanes} + r]")
+    a("            for j in range(M):")
+    a(f"                fb[lev, r, j] = windows[{n_chain_ints} + lev * {lanes} + r, j]")
+    a("    size = u.shape[0]")
+    a("    for start in range(0, size, BLOCK):")
+    a("        nb = min(BLOCK, size - start)")
+    a("        # level 0 of the chains: tau**power * signal")
+    a("        for b in range(nb):")
+    a("            tau = (n0 + start + b) * h")
+    a("            uval = u[start + b] / divisor")
+    a("            xval = x[start + b]")
+    for c, (signal, power, _) in enumerate(chains):
+        factor = "1.0"
+        for _ in range(power):  # as NumPy's tau**power: ((1 * tau) * tau) ...
+            factor = f"({factor} * tau)"
+        rhs = value[signal] if power == 0 else f"{factor} * {value[signal]}"
+        a(f"            cb[{c}, 0, M + b] = {rhs}")
+    for level in range(1, depth + 1):
+        active = [c for c, (_, _, d) in enumerate(chains) if d >= level]
+        a(f"        # level {level}: increments (vectorised), then running sums")
+        a("        for b in range(nb):")
+        for c in active:
+            a(f"            inc[{c}, b] = {fir(f'cb[{c}, {level - 1}')}")
+        for c in active:
+            a(f"        s{c} = cs[{c}, {level}]")
+        a("        for b in range(nb):")
+        for c in active:
+            a(f"            s{c} = s{c} + inc[{c}, b]")
+            a(f"            cb[{c}, {level}, M + b] = s{c} * h")
+        for c in active:
+            a(f"        cs[{c}, {level}] = s{c}")
+    level_of = {}
+    for c, (signal, power, d) in enumerate(chains):
+        for level in range(d + 1):
+            level_of[(signal, power, level)] = f"cb[{c}, {level}, M + b]"
+    a("        # P, Q, Cramer's rule: the generated code")
+    a("        for b in range(nb):")
+    a(f"            kv = ({', '.join(level_of[kernel] for kernel in module.KERNELS)},)")
+    a("            P, Q = _regressors_packed(kv)")
+    a("            nums, den = _cramer(P, Q)")
+    for r in range(n_par):
+        a(f"            fb[0, {r}, M + b] = nums[{r}]")
+    a(f"            fb[0, {n_par}, M + b] = den")
+    a("        # the invariant filter 1/s**p on numerators and denominator")
+    a("        for lev in range(p):")
+    a("            for b in range(nb):")
+    for r in range(lanes):
+        a(f"                inc[{r}, b] = {fir(f'fb[lev, {r}')}")
+    for r in range(lanes):
+        a(f"            s{r} = fs[lev + 1, {r}]")
+    a("            for b in range(nb):")
+    for r in range(lanes):
+        a(f"                s{r} = s{r} + inc[{r}, b]")
+        a(f"                fb[lev + 1, {r}, M + b] = s{r} * h")
+    for r in range(lanes):
+        a(f"            fs[lev + 1, {r}] = s{r}")
+    a("        for b in range(nb):")
+    a(f"            d = fb[p, {n_par}, M + b]")
+    a("            if d == 0.0 or not math.isfinite(d):")
+    for r in range(n_par):
+        a(f"                out[{r}, start + b] = np.nan")
+    a("            else:")
+    for r in range(n_par):
+        a(f"                out[{r}, start + b] = fb[p, {r}, M + b] / d")
+    a("        # the last M values of every level start the next block")
+    a("        for j in range(M):")
+    a(f"            for c in range({n_chains}):")
+    a(f"                for lev in range({depth + 1}):")
+    a("                    cb[c, lev, j] = cb[c, lev, nb + j]")
+    a("            for lev in range(p):")
+    a(f"                for r in range({lanes}):")
+    a("                    fb[lev, r, j] = fb[lev, r, nb + j]")
     for k, (c, level) in enumerate(chain_ints):
-        src.append(f"    sums[{k}] = s{c}_{level}")
-        src += [f"    windows[{k}, {j}] = w{c}_{level}_{j}" for j in range(m)]
-    src += ["    for k in range(nf):",
-            f"        sums[{n_chain} + k] = fs[k]",
-            f"        for j in range({m}):",
-            f"            windows[{n_chain} + k, j] = fr[k, pos + j]", ""]
+        a(f"    sums[{k}] = cs[{c}, {level}]")
+        a("    for j in range(M):")
+        a(f"        windows[{k}, j] = cb[{c}, {level - 1}, j]")
+    a("    for lev in range(p):")
+    a(f"        for r in range({lanes}):")
+    a(f"            sums[{n_chain_ints} + lev * {lanes} + r] = fs[lev + 1, r]")
+    a("            for j in range(M):")
+    a(f"                windows[{n_chain_ints} + lev * {lanes} + r, j] = fb[lev, r, j]")
+    a("")
     return "\n".join(src)
 
 
@@ -498,6 +545,53 @@ def run_chunk(state, f, x, *, out=None):
                        state.step, state.input_divisor, state.filter_order)
         state.n_seen += n - i
     return out
+
+
+@lru_cache(maxsize=None)
+def _signal_scan():
+    """Compiled single pass over ``t``, ``f``, ``x``: 0 when they pass every check of
+    :func:`algid.validation.check_experiment` that looks at the values, else 1."""
+    numba = _require_numba()
+
+    @numba.njit("int64(float64[::1], float64[::1], float64[::1], float64, float64)",
+                cache=True, nogil=True)
+    def scan(t, f, x, h, tolerance):
+        n = t.shape[0]
+        excited = False
+        for i in range(n):
+            if not (math.isfinite(t[i]) and math.isfinite(f[i]) and math.isfinite(x[i])):
+                return 1
+            if f[i] != 0.0 or x[i] != 0.0:
+                excited = True
+        for i in range(n - 1):
+            dt = t[i + 1] - t[i]
+            if not dt > 0.0 or abs(dt - h) > tolerance:
+                return 1
+        return 0 if excited else 1
+
+    return scan
+
+
+def check_experiment(t, f, x, *, min_samples=16):
+    """:func:`algid.validation.check_experiment` in one compiled pass over the data.
+
+    Same arguments, result and errors: for float64 1-D contiguous arrays of equal
+    length the values are checked in one pass (finite, time strictly increasing and
+    uniform within :data:`~algid.validation.UNIFORM_RTOL`, some excitation); anything
+    else, and any failure, goes to :func:`algid.validation.check_experiment`, which
+    raises the error that names the offending input.
+    """
+    from algid.validation import UNIFORM_RTOL
+    from algid.validation import check_experiment as check_slowly
+    arrays = (t, f, x)
+    if all(isinstance(a, np.ndarray) and a.dtype == np.float64 and a.ndim == 1
+           and a.flags.c_contiguous for a in arrays):
+        n = t.size
+        if f.size == n and x.size == n and n >= max(int(min_samples), 2):
+            h = float((t[-1] - t[0]) / (n - 1))
+            if _signal_scan()(t, f, x, h, UNIFORM_RTOL * h) == 0:
+                return t, f, x, h
+    return check_slowly(t, f, x, min_samples=min_samples)
 
 
 def estimate_arrays(module, f, x, *, step, quadrature_order, filter_order, input_divisor=1.0):

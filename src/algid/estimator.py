@@ -207,11 +207,13 @@ def estimate(t, f=None, x=None, *, model="msd", filter_order=DEFAULT_FILTER_ORDE
         if not np.isfinite(mass) or mass <= 0:
             raise InputDataError(f"mass must be a positive number, got {mass!r}")
     min_samples = max(2 * quadrature_order, 8)
-    t, f, x, h = check_experiment(t, f, x, min_samples=min_samples)
-
-    n = t.size
+    try:
+        n = len(t)
+    except TypeError:
+        n = 0  # not a sequence: check_experiment says what is wrong
     if _choose_engine(engine, n, lowpass_filter) == "numba":
         from algid import engine as compiled
+        t, f, x, h = compiled.check_experiment(t, f, x, min_samples=min_samples)
         values = compiled.estimate_arrays(gen, f, x, step=h, quadrature_order=quadrature_order,
                                           filter_order=int(filter_order),
                                           input_divisor=1.0 if mass is None else mass)
@@ -222,6 +224,8 @@ def estimate(t, f=None, x=None, *, model="msd", filter_order=DEFAULT_FILTER_ORDE
         return EstimationResult(t=t, estimates=estimates, model=model,
                                 filter_order=int(filter_order),
                                 quadrature_order=quadrature_order, mass=mass)
+    t, f, x, h = check_experiment(t, f, x, min_samples=min_samples)
+    n = t.size
     tau = np.arange(n) * h  # time origin at the first sample: the method allows it
     u = f / mass if mass is not None else f
     kern = kernel_values(gen, {gen.INPUT: u, gen.OUTPUT: x}, tau, h, order=quadrature_order)

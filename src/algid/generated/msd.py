@@ -60,24 +60,7 @@ def regressors(k):
         2 rows of 2 entries.
     Q : tuple of arrays
     """
-    f_t2_i2 = k["f_t2_i2"]
-    f_t2_i3 = k["f_t2_i3"]
-    x_t0_i2 = k["x_t0_i2"]
-    x_t0_i3 = k["x_t0_i3"]
-    x_t1_i1 = k["x_t1_i1"]
-    x_t1_i2 = k["x_t1_i2"]
-    x_t1_i3 = k["x_t1_i3"]
-    x_t2_i0 = k["x_t2_i0"]
-    x_t2_i1 = k["x_t2_i1"]
-    x_t2_i2 = k["x_t2_i2"]
-    x_t2_i3 = k["x_t2_i3"]
-    p_0_0 = -2*x_t1_i2 + x_t2_i1
-    p_0_1 = x_t2_i2
-    p_1_0 = -2*x_t1_i3 + x_t2_i2
-    p_1_1 = x_t2_i3
-    q_0 = f_t2_i2 - 2*x_t0_i2 + 4*x_t1_i1 - x_t2_i0
-    q_1 = f_t2_i3 - 2*x_t0_i3 + 4*x_t1_i2 - x_t2_i1
-    return ((p_0_0, p_0_1,), (p_1_0, p_1_1,),), (q_0, q_1,)
+    return regressors_packed(tuple(k[kernel_name(*kern)] for kern in KERNELS))
 
 
 def regressors_packed(kv):

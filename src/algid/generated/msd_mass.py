@@ -64,34 +64,7 @@ def regressors(k):
         3 rows of 3 entries.
     Q : tuple of arrays
     """
-    F_t2_i2 = k["F_t2_i2"]
-    F_t2_i3 = k["F_t2_i3"]
-    F_t2_i4 = k["F_t2_i4"]
-    x_t0_i2 = k["x_t0_i2"]
-    x_t0_i3 = k["x_t0_i3"]
-    x_t0_i4 = k["x_t0_i4"]
-    x_t1_i1 = k["x_t1_i1"]
-    x_t1_i2 = k["x_t1_i2"]
-    x_t1_i3 = k["x_t1_i3"]
-    x_t1_i4 = k["x_t1_i4"]
-    x_t2_i0 = k["x_t2_i0"]
-    x_t2_i1 = k["x_t2_i1"]
-    x_t2_i2 = k["x_t2_i2"]
-    x_t2_i3 = k["x_t2_i3"]
-    x_t2_i4 = k["x_t2_i4"]
-    p_0_0 = 2*x_t0_i2 - 4*x_t1_i1 + x_t2_i0
-    p_0_1 = -2*x_t1_i2 + x_t2_i1
-    p_0_2 = x_t2_i2
-    p_1_0 = 2*x_t0_i3 - 4*x_t1_i2 + x_t2_i1
-    p_1_1 = -2*x_t1_i3 + x_t2_i2
-    p_1_2 = x_t2_i3
-    p_2_0 = 2*x_t0_i4 - 4*x_t1_i3 + x_t2_i2
-    p_2_1 = -2*x_t1_i4 + x_t2_i3
-    p_2_2 = x_t2_i4
-    q_0 = F_t2_i2
-    q_1 = F_t2_i3
-    q_2 = F_t2_i4
-    return ((p_0_0, p_0_1, p_0_2,), (p_1_0, p_1_1, p_1_2,), (p_2_0, p_2_1, p_2_2,),), (q_0, q_1, q_2,)
+    return regressors_packed(tuple(k[kernel_name(*kern)] for kern in KERNELS))
 
 
 def regressors_packed(kv):

@@ -79,17 +79,11 @@ def numpy_module_source(derivation: Derivation) -> str:
               "    Parameters", "    ----------", "    k : mapping",
               "        Kernel name (see :func:`kernel_name`) -> array of its values.", "",
               "    Returns", "    -------", "    P : tuple of tuples of arrays",
-              f"        {n_eq} rows of {n_par} entries.", "    Q : tuple of arrays", '    """']
-    for kern in derivation.kernels:
-        lines.append(f'    {kern.name} = k["{kern.name}"]')
-    for i in range(n_eq):
-        for j in range(n_par):
-            lines.append(f"    p_{i}_{j} = {_code(P[i, j])}")
-    for i in range(n_eq):
-        lines.append(f"    q_{i} = {_code(Q[i])}")
+              f"        {n_eq} rows of {n_par} entries.", "    Q : tuple of arrays", '    """',
+              "    return regressors_packed(tuple(k[kernel_name(*kern)] for kern in KERNELS))",
+              "", ""]
     rows = ", ".join("(" + ", ".join(f"p_{i}_{j}" for j in range(n_par)) + ",)" for i in range(n_eq))
     qs = ", ".join(f"q_{i}" for i in range(n_eq))
-    lines += [f"    return ({rows},), ({qs},)", "", ""]
     lines += ["def regressors_packed(kv):",
               '    """:func:`regressors` with the kernels given by position, in KERNELS order.', "",
               "    ``kv`` is any sequence (or array whose first axis runs over the kernels);",
