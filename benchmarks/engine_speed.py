@@ -7,10 +7,11 @@ Measures, in one process (the machine is shared: ratios are what to compare):
   (:func:`algid.engine.run_chunk` on one chunk);
 - streaming in chunks of 1000 samples through :func:`algid.engine.run_chunk`, as a
   ratio to one chunk; the cost per call of chunks of one sample;
-- the peak of traced memory (:mod:`tracemalloc`) of each engine, as a ratio to the
-  bytes of the input arrays ``t``, ``f``, ``x``;
-- the compile time of the loop (in a fresh process with an empty cache) and the time
-  to load it from the cache.
+- the peak of traced memory (:mod:`tracemalloc`) of each engine, and the growth of
+  the peak resident set size of a fresh process, as ratios to the bytes of the input
+  arrays ``t``, ``f``, ``x``;
+- the time to import numba, to compile the loop (in a fresh process with an empty
+  cache) and to load it from the cache.
 
 Times are the minimum over repeats of the process CPU time (``time.process_time``),
 which other users of the machine disturb less than the wall time; the wall time is
@@ -71,17 +72,37 @@ def _stream(state, f, x, chunk, out):
 
 
 def _compile_times(model, q):
-    code = ("import time, sys; t0 = time.perf_counter(); from algid import engine; "
-            "from algid.estimator import load_model; "
-            f"engine.prepare(load_model({model!r}), {q}); "
-            "print(time.perf_counter() - t0)")
+    """(import of numba, compile with an empty cache, load from the cache) [s, wall],
+    each in a fresh process."""
+    code = ("import time; t0 = time.perf_counter(); import numba; t1 = time.perf_counter(); "
+            "from algid import engine; from algid.estimator import load_model; "
+            f"gen = load_model({model!r}); t2 = time.perf_counter(); "
+            f"engine.prepare(gen, {q}); "
+            "print(t1 - t0, time.perf_counter() - t2)")
     with tempfile.TemporaryDirectory() as tmp:
         env = dict(os.environ, ALGID_CACHE_DIR=tmp)
-        cold = float(subprocess.run([sys.executable, "-c", code], env=env, check=True,
-                                    capture_output=True, text=True).stdout)
-        warm = float(subprocess.run([sys.executable, "-c", code], env=env, check=True,
-                                    capture_output=True, text=True).stdout)
-    return cold, warm
+        runs = [subprocess.run([sys.executable, "-c", code], env=env, check=True,
+                               capture_output=True, text=True).stdout.split()
+                for _ in range(2)]
+    return float(runs[1][0]), float(runs[0][1]), float(runs[1][1])
+
+
+def _rss_growth(n, engine_name, opts):
+    """Growth of the peak resident set size [bytes] of a fresh process during one
+    estimate, after its input arrays exist (and, for numba, after a warm-up)."""
+    code = (
+        "import resource, sys, numpy as np, algid\n"
+        "from benchmarks.engine_speed import _signals\n"
+        f"t, f, x = _signals({n})\n"
+        f"if {engine_name!r} == 'numba':\n"
+        f"    algid.estimate(t[:1000], f[:1000], x[:1000], engine='numba', **{opts!r})\n"
+        "before = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss\n"
+        f"r = algid.estimate(t, f, x, engine={engine_name!r}, **{opts!r})\n"
+        "after = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss\n"
+        "print((after - before) * 1024)\n")
+    out = subprocess.run([sys.executable, "-c", code], check=True, capture_output=True,
+                         text=True).stdout
+    return float(out)
 
 
 def main(argv=None):
@@ -99,9 +120,9 @@ def main(argv=None):
     opts = dict(model=model, filter_order=p, quadrature_order=q)
 
     if not args.no_compile:
-        cold, warm = _compile_times(model, q)
-        print(f"compile (fresh process, empty cache): {cold:.2f} s wall; "
-              f"load from cache (import of numba included): {warm:.2f} s wall")
+        imp, cold, warm = _compile_times(model, q)
+        print(f"import numba: {imp:.2f} s; compile the loop (empty cache): {cold:.2f} s; "
+              f"load it from the cache: {warm:.2f} s (wall, fresh processes)")
     engine.prepare(gen, q)
 
     for n in (int(v) for v in args.sizes):
@@ -158,6 +179,10 @@ def main(argv=None):
         print(f"  peak traced memory, numba: {peak_nb / 1e6:8.0f} MB = "
               f"{peak_nb / in_bytes:5.1f} x input "
               f"(result {len(gen.PARAMETERS) * 8 * n / 1e6:.0f} MB)")
+        for name in ("numpy", "numba") if n <= args.skip_numpy_above else ("numba",):
+            growth = _rss_growth(n, name, opts)
+            print(f"  peak RSS growth, {name}: {growth / 1e6:8.0f} MB = "
+                  f"{growth / in_bytes:5.1f} x input")
     return 0
 
 

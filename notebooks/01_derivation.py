@@ -42,7 +42,7 @@
 # %%
 import os
 
-# A small workload when the notebook is executed by the test suite.
+# ALGID_NOTEBOOK_QUICK=1 selects a small workload (fewer realisations, shorter records).
 QUICK = os.environ.get("ALGID_NOTEBOOK_QUICK", "") not in ("", "0")
 
 import matplotlib.pyplot as plt
@@ -58,7 +58,7 @@ from algid.symbolic.models import builtin_model
 from algid.symbolic.realization import from_kernel_terms, kernel_terms
 
 sp.init_printing()
-RESULTS = {}  # key results, read back by the test suite
+RESULTS = {}  # the key numbers of this notebook, collected for checking
 
 # %% [markdown]
 # ## 1.1 The model
@@ -264,9 +264,9 @@ for i in range(2):
 # %% [markdown]
 # The engine numbers rows and columns from 0: its $p_{00}, p_{01}, q_0$ are the paper's
 # $p_{11}, p_{12}, q_1$ (equations 16-18), and its second row is the paper's
-# $p_{21} = \int p_{11}$, $p_{22} = \int p_{12}$, $q_2 = \int q_1$ (21-23).  The toolkit also checks every
-# printed equation of the paper against this derivation (`algid.symbolic.errata`);
-# here are the verdicts for the equations of this section:
+# $p_{21} = \int p_{11}$, $p_{22} = \int p_{12}$, $q_2 = \int q_1$ (21-23).  The toolkit
+# also checks every printed equation of the paper against this derivation
+# (`algid.symbolic.errata`); here are the verdicts for the equations of this section:
 
 # %%
 from algid.symbolic.errata import PRINTED, check_equation

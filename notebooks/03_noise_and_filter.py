@@ -42,7 +42,7 @@
 # %%
 import os
 
-# A small workload when the notebook is executed by the test suite.
+# ALGID_NOTEBOOK_QUICK=1 selects a small workload (fewer realisations, shorter records).
 QUICK = os.environ.get("ALGID_NOTEBOOK_QUICK", "") not in ("", "0")
 
 import math
@@ -62,7 +62,7 @@ TIMES = (1.0, 2.5, 5.0)              # instants at which the error is measured [
 N_SEEDS = 4 if QUICK else 30         # noise realisations per (input, sigma, p)
 RTOL = 0.01                          # convergence: both estimates within 1 %
 
-RESULTS = {}  # key results, read back by the test suite
+RESULTS = {}  # the key numbers of this notebook, collected for checking
 
 # the noise-free experiments, simulated once (exact to round-off)
 sims = {kind: algid.simulate(kind, **SYSTEM, duration=5.0, rate=1000.0)

@@ -34,9 +34,9 @@ weights are literals), compiled once, and cached on disk (see :data:`CACHE_DIR`)
 works on blocks of :data:`_BLOCK` samples: for each level of the chains, the
 increments of all samples of the block are computed first (a loop the compiler
 vectorises, each increment summed in the rule's order), then the running sums (one
-dependency chain per integrator, interleaved across chains).  The block arrays stay
-in the first-level cache; memory traffic is the reading of ``f``, ``x`` and the
-writing of the estimates.
+dependency chain per integrator, interleaved across chains).  The block arrays
+(some tens of kilobytes) stay in the cache; the traffic to memory is the reading of
+``f``, ``x`` and the writing of the estimates.
 
 The rule of ``q`` points integrates the first ``q - 2`` intervals with the polynomial
 through samples ``0 .. q - 1`` (see :mod:`algid.quadrature`), so the first ``q - 1``
@@ -116,14 +116,18 @@ CACHE_DIR = os.environ.get("ALGID_CACHE_DIR") or os.path.join(
 #: in the first-level cache.
 _BLOCK = 256
 
-# u, x, out, sums, windows, n0, h, divisor, p
+# u, x, out, sums, windows, n0, h, divisor, p, work
 _SIGNATURE = ("void(float64[::1], float64[::1], float64[:, :], float64[::1], "
-              "float64[:, ::1], int64, float64, float64, int64)")
+              "float64[:, ::1], int64, float64, float64, int64, float64[::1])")
 
 
 def available() -> bool:
-    """Whether numba can be imported, i.e. whether this engine can run."""
-    return importlib.util.find_spec("numba") is not None
+    """Whether numba can be imported, i.e. whether this engine can run (imports it)."""
+    try:
+        import numba  # noqa: F401
+    except ImportError:
+        return False
+    return True
 
 
 def _require_numba():
@@ -146,6 +150,17 @@ def _chain_integrators(module):
             for level in range(1, depth + 1)]
 
 
+def _work_size(module, q, p):
+    """Length of the scratch array of the compiled loop: every level of every chain
+    and ``p + 1`` levels of numerators and denominator over ``q - 1 + BLOCK``
+    samples, the increments of a block, and the filter sums."""
+    lanes = len(module.PARAMETERS) + 1
+    levels = sum(d + 1 for _, _, d in module.CHAINS)
+    span = q - 1 + _BLOCK
+    return (levels * span + (len(module.CHAINS) + lanes) * _BLOCK
+            + (p + 1) * lanes * (span + 1))
+
+
 def _kernel_source(module, q, *, embed):
     """Python source of the module that holds the compiled loop of ``module`` with the
     ``q``-point rule (see :func:`_compiled`).  With ``embed`` the generated
@@ -157,14 +172,13 @@ def _kernel_source(module, q, *, embed):
     n_par = len(module.PARAMETERS)
     lanes = n_par + 1  # numerators, then the denominator
     chains = module.CHAINS
-    n_chains = len(chains)
-    depth = max(d for _, _, d in chains)
     chain_ints = _chain_integrators(module)
     n_chain_ints = len(chain_ints)
+    depth = max(d for _, _, d in chains)
     value = {module.INPUT: "uval", module.OUTPUT: "xval"}
 
     def fir(buf):  # the increment w[0] y[b] + ... + w[q-1] y[b+q-1], in this order
-        return " + ".join(f"{w[j]} * {buf}, b + {j}]" for j in range(q))
+        return " + ".join(f"{w[j]} * {buf}[b + {j}]" for j in range(q))
 
     src = [f'"""Compiled estimation loop of model {module.MODEL!r}, {q}-point rule.',
            "",
@@ -180,25 +194,38 @@ def _kernel_source(module, q, *, embed):
             "_cramer = numba.njit(cache=CACHE, nogil=True)(cramer)", "",
             f"SIGNATURE = {_SIGNATURE!r}", f"BLOCK = {_BLOCK}", f"M = {m}", "", "",
             "@numba.njit(SIGNATURE, cache=CACHE, nogil=True)",
-            "def advance(u, x, out, sums, windows, n0, h, divisor, p):"]
+            "def advance(u, x, out, sums, windows, n0, h, divisor, p, work):"]
     a = src.append
-    a("    # cb[c, l, :M] holds the last M values of level l of chain c before the block,")
-    a("    # cb[c, l, M + b] its value at sample b of the block; fb likewise for the")
-    a("    # filter levels of the numerators and the denominator (level 0: unfiltered)")
-    a(f"    cb = np.empty(({n_chains}, {depth + 1}, M + BLOCK))")
-    a(f"    fb = np.empty((p + 1, {lanes}, M + BLOCK))")
-    a(f"    inc = np.empty(({max(n_chains, lanes)}, BLOCK))")
-    a(f"    cs = np.empty(({n_chains}, {depth + 1}))")
-    a(f"    fs = np.empty((p + 1, {lanes}))")
+    a("    # y<c>_<l>[:M] holds the last M values of level l of chain c before the block,")
+    a("    # y<c>_<l>[M + b] its value at sample b of the block; s<c>_<l> is the running")
+    a("    # sum of level l.  fb[l, r] and fs[l, r] likewise for filter level l of")
+    a("    # numerator r (r = n_parameters: the denominator; level 0: unfiltered).")
+    a("    # all of them are views into the scratch array work (see _work_size)")
+    offset = 0
+    for c, (_, _, d) in enumerate(chains):
+        for level in range(d + 1):
+            a(f"    y{c}_{level} = work[{offset}:{offset} + M + BLOCK]")
+            offset += m + _BLOCK
+    for c in range(len(chains)):
+        a(f"    i{c} = work[{offset}:{offset + _BLOCK}]")
+        offset += _BLOCK
+    for r in range(lanes):
+        a(f"    j{r} = work[{offset}:{offset + _BLOCK}]")
+        offset += _BLOCK
+    a(f"    nfb = (p + 1) * {lanes} * (M + BLOCK)")
+    a(f"    fb = work[{offset}:{offset} + nfb].reshape((p + 1, {lanes}, M + BLOCK))")
+    a(f"    fs = work[{offset} + nfb:{offset} + nfb + (p + 1) * {lanes}]"
+      f".reshape((p + 1, {lanes}))")
     for k, (c, level) in enumerate(chain_ints):
-        a(f"    cs[{c}, {level}] = sums[{k}]")
-        a("    for j in range(M):")
-        a(f"        cb[{c}, {level - 1}, j] = windows[{k}, j]")
+        a(f"    s{c}_{level} = sums[{k}]")
+    a("    for k in range(M):")
+    for i, (c, level) in enumerate(chain_ints):
+        a(f"        y{c}_{level - 1}[k] = windows[{i}, k]")
     a("    for lev in range(p):")
     a(f"        for r in range({lanes}):")
     a(f"            fs[lev + 1, r] = sums[{n_chain_ints} + lev * {lanes} + r]")
-    a("            for j in range(M):")
-    a(f"                fb[lev, r, j] = windows[{n_chain_ints} + lev * {lanes} + r, j]")
+    a("            for k in range(M):")
+    a(f"                fb[lev, r, k] = windows[{n_chain_ints} + lev * {lanes} + r, k]")
     a("    size = u.shape[0]")
     a("    for start in range(0, size, BLOCK):")
     a("        nb = min(BLOCK, size - start)")
@@ -212,71 +239,74 @@ def _kernel_source(module, q, *, embed):
         for _ in range(power):  # as NumPy's tau**power: ((1 * tau) * tau) ...
             factor = f"({factor} * tau)"
         rhs = value[signal] if power == 0 else f"{factor} * {value[signal]}"
-        a(f"            cb[{c}, 0, M + b] = {rhs}")
+        a(f"            y{c}_0[M + b] = {rhs}")
     for level in range(1, depth + 1):
         active = [c for c, (_, _, d) in enumerate(chains) if d >= level]
-        a(f"        # level {level}: increments (vectorised), then running sums")
+        a(f"        # level {level}: the increments (vectorised), then the running sums")
         a("        for b in range(nb):")
         for c in active:
-            a(f"            inc[{c}, b] = {fir(f'cb[{c}, {level - 1}')}")
-        for c in active:
-            a(f"        s{c} = cs[{c}, {level}]")
+            a(f"            i{c}[b] = {fir(f'y{c}_{level - 1}')}")
         a("        for b in range(nb):")
         for c in active:
-            a(f"            s{c} = s{c} + inc[{c}, b]")
-            a(f"            cb[{c}, {level}, M + b] = s{c} * h")
-        for c in active:
-            a(f"        cs[{c}, {level}] = s{c}")
+            a(f"            s{c}_{level} = s{c}_{level} + i{c}[b]")
+            a(f"            y{c}_{level}[M + b] = s{c}_{level} * h")
     level_of = {}
     for c, (signal, power, d) in enumerate(chains):
         for level in range(d + 1):
-            level_of[(signal, power, level)] = f"cb[{c}, {level}, M + b]"
+            level_of[(signal, power, level)] = f"y{c}_{level}[M + b]"
+    for r in range(lanes):
+        a(f"        g{r} = fb[0, {r}]")
     a("        # P, Q, Cramer's rule: the generated code")
     a("        for b in range(nb):")
     a(f"            kv = ({', '.join(level_of[kernel] for kernel in module.KERNELS)},)")
     a("            P, Q = _regressors_packed(kv)")
     a("            nums, den = _cramer(P, Q)")
     for r in range(n_par):
-        a(f"            fb[0, {r}, M + b] = nums[{r}]")
-    a(f"            fb[0, {n_par}, M + b] = den")
-    a("        # the invariant filter 1/s**p on numerators and denominator")
+        a(f"            g{r}[M + b] = nums[{r}]")
+    a(f"            g{n_par}[M + b] = den")
+    a("        # the invariant filter 1/s**p on the numerators and the denominator")
     a("        for lev in range(p):")
+    for r in range(lanes):
+        a(f"            g{r} = fb[lev, {r}]")
+        a(f"            e{r} = fb[lev + 1, {r}]")
+        a(f"            t{r} = fs[lev + 1, {r}]")
     a("            for b in range(nb):")
     for r in range(lanes):
-        a(f"                inc[{r}, b] = {fir(f'fb[lev, {r}')}")
-    for r in range(lanes):
-        a(f"            s{r} = fs[lev + 1, {r}]")
+        a(f"                j{r}[b] = {fir(f'g{r}')}")
     a("            for b in range(nb):")
     for r in range(lanes):
-        a(f"                s{r} = s{r} + inc[{r}, b]")
-        a(f"                fb[lev + 1, {r}, M + b] = s{r} * h")
+        a(f"                t{r} = t{r} + j{r}[b]")
+        a(f"                e{r}[M + b] = t{r} * h")
     for r in range(lanes):
-        a(f"            fs[lev + 1, {r}] = s{r}")
+        a(f"            fs[lev + 1, {r}] = t{r}")
+    for r in range(lanes):
+        a(f"        g{r} = fb[p, {r}]")
     a("        for b in range(nb):")
-    a(f"            d = fb[p, {n_par}, M + b]")
+    a(f"            d = g{n_par}[M + b]")
     a("            if d == 0.0 or not math.isfinite(d):")
     for r in range(n_par):
         a(f"                out[{r}, start + b] = np.nan")
     a("            else:")
     for r in range(n_par):
-        a(f"                out[{r}, start + b] = fb[p, {r}, M + b] / d")
+        a(f"                out[{r}, start + b] = g{r}[M + b] / d")
     a("        # the last M values of every level start the next block")
-    a("        for j in range(M):")
-    a(f"            for c in range({n_chains}):")
-    a(f"                for lev in range({depth + 1}):")
-    a("                    cb[c, lev, j] = cb[c, lev, nb + j]")
+    a("        for k in range(M):")
+    for c, (_, _, d) in enumerate(chains):
+        for level in range(d):
+            a(f"            y{c}_{level}[k] = y{c}_{level}[nb + k]")
     a("            for lev in range(p):")
     a(f"                for r in range({lanes}):")
-    a("                    fb[lev, r, j] = fb[lev, r, nb + j]")
+    a("                    fb[lev, r, k] = fb[lev, r, nb + k]")
     for k, (c, level) in enumerate(chain_ints):
-        a(f"    sums[{k}] = cs[{c}, {level}]")
-        a("    for j in range(M):")
-        a(f"        windows[{k}, j] = cb[{c}, {level - 1}, j]")
+        a(f"    sums[{k}] = s{c}_{level}")
+    a("    for k in range(M):")
+    for i, (c, level) in enumerate(chain_ints):
+        a(f"        windows[{i}, k] = y{c}_{level - 1}[k]")
     a("    for lev in range(p):")
     a(f"        for r in range({lanes}):")
     a(f"            sums[{n_chain_ints} + lev * {lanes} + r] = fs[lev + 1, r]")
-    a("            for j in range(M):")
-    a(f"                windows[{n_chain_ints} + lev * {lanes} + r, j] = fb[lev, r, j]")
+    a("            for k in range(M):")
+    a(f"                windows[{n_chain_ints} + lev * {lanes} + r, k] = fb[lev, r, k]")
     a("")
     return "\n".join(src)
 
@@ -385,6 +415,7 @@ class EngineState:
         self.sums = np.zeros(n_int)
         self.windows = np.zeros((n_int, q - 1))
         self._startup = np.zeros((2, q))  # input (divided) and output, samples 0 .. q-1
+        self._work = np.empty(_work_size(module, q, self.filter_order))  # scratch
         self.n_seen = 0
 
     def reset(self):
@@ -401,6 +432,7 @@ class EngineState:
         new.sums = self.sums.copy()
         new.windows = self.windows.copy()
         new._startup = self._startup.copy()
+        new._work = np.empty_like(self._work)
         return new
 
     def __repr__(self):
@@ -542,7 +574,7 @@ def run_chunk(state, f, x, *, out=None):
             out[:, i - 1] = state._start()
     if i < n:
         state._advance(f[i:], x[i:], out[:, i:], state.sums, state.windows, state.n_seen,
-                       state.step, state.input_divisor, state.filter_order)
+                       state.step, state.input_divisor, state.filter_order, state._work)
         state.n_seen += n - i
     return out
 

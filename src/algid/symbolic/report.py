@@ -112,8 +112,9 @@ def derivation_steps(d: Derivation) -> list:
     if d.P.shape[0] == d.P.shape[1]:
         nums, den = d.cramer()
         steps.append(Step("Solution",
-                          "Cramer's rule; the estimate is defined as soon as det P is not zero, "
-                          "that is for every t > 0.  The same low-pass filter (for example "
+                          "Cramer's rule; the estimate is defined wherever det P is not zero: "
+                          "for every small t > 0, and afterwards except at isolated instants "
+                          "where det P crosses zero.  The same low-pass filter (for example "
                           "1/s^p) may be applied to each numerator and to the denominator "
                           "without changing the quotient.",
                           tuple((p, num / den) for p, num in zip(model.parameters, nums))))

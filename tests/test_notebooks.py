@@ -1,0 +1,204 @@
+"""Execute the teaching notebooks (jupytext percent sources in ``notebooks/``).
+
+Each notebook is converted with jupytext and run top to bottom by nbclient in a fresh
+kernel, with ``ALGID_NOTEBOOK_QUICK=1`` (small Monte Carlo sizes and records) and
+matplotlib's Agg backend.  Every notebook collects its key numbers in a dict
+``RESULTS``; the test appends one cell that prints it as JSON and checks the numbers.
+The notebooks also assert their own claims (exact identities, round-off agreement),
+so a wrong claim fails as a cell error.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import sys
+import time
+
+import pytest
+
+from conftest import ROOT
+
+jupytext = pytest.importorskip("jupytext", reason="needs the 'notebooks' extra")
+nbformat = pytest.importorskip("nbformat", reason="needs the 'notebooks' extra")
+nbclient = pytest.importorskip("nbclient", reason="needs the 'notebooks' extra")
+pytest.importorskip("ipykernel", reason="needs the 'notebooks' extra")
+
+NOTEBOOKS = ROOT / "notebooks"
+NAMES = ("01_derivation", "02_paper_figures", "03_noise_and_filter", "04_online_realisation")
+MARKER = "ALGID_NOTEBOOK_RESULTS="
+CELL_TIMEOUT = 600  # seconds; the quick workload takes a few seconds per notebook
+
+
+def _runs_this_python(argv0: str) -> bool:
+    """Whether a kernel command starting with ``argv0`` runs this interpreter.
+
+    jupyter_client replaces a bare ``python``, ``python3`` or ``python3.X`` by
+    ``sys.executable``; any other path must be this interpreter itself.
+    """
+    major, minor = sys.version_info[:2]
+    if argv0 in ("python", f"python{major}", f"python{major}.{minor}"):
+        return True
+    try:
+        return os.path.samefile(argv0, sys.executable)
+    except OSError:
+        return False
+
+
+def find_kernel(spare_dir):
+    """``(kernel_name, KernelSpecManager or None)`` for a kernel running this Python.
+
+    The ``python3`` kernel spec that ipykernel installs into the environment is used
+    when it runs this interpreter (``None``: the default spec manager finds it).
+    Otherwise (no such spec, or one for another Python) a private spec for
+    ``sys.executable`` is written under ``spare_dir`` and a spec manager that looks
+    only there is returned.
+    """
+    from jupyter_client.kernelspec import KernelSpecManager, NoSuchKernel
+
+    try:
+        spec = KernelSpecManager().get_kernel_spec("python3")
+        if spec.argv and _runs_this_python(spec.argv[0]):
+            return "python3", None
+    except NoSuchKernel:
+        pass
+    from ipykernel.kernelspec import write_kernel_spec
+
+    write_kernel_spec(path=str(spare_dir / "python3"))  # argv[0] = sys.executable
+    return "python3", KernelSpecManager(kernel_dirs=[str(spare_dir)])
+
+
+@pytest.fixture(scope="module")
+def kernel(tmp_path_factory):
+    return find_kernel(tmp_path_factory.mktemp("kernels"))
+
+
+def test_private_kernel_spec_when_none_is_installed(tmp_path, monkeypatch):
+    """Without a usable ``python3`` spec, a private one for this interpreter is used."""
+    from jupyter_client.kernelspec import KernelSpecManager, NoSuchKernel
+
+    def missing(self, name):
+        raise NoSuchKernel(name)
+
+    monkeypatch.setattr(KernelSpecManager, "get_kernel_spec", missing)
+    name, manager = find_kernel(tmp_path)
+    monkeypatch.undo()
+    assert name == "python3" and manager is not None
+    spec = manager.get_kernel_spec(name)
+    assert _runs_this_python(spec.argv[0]) and os.path.isabs(spec.argv[0])
+    assert spec.resource_dir.startswith(str(tmp_path))
+
+
+def run_notebook(name, kernel):
+    """Execute ``notebooks/<name>.py``; return ``(RESULTS dict, seconds)``."""
+    from jupyter_client import KernelManager
+
+    kernel_name, spec_manager = kernel
+    nb = jupytext.read(NOTEBOOKS / f"{name}.py")
+    nb.cells.append(nbformat.v4.new_code_cell(
+        f"import json\nprint({MARKER!r} + json.dumps(RESULTS, default=str))"))
+    env = dict(os.environ, ALGID_NOTEBOOK_QUICK="1", MPLBACKEND="Agg")
+    km = None
+    if spec_manager is not None:
+        km = KernelManager(kernel_name=kernel_name, kernel_spec_manager=spec_manager)
+    client = nbclient.NotebookClient(
+        nb, km=km, kernel_name=kernel_name, timeout=CELL_TIMEOUT, allow_errors=False,
+        resources={"metadata": {"path": str(NOTEBOOKS)}})
+    start = time.perf_counter()
+    client.execute(env=env)  # raises CellExecutionError on the first failing cell
+    elapsed = time.perf_counter() - start
+    text = "".join(out.get("text", "") for out in nb.cells[-1].outputs
+                   if out.get("output_type") == "stream")
+    line = next(ln for ln in text.splitlines() if ln.startswith(MARKER))
+    return json.loads(line[len(MARKER):]), elapsed
+
+
+@pytest.mark.parametrize("name", NAMES)
+def test_notebook_source_is_jupytext_percent(name):
+    """Sources are percent-format scripts that read the quick flag and fill RESULTS."""
+    text = (NOTEBOOKS / f"{name}.py").read_text(encoding="utf-8")
+    assert "format_name: percent" in text
+    assert "ALGID_NOTEBOOK_QUICK" in text and "RESULTS = {}" in text
+    nb = jupytext.reads(text, fmt="py:percent")
+    kinds = {cell.cell_type for cell in nb.cells}
+    assert kinds == {"markdown", "code"}
+
+
+def _close(a, b, tol):
+    return abs(a - b) <= tol
+
+
+def test_01_derivation(kernel, record_property):
+    res, elapsed = run_notebook("01_derivation", kernel)
+    record_property("seconds", round(elapsed, 1))
+    print(f"01_derivation: {elapsed:.1f} s")
+    # each d/ds removes one initial condition; none is left after two
+    assert res["ics_left_after_each_derivative"] == [["x0", "x_d0"], ["x0"], []]
+    # P theta - Q vanishes identically on exact trajectories with nonzero initial values
+    assert res["msd_residual_is_zero"] is True
+    assert res["custom_residual_is_zero"] is True
+    for values in res["msd_estimates_at"].values():
+        assert _close(values[0], 2.0, 1e-12) and _close(values[1], 3.0, 1e-12)
+    # the printed definitions (16)-(18) agree with the derivation
+    verdicts = res["printed_equation_verdicts"]
+    assert set(verdicts) == {"14", "15", "16", "17", "18", "24", "25"}
+    assert verdicts["16"] and verdicts["17"] and verdicts["18"]
+    # det P(t) starts from zero like a high power of t
+    assert res["det_P_small_t_power"] > 4
+    # the user's model, estimated numerically from exact samples
+    assert _close(res["custom_final"]["a"], 3.0, 1e-6)
+    assert _close(res["custom_final"]["b"], 2.0, 1e-6)
+
+
+def test_02_paper_figures(kernel, record_property):
+    res, elapsed = run_notebook("02_paper_figures", kernel)
+    record_property("seconds", round(elapsed, 1))
+    print(f"02_paper_figures: {elapsed:.1f} s")
+    for name in ("step", "sine"):
+        nf = res["noise_free"][name]
+        assert nf["toolkit_t_0.1pct"] < nf["paper_style_t_0.1pct"]
+        assert max(abs(v) for v in nf["toolkit_final_rel_error"].values()) < 1e-9
+    assert res["trapezoid_t1pct_vs_step_exponent"] > 0.2
+    assert res["n_seeds"] >= 2
+    for key, st in res["noisy_seeds"].items():
+        assert 0.5 < st["median_t_1pct"] < 5.0, key
+        assert st["rmse_B"] < 0.02 and st["rmse_K"] < 0.01, key
+
+
+def test_03_noise_and_filter(kernel, record_property):
+    res, elapsed = run_notebook("03_noise_and_filter", kernel)
+    record_property("seconds", round(elapsed, 1))
+    print(f"03_noise_and_filter: {elapsed:.1f} s")
+    assert res["noise_free_max_error_after_0.5s"] < 1e-11
+    peaks = [res["weight_peaks_at_2.5s"][str(p)] for p in (1, 2, 3, 4)]
+    assert peaks == sorted(peaks, reverse=True) and len(set(peaks)) == 4
+    lo, hi = res["rmse_ratio_0.01_over_0.001_at_5s"]
+    assert 8.0 < lo <= hi < 12.0  # error proportional to the noise
+    rmse = res["rmse_at_5s"]
+    for kind in ("step", "sine"):
+        for sigma in ("0.001", "0.01", "0.05"):
+            for param in ("B", "K"):
+                p0 = rmse[f"{kind}/sigma={sigma}/p=0/{param}"]
+                assert all(p0 > rmse[f"{kind}/sigma={sigma}/p={p}/{param}"] for p in (1, 2, 3, 4))
+    # the unfiltered estimator is never the fastest to settle within 1 %
+    medians = res["convergence_medians"]
+    for kind in ("step", "sine"):
+        for sigma in ("0.001", "0.01", "0.05"):
+            p0 = medians[f"{kind}/sigma={sigma}/p=0"]
+            assert all(p0 >= medians[f"{kind}/sigma={sigma}/p={p}"] for p in (1, 2, 3, 4))
+
+
+def test_04_online_realisation(kernel, record_property):
+    res, elapsed = run_notebook("04_online_realisation", kernel)
+    record_property("seconds", round(elapsed, 1))
+    print(f"04_online_realisation: {elapsed:.1f} s")
+    # the state-space realisation stepped sample by sample agrees to round-off
+    assert max(res["state_space_vs_batch_max_rel_diff"].values()) < 1e-10
+    # the streaming estimator, one sample at a time or in random chunks
+    assert res["online_chunk1_max_rel_diff"] < 1e-12
+    assert res["online_random_chunks_max_rel_diff"] < 1e-12
+    assert res["n_chunks"] > 1
+    settle = res["tracking_settle_s"]
+    assert math.isnan(settle["noise-free/no re-anchoring"])
+    assert 0.0 <= settle["noise-free/T = 0.05 s"] <= 0.05
