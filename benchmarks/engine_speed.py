@@ -88,18 +88,23 @@ def _compile_times(model, q):
 
 
 def _rss_growth(n, engine_name, opts):
-    """Growth of the peak resident set size [bytes] of a fresh process during one
-    estimate, after its input arrays exist (and, for numba, after a warm-up)."""
+    """Peak resident set size of a fresh process during one estimate minus its resident
+    size just before, once the input arrays exist (and, for numba, after a warm-up)
+    [bytes; Linux: reads /proc/self/status]."""
     code = (
-        "import resource, sys, numpy as np, algid\n"
+        "import numpy as np, algid\n"
         "from benchmarks.engine_speed import _signals\n"
         f"t, f, x = _signals({n})\n"
         f"if {engine_name!r} == 'numba':\n"
         f"    algid.estimate(t[:1000], f[:1000], x[:1000], engine='numba', **{opts!r})\n"
-        "before = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss\n"
+        "status = open('/proc/self/status').read().split()\n"
+        "before = int(status[status.index('VmRSS:') + 1])\n"
+        "status = open('/proc/self/status').read().split()\n"
+        "open('/proc/self/clear_refs', 'w').write('5')  # reset the peak (VmHWM)\n"
         f"r = algid.estimate(t, f, x, engine={engine_name!r}, **{opts!r})\n"
-        "after = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss\n"
-        "print((after - before) * 1024)\n")
+        "status = open('/proc/self/status').read().split()\n"
+        "peak = int(status[status.index('VmHWM:') + 1])\n"
+        "print((peak - before) * 1024)\n")
     out = subprocess.run([sys.executable, "-c", code], check=True, capture_output=True,
                          text=True).stdout
     return float(out)

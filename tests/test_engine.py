@@ -270,3 +270,23 @@ def test_numba_engine_without_numba(data, monkeypatch):
     assert r.final()["B"] == pytest.approx(2.0, rel=1e-6)
     with pytest.raises(InputDataError, match="pip install"):
         compiled._require_numba()
+
+
+def test_compiled_in_memory_when_the_cache_cannot_be_written(data, monkeypatch, tmp_path):
+    """An unwritable cache directory: the loop is compiled in memory, same numbers."""
+    _numba()
+    t, f, x = data
+    h = t[1] - t[0]
+    gen = load_model("msd")
+    reference = compiled.run_chunk(compiled.make_state(gen, 2, 1, step=h), f, x)
+    blocker = tmp_path / "file"
+    blocker.write_text("")
+    monkeypatch.setattr(compiled, "CACHE_DIR", str(blocker / "engine"))  # not a directory
+    assert compiled._load_cached(gen, 2) is None
+    compiled._compiled.cache_clear()
+    try:
+        state = compiled.make_state(gen, 2, 1, step=h)
+        assert state._advance.__module__ == "_algid_engine_msd_q2"  # built by exec
+        np.testing.assert_array_equal(compiled.run_chunk(state, f, x), reference)
+    finally:
+        compiled._compiled.cache_clear()  # later tests load the cached loops again

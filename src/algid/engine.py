@@ -473,7 +473,8 @@ class EngineState:
                 k += 1
         P, Q = module.regressors(kernels)
         numerators, denominator = module.cramer(P, Q)
-        lanes = [np.asarray(v, dtype=float) for v in (*numerators, denominator)]
+        lanes = [np.array(np.broadcast_to(v, (q,)), dtype=float)  # constants too
+                 for v in (*numerators, denominator)]
         for _ in range(self.filter_order):
             for r, y in enumerate(lanes):
                 self.windows[k] = y[1:]
@@ -581,34 +582,42 @@ def run_chunk(state, f, x, *, out=None):
 
 @lru_cache(maxsize=None)
 def _signal_scan():
-    """Compiled single pass over ``t``, ``f``, ``x``: 0 when they pass every check of
-    :func:`algid.validation.check_experiment` that looks at the values, else 1."""
+    """Compiled passes over ``t``, ``f``, ``x``: True when they pass every check of
+    :func:`algid.validation.check_experiment` that looks at the values."""
     numba = _require_numba()
 
-    @numba.njit("int64(float64[::1], float64[::1], float64[::1], float64, float64)",
-                cache=True, nogil=True)
-    def scan(t, f, x, h, tolerance):
-        n = t.shape[0]
-        excited = False
-        for i in range(n):
-            if not (math.isfinite(t[i]) and math.isfinite(f[i]) and math.isfinite(x[i])):
-                return 1
-            if f[i] != 0.0 or x[i] != 0.0:
-                excited = True
-        for i in range(n - 1):
+    # reductions in any order (vectorised); the result does not depend on the order:
+    # a sum of x * 0 is NaN if and only if some x is not finite
+    @numba.njit("float64(float64[::1], float64[::1], float64[::1])", cache=True, nogil=True,
+                fastmath={"reassoc"})
+    def nonfinite_and_excitation(t, f, x):
+        nan_if_bad = 0.0
+        excitation = 0.0
+        for i in range(t.shape[0]):
+            nan_if_bad += t[i] * 0.0 + f[i] * 0.0 + x[i] * 0.0
+            excitation += abs(f[i]) + abs(x[i])
+        return nan_if_bad if excitation > 0.0 else math.nan
+
+    @numba.njit("boolean(float64[::1], float64, float64)", cache=True, nogil=True)
+    def uniform(t, h, tolerance):
+        violations = 0
+        for i in range(t.shape[0] - 1):
             dt = t[i + 1] - t[i]
-            if not dt > 0.0 or abs(dt - h) > tolerance:
-                return 1
-        return 0 if excited else 1
+            violations += (not dt > 0.0) + (abs(dt - h) > tolerance)
+        return violations == 0
+
+    def scan(t, f, x, h, tolerance):
+        return (math.isfinite(h) and nonfinite_and_excitation(t, f, x) == 0.0
+                and uniform(t, h, tolerance))
 
     return scan
 
 
 def check_experiment(t, f, x, *, min_samples=16):
-    """:func:`algid.validation.check_experiment` in one compiled pass over the data.
+    """:func:`algid.validation.check_experiment` in two compiled passes over the data.
 
     Same arguments, result and errors: for float64 1-D contiguous arrays of equal
-    length the values are checked in one pass (finite, time strictly increasing and
+    length the values are checked by compiled loops (finite, time strictly increasing and
     uniform within :data:`~algid.validation.UNIFORM_RTOL`, some excitation); anything
     else, and any failure, goes to :func:`algid.validation.check_experiment`, which
     raises the error that names the offending input.
@@ -621,7 +630,7 @@ def check_experiment(t, f, x, *, min_samples=16):
         n = t.size
         if f.size == n and x.size == n and n >= max(int(min_samples), 2):
             h = float((t[-1] - t[0]) / (n - 1))
-            if _signal_scan()(t, f, x, h, UNIFORM_RTOL * h) == 0:
+            if _signal_scan()(t, f, x, h, UNIFORM_RTOL * h):
                 return t, f, x, h
     return check_slowly(t, f, x, min_samples=min_samples)
 

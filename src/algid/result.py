@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from functools import cached_property
+
 import numpy as np
 
 __all__ = ["EstimationResult", "convergence_time"]
@@ -62,10 +64,24 @@ class EstimationResult:
         self.filter_order = filter_order
         self.quadrature_order = quadrature_order
         self.mass = mass
-        defined = np.all([np.isfinite(v) for v in self.estimates.values()], axis=0)
-        idx = np.flatnonzero(defined)
-        self.valid_index = int(idx[0]) if idx.size else None
-        self.t_valid = float(t[idx[0]]) if idx.size else float("nan")
+
+    @cached_property
+    def valid_index(self):
+        """Index of the first sample where every estimate is defined (None if none)."""
+        defined = None
+        for values in self.estimates.values():
+            finite = np.isfinite(values)
+            defined = finite if defined is None else defined & finite
+        if defined is None or defined.size == 0:
+            return None
+        i = int(np.argmax(defined))  # first True, without materialising all indices
+        return i if defined[i] else None
+
+    @property
+    def t_valid(self) -> float:
+        """First instant with a defined estimate (NaN if none)."""
+        i = self.valid_index
+        return float("nan") if i is None else float(self.t[i])
 
     @property
     def n_samples(self) -> int:
