@@ -125,6 +125,26 @@ def _online():
     return online if hasattr(online, "OnlineEstimator") else None
 
 
+def _online_engines(online):
+    """Engines to run ``OnlineEstimator`` with: ``[(name, kwargs), ...]``.
+
+    ``[("default", {})]`` if it has no ``engine`` option; otherwise ``"numpy"`` and,
+    when numba is installed, ``"numba"``.
+    """
+    if "engine" not in inspect.signature(online.OnlineEstimator).parameters:
+        return [("default", {})]
+    engines = [("numpy", {"engine": "numpy"})]
+    if _numba_engine()[0]:
+        engines.append(("numba", {"engine": "numba"}))
+    return engines
+
+
+def _online_fastest(online):
+    """Label suffix and options of the fastest engine of ``OnlineEstimator`` here."""
+    name, kwargs = _online_engines(online)[-1]
+    return ("" if name == "default" else f", {name} engine"), kwargs
+
+
 def _numba_engine():
     """Whether ``algid.estimate(..., engine="numba")`` can run here, and why not."""
     if "engine" not in inspect.signature(algid.estimate).parameters:
@@ -419,15 +439,25 @@ def _streamers(online):
     out = {}
     if online is not None:
         period = getattr(online, "TRACKING_RESET_PERIOD", 0.05)
-        out["online"] = ("OnlineEstimator default",
-                         lambda: online.OnlineEstimator(rate=RATE))
-        out["online_reset"] = (f"OnlineEstimator reset_period={period:g}",
-                               lambda: online.OnlineEstimator(rate=RATE, reset_period=period))
-        out["online_trap_p0"] = ("OnlineEstimator trapezoid, p=0",
+        engines = _online_engines(online)
+        for name, kw in engines:
+            suffix = "" if name == "default" else f", {name} engine"
+            tag = "" if name == "default" else f"_{name}"
+            out[f"online{tag}"] = (f"OnlineEstimator{suffix}",
+                                   lambda kw=kw: online.OnlineEstimator(rate=RATE, **kw))
+            out[f"online_reset{tag}"] = (
+                f"OnlineEstimator reset_period={period:g}{suffix}",
+                lambda kw=kw: online.OnlineEstimator(rate=RATE, reset_period=period, **kw))
+        name, kw = engines[0]
+        suffix = "" if name == "default" else f", {name} engine"
+        out["online_trap_p0"] = (f"OnlineEstimator trapezoid, p=0{suffix}",
                                  lambda: online.OnlineEstimator(rate=RATE, quadrature_order=2,
-                                                                filter_order=0))
+                                                                filter_order=0, **kw))
+        numba_online = any(name == "numba" for name, _ in engines)
+    else:
+        numba_online = False
     ok, _ = _numba_engine()
-    if ok:
+    if ok and not numba_online:
         out["engine_numba"] = ("algid.engine state + run_chunk (numba)", _EngineStream)
     out["svf_rls"] = ("SVF + RLS", bl.SVFRecursiveLeastSquares)
     return out
@@ -635,20 +665,21 @@ def long_stream(config):
         return {"n_samples": config.n_long, "not_available": "algid.online not available"}
     period = getattr(online, "TRACKING_RESET_PERIOD", 0.05)
     exact_rate = 1024.0
+    eng, kw = _online_fastest(online)
     setups = {
-        "online_reset": (f"OnlineEstimator reset_period={period:g}",
-                         lambda: online.OnlineEstimator(rate=RATE, reset_period=period),
+        "online_reset": (f"OnlineEstimator reset_period={period:g}{eng}",
+                         lambda: online.OnlineEstimator(rate=RATE, reset_period=period, **kw),
                          period, RATE),
-        "online_reset_1024": (f"OnlineEstimator reset_period={period:g}, "
+        "online_reset_1024": (f"OnlineEstimator reset_period={period:g}{eng}, "
                               f"{exact_rate:g} Hz (exact sample times)",
                               lambda: online.OnlineEstimator(rate=exact_rate,
-                                                             reset_period=period),
+                                                             reset_period=period, **kw),
                               period, exact_rate),
-        "online_reset_1s": ("OnlineEstimator reset_period=1",
-                            lambda: online.OnlineEstimator(rate=RATE, reset_period=1.0),
+        "online_reset_1s": (f"OnlineEstimator reset_period=1{eng}",
+                            lambda: online.OnlineEstimator(rate=RATE, reset_period=1.0, **kw),
                             1.0, RATE),
-        "online": ("OnlineEstimator, no re-anchoring",
-                   lambda: online.OnlineEstimator(rate=RATE), 1.0, RATE),
+        "online": (f"OnlineEstimator, no re-anchoring{eng}",
+                   lambda: online.OnlineEstimator(rate=RATE, **kw), 1.0, RATE),
         "svf_rls": ("SVF + RLS", bl.SVFRecursiveLeastSquares, 1.0, RATE),
     }
     # blocks small enough that the first tenth holds several (steady memory)
@@ -711,10 +742,12 @@ def tracking(config):
     if online is None:
         return {"not_available": "algid.online not available"}
     period = getattr(online, "TRACKING_RESET_PERIOD", 0.05)
+    eng, kw = _online_fastest(online)
     setups = {
-        "online_reset": (f"OnlineEstimator reset_period={period:g}",
-                         lambda: online.OnlineEstimator(rate=RATE, reset_period=period)),
-        "online": ("OnlineEstimator, no re-anchoring", lambda: online.OnlineEstimator(rate=RATE)),
+        "online_reset": (f"OnlineEstimator reset_period={period:g}{eng}",
+                         lambda: online.OnlineEstimator(rate=RATE, reset_period=period, **kw)),
+        "online": (f"OnlineEstimator, no re-anchoring{eng}",
+                   lambda: online.OnlineEstimator(rate=RATE, **kw)),
         "svf_rls": ("SVF + RLS (forgetting 1)", bl.SVFRecursiveLeastSquares),
     }
     n_total = int(round(config.tracking_duration * RATE)) + 1

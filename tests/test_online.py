@@ -1,4 +1,8 @@
-"""Tests of algid.online: the streaming estimator and the re-anchoring of its origin."""
+"""Tests of algid.online: the streaming estimator and the re-anchoring of its origin.
+
+Most tests run with both engines (the ``engine`` fixture); those of the compiled engine
+are skipped when numba is not installed.
+"""
 
 import math
 
@@ -25,6 +29,16 @@ EXACT_RATE = 1024.0
 # estimates are ill-conditioned (det P ~ t**k), which can magnify a different
 # summation order of a few units of round-off; 1e-9 leaves room for that.
 RTOL_BATCH = 1e-9
+# Between the engines (the same operations in the same order: bit for bit in practice).
+RTOL_ENGINES = 1e-10
+
+
+@pytest.fixture(params=["numpy", "numba"])
+def engine(request):
+    """The engine of the estimator under test."""
+    if request.param == "numba":
+        pytest.importorskip("numba")
+    return request.param
 
 
 def _record(duration=1.0, **kw):
@@ -47,11 +61,15 @@ def _chunks(n, kind, rng=None):
     return [size] * (n // size) + ([n % size] if n % size else [])
 
 
-def _feed(est, t, f, x, sizes):
-    """Feed the record in chunks; concatenate the returned estimates."""
+def _feed(est, t, f, x, sizes, *, floats=False):
+    """Feed the record in chunks (chunks of one sample as three floats with `floats`);
+    concatenate the returned estimates."""
     results, start = [], 0
     for size in sizes:
-        r = est.update(t[start:start + size], f[start:start + size], x[start:start + size])
+        if floats and size == 1:
+            r = est.update(float(t[start]), float(f[start]), float(x[start]))
+        else:
+            r = est.update(t[start:start + size], f[start:start + size], x[start:start + size])
         assert r.t.size == size
         assert np.array_equal(r.t, t[start:start + size])
         results.append(r)
@@ -66,7 +84,19 @@ def _assert_same_estimates(stream, batch, rtol=RTOL_BATCH):
         got = stream[name]
         np.testing.assert_array_equal(np.isnan(got), np.isnan(ref), err_msg=name)
         ok = ~np.isnan(ref)
-        np.testing.assert_allclose(got[ok], ref[ok], rtol=rtol, atol=0, err_msg=name)
+        if rtol == 0:
+            np.testing.assert_array_equal(got[ok], ref[ok], err_msg=name)
+        else:
+            np.testing.assert_allclose(got[ok], ref[ok], rtol=rtol, atol=0, err_msg=name)
+
+
+CHUNKINGS = ("1", "floats", "7", "1000", "all", "random")
+
+
+def _feed_as(est, t, f, x, kind, rng):
+    """Feed the record chunked as `kind` (one of CHUNKINGS)."""
+    return _feed(est, t, f, x, _chunks(t.size, "1" if kind == "floats" else kind, rng),
+                 floats=kind == "floats")
 
 
 # --------------------------------------------------------------------------- chunking
@@ -75,35 +105,44 @@ def _assert_same_estimates(stream, batch, rtol=RTOL_BATCH):
 @pytest.mark.parametrize("model, mass", [("msd", None), ("msd", 2.0), ("msd_mass", None)])
 @pytest.mark.parametrize("filter_order", [0, 2])
 @pytest.mark.parametrize("quadrature_order", [2, 6])
-def test_any_chunking_gives_the_batch_estimates(model, mass, filter_order, quadrature_order):
+def test_any_chunking_gives_the_batch_estimates(engine, model, mass, filter_order,
+                                                quadrature_order):
     t, f, x = _record(duration=0.6)
-    batch = estimate(t, f, x, model=model, mass=mass, filter_order=filter_order,
-                     quadrature_order=quadrature_order).estimates
+    opts = dict(model=model, mass=mass, filter_order=filter_order,
+                quadrature_order=quadrature_order)
+    batch = estimate(t, f, x, engine="numpy", **opts).estimates
+    # the compiled engine gives the compiled batch estimates bit for bit
+    exact = estimate(t, f, x, engine="numba", **opts).estimates if engine == "numba" else None
     rng = np.random.default_rng(12345)
-    for kind in ("1", "7", "1000", "all", "random"):
-        est = OnlineEstimator(model, mass=mass, filter_order=filter_order,
-                              quadrature_order=quadrature_order)
-        got = _feed(est, t, f, x, _chunks(t.size, kind, rng))
-        _assert_same_estimates(got, batch)
+    for kind in CHUNKINGS:
+        est = OnlineEstimator(engine=engine, **opts)
+        assert est.engine == engine
+        got = _feed_as(est, t, f, x, kind, rng)
+        _assert_same_estimates(got, batch, rtol=RTOL_BATCH if exact is None else RTOL_ENGINES)
+        if exact is not None:
+            _assert_same_estimates(got, exact, rtol=0)
         assert est.n_seen == t.size
 
 
-def test_chunking_with_given_rate_and_long_record():
+def test_chunking_with_given_rate_and_long_record(engine):
     t, f, x = exact_response("step", duration=3.0, rate=EXACT_RATE, x0=-0.05, v0=0.3)
     batch = estimate(t, f, x).estimates
-    est = OnlineEstimator(rate=EXACT_RATE)
+    est = OnlineEstimator(rate=EXACT_RATE, engine=engine)
     _assert_same_estimates(_feed(est, t, f, x, _chunks(t.size, "1000")), batch)
     assert est.dt == 1 / EXACT_RATE
 
 
-def test_scalars_and_empty_chunks():
+def test_scalars_and_empty_chunks(engine):
     t, f, x = _record(duration=0.05)
     batch = estimate(t, f, x).estimates
-    est = OnlineEstimator()
+    est = OnlineEstimator(engine=engine)
     got = {"B": [], "K": []}
-    for ti, fi, xi in zip(t.tolist(), f.tolist(), x.tolist()):
-        r = est.update(ti, fi, xi)
-        assert r.t.shape == (1,)
+    assert t[0] == 0 and f[0] == 0  # the sine starts at 0
+    for i, (ti, fi, xi) in enumerate(zip(t.tolist(), f.tolist(), x.tolist())):
+        # integers, then NumPy and Python floats
+        sample = (0, 0, xi) if i == 0 else (t[i], f[i], x[i]) if i % 2 else (ti, fi, xi)
+        r = est.update(*sample)
+        assert r.t.shape == (1,) and r.t[0] == ti and r.parameters == ("B", "K")
         for k in got:
             got[k].append(r.estimates[k][0])
         empty = est.update([], [], [])
@@ -114,10 +153,12 @@ def test_scalars_and_empty_chunks():
 # --------------------------------------------------------------------------- start-up
 
 
-@pytest.mark.parametrize("q", [2, 3, 4, 5, 6, 7, 8])
-def test_startup_is_nan_until_sample_q_minus_1(q):
+# every rule with NumPy; with the compiled engine, rules whose loop other tests compile
+@pytest.mark.parametrize("engine, q", [("numpy", q) for q in range(2, 9)]
+                         + [("numba", q) for q in (2, 4, 6)], indirect=["engine"])
+def test_startup_is_nan_until_sample_q_minus_1(engine, q):
     t, f, x = _record(duration=0.05)
-    est = OnlineEstimator(quadrature_order=q)
+    est = OnlineEstimator(quadrature_order=q, engine=engine)
     assert est.startup_samples == q - 1
     for n in range(q - 1):
         r = est.update(t[n], f[n], x[n])
@@ -133,9 +174,9 @@ def test_startup_is_nan_until_sample_q_minus_1(q):
         assert np.isnan(r.B[0]) and batch.valid_index == 2
 
 
-def test_startup_split_across_chunks():
+def test_startup_split_across_chunks(engine):
     t, f, x = _record(duration=0.05)
-    est = OnlineEstimator()
+    est = OnlineEstimator(engine=engine)
     first = est.update(t[:3], f[:3], x[:3])
     assert np.all(np.isnan(first.B))
     second = est.update(t[3:9], f[3:9], x[3:9])  # holds samples 3..8; 5 = q - 1 is first
@@ -146,9 +187,9 @@ def test_startup_split_across_chunks():
 # --------------------------------------------------------------------------- reset()
 
 
-def test_reset_starts_a_new_stream():
+def test_reset_starts_a_new_stream(engine):
     t, f, x = _record(duration=0.3)
-    est = OnlineEstimator(rate=EXACT_RATE)
+    est = OnlineEstimator(rate=EXACT_RATE, engine=engine)
     est.update(t, f, x)
     est.reset()
     assert est.n_seen == 0 and math.isnan(est.t_origin)
@@ -162,9 +203,10 @@ def test_reset_starts_a_new_stream():
 # --------------------------------------------------------------------------- re-anchoring
 
 
-def test_reanchored_estimates_are_batch_estimates_from_the_window_origin():
+def test_reanchored_estimates_are_batch_estimates_from_the_window_origin(engine):
     t, f, x = _record(duration=0.7)
-    est = OnlineEstimator(rate=EXACT_RATE, reset_period=0.0977)  # rounded to 2 * 50 samples
+    # rounded to 2 * 50 samples
+    est = OnlineEstimator(rate=EXACT_RATE, reset_period=0.0977, engine=engine)
     assert est.reset_period == 100 / EXACT_RATE
     half, period = 50, 100
     rng = np.random.default_rng(7)
@@ -185,6 +227,31 @@ def test_reanchored_estimates_are_batch_estimates_from_the_window_origin():
     assert sorted(est.window_origins) == [t[650], t[700]]
 
 
+@pytest.mark.parametrize("mass", [None, 2.0])
+def test_reanchored_engines_agree_in_any_chunking(mass):
+    """The compiled engine re-anchors at the same samples as the NumPy one: the same
+    estimates, window origins and state, however the stream is cut."""
+    pytest.importorskip("numba")
+    t, f, x = _record(duration=0.4)
+    rng = np.random.default_rng(3)
+    for kind in CHUNKINGS:
+        runs = {}
+        for engine in ("numpy", "numba"):
+            # rate learnt from the stream; the period rounds to 2 * 25 samples
+            est = OnlineEstimator(mass=mass, reset_period=0.048, engine=engine)
+            sizes = _chunks(t.size, "1" if kind == "floats" else kind,
+                            np.random.default_rng(rng.integers(1 << 30)))
+            got = _feed(est, t, f, x, sizes, floats=kind == "floats")
+            runs[engine] = (got, est)
+        (ref, slow), (got, fast) = runs["numpy"], runs["numba"]
+        _assert_same_estimates(got, ref, rtol=RTOL_ENGINES)
+        assert set(got) == ({"B", "K"} if mass is None else {"B", "K", "c", "k"})
+        assert fast.reset_period == slow.reset_period == 50 / EXACT_RATE
+        assert fast.t_origin == slow.t_origin
+        assert fast.window_origins == slow.window_origins
+        assert fast.state_magnitude == pytest.approx(slow.state_magnitude, rel=RTOL_ENGINES)
+
+
 def _changed_record(kind, before, after, t_change, duration):
     """Exact response whose parameters change at t_change: the second segment starts
     from the state [x, x'] the first one ends in."""
@@ -199,10 +266,10 @@ def _changed_record(kind, before, after, t_change, duration):
 
 @pytest.mark.parametrize("kind", ["step", "sine"])
 @pytest.mark.parametrize("after", [(2.0, 5.0), (1.0, 3.0)], ids=["K 3->5", "B 2->1"])
-def test_parameter_change_is_followed_within_a_tenth_of_a_second(kind, after):
+def test_parameter_change_is_followed_within_a_tenth_of_a_second(engine, kind, after):
     t_change = 1.013  # not on a restart boundary
     t, f, x = _changed_record(kind, (2.0, 3.0), after, t_change, t_change + 0.3)
-    est = OnlineEstimator(rate=RATE, reset_period=TRACKING_RESET_PERIOD)
+    est = OnlineEstimator(rate=RATE, reset_period=TRACKING_RESET_PERIOD, engine=engine)
     got = _feed(est, t, f, x, _chunks(t.size, "100"))
     B, K = got["B"], got["K"]
     settled = (t >= est.reset_period / 2) & (t < t_change)
@@ -258,12 +325,12 @@ def _state_bound(model, filter_order, window, max_u, max_x):
     return max(bounds)
 
 
-def test_long_stream_stays_accurate_and_bounded():
+def test_long_stream_stays_accurate_and_bounded(engine):
     # shortened version of the 10**7-sample stream: 2e5 samples at 1 kHz
     period, chunk = 2.0, 1000
     s = simulate("sine", m=1.0, c=2.0, k=3.0, duration=200.0, rate=RATE)
     t, f, x = s.t[:200_000], s.f[:200_000], s.x_true[:200_000]
-    est = OnlineEstimator(rate=RATE, reset_period=period)
+    est = OnlineEstimator(rate=RATE, reset_period=period, engine=engine)
     chunks = ((t[i:i + chunk], f[i:i + chunk], x[i:i + chunk])
               for i in range(0, t.size, chunk))
     summary = run_stream(est, chunks, true_values={"B": 2.0, "K": 3.0},
@@ -278,7 +345,7 @@ def test_long_stream_stays_accurate_and_bounded():
     assert summary["max_state_magnitude"] <= bound * (1 + 1e-6)
     assert est.state_magnitude <= bound * (1 + 1e-6)
     # whereas without re-anchoring the integrals grow like a power of the time
-    plain = OnlineEstimator(rate=RATE)
+    plain = OnlineEstimator(rate=RATE, engine=engine)
     plain.update(t[:20_000], f[:20_000], x[:20_000])
     assert plain.state_magnitude > 1e3 * bound
 
@@ -293,9 +360,9 @@ def _one_line_error(match, func, *args):
     return str(info.value)
 
 
-def test_bad_chunks_are_refused_and_leave_the_state_unchanged():
+def test_bad_chunks_are_refused_and_leave_the_state_unchanged(engine):
     t, f, x = _record(duration=0.1)
-    est = OnlineEstimator()
+    est = OnlineEstimator(engine=engine)
     est.update(t[:50], f[:50], x[:50])
     bad_f = f[50:60].copy()
     bad_f[3] = np.nan
@@ -314,15 +381,46 @@ def test_bad_chunks_are_refused_and_leave_the_state_unchanged():
                     t[40:50], f[40:50], x[40:50])  # time going backwards
     _one_line_error("not increasing at stream sample 50", est.update, t[49], f[49], x[49])
     _one_line_error("has inf at row 0", est.update, t[50], np.inf, x[50])
+    # single samples as floats and as one-element arrays
+    _one_line_error("signal 'x' has NaN at row 0", est.update, float(t[50]), float(f[50]),
+                    math.nan)
+    _one_line_error("signal 't' has inf at row 0", est.update, math.inf, 0.0, 0.0)
+    _one_line_error("not uniformly sampled at stream sample 50", est.update,
+                    float(t[51]), float(f[51]), float(x[51]))
+    _one_line_error("not increasing at stream sample 50", est.update,
+                    t[49:50], f[49:50], x[49:50])
+    _one_line_error("signal 'f' has -inf at row 0", est.update,
+                    t[50:51], np.array([-np.inf]), x[50:51])
     assert est.n_seen == 50
     rest = est.update(t[50:], f[50:], x[50:])
     np.testing.assert_allclose(rest.B, estimate(t, f, x).B[50:], rtol=RTOL_BATCH, atol=0)
 
 
-def test_given_step_is_enforced():
+def test_given_step_is_enforced(engine):
     t, f, x = _record(duration=0.05)
-    est = OnlineEstimator(dt=2 * H)
+    est = OnlineEstimator(dt=2 * H, engine=engine)
     _one_line_error("not uniformly sampled", est.update, t, f, x)
+    est.update(t[0], f[0], x[0])
+    _one_line_error("not uniformly sampled at stream sample 1", est.update, t[1], f[1], x[1])
+    assert est.n_seen == 1
+
+
+def test_engine_option(monkeypatch):
+    assert OnlineEstimator(engine="numpy").engine == "numpy"
+    _one_line_error("engine must be one of 'auto', 'numpy', 'numba'",
+                    lambda: OnlineEstimator(engine="fortran"))
+    assert "engine='numpy'" in repr(OnlineEstimator(engine="numpy"))
+    from algid import engine as compiled
+    monkeypatch.setattr(compiled, "available", lambda: False)  # as without numba
+    assert OnlineEstimator().engine == "numpy"
+    msg = _one_line_error("engine='numba' needs numba", lambda: OnlineEstimator(engine="numba"))
+    assert compiled.INSTALL_HINT in msg
+
+
+def test_auto_engine_is_numba_when_installed():
+    pytest.importorskip("numba")
+    est = OnlineEstimator(reset_period=0.1)
+    assert est.engine == "numba" and "engine='numba'" in repr(est)
 
 
 def test_bad_options():
