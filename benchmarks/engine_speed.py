@@ -27,13 +27,14 @@ import subprocess
 import sys
 import tempfile
 import time
-import tracemalloc
 
 import numpy as np
 
 import algid
 from algid import engine
 from algid.estimator import load_model
+
+from benchmarks.measure import peak_memory
 
 
 def _signals(n, h=1e-3):
@@ -51,18 +52,6 @@ def _best(func, repeats):
         cpu = min(cpu, time.process_time() - c0)
         wall = min(wall, time.perf_counter() - w0)
     return cpu, wall
-
-
-def _peak(func):
-    tracemalloc.start()
-    try:
-        base, _ = tracemalloc.get_traced_memory()
-        tracemalloc.reset_peak()
-        func()
-        _, peak = tracemalloc.get_traced_memory()
-    finally:
-        tracemalloc.stop()
-    return peak - base
 
 
 def _stream(state, f, x, chunk, out):
@@ -177,10 +166,10 @@ def main(argv=None):
               f"({wall1 / m * 1e6:.2f} wall)")
 
         if n <= args.skip_numpy_above:
-            peak_np = _peak(lambda: algid.estimate(t, f, x, engine="numpy", **opts))
+            peak_np = peak_memory(lambda: algid.estimate(t, f, x, engine="numpy", **opts))
             print(f"  peak traced memory, numpy: {peak_np / 1e6:8.0f} MB = "
                   f"{peak_np / in_bytes:5.1f} x input")
-        peak_nb = _peak(lambda: algid.estimate(t, f, x, engine="numba", **opts))
+        peak_nb = peak_memory(lambda: algid.estimate(t, f, x, engine="numba", **opts))
         print(f"  peak traced memory, numba: {peak_nb / 1e6:8.0f} MB = "
               f"{peak_nb / in_bytes:5.1f} x input "
               f"(result {len(gen.PARAMETERS) * 8 * n / 1e6:.0f} MB)")

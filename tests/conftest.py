@@ -41,3 +41,14 @@ def step_data():
 @pytest.fixture(scope="session")
 def sine_data():
     return exact_response("sine")
+
+
+def assert_one_line_error(code, err, *fragments):
+    """The command line's contract for bad input: exit 2, one line, no traceback."""
+    assert code == 2
+    assert "Traceback" not in err
+    lines = err.splitlines()
+    assert len(lines) == 1, err
+    assert lines[0].startswith("algid: error: ")
+    for fragment in fragments:
+        assert fragment in lines[0]

@@ -16,22 +16,13 @@ import algid
 from algid.cli import main
 from algid.errors import InputDataError, ModelError
 from algid.validation import check_experiment
+from conftest import assert_one_line_error
 
 
 def run(capsys, *argv):
     code = main([str(arg) for arg in argv])
     captured = capsys.readouterr()
     return code, captured.out, captured.err
-
-
-def assert_one_line_error(code, err, *fragments):
-    assert code == 2
-    assert "Traceback" not in err
-    lines = err.splitlines()
-    assert len(lines) == 1, err
-    assert lines[0].startswith("algid: error: ")
-    for fragment in fragments:
-        assert fragment in lines[0]
 
 
 def signals(n=200, h=1e-3):

@@ -15,6 +15,7 @@ from scipy.stats import t as student_t  # noqa: E402
 from algid import paper  # noqa: E402
 from algid.cli import main  # noqa: E402
 from algid.errors import AlgidError  # noqa: E402
+from conftest import assert_one_line_error
 
 #: Reduced workload: 5 noise realisations (seeds 0..4) for the statistics, and a
 #: shown realisation with a seed outside them, so that its error is independent of
@@ -155,16 +156,6 @@ def test_cli_json(tmp_path, capsys):
     for name in ("step", "sine"):
         errors = summary["experiments"][name]["toolkit"]["final_rel_error"]
         assert max(abs(v) for v in errors.values()) <= 1e-6
-
-
-def assert_one_line_error(code, err, *fragments):
-    assert code == 2
-    assert "Traceback" not in err
-    lines = err.splitlines()
-    assert len(lines) == 1, err
-    assert lines[0].startswith("algid: error: ")
-    for fragment in fragments:
-        assert fragment in lines[0]
 
 
 def test_cli_out_is_a_file(tmp_path, capsys):

@@ -122,12 +122,10 @@ _SIGNATURE = ("void(float64[::1], float64[::1], float64[:, :], float64[::1], "
 
 
 def available() -> bool:
-    """Whether numba can be imported, i.e. whether this engine can run (imports it)."""
-    try:
-        import numba  # noqa: F401
-    except ImportError:
-        return False
-    return True
+    """Whether numba is installed, i.e. whether this engine can run."""
+    import importlib.util
+
+    return importlib.util.find_spec("numba") is not None
 
 
 def _require_numba():

@@ -8,7 +8,6 @@ numerical integration and the solve.
 
 from __future__ import annotations
 
-import sympy as sp
 from sympy.printing.pycode import PythonCodePrinter
 
 from algid.symbolic.derivation import Derivation

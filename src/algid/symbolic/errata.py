@@ -294,7 +294,7 @@ def _newton():
     """Reference forces from ``m x'' + c x' + k x = F`` (built-in model ``msd_mass``)."""
     model = builtin_model("msd_mass")
     m, c, k = model.parameters
-    x, F = model.output_function, model.input_function
+    x = model.output_function
     R = model.ode().lhs - model.ode().rhs
     spring, damper = -k * sp.diff(R, k), -c * sp.diff(R, c)
     applied = -R.subs({m: 0, c: 0, k: 0})
@@ -853,7 +853,7 @@ def _check_filter(printed, filters):
                      f"{', '.join(f'{u}(t)' for u in alien)}"
                      + (", a DC motor's angle and voltage," if set(alien) == {"theta_m", "V"}
                         else "")
-                     + f" not x(t), f(t))")
+                     + " not x(t), f(t))")
     if not same_integral_form(out.xreplace(_signal_reading()), target):
         texts.append(f"it computes {show(out)} = {show(_describe_laplace(out))}, not "
                      f"{name} = {show(target)} = {show(_describe_laplace(target))} (not even "

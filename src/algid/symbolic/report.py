@@ -14,7 +14,7 @@ import sympy as sp
 
 from algid.errors import ModelError
 from algid.symbolic.derivation import Derivation, derive
-from algid.symbolic.model import LAPLACE, LinearODEModel
+from algid.symbolic.model import LinearODEModel
 from algid.symbolic.models import builtin_model
 
 __all__ = ["Step", "derivation_steps", "derivation_report", "FORMATS"]
@@ -63,8 +63,7 @@ def _text(expr, d: Derivation) -> str:
 def derivation_steps(d: Derivation) -> list:
     """The derivation as a list of :class:`Step` objects."""
     model = d.model
-    s = LAPLACE
-    X, F = d.transforms
+    X, _ = d.transforms
     params = ", ".join(str(p) for p in model.parameters)
     ode = model.ode()
     steps = [Step("Model",
