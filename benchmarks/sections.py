@@ -106,7 +106,7 @@ CONFIGS = {
 
 def _study_function():
     """``crlb_study`` from whichever module of the toolkit holds it (or None)."""
-    for name in ("algid.crlb", "algid.efficiency"):
+    for name in ("algid.cramer_rao", "algid.efficiency"):
         try:
             module = importlib.import_module(name)
         except ImportError:
@@ -226,7 +226,7 @@ def _batch_fit(key, t, f, x):
     if key == "oe_nls":
         return bl.output_error_nls(t, f, x).final()
     if key == "algid_refined":
-        from algid.refine import refine
+        from algid.refinement import refine
 
         r = refine(t, f, x)
         return {"B": r.B, "K": r.K}
@@ -343,7 +343,7 @@ def efficiency(config):
         algebraic RMSE at the longest horizon and the same RMSE recomputed here from
         the rebuilt records; round-off if the data are the same).
     """
-    from algid.crlb import crlb
+    from algid.cramer_rao import crlb
 
     study, module = _study_function()
     horizons = tuple(float(T) for T in config.horizons)
@@ -406,7 +406,7 @@ def efficiency(config):
 
 def _batch_methods(n_oe):
     """key -> (label, function(t, f, x), samples used)."""
-    from algid.refine import refine
+    from algid.refinement import refine
 
     numpy_engine = ({"engine": "numpy"}
                     if "engine" in inspect.signature(algid.estimate).parameters else {})

@@ -8,8 +8,8 @@ figures matplotlib (``algid[plot]``).
 from algid.errors import AlgidError, DataFileError, InputDataError, ModelError
 from algid.estimator import available_models, estimate
 from algid.online import OnlineEstimator
-from algid.crlb import crlb
-from algid.refine import refine
+from algid.cramer_rao import crlb
+from algid.refinement import refine
 from algid.result import EstimationResult
 
 __version__ = "0.1.0"

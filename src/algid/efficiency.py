@@ -3,7 +3,7 @@
 :func:`crlb_study` simulates seeded noisy experiments on ``x'' + B x' + K x = f``,
 estimates ``B`` and ``K`` at several horizons with the algebraic estimator and with
 its output-error refinement, and compares the root-mean-square errors with the
-Cramér–Rao bound (:mod:`algid.crlb`, initial conditions unknown).  An efficient
+Cramér–Rao bound (:mod:`algid.cramer_rao`, initial conditions unknown).  An efficient
 estimator has ``RMSE / CRLB`` close to 1; with ``n`` runs the RMSE itself has a
 relative standard deviation of about ``1 / sqrt(2 n)`` (5 % for 200 runs).
 
@@ -47,7 +47,7 @@ def crlb_study(n_runs=200, horizons=(1, 2.5, 5), inputs=("step", "sine"), noise_
     rate : float, optional
         Sampling rate [Hz].  Default 1000.
     refined : bool, optional
-        Also run :func:`algid.refine.refine` from the algebraic estimate.  Default True.
+        Also run :func:`algid.refinement.refine` from the algebraic estimate.  Default True.
     iterations : int, optional
         Largest number of Gauss–Newton iterations of the refinement.
     quadrature_order : int, optional
@@ -65,10 +65,10 @@ def crlb_study(n_runs=200, horizons=(1, 2.5, 5), inputs=("step", "sine"), noise_
         undefined (NaN), or whose refinement cannot start from it, are left out of the
         statistics of that method (``n_valid`` counts the others).
     """
-    from algid.crlb import crlb
+    from algid.cramer_rao import crlb
     from algid.errors import InputDataError
     from algid.estimator import estimate
-    from algid.refine import refine
+    from algid.refinement import refine
     from algid.simulation import simulate
 
     horizons = tuple(float(T) for T in horizons)

@@ -1,7 +1,7 @@
-"""Output-error refinement of an algebraic estimate (Gauss–Newton): ``algid.refine``.
+"""Output-error refinement of an algebraic estimate (Gauss–Newton): ``algid.refinement``.
 
 The algebraic estimate weights the data by powers of ``t`` and by the invariant
-filter, so its variance stays above the Cramér–Rao bound (:mod:`algid.crlb`).  With
+filter, so its variance stays above the Cramér–Rao bound (:mod:`algid.cramer_rao`).  With
 white Gaussian noise on ``x``, the least-squares output-error estimate
 
     min over (B, K, x0, v0) of  sum_i (x_i - xhat(t_i; B, K, x0, v0))**2
@@ -21,7 +21,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from algid.crlb import covariance_from_sensitivities
+from algid.cramer_rao import covariance_from_sensitivities
 from algid.errors import InputDataError
 from algid.sensitivity import SENSITIVITY_PARAMETERS, output_sensitivities
 from algid.validation import check_experiment
@@ -176,7 +176,7 @@ def refine(t, f, x, *, start=None, iterations=10, mass=None, filter_order=2,
 
     Examples
     --------
-    >>> from algid.refine import refine
+    >>> from algid.refinement import refine
     >>> from algid.simulation import simulate
     >>> sim = simulate("step", initial_state=(0.1, -0.2), noise_std=0.01, seed=1)
     >>> r = refine(sim.t, sim.f, sim.x)

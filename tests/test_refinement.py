@@ -1,12 +1,12 @@
-"""Tests of algid.refine (output-error Gauss–Newton refinement)."""
+"""Tests of algid.refinement (output-error Gauss–Newton refinement)."""
 
 import numpy as np
 import pytest
 import scipy.stats
 
-from algid.crlb import crlb
+from algid.cramer_rao import crlb
 from algid.errors import InputDataError
-from algid.refine import RefinementResult, refine
+from algid.refinement import RefinementResult, refine
 
 from msd_reference import analytic_response
 

@@ -1,4 +1,4 @@
-"""Tests of algid.sensitivity, algid.crlb and algid.efficiency.
+"""Tests of algid.sensitivity, algid.cramer_rao and algid.efficiency.
 
 The Monte Carlo comparison of the bound with the efficient (refined) estimator is in
 tests/test_refine.py.
@@ -7,7 +7,7 @@ tests/test_refine.py.
 import numpy as np
 import pytest
 
-from algid.crlb import covariance_from_sensitivities, crlb, fisher_information
+from algid.cramer_rao import covariance_from_sensitivities, crlb, fisher_information
 from algid.errors import InputDataError
 from algid.sensitivity import SENSITIVITY_PARAMETERS, output_sensitivities
 
