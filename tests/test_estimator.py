@@ -113,6 +113,7 @@ def test_result_interface():
     (dict(model="nope"), ModelError, "unknown model 'nope'"),
     (dict(model="msd_mass", mass=1.0), ModelError, "estimates the mass"),
     (dict(mass=-1.0), InputDataError, "mass must be a positive"),
+    (dict(mass="2"), InputDataError, "mass must be a positive"),
     (dict(filter_order=-1), InputDataError, "filter_order"),
     (dict(filter_order=1.5), InputDataError, "filter_order"),
     (dict(quadrature_order=11), InputDataError, "quadrature_order"),

@@ -17,7 +17,7 @@ from algid.filters import as_lowpass
 from algid.generated import MODULES
 from algid.quadrature import iterated_integrals, startup_samples
 from algid.result import EstimationResult
-from algid.validation import check_experiment
+from algid.validation import check_experiment, positive_number
 
 __all__ = ["estimate", "available_models", "load_model", "DEFAULT_FILTER_ORDER",
            "DEFAULT_QUADRATURE_ORDER", "kernel_values", "ENGINES", "AUTO_ENGINE_MIN_SAMPLES"]
@@ -91,9 +91,16 @@ def kernel_values(module, signals, tau, h, *, order):
     return values
 
 
-def _choose_engine(engine, n, lowpass):
-    """``"numpy"`` or ``"numba"`` for the ``engine`` option of :func:`estimate`."""
-    if engine not in ENGINES:
+def _choose_engine(engine, n, lowpass, *, min_samples=None):
+    """``"numpy"`` or ``"numba"`` for an ``engine`` option.
+
+    ``"auto"`` takes numba when it is installed, there is no ``lowpass`` and there are at
+    least ``min_samples`` samples (default :data:`AUTO_ENGINE_MIN_SAMPLES`, read at call
+    time; a stream passes 0: there the cost per call matters).
+    """
+    if min_samples is None:
+        min_samples = AUTO_ENGINE_MIN_SAMPLES
+    if not isinstance(engine, str) or engine not in ENGINES:
         raise InputDataError(f"engine must be one of {', '.join(map(repr, ENGINES))}, "
                              f"got {engine!r}")
     if engine == "numpy":
@@ -107,8 +114,25 @@ def _choose_engine(engine, n, lowpass):
             raise InputDataError("engine='numba' does not support lowpass; use "
                                  "engine='numpy' (or 'auto')")
         return "numba"
-    use = lowpass is None and n >= AUTO_ENGINE_MIN_SAMPLES and compiled.available()
+    use = lowpass is None and n >= min_samples and compiled.available()
     return "numba" if use else "numpy"
+
+
+def _known_mass(gen, model, mass):
+    """The validated known mass, or None; refused for a model that estimates the mass."""
+    if mass is None:
+        return None
+    if "m" in gen.PARAMETERS:
+        raise ModelError(f"model {model!r} estimates the mass: do not give mass")
+    return positive_number(mass, name="mass")
+
+
+def _with_physical_parameters(estimates, mass):
+    """Add ``c = B m`` and ``k = K m`` to ``estimates`` when the mass is known."""
+    if mass is not None:
+        estimates["c"] = estimates["B"] * mass
+        estimates["k"] = estimates["K"] * mass
+    return estimates
 
 
 def _unpack_timeresponse(data):
@@ -185,8 +209,7 @@ def estimate(t, f=None, x=None, *, model="msd", filter_order=DEFAULT_FILTER_ORDE
 
     Examples
     --------
-    >>> import numpy as np, algid
-    >>> t = np.linspace(0, 5, 5001)
+    >>> import algid
     >>> r = algid.estimate(algid.simulate("step", m=1, c=2, k=3).to_timeresponse())
     >>> round(r.final()["B"], 6), round(r.final()["K"], 6)
     (2.0, 3.0)
@@ -201,11 +224,7 @@ def estimate(t, f=None, x=None, *, model="msd", filter_order=DEFAULT_FILTER_ORDE
     _check_options(filter_order, quadrature_order)
     lowpass_filter = None if lowpass is None else as_lowpass(lowpass)
     _choose_engine(engine, 0, lowpass_filter)  # refuse a bad engine option before the data
-    if mass is not None:
-        if "m" in gen.PARAMETERS:
-            raise ModelError(f"model {model!r} estimates the mass: do not give mass")
-        if not np.isfinite(mass) or mass <= 0:
-            raise InputDataError(f"mass must be a positive number, got {mass!r}")
+    mass = _known_mass(gen, model, mass)
     min_samples = max(2 * quadrature_order, 8)
     try:
         n = len(t)
@@ -217,36 +236,30 @@ def estimate(t, f=None, x=None, *, model="msd", filter_order=DEFAULT_FILTER_ORDE
         values = compiled.estimate_arrays(gen, f, x, step=h, quadrature_order=quadrature_order,
                                           filter_order=int(filter_order),
                                           input_divisor=1.0 if mass is None else mass)
-        estimates = dict(zip(gen.PARAMETERS, values))
-        if mass is not None:
-            estimates["c"] = estimates["B"] * mass
-            estimates["k"] = estimates["K"] * mass
-        return EstimationResult(t=t, estimates=estimates, model=model,
-                                filter_order=int(filter_order),
-                                quadrature_order=quadrature_order, mass=mass)
-    t, f, x, h = check_experiment(t, f, x, min_samples=min_samples)
-    n = t.size
-    tau = np.arange(n) * h  # time origin at the first sample: the method allows it
-    u = f / mass if mass is not None else f
+    else:
+        t, f, x, h = check_experiment(t, f, x, min_samples=min_samples)
+        values = _numpy_estimates(gen, f / mass if mass is not None else f, x, h,
+                                  filter_order=int(filter_order),
+                                  quadrature_order=quadrature_order, lowpass=lowpass_filter)
+    estimates = _with_physical_parameters(dict(zip(gen.PARAMETERS, values)), mass)
+    return EstimationResult(t=t, estimates=estimates, model=model, filter_order=int(filter_order),
+                            quadrature_order=quadrature_order, mass=mass)
+
+
+def _numpy_estimates(gen, u, x, h, *, filter_order, quadrature_order, lowpass):
+    """The NumPy engine: one array of estimates per parameter, NaN where undefined."""
+    tau = np.arange(u.size) * h  # time origin at the first sample: the method allows it
     kern = kernel_values(gen, {gen.INPUT: u, gen.OUTPUT: x}, tau, h, order=quadrature_order)
-    P, Q = gen.regressors(kern)
-    numerators, denominator = gen.cramer(P, Q)
+    numerators, denominator = gen.cramer(*gen.regressors(kern))
     if filter_order:
         numerators = [iterated_integrals(num, h, filter_order, order=quadrature_order)[-1]
                       for num in numerators]
         denominator = iterated_integrals(denominator, h, filter_order,
                                          order=quadrature_order)[-1]
-    if lowpass_filter is not None:
-        numerators = [lowpass_filter.apply(num, h, order=quadrature_order)
-                      for num in numerators]
-        denominator = lowpass_filter.apply(denominator, h, order=quadrature_order)
+    if lowpass is not None:
+        numerators = [lowpass.apply(num, h, order=quadrature_order) for num in numerators]
+        denominator = lowpass.apply(denominator, h, order=quadrature_order)
     undefined = ~np.isfinite(denominator) | (denominator == 0)
     undefined[: startup_samples(quadrature_order)] = True
     with np.errstate(divide="ignore", invalid="ignore"):
-        estimates = {name: np.where(undefined, np.nan, num / denominator)
-                     for name, num in zip(gen.PARAMETERS, numerators)}
-    if mass is not None:
-        estimates["c"] = estimates["B"] * mass
-        estimates["k"] = estimates["K"] * mass
-    return EstimationResult(t=t, estimates=estimates, model=model, filter_order=int(filter_order),
-                            quadrature_order=quadrature_order, mass=mass)
+        return [np.where(undefined, np.nan, num / denominator) for num in numerators]

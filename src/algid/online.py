@@ -100,13 +100,13 @@ from functools import lru_cache
 
 import numpy as np
 
-from algid.errors import InputDataError, ModelError
-from algid.estimator import (DEFAULT_FILTER_ORDER, DEFAULT_QUADRATURE_ORDER, ENGINES,
-                             _check_options,
+from algid.errors import InputDataError
+from algid.estimator import (DEFAULT_FILTER_ORDER, DEFAULT_QUADRATURE_ORDER, _check_options,
+                             _choose_engine, _known_mass, _with_physical_parameters,
                              load_model)
 from algid.quadrature import rule_weights, startup_samples
 from algid.result import EstimationResult
-from algid.validation import UNIFORM_RTOL, as_signal
+from algid.validation import UNIFORM_RTOL, as_signal, positive_number
 
 __all__ = ["OnlineEstimator", "run_stream", "TRACKING_RESET_PERIOD", "VECTOR_MIN_CHUNK"]
 
@@ -447,32 +447,9 @@ def _compiled_scan():
     return scan
 
 
-def _choose_engine(engine):
-    """``"numpy"`` or ``"numba"`` for the ``engine`` option of :class:`OnlineEstimator`."""
-    if not isinstance(engine, str) or engine not in ENGINES:
-        raise InputDataError(f"engine must be one of {', '.join(map(repr, ENGINES))}, "
-                             f"got {engine!r}")
-    if engine == "numpy":
-        return "numpy"
-    from algid import engine as compiled
-    if compiled.available():
-        return "numba"
-    if engine == "numba":
-        raise InputDataError(f"engine='numba' needs numba, which is not installed: "
-                             f"{compiled.INSTALL_HINT}")
-    return "numpy"
-
-
 # --------------------------------------------------------------------------------------
 # the public estimator
 # --------------------------------------------------------------------------------------
-
-
-def _positive(name, value):
-    if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Real) \
-            or not np.isfinite(value) or value <= 0:
-        raise InputDataError(f"{name} must be a positive number, got {value!r}")
-    return float(value)
 
 
 class OnlineEstimator:
@@ -552,17 +529,15 @@ class OnlineEstimator:
                  reset_period=None, engine="auto"):
         self._gen = gen = load_model(model)
         _check_options(filter_order, quadrature_order)
-        self.engine = _choose_engine(engine)
-        if mass is not None:
-            if "m" in gen.PARAMETERS:
-                raise ModelError(f"model {model!r} estimates the mass: do not give mass")
-            mass = _positive("mass", mass)
+        # a stream takes numba whenever it can: there the cost per call matters most
+        self.engine = _choose_engine(engine, 0, None, min_samples=0)
+        mass = _known_mass(gen, model, mass)
         if dt is not None and rate is not None:
             raise InputDataError("give at most one of dt and rate")
-        self._given_dt = (_positive("dt", dt) if dt is not None
-                          else 1.0 / _positive("rate", rate) if rate is not None else None)
+        self._given_dt = (positive_number(dt, name="dt") if dt is not None
+                          else 1.0 / positive_number(rate, name="rate") if rate is not None else None)
         self._requested_period = (None if reset_period is None
-                                  else _positive("reset_period", reset_period))
+                                  else positive_number(reset_period, name="reset_period"))
         self.model = model
         self.filter_order = int(filter_order)
         self.quadrature_order = int(quadrature_order)
@@ -840,10 +815,7 @@ class OnlineEstimator:
             self._n += m
         else:
             est = self._feed_staggered(t, u, x, h, half)
-        estimates = dict(zip(self._gen.PARAMETERS, est))
-        if self.mass is not None:
-            estimates["c"] = estimates["B"] * self.mass
-            estimates["k"] = estimates["K"] * self.mass
+        estimates = _with_physical_parameters(dict(zip(self._gen.PARAMETERS, est)), self.mass)
         return EstimationResult(t=t, estimates=estimates, model=self.model,
                                 filter_order=self.filter_order,
                                 quadrature_order=self.quadrature_order, mass=self.mass)

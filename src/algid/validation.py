@@ -15,7 +15,7 @@ import numpy as np
 
 from .errors import InputDataError
 
-__all__ = ["as_signal", "check_experiment", "UNIFORM_RTOL"]
+__all__ = ["as_signal", "check_experiment", "positive_number", "UNIFORM_RTOL"]
 
 #: Largest relative deviation of a sampling step from the mean step that still counts
 #: as uniform sampling.
@@ -177,3 +177,17 @@ def check_experiment(t, f, x, *, names=("t", "f", "x"), min_samples=16):
             f"no excitation: input {f_name!r} and output {x_name!r} are both zero"
         )
     return t, f, x, h
+
+
+def positive_number(value, *, name) -> float:
+    """``value`` as a float if it is a finite real number > 0.
+
+    Raises
+    ------
+    InputDataError
+        Otherwise (booleans and strings included); the message names ``name``.
+    """
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Real) \
+            or not np.isfinite(value) or value <= 0:
+        raise InputDataError(f"{name} must be a positive number, got {value!r}")
+    return float(value)
