@@ -176,21 +176,26 @@ def _laplace_of_derivative(signal: str, order: int, ics: dict):
     return expr
 
 
-def _initial_condition_symbols(model: LinearODEModel):
+def _initial_condition_symbols(model):
+    """Symbols for ``z^(k)(0)``, ``k`` below the highest derivative of each channel ``z``."""
+    highest = {}
+    for _, channel, derivative in model.channel_terms():
+        highest[channel] = max(highest.get(channel, 0), derivative)
     ics = {}
-    for sig, coeffs in ((model.output, model.output_coefficients),
-                        (model.input, model.input_coefficients)):
-        for k in range(len(coeffs) - 1):
-            ics[(sig, k)] = sp.Symbol(f"{sig}{'_' + 'd' * k if k else ''}0")
+    for channel in model.channels:
+        for k in range(highest.get(channel, 0)):
+            ics[(channel, k)] = sp.Symbol(f"{channel}{'_' + 'd' * k if k else ''}0")
     return ics
 
 
-def derive(model: LinearODEModel, *, extra_equations: int = 0) -> Derivation:
+def derive(model, *, extra_equations: int = 0) -> Derivation:
     """Derive the algebraic estimator of ``model``.
 
     Parameters
     ----------
-    model : LinearODEModel
+    model : LinearODEModel or ChannelModel
+        Any model that lists its terms as ``(coefficient, channel, derivative)`` with
+        :meth:`~LinearODEModel.channel_terms` and its channels as ``channels``.
     extra_equations : int, optional
         Equations beyond the number of unknowns (each one more integration), for a
         least-squares solution.  ``0`` gives a square system.
@@ -202,13 +207,8 @@ def derive(model: LinearODEModel, *, extra_equations: int = 0) -> Derivation:
     if extra_equations < 0:
         raise ValueError("extra_equations must be >= 0")
     ics = _initial_condition_symbols(model)
-    n_out = len(model.output_coefficients) - 1
-    n_in = len(model.input_coefficients) - 1
-    lhs = sum(c * _laplace_of_derivative(model.output, n_out - i, ics)
-              for i, c in enumerate(model.output_coefficients))
-    rhs = sum(c * _laplace_of_derivative(model.input, n_in - j, ics)
-              for j, c in enumerate(model.input_coefficients))
-    laplace = lhs - rhs
+    laplace = sp.Add(*(coeff * _laplace_of_derivative(channel, derivative, ics)
+                       for coeff, channel, derivative in model.channel_terms()))
 
     # The initial conditions form a polynomial of degree order-1 in s: d^order/ds^order
     # removes it whatever the values.
@@ -244,7 +244,7 @@ def _split_terms(expr, model):
     Returns ``{(signal, b, power): coeff}`` with coefficients free of ``s``.
     """
     out = {}
-    for sig in (model.output, model.input):
+    for sig in model.channels:
         Y = _transform(sig)
         derivs = {b: (Y if b == 0 else sp.Derivative(Y, (s, b))) for b in range(model.order + 1)}
         dummies = {b: sp.Dummy(f"{sig}{b}") for b in derivs}

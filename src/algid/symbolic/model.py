@@ -126,6 +126,22 @@ class LinearODEModel:
         return max(len(self.output_coefficients), len(self.input_coefficients)) - 1
 
     @property
+    def channels(self) -> tuple:
+        """The measured signals the estimator is driven by: ``(output, input)``."""
+        return (self.output, self.input)
+
+    def channel_terms(self) -> tuple:
+        """The equation as ``(coefficient, channel, derivative)`` terms summing to zero.
+
+        Output terms carry their coefficient, input terms its negative (the equation
+        ``lhs - rhs = 0``); this is the form :func:`~algid.symbolic.derivation.derive`
+        works on, shared with models of several signals and nonlinear factors.
+        """
+        n, m = len(self.output_coefficients) - 1, len(self.input_coefficients) - 1
+        return (tuple((c, self.output, n - i) for i, c in enumerate(self.output_coefficients))
+                + tuple((-c, self.input, m - j) for j, c in enumerate(self.input_coefficients)))
+
+    @property
     def output_function(self):
         """The output as a SymPy function of time, ``x(t)``."""
         return sp.Function(self.output)(TIME)
