@@ -85,7 +85,7 @@ def test_corrected_forms_pass_their_own_check():
 def test_monkeypatched_table_changes_the_report(monkeypatch):
     fixed = dataclasses.replace(entry("15"), printed=((B * p11 + K * p12, q1),))
     table = tuple(fixed if e.number == "15" else e for e in errata.PRINTED)
-    monkeypatch.setattr(errata, "PRINTED", table)
+    monkeypatch.setattr(errata.transcription, "PRINTED", table)
     verdicts = errata.errata_report()
     assert {v.number for v in verdicts if not v.correct} == WRONG - {"15"}
 

@@ -37,6 +37,7 @@ from sympy.core.function import AppliedUndef
 
 from algid.symbolic.derivation import Derivation, IteratedIntegral, Kernel
 from algid.symbolic.model import TIME
+from algid.symbolic.printing import show
 
 __all__ = ["Realization", "realize", "entry_names", "entries", "kernel_terms",
            "from_kernel_terms", "same_integral_form", "solve_state_equations",
@@ -373,8 +374,6 @@ class Realization:
         names : iterable of str, optional
             Outputs to show (default: all).
         """
-        from algid.symbolic.errata import show  # the report's printer
-
         names = self.outputs if names is None else tuple(names)
         eqs, outs = self.state_equations(), self.output_equations()
         where = self.where() if self.layout == "entries" else {}
