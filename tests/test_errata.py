@@ -13,11 +13,15 @@ from scipy.integrate import quad
 from algid.cli import main
 from algid.symbolic import TIME as t
 from algid.symbolic import IteratedIntegral as I
-from algid.symbolic import derive
-from algid.symbolic import errata
+from algid.symbolic import derive, errata
 from algid.symbolic.models import builtin_model
-from algid.symbolic.realization import (entries, integrate_from_zero, kernel_terms, realize,
-                                        solve_state_equations)
+from algid.symbolic.realization import (
+    entries,
+    integrate_from_zero,
+    kernel_terms,
+    realize,
+    solve_state_equations,
+)
 
 s = sp.Symbol("s")
 B, K, m, c, k = sp.symbols("B K m c k")

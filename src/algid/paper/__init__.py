@@ -24,10 +24,26 @@ noise (equations (24)-(25) are unfiltered) and the smallest admissible filter ``
 with noise (equations (32)-(33)).
 """
 
-from algid.paper.experiments import (AMPLITUDE, DURATION, EXPERIMENTS, FIGURE_FILES, FREQUENCY,
-                                     NOISE_STD, PAPER_STYLE, PAPER_STYLE_NOISY, RATE, SYSTEM,
-                                     TOLERANCES, TOOLKIT, TRUE_VALUES, Experiment, accuracy,
-                                     estimate_experiment, seed_statistics, simulate_experiment)
+from algid.paper.experiments import (
+                                     AMPLITUDE,
+                                     DURATION,
+                                     EXPERIMENTS,
+                                     FIGURE_FILES,
+                                     FREQUENCY,
+                                     NOISE_STD,
+                                     PAPER_STYLE,
+                                     PAPER_STYLE_NOISY,
+                                     RATE,
+                                     SYSTEM,
+                                     TOLERANCES,
+                                     TOOLKIT,
+                                     TRUE_VALUES,
+                                     Experiment,
+                                     accuracy,
+                                     estimate_experiment,
+                                     seed_statistics,
+                                     simulate_experiment,
+)
 from algid.paper.reproduction import PaperReproduction, reproduce
 from algid.paper.summary import format_summary
 

@@ -12,11 +12,26 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from algid.errors import AlgidError
-from algid.paper.experiments import (AMPLITUDE, DURATION, EXPERIMENTS, FIGURE_FILES, FREQUENCY,
-                                     NOISE_STD, PAPER_STYLE, PAPER_STYLE_NOISY, RATE, SYSTEM,
-                                     TOLERANCES, TOOLKIT, TRUE_VALUES, accuracy,
-                                     estimate_experiment, experiment_named, seed_statistics,
-                                     simulate_experiment)
+from algid.paper.experiments import (
+    AMPLITUDE,
+    DURATION,
+    EXPERIMENTS,
+    FIGURE_FILES,
+    FREQUENCY,
+    NOISE_STD,
+    PAPER_STYLE,
+    PAPER_STYLE_NOISY,
+    RATE,
+    SYSTEM,
+    TOLERANCES,
+    TOOLKIT,
+    TRUE_VALUES,
+    accuracy,
+    estimate_experiment,
+    experiment_named,
+    seed_statistics,
+    simulate_experiment,
+)
 from algid.paper.summary import format_summary
 
 __all__ = ["PaperReproduction", "reproduce"]

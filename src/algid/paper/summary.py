@@ -51,7 +51,7 @@ def format_summary(summary) -> str:
     head = (f"{'experiment':<16}{'paper':>7}  {'computation':<26}{'t(1%)':>8}{'t(0.1%)':>9}"
             f"{'err B':>10}{'err K':>10}")
     lines += [head, "-" * len(head)]
-    for name, e in summary["experiments"].items():
+    for e in summary["experiments"].values():
         label = f"{e['input']}, " + ("noise" if e["noise_std"] else "no noise")
         claim = f"{e['paper']['t_good']:g} s"
         rows = [("toolkit" + (f", seed {e['seed']}" if "seed" in e else ""), e["toolkit"]),

@@ -22,7 +22,8 @@ This package needs the ``control`` package (``pip install algid[simulate]``).
 
 from __future__ import annotations
 
-from typing import Any, Callable
+from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 
@@ -35,11 +36,21 @@ except ImportError as exc:  # pragma: no cover - depends on the environment
     ) from exc
 
 from algid.errors import InputDataError
-from algid.simulation.arguments import (array_samples, callable_samples, check_parameters,
-                                        format_value, initial_state_vector, real_number,
-                                        time_grid)
-from algid.simulation.responses import (callable_response, exosystem_response, foh_response,
-                                        plant_matrices)
+from algid.simulation.arguments import (
+    array_samples,
+    callable_samples,
+    check_parameters,
+    format_value,
+    initial_state_vector,
+    real_number,
+    time_grid,
+)
+from algid.simulation.responses import (
+    callable_response,
+    exosystem_response,
+    foh_response,
+    plant_matrices,
+)
 from algid.simulation.result import SimulationResult
 
 __all__ = ["plant", "simulate", "SimulationResult", "INPUT_NAMES"]

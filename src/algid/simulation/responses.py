@@ -9,7 +9,7 @@ grids.  Callable inputs: DOP853 integration.
 
 from __future__ import annotations
 
-from typing import Callable
+from collections.abc import Callable
 
 import control
 import numpy as np

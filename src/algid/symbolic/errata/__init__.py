@@ -20,8 +20,12 @@ with respect to the function's own argument.
 
 from algid.symbolic.errata.notation import LowPass, PrintedFilter
 from algid.symbolic.errata.reference import trajectory
-from algid.symbolic.errata.report import (EquationVerdict, check_equation, errata_report,
-                                          format_errata)
+from algid.symbolic.errata.report import (
+                                          EquationVerdict,
+                                          check_equation,
+                                          errata_report,
+                                          format_errata,
+)
 from algid.symbolic.errata.transcription import PRINTED, PrintedEquation
 from algid.symbolic.printing import show
 

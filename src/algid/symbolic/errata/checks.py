@@ -9,14 +9,20 @@ The filters (26)-(31) are checked in :mod:`algid.symbolic.errata.filter_checks`.
 
 from __future__ import annotations
 
-from functools import lru_cache
+from functools import cache
 
 import sympy as sp
 
 from algid.symbolic.derivation import IteratedIntegral, Kernel, evaluate_kernel
 from algid.symbolic.errata.notation import PHI, LowPass
-from algid.symbolic.errata.reference import (entry_labels, entry_values, is_constant, is_zero,
-                                             reference_derivation, signal_atoms)
+from algid.symbolic.errata.reference import (
+    entry_labels,
+    entry_values,
+    is_constant,
+    is_zero,
+    reference_derivation,
+    signal_atoms,
+)
 from algid.symbolic.model import LAPLACE, TIME
 from algid.symbolic.models import builtin_model
 from algid.symbolic.printing import show
@@ -28,7 +34,7 @@ t, s = TIME, LAPLACE
 # ------------------------------------------------------ checks: model relations
 
 
-@lru_cache(maxsize=None)
+@cache
 def _newton():
     """Reference forces from ``m x'' + c x' + k x = F`` (built-in model ``msd_mass``)."""
     model = builtin_model("msd_mass")
@@ -114,7 +120,7 @@ def msd_equation():
     return ode.lhs, ode.rhs
 
 
-@lru_cache(maxsize=None)
+@cache
 def _transfer_function():
     d = reference_derivation()
     X, F = d.transforms
@@ -134,7 +140,7 @@ def check_transfer(printed, filters):
     return False, ((sides[0], X / F, G),), f"{', '.join(map(show, bad))}: X(s)/F(s) is {show(G)}"
 
 
-@lru_cache(maxsize=None)
+@cache
 def _normalised_parameters():
     """``B``, ``K`` in terms of ``m``, ``c``, ``k``: ``msd_mass`` divided by its leading
     coefficient, matched coefficient by coefficient with ``msd``."""
@@ -162,7 +168,7 @@ def check_mass_relation(printed, filters):
 # ---------------------------------------------------- checks: the Laplace domain
 
 
-@lru_cache(maxsize=None)
+@cache
 def _sympy_laplace():
     """The Laplace transform of (6) computed by SymPy, in the derivation's symbols."""
     d = reference_derivation()
@@ -426,7 +432,7 @@ def check_definitions(printed, filters):
     return False, tuple(corrected), "; ".join(notes)
 
 
-@lru_cache(maxsize=None)
+@cache
 def _cramer_solution():
     """Parameter -> Cramer's solution in the entry names ``p11, ..., q2``."""
     d = reference_derivation()

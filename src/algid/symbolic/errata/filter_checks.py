@@ -7,16 +7,21 @@ entry (:func:`algid.symbolic.realization.realize`).
 
 from __future__ import annotations
 
-from functools import lru_cache
+from functools import cache
 
 import sympy as sp
 
 from algid.symbolic.errata.reference import entry_labels, reference_derivation
 from algid.symbolic.model import LAPLACE, TIME
 from algid.symbolic.printing import show
-from algid.symbolic.realization import (from_kernel_terms, kernel_terms, realize,
-                                        same_integral_form, solve_state_equations,
-                                        undefined_states)
+from algid.symbolic.realization import (
+    from_kernel_terms,
+    kernel_terms,
+    realize,
+    same_integral_form,
+    solve_state_equations,
+    undefined_states,
+)
 
 __all__ = ["check_filter"]
 
@@ -67,7 +72,7 @@ def _describe_laplace(expr):
 _PAPER_NAMES = {"q11": "q1", "q21": "q2"}  # the paper's names of q1, q2 in (28), (31)
 
 
-@lru_cache(maxsize=None)
+@cache
 def _realization():
     real = realize(reference_derivation(), layout="entries")
     if not real.check():  # pragma: no cover - guarded by the tests of realization
@@ -132,7 +137,7 @@ def check_filter(printed, filters):
     return False, corrected, "; ".join(texts)
 
 
-@lru_cache(maxsize=None)
+@cache
 def _signal_reading():
     """The printed filters' signals read as this model's: the measured angle theta_m as
     the measured output x, the voltage V as the input f (the most favourable reading)."""

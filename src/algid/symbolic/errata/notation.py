@@ -25,7 +25,7 @@ class LowPass(sp.Function):
     nargs = 1
 
     def _sympystr(self, printer):
-        return "F(s)[%s]" % printer._print(self.args[0])
+        return f"F(s)[{printer._print(self.args[0])}]"
 
 
 @dataclass(frozen=True)

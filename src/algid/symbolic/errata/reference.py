@@ -4,7 +4,7 @@ comparisons of expressions."""
 
 from __future__ import annotations
 
-from functools import lru_cache
+from functools import cache
 
 import sympy as sp
 from sympy.core.function import AppliedUndef
@@ -20,19 +20,19 @@ __all__ = ["reference_derivation", "entry_labels", "entry_values", "trajectory",
 t, s = TIME, LAPLACE
 
 
-@lru_cache(maxsize=None)
+@cache
 def reference_derivation():
     """The derivation of the built-in model ``msd`` (cached)."""
     return derive(builtin_model("msd"))
 
 
-@lru_cache(maxsize=None)
+@cache
 def entry_labels():
     """Entry symbol ``p11``, ..., ``q2`` -> its kernel combination from the derivation."""
     return {sp.Symbol(name): expr for name, expr in entries(reference_derivation()).items()}
 
 
-@lru_cache(maxsize=None)
+@cache
 def trajectory():
     """An exact closed-form trajectory of ``x'' + B x' + K x = f``, B and K symbolic.
 
@@ -51,7 +51,7 @@ def trajectory():
     return {"x": x, "f": sp.expand(x.diff(t, 2) + B * x.diff(t) + K * x)}
 
 
-@lru_cache(maxsize=None)
+@cache
 def _kernel_value(signal, power, order):
     g = t**power * trajectory()[signal]
     for _ in range(order):
@@ -65,7 +65,7 @@ def value_on_trajectory(expr):
                          sp.Integer(0)))
 
 
-@lru_cache(maxsize=None)
+@cache
 def entry_values():
     return {sym: value_on_trajectory(expr) for sym, expr in entry_labels().items()}
 

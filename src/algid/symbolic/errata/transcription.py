@@ -7,19 +7,31 @@ was read.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from functools import lru_cache
-from typing import Callable
 
 import sympy as sp
 
 from algid.symbolic.derivation import IteratedIntegral
-from algid.symbolic.errata.checks import (check_against, check_cramer, check_definitions,
-                                          check_differentiated, check_filtered, check_footnote,
-                                          check_forces, check_identity, check_laplace,
-                                          check_mass_relation, check_matrix_form,
-                                          check_multiplied, check_transfer, msd_equation,
-                                          msd_mass_equation, time_equation_check)
+from algid.symbolic.errata.checks import (
+    check_against,
+    check_cramer,
+    check_definitions,
+    check_differentiated,
+    check_filtered,
+    check_footnote,
+    check_forces,
+    check_identity,
+    check_laplace,
+    check_mass_relation,
+    check_matrix_form,
+    check_multiplied,
+    check_transfer,
+    msd_equation,
+    msd_mass_equation,
+    time_equation_check,
+)
 from algid.symbolic.errata.filter_checks import check_filter
 from algid.symbolic.errata.notation import PHI, LowPass, PrintedFilter, nested_integral
 from algid.symbolic.model import LAPLACE, TIME
@@ -27,7 +39,7 @@ from algid.symbolic.model import LAPLACE, TIME
 __all__ = ["PrintedEquation", "PRINTED"]
 
 t, s = TIME, LAPLACE
-I = IteratedIntegral
+I = IteratedIntegral  # noqa: E741 - the integral operator, as in the paper
 
 
 @dataclass(frozen=True)
