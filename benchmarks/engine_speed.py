@@ -33,7 +33,6 @@ import numpy as np
 import algid
 from algid import engine
 from algid.estimator import load_model
-
 from benchmarks.measure import peak_memory
 
 

@@ -170,7 +170,8 @@ def markdown(results):
         rows = []
         for r in perf["batch"]:
             if "not_available" in r:
-                rows.append([r["label"], "—", "—", "—", "—", f"not available: {r['not_available']}"])
+                missing = f"not available: {r['not_available']}"
+                rows.append([r["label"], "—", "—", "—", "—", missing])
                 continue
             rows.append([r["label"], f"{r['n_samples']:.0e}", f"{r['throughput']:.3g}",
                          f"{r['throughput_ratio']:.3g}", f"{r['memory_ratio']:.3g}", ""])

@@ -23,10 +23,15 @@ import numpy as np
 import algid
 from algid.result import convergence_time
 from algid.simulation import simulate
-
 from benchmarks import baselines as bl
-from benchmarks.measure import (best_time, both_converged, peak_memory, piecewise_stream,
-                                relative_errors, sine_stream)
+from benchmarks.measure import (
+    best_time,
+    both_converged,
+    peak_memory,
+    piecewise_stream,
+    relative_errors,
+    sine_stream,
+)
 
 __all__ = ["Config", "CONFIGS", "TRUE", "RTOL", "accuracy", "efficiency", "performance",
            "long_stream", "tracking", "optional_features"]

@@ -7,11 +7,10 @@ import sys
 
 import numpy as np
 import pytest
+from conftest import ROOT, exact_response
 
 import algid
 from algid.simulation import simulate
-
-from conftest import ROOT, exact_response
 
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))

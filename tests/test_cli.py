@@ -11,12 +11,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 import scipy.io
+from conftest import assert_one_line_error
 
 import algid
 from algid.cli import main
 from algid.errors import InputDataError, ModelError
 from algid.validation import check_experiment
-from conftest import assert_one_line_error
 
 
 def run(capsys, *argv):

@@ -6,12 +6,11 @@ tests/test_refine.py.
 
 import numpy as np
 import pytest
+from msd_reference import analytic_response
 
 from algid.cramer_rao import covariance_from_sensitivities, crlb, fisher_information
 from algid.errors import InputDataError
 from algid.sensitivity import SENSITIVITY_PARAMETERS, output_sensitivities
-
-from msd_reference import analytic_response
 
 EPS = np.finfo(float).eps
 TRUE = dict(B=2.0, K=3.0, x0=0.05, v0=-0.1)

@@ -13,11 +13,15 @@ from scipy.integrate import quad
 from algid.cli import main
 from algid.symbolic import TIME as t
 from algid.symbolic import IteratedIntegral as I
-from algid.symbolic import derive
-from algid.symbolic import errata
+from algid.symbolic import derive, errata
 from algid.symbolic.models import builtin_model
-from algid.symbolic.realization import (entries, integrate_from_zero, kernel_terms, realize,
-                                        solve_state_equations)
+from algid.symbolic.realization import (
+    entries,
+    integrate_from_zero,
+    kernel_terms,
+    realize,
+    solve_state_equations,
+)
 
 s = sp.Symbol("s")
 B, K, m, c, k = sp.symbols("B K m c k")
@@ -85,7 +89,7 @@ def test_corrected_forms_pass_their_own_check():
 def test_monkeypatched_table_changes_the_report(monkeypatch):
     fixed = dataclasses.replace(entry("15"), printed=((B * p11 + K * p12, q1),))
     table = tuple(fixed if e.number == "15" else e for e in errata.PRINTED)
-    monkeypatch.setattr(errata, "PRINTED", table)
+    monkeypatch.setattr(errata.transcription, "PRINTED", table)
     verdicts = errata.errata_report()
     assert {v.number for v in verdicts if not v.correct} == WRONG - {"15"}
 

@@ -3,13 +3,12 @@
 import numpy as np
 import pytest
 import scipy.signal
+from msd_reference import analytic_response
 
 from algid.errors import InputDataError
 from algid.estimator import estimate
 from algid.filters import as_lowpass, lti_response
 from algid.quadrature import cumulative_integral
-
-from msd_reference import analytic_response
 
 EPS = np.finfo(float).eps
 H = 1e-3

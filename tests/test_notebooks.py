@@ -17,7 +17,6 @@ import sys
 import time
 
 import pytest
-
 from conftest import ROOT
 
 jupytext = pytest.importorskip("jupytext", reason="needs the 'notebooks' extra")

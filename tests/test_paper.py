@@ -10,12 +10,12 @@ matplotlib.use("Agg")
 
 import matplotlib.image  # noqa: E402
 import pytest  # noqa: E402
+from conftest import assert_one_line_error
 from scipy.stats import t as student_t  # noqa: E402
 
 from algid import paper  # noqa: E402
 from algid.cli import main  # noqa: E402
 from algid.errors import AlgidError  # noqa: E402
-from conftest import assert_one_line_error
 
 #: Reduced workload: 5 noise realisations (seeds 0..4) for the statistics, and a
 #: shown realisation with a seed outside them, so that its error is independent of
@@ -52,7 +52,7 @@ def test_summary_json_matches_and_has_all_parts(reproduction):
     assert written["settings"]["seed"] == SHOWN_SEED
     assert written["settings"]["n_seeds"] == N_SEEDS
     assert written["figures"] == {k: p.name for k, p in reproduction.figures.items()}
-    for name, entry in written["experiments"].items():
+    for entry in written["experiments"].values():
         assert {"paper", "toolkit", "paper_style"} <= set(entry)
         for key in ("t_1pct", "t_0.1pct", "t_1pct_B", "t_1pct_K", "final",
                     "final_rel_error", "t_valid"):

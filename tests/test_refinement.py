@@ -3,12 +3,11 @@
 import numpy as np
 import pytest
 import scipy.stats
+from msd_reference import analytic_response
 
 from algid.cramer_rao import crlb
 from algid.errors import InputDataError
 from algid.refinement import RefinementResult, refine
-
-from msd_reference import analytic_response
 
 X0, V0 = 0.05, -0.1
 TRUE = {"B": 2.0, "K": 3.0, "x0": X0, "v0": V0}

@@ -23,7 +23,8 @@ def _exact_trajectory(model, values, forcing, ics):
 def _residual(derivation, signals, values):
     subs = {k.expression(): evaluate_kernel(k, signals) for k in derivation.kernels}
     theta = sp.Matrix([values[p] for p in derivation.parameters])
-    return (derivation.P.xreplace(subs) * theta - derivation.Q.xreplace(subs)).applyfunc(sp.simplify)
+    residual = derivation.P.xreplace(subs) * theta - derivation.Q.xreplace(subs)
+    return residual.applyfunc(sp.simplify)
 
 
 @pytest.mark.parametrize("name", ["msd", "msd_mass"])
@@ -56,10 +57,11 @@ def test_msd_first_equation_by_hand():
     """B(-2 int^2 tx + int t^2 x) + K int^2 t^2 x = int^2 t^2 f - 2 int^2 x + 4 int tx - t^2 x."""
     d = derive(builtin_model("msd"))
     x, f = sp.Function("x")(t), sp.Function("f")(t)
-    I = IteratedIntegral
+    I = IteratedIntegral  # noqa: E741 - the integral operator, as in the paper
     assert sp.expand(d.P[0, 0] - (-2 * I(t * x, 2) + I(t**2 * x, 1))) == 0
     assert sp.expand(d.P[0, 1] - I(t**2 * x, 2)) == 0
-    assert sp.expand(d.Q[0] - (I(t**2 * f, 2) - 2 * I(x, 2) + 4 * I(t * x, 1) - I(t**2 * x, 0))) == 0
+    q1 = I(t**2 * f, 2) - 2 * I(x, 2) + 4 * I(t * x, 1) - I(t**2 * x, 0)
+    assert sp.expand(d.Q[0] - q1) == 0
     # the second equation is the first one integrated once more
     assert sp.expand(d.P[1, 1] - I(t**2 * x, 3)) == 0
 
@@ -151,7 +153,8 @@ def test_third_order_model_with_input_derivative():
      "not affine"),
     (dict(output_coefficients=(1, "B", 1), input_coefficients=(1,), parameters=("B", "K")),
      "do not appear"),
-    (dict(output_coefficients=("m", "c", "k"), input_coefficients=("m",), parameters=("m", "c", "k")),
+    (dict(output_coefficients=("m", "c", "k"), input_coefficients=("m",),
+          parameters=("m", "c", "k")),
      "homogeneous"),
     (dict(output_coefficients=(1, "B", "Z"), input_coefficients=(1,), parameters=("B",)),
      "not parameters"),

@@ -5,10 +5,10 @@ python-control (``algid[simulate]``), the symbolic derivation SymPy (``algid[der
 figures matplotlib (``algid[plot]``).
 """
 
+from algid.cramer_rao import crlb
 from algid.errors import AlgidError, DataFileError, InputDataError, ModelError
 from algid.estimator import available_models, estimate
 from algid.online import OnlineEstimator
-from algid.cramer_rao import crlb
 from algid.refinement import refine
 from algid.result import EstimationResult
 

@@ -31,7 +31,7 @@ from __future__ import annotations
 
 import numbers
 from fractions import Fraction
-from functools import lru_cache
+from functools import cache
 
 import numpy as np
 import scipy.signal
@@ -89,7 +89,7 @@ def expm_small(M):
     return out
 
 
-@lru_cache(maxsize=None)
+@cache
 def _shifted_lagrange(order: int, lo: int) -> np.ndarray:
     """Coefficients ``beta[i, d]`` with ``l_i(lo + v) = sum_d beta[i, d] v**d``.
 

@@ -213,8 +213,7 @@ def refine(t, f, x, *, start=None, iterations=10, mass=None, filter_order=2,
     residual = x - xhat
     cost = [float(residual @ residual)]
     converged = False
-    done = 0
-    for done in range(1, iterations + 1):
+    for _ in range(iterations):
         step, *_ = np.linalg.lstsq(S, residual, rcond=None)
         accepted = False
         for _ in range(_MAX_HALVINGS):
@@ -255,7 +254,7 @@ def refine(t, f, x, *, start=None, iterations=10, mass=None, filter_order=2,
         std["c"], std["k"] = std["B"] * mass, std["K"] * mass
     return RefinementResult(B=float(theta[0]), K=float(theta[1]), x0=float(theta[2]),
                             v0=float(theta[3]), covariance=covariance, std=std,
-                            noise_std=noise_std, start=start_values, iterations=done,
+                            noise_std=noise_std, start=start_values, iterations=len(cost) - 1,
                             converged=converged, cost=cost, mass=mass,
                             c=None if c is None else float(c),
                             k=None if k is None else float(k))

@@ -42,14 +42,15 @@ class IteratedIntegral(sp.Function):
         if order == 0:
             return body
         if order == 1:
-            return r"\int %s" % _paren(integrand, body)
-        return r"\int^{(%s)} %s" % (printer._print(order), _paren(integrand, body))
+            return rf"\int {_paren(integrand, body)}"
+        return rf"\int^{{({printer._print(order)})}} {_paren(integrand, body)}"
 
     def _sympystr(self, printer):
         integrand, order = self.args
         if order == 0:
             return printer._print(integrand)
-        return "int%s(%s)" % ("" if order == 1 else f"^{order}", printer._print(integrand))
+        power = "" if order == 1 else f"^{order}"
+        return f"int{power}({printer._print(integrand)})"
 
 
 def _paren(expr, text):
@@ -231,7 +232,8 @@ def derive(model, *, extra_equations: int = 0) -> Derivation:
     time_equations = [_integrate_equation(first, r) for r in range(n_eq)]
     P, Q = sp.linear_eq_to_matrix([sp.expand(e) for e in time_equations], list(model.parameters))
     P, Q = P.applyfunc(sp.expand), Q.applyfunc(sp.expand)
-    kernels = sorted({_kernel_of(a) for a in (P.atoms(IteratedIntegral) | Q.atoms(IteratedIntegral))})
+    integrals = P.atoms(IteratedIntegral) | Q.atoms(IteratedIntegral)
+    kernels = sorted({_kernel_of(a) for a in integrals})
     return Derivation(model=model, initial_conditions=tuple(ics.values()), laplace=laplace,
                       n_derivatives=n, differentiated=differentiated, s_power=N,
                       multiplied=multiplied, time_equations=time_equations, P=P, Q=Q,

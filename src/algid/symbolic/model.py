@@ -106,12 +106,14 @@ class LinearODEModel:
                 for q in params:
                     if sp.diff(coeff, p, q) != 0:
                         raise ModelError(
-                            f"model {self.name!r}: coefficient {coeff} is not affine in the parameters"
+                            f"model {self.name!r}: coefficient {coeff} is not affine in the "
+                            "parameters"
                         )
         used = set().union(*(c.free_symbols for c in a + b))
         missing = [str(p) for p in params if p not in used]
         if missing:
-            raise ModelError(f"model {self.name!r}: parameters {missing} do not appear in the equation")
+            raise ModelError(f"model {self.name!r}: parameters {missing} do not appear in the "
+                             "equation")
         known = [c.subs({p: 0 for p in params}) for c in a + b]
         if all(k == 0 for k in known):
             raise ModelError(
@@ -172,7 +174,8 @@ class LinearODEModel:
                 parts.append(term if c == 1 else f"({c})*{term}" if c.is_Add else f"{c}*{term}")
             return " + ".join(parts).replace("+ -", "- ") or "0"
 
-        return f"{side(self.output_coefficients, self.output)} = {side(self.input_coefficients, self.input)}"
+        left = side(self.output_coefficients, self.output)
+        return f"{left} = {side(self.input_coefficients, self.input)}"
 
     # ------------------------------------------------------------------ parsing
     @classmethod
@@ -215,7 +218,8 @@ class LinearODEModel:
                                  f"the output {output!r} or the input {input!r}")
             return f"{sig}__d{len(primes)}"
 
-        expr_text = f"({_PRIMES.sub(derivative_symbol, left)}) - ({_PRIMES.sub(derivative_symbol, right)})"
+        lhs_text, rhs_text = (_PRIMES.sub(derivative_symbol, side) for side in (left, right))
+        expr_text = f"({lhs_text}) - ({rhs_text})"
         names = {p: sp.Symbol(p) for p in parameters}
         local = dict(names)
         for sig in (output, input):
@@ -237,7 +241,8 @@ class LinearODEModel:
         for u in all_sig:
             for v in all_sig:
                 if sp.diff(expr, u, v) != 0:
-                    raise ModelError(f"equation {equation!r} is not linear in {output!r} and {input!r}")
+                    raise ModelError(f"equation {equation!r} is not linear in {output!r} and "
+                                     f"{input!r}")
         stray = expr.free_symbols - all_sig - set(names.values())
         if stray:
             raise ModelError(f"equation {equation!r} uses unknown names {sorted(map(str, stray))}")

@@ -37,6 +37,7 @@ from sympy.core.function import AppliedUndef
 
 from algid.symbolic.derivation import Derivation, IteratedIntegral, Kernel
 from algid.symbolic.model import TIME
+from algid.symbolic.printing import show
 
 __all__ = ["Realization", "realize", "entry_names", "entries", "kernel_terms",
            "from_kernel_terms", "same_integral_form", "solve_state_equations",
@@ -222,7 +223,7 @@ def integrate_from_zero(expr):
             total += coeff * t**(n + 1) / (n + 1)
         else:
             # int t^n e^{at} = e^{at} sum_j (-1)^j n!/(n-j)! t^(n-j) / a^(j+1)
-            def antiderivative(v):
+            def antiderivative(v, a=a, n=n):
                 return sp.exp(a * v) * sum((-1)**j * sp.Integer(factorial(n) // factorial(n - j))
                                            * v**(n - j) / a**(j + 1) for j in range(n + 1))
             total += coeff * (antiderivative(t) - antiderivative(sp.Integer(0)))
@@ -373,8 +374,6 @@ class Realization:
         names : iterable of str, optional
             Outputs to show (default: all).
         """
-        from algid.symbolic.errata import show  # the report's printer
-
         names = self.outputs if names is None else tuple(names)
         eqs, outs = self.state_equations(), self.output_equations()
         where = self.where() if self.layout == "entries" else {}
@@ -422,7 +421,7 @@ def realize(derivation: Derivation, *, layout: str = "entries") -> Realization:
         rows = {}
         for name in names:
             depth = max((k for (_, _, k) in terms[name]), default=0)
-            rows[name] = [sp.Symbol(f"{name}_z{l}") for l in range(1, depth + 1)]
+            rows[name] = [sp.Symbol(f"{name}_z{j}") for j in range(1, depth + 1)]
             states += rows[name]
         pos = {z: i for i, z in enumerate(states)}
         A = sp.zeros(len(states), len(states))
@@ -436,8 +435,8 @@ def realize(derivation: Derivation, *, layout: str = "entries") -> Realization:
                     D[r, index[sig]] += c * t**p
                 else:
                     B[pos[chain[k - 1]], index[sig]] += c * t**p
-            for l in range(len(chain) - 1):
-                A[pos[chain[l]], pos[chain[l + 1]]] = 1
+            for j in range(len(chain) - 1):
+                A[pos[chain[j]], pos[chain[j + 1]]] = 1
             if chain:
                 C[r, pos[chain[0]]] = 1
         return Realization("entries", tuple(states), inputs, names, A, B, C, D, targets)
@@ -448,15 +447,15 @@ def realize(derivation: Derivation, *, layout: str = "entries") -> Realization:
             key = (kernel.signal, kernel.power)
             depth[key] = max(depth.get(key, 0), kernel.order)
         chains = tuple((sig, p, d) for (sig, p), d in sorted(depth.items()) if d > 0)
-        states = [sp.Symbol(Kernel(sig, p, l).name) for sig, p, d in chains
-                  for l in range(1, d + 1)]
+        states = [sp.Symbol(Kernel(sig, p, level).name) for sig, p, d in chains
+                  for level in range(1, d + 1)]
         pos = {z: i for i, z in enumerate(states)}
         A = sp.zeros(len(states), len(states))
         B = sp.zeros(len(states), len(inputs))
         for sig, p, d in chains:
             B[pos[sp.Symbol(Kernel(sig, p, 1).name)], index[sig]] = t**p
-            for l in range(2, d + 1):
-                here, before = (sp.Symbol(Kernel(sig, p, j).name) for j in (l, l - 1))
+            for level in range(2, d + 1):
+                here, before = (sp.Symbol(Kernel(sig, p, j).name) for j in (level, level - 1))
                 A[pos[here], pos[before]] = 1
         C = sp.zeros(len(names), len(states))
         D = sp.zeros(len(names), len(inputs))

@@ -48,8 +48,8 @@ def _ic_names(d: Derivation):
 def _latex(expr, d: Derivation) -> str:
     names = {}
     for sym, (base, order) in _ic_names(d).items():
-        names[sym] = (r"\dot{%s}(0)" % base if order == 1 else
-                      r"\ddot{%s}(0)" % base if order == 2 else
+        names[sym] = (rf"\dot{{{base}}}(0)" if order == 1 else
+                      rf"\ddot{{{base}}}(0)" if order == 2 else
                       f"{base}^{{({order})}}(0)" if order else f"{base}(0)")
     return sp.latex(expr, symbol_names=names)
 
@@ -95,7 +95,8 @@ def derivation_steps(d: Derivation) -> list:
     steps.append(Step("Back to the time domain", table, ((d.time_equations[0], sp.Integer(0)),)))
     if len(d.time_equations) > 1:
         steps.append(Step("More equations",
-                          f"{len(model.parameters)} unknowns need {len(model.parameters)} equations: "
+                          f"{len(model.parameters)} unknowns need {len(model.parameters)} "
+                          "equations: "
                           "integrate the equation again (multiply by 1/s).",
                           tuple((e, sp.Integer(0)) for e in d.time_equations[1:])))
     Ps, Qs = d.entry_symbols()
@@ -142,9 +143,9 @@ def _escape(text):
 def _render_latex(steps, d):
     out = [r"\documentclass{article}", r"\usepackage{amsmath}", r"\allowdisplaybreaks",
            r"\begin{document}",
-           r"\section*{Algebraic estimator of model \texttt{%s}}" % _escape(d.model.name)]
+           rf"\section*{{Algebraic estimator of model \texttt{{{_escape(d.model.name)}}}}}"]
     for step in steps:
-        out.append(r"\subsection*{%s}" % _escape(step.title))
+        out.append(rf"\subsection*{{{_escape(step.title)}}}")
         out.append(_escape(step.text))
         for lhs, rhs in step.equations:
             out += [r"\begin{multline*}", _display_latex(lhs, rhs, d), r"\end{multline*}"]
@@ -194,4 +195,5 @@ def derivation_report(model="msd", fmt="text") -> str:
         raise ModelError(f"unknown format {fmt!r} (known: {', '.join(FORMATS)})")
     d = model if isinstance(model, Derivation) else derive(_as_model(model))
     steps = derivation_steps(d)
-    return {"text": _render_text, "latex": _render_latex, "markdown": _render_markdown}[fmt](steps, d)
+    render = {"text": _render_text, "latex": _render_latex, "markdown": _render_markdown}[fmt]
+    return render(steps, d)
