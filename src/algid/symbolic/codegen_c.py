@@ -235,6 +235,8 @@ class _Writer:
                            for lev in range(1, d + 1)]
         self.n_int = len(self.chain_ints) + self.p * self.lanes
         self.levels = sum(d + 1 for _, _, d in self.chains)
+        # integrators stepped side by side: the chains of a level, or the lanes
+        self.width = max(len(self.chains), self.lanes)
         m = q - 1
         # doubles of one window and of the whole state (see _struct)
         self.window_doubles = 1 + self.n_int + self.n_int * m + 2 * q
@@ -310,11 +312,12 @@ class _Writer:
         out += ["", f'#include "{self.pre}.h"', "", "#include <math.h>", ""]
         out += self._constants()
         out += self._struct()
-        out += self._integrate()
         out += self._algebra()
         out += self._finish()
         out += self._start()
-        out += self._run()
+        out += self._integrate()
+        out += self._run_samples()
+        out += self._run_blocks()
         out += self._window_feed()
         out += self._api()
         return "\n".join(out)
@@ -324,6 +327,11 @@ class _Writer:
         m = q - 1
         lines = [f"#define {self.PRE}_M {m}  /* integrand samples kept per integrator */",
                  f"#define {self.PRE}_NI {self.n_int}  /* integrators: chains, then filter */",
+                 f"#ifndef {self.PRE}_BLOCK  /* samples per block of the loop: the stack holds",
+                 f"                             about {self.levels + (self.p + 1) * self.lanes + 1} "
+                 "arrays of M + BLOCK doubles */",
+                 f"#define {self.PRE}_BLOCK 64",
+                 "#endif",
                  "",
                  f"/* {q}-point Adams-Moulton rule (weights times dt): the integral over",
                  "   [t[n-1], t[n]] from the samples n-q+1 .. n. */",
@@ -371,38 +379,31 @@ class _Writer:
             "",
         ]
 
-    def _integrate(self):
-        pre, q = self.pre, self.q
-        m = q - 1
-        terms = " + ".join([f"{pre}_w[{i}] * hist[{i}]" for i in range(m)] + [f"{pre}_w[{m}] * v"])
-        lines = [
-            "/* One step of an integrator: v is its integrand at this sample; returns the",
-            "   integral.  The increment is summed left to right, as NumPy does. */",
-            f"static double {pre}_integrate(double *sum, double *hist, double v, double dt)",
-            "{",
-            f"    const double inc = {terms};",
-        ]
-        lines += [f"    hist[{i}] = hist[{i + 1}];" for i in range(m - 1)]
-        lines += [f"    hist[{m - 1}] = v;", "    *sum += inc;", "    return *sum * dt;", "}", ""]
+    def _algebra_body(self, kernel, lane, indent):
+        """Statements computing P, Q and the Cramer numerators and denominator (SymPy's
+        C printer), from ``kernel(i)`` (the value of kernel i) into ``lane(r)``."""
+        pad = " " * indent
+        n_eq, n_par = self.P.shape
+        lines = []
+        for idx, k in enumerate(self.kernels):
+            lines.append(f"{pad}const double {k.name} = {kernel(idx)};  "
+                         f"/* {k.order}-fold integral of t**{k.power} {k.signal} */")
+        for i in range(n_eq):
+            for j in range(n_par):
+                lines.append(f"{pad}const double p_{i}_{j} = {_code(self.P[i, j])};")
+        for i in range(n_eq):
+            lines.append(f"{pad}const double q_{i} = {_code(self.Q[i])};")
+        for r, num in enumerate(self.numerators):
+            lines.append(f"{pad}{lane(r)} = {_code(num)};  /* numerator of {self.params[r]} */")
+        lines.append(f"{pad}{lane(n_par)} = {_code(self.denominator)};  /* det P */")
         return lines
 
     def _algebra(self):
         pre = self.pre
-        n_eq, n_par = self.P.shape
         lines = ["/* P, Q and Cramer's rule from the kernels kv (in the order below); writes",
                  "   the numerators (parameter order) and the denominator det P to lanes. */",
                  f"static void {pre}_algebra(const double *kv, double *lanes)", "{"]
-        for idx, k in enumerate(self.kernels):
-            lines.append(f"    const double {k.name} = kv[{idx}];  "
-                         f"/* {k.order}-fold integral of t**{k.power} {k.signal} */")
-        for i in range(n_eq):
-            for j in range(n_par):
-                lines.append(f"    const double p_{i}_{j} = {_code(self.P[i, j])};")
-        for i in range(n_eq):
-            lines.append(f"    const double q_{i} = {_code(self.Q[i])};")
-        for r, num in enumerate(self.numerators):
-            lines.append(f"    lanes[{r}] = {_code(num)};  /* numerator of {self.params[r]} */")
-        lines.append(f"    lanes[{n_par}] = {_code(self.denominator)};")
+        lines += self._algebra_body(lambda i: f"kv[{i}]", lambda r: f"lanes[{r}]", 4)
         lines += ["}", ""]
         return lines
 
@@ -496,12 +497,28 @@ class _Writer:
         del P
         return lines
 
-    def _run(self):
+    def _integrate(self):
+        pre, q = self.pre, self.q
+        m = q - 1
+        terms = " + ".join([f"{pre}_w[{i}] * hist[{i}]" for i in range(m)] + [f"{pre}_w[{m}] * v"])
+        lines = [
+            "/* One step of an integrator: v is its integrand at this sample; returns the",
+            "   integral.  The increment is summed left to right, as NumPy does. */",
+            f"static double {pre}_integrate(double *sum, double *hist, double v, double dt)",
+            "{",
+            f"    const double inc = {terms};",
+        ]
+        lines += [f"    hist[{i}] = hist[{i + 1}];" for i in range(m - 1)]
+        lines += [f"    hist[{m - 1}] = v;", "    *sum += inc;", "    return *sum * dt;", "}", ""]
+        return lines
+
+    def _run_samples(self):
         pre = self.pre
         lines = [
-            "/* Samples after the start-up (w->n >= q), one by one. */",
-            f"static void {pre}_run({pre}_window *w, const double *u, const double *y, size_t n,",
-            f"{' ' * (len(pre) + 12)}double dt, double *theta)",
+            "/* Samples after the start-up (w->n >= q), one by one: for short chunks, where",
+            "   the set-up of a block costs more than it saves.  Same arithmetic as the blocks. */",
+            f"static void {pre}_samples({pre}_window *w, const double *u, const double *y, size_t n,",
+            f"{' ' * (len(pre) + 16)}double dt, double *theta)",
             "{",
             "    double *const s = w->sum;",
             f"    double (*const h)[{self.PRE}_M] = w->hist;",
@@ -531,6 +548,134 @@ class _Writer:
                 lines.append(f"        lanes[{r}] = {pre}_integrate(&s[{k}], h[{k}], lanes[{r}], dt);")
         lines += [f"        {pre}_divide(lanes, theta + i * {self.n_par});", "    }",
                   "    w->n = count;", "}", ""]
+        return lines
+
+    def _run_blocks(self):
+        pre, P, q = self.pre, self.PRE, self.q
+        m = q - 1
+        n_chain = len(self.chain_ints)
+        base, offset = {}, 0
+        for c, (_, _, d) in enumerate(self.chains):
+            base[c] = offset
+            offset += d + 1
+        chain_of = {(s, pw): c for c, (s, pw, _) in enumerate(self.chains)}
+        fir = " + ".join(f"{pre}_w[{j}] * a[b + {j}]" for j in range(q))
+        lines = [
+            "/* Samples after the start-up (w->n >= q), a block of at most BLOCK samples at",
+            "   a time: for each level the increments of the block (a loop without",
+            "   dependencies), then the running sums.  Row lv[l] (fl[f][r] for the filter)",
+            "   holds the last M values of a level before the block, then its values over",
+            "   the block.  Each sample gets the same arithmetic whatever the block. */",
+            f"static void {pre}_blocks({pre}_window *w, const double *u, const double *y, size_t n,",
+            f"{' ' * (len(pre) + 15)}double dt, double *theta)",
+            "{",
+            f"    double lv[{self.levels}][{P}_M + {P}_BLOCK];",
+            f"    double fl[{self.p + 1}][{self.lanes}][{P}_M + {P}_BLOCK];",
+            f"    double inc[{self.width}][{P}_BLOCK];",
+            f"    double row[{self.lanes}];",
+            f"    double s[{P}_NI];",
+            "    double count = w->n;",
+            "    size_t start, b, nb;",
+            "    int k, i, r;",
+            "    const double *a;",
+            f"    double acc[{self.width}];",
+        ]
+        if self.p:
+            lines.append("    int lev;")
+        lines += [f"    for (k = 0; k < {P}_NI; ++k) s[k] = w->sum[k];",
+                  f"    for (i = 0; i < {P}_M; ++i) {{"]
+        for k, (c, lev) in enumerate(self.chain_ints):
+            lines.append(f"        lv[{base[c] + lev - 1}][i] = w->hist[{k}][i];")
+        if self.p:
+            lines += [f"        for (lev = 0; lev < {self.p}; ++lev) {{",
+                      f"            for (r = 0; r < {self.lanes}; ++r) "
+                      f"fl[lev][r][i] = w->hist[{n_chain} + lev * {self.lanes} + r][i];",
+                      "        }"]
+        lines += ["    }",
+                  f"    for (start = 0; start < n; start += nb) {{",
+                  f"        nb = n - start < {P}_BLOCK ? n - start : {P}_BLOCK;",
+                  "        if (nb < " + P + "_BLOCK) {  /* the increments run over whole blocks",
+                  "                                   (a loop the compiler vectorises): give the",
+                  "                                   unused tail defined values */",
+                  f"            for (b = {P}_M + nb; b < {P}_M + {P}_BLOCK; ++b) {{",
+                  f"                for (k = 0; k < {self.levels}; ++k) lv[k][b] = 0.0;",
+                  f"                for (i = 0; i < {self.p + 1}; ++i) {{",
+                  f"                    for (r = 0; r < {self.lanes}; ++r) fl[i][r][b] = 0.0;",
+                  "                }",
+                  "            }",
+                  "        }",
+                  "        for (b = 0; b < nb; ++b) {",
+                  "            const double tau = (count + (double)b) * dt;"]
+        for c in range(len(self.chains)):
+            lines.append(f"            lv[{base[c]}][{P}_M + b] = "
+                         f"{self._level0(c, 'tau', 'u[start + b]', 'y[start + b]')};")
+        lines.append("        }")
+
+        def integrate(pairs, indent):
+            # pairs: (integrand row, integral row, integrator index); the increments
+            # of each, then one loop of running sums: independent dependency chains
+            # side by side
+            pad = " " * indent
+            out = []
+            for j, (src, _, _) in enumerate(pairs):
+                out += [f"{pad}a = {src};",
+                        f"{pad}for (b = 0; b < {P}_BLOCK; ++b) inc[{j}][b] = {fir};"]
+            for j, (_, _, k) in enumerate(pairs):
+                out.append(f"{pad}acc[{j}] = s[{k}];")
+            out.append(f"{pad}for (b = 0; b < nb; ++b) {{")
+            for j, (_, dst, _) in enumerate(pairs):
+                out += [f"{pad}    acc[{j}] += inc[{j}][b];",
+                        f"{pad}    {dst}[{P}_M + b] = acc[{j}] * dt;"]
+            out.append(f"{pad}}}")
+            for j, (_, _, k) in enumerate(pairs):
+                out.append(f"{pad}s[{k}] = acc[{j}];")
+            return out
+
+        depth = max(d for _, _, d in self.chains)
+        for level in range(1, depth + 1):
+            pairs = [(f"lv[{base[c] + level - 1}]", f"lv[{base[c] + level}]",
+                      self.chain_ints.index((c, level)))
+                     for c, (_, _, d) in enumerate(self.chains) if d >= level]
+            lines += integrate(pairs, 8)
+        # straight-line code over the whole block, as the increments: vectorised
+        lines.append(f"        for (b = 0; b < {P}_BLOCK; ++b) {{")
+
+        def kernel_row(idx):
+            kern = self.kernels[idx]
+            return f"lv[{base[chain_of[(kern.signal, kern.power)]] + kern.order}][{P}_M + b]"
+
+        lines += self._algebra_body(kernel_row, lambda r: f"fl[0][{r}][{P}_M + b]", 12)
+        lines.append("        }")
+        if self.p:
+            lines += [f"        for (lev = 0; lev < {self.p}; ++lev) {{"]
+            lines += integrate([(f"fl[lev][{r}]", f"fl[lev + 1][{r}]",
+                                 f"{n_chain} + lev * {self.lanes} + {r}")
+                                for r in range(self.lanes)], 12)
+            lines += ["        }"]
+        lines += ["        for (b = 0; b < nb; ++b) {",
+                  f"            for (r = 0; r < {self.lanes}; ++r) row[r] = fl[{self.p}][r][{P}_M + b];",
+                  f"            {pre}_divide(row, theta + (start + b) * {self.n_par});",
+                  "        }",
+                  "        /* the last M values of every level start the next block */",
+                  f"        for (i = 0; i < {P}_M; ++i) {{",
+                  f"            for (k = 0; k < {self.levels}; ++k) lv[k][i] = lv[k][nb + i];"]
+        if self.p:
+            lines += [f"            for (lev = 0; lev < {self.p}; ++lev) {{",
+                      f"                for (r = 0; r < {self.lanes}; ++r) "
+                      "fl[lev][r][i] = fl[lev][r][nb + i];",
+                      "            }"]
+        lines += ["        }", "        count += (double)nb;", "    }",
+                  f"    for (k = 0; k < {P}_NI; ++k) w->sum[k] = s[k];",
+                  f"    for (i = 0; i < {P}_M; ++i) {{"]
+        for k, (c, lev) in enumerate(self.chain_ints):
+            lines.append(f"        w->hist[{k}][i] = lv[{base[c] + lev - 1}][i];")
+        if self.p:
+            lines += [f"        for (lev = 0; lev < {self.p}; ++lev) {{",
+                      f"            for (r = 0; r < {self.lanes}; ++r) "
+                      f"w->hist[{n_chain} + lev * {self.lanes} + r][i] = fl[lev][r][i];",
+                      "        }"]
+        lines += ["    }", "    w->n = count;", "}", ""]
+        del m
         return lines
 
     def _window_feed(self):
@@ -566,8 +711,10 @@ class _Writer:
             "        }",
             "        ++i;",
             "    }",
-            "    if (i < n) {",
-            f"        {pre}_run(w, u + i, y + i, n - i, dt, theta + i * {n_par});",
+            f"    if (n - i >= {self.PRE}_BLOCK / 4) {{",
+            f"        {pre}_blocks(w, u + i, y + i, n - i, dt, theta + i * {n_par});",
+            "    } else if (i < n) {",
+            f"        {pre}_samples(w, u + i, y + i, n - i, dt, theta + i * {n_par});",
             "    }",
             "}",
             "",
