@@ -711,7 +711,7 @@ class _Writer:
             "        }",
             "        ++i;",
             "    }",
-            f"    if (n - i >= {self.PRE}_BLOCK / 4) {{",
+            f"    if (n - i > {self.PRE}_BLOCK / 4) {{",
             f"        {pre}_blocks(w, u + i, y + i, n - i, dt, theta + i * {n_par});",
             "    } else if (i < n) {",
             f"        {pre}_samples(w, u + i, y + i, n - i, dt, theta + i * {n_par});",

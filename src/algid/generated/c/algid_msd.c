@@ -482,7 +482,7 @@ static void algid_msd_feed(algid_msd_window *w, const double *u, const double *y
         }
         ++i;
     }
-    if (n - i >= ALGID_MSD_BLOCK / 4) {
+    if (n - i > ALGID_MSD_BLOCK / 4) {
         algid_msd_blocks(w, u + i, y + i, n - i, dt, theta + i * 2);
     } else if (i < n) {
         algid_msd_samples(w, u + i, y + i, n - i, dt, theta + i * 2);

@@ -564,7 +564,7 @@ static void algid_msd_mass_feed(algid_msd_mass_window *w, const double *u, const
         }
         ++i;
     }
-    if (n - i >= ALGID_MSD_MASS_BLOCK / 4) {
+    if (n - i > ALGID_MSD_MASS_BLOCK / 4) {
         algid_msd_mass_blocks(w, u + i, y + i, n - i, dt, theta + i * 3);
     } else if (i < n) {
         algid_msd_mass_samples(w, u + i, y + i, n - i, dt, theta + i * 3);
