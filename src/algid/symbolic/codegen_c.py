@@ -113,8 +113,9 @@ def quadrature_weights(order: int):
     def interval(lo, hi):
         weights = []
         for i in nodes:
-            basis = sp.Mul(*[(u - j) / sp.Integer(i - j) for j in nodes if j != i])
-            weights.append(sp.integrate(sp.expand(basis), (u, lo, hi)))
+            basis = sp.Poly(sp.Mul(*[(u - j) / sp.Integer(i - j) for j in nodes if j != i]), u)
+            primitive = basis.integrate()
+            weights.append(primitive.eval(hi) - primitive.eval(lo))
         return tuple(weights)
 
     return interval(order - 2, order - 1), tuple(interval(j - 1, j) for j in range(1, order - 1))
