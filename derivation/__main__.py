@@ -12,6 +12,7 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT / "src"))
 
 from algid.symbolic.codegen import numpy_module_source, registry_source  # noqa: E402
+from algid.symbolic.codegen_c import c_sources  # noqa: E402
 from algid.symbolic.derivation import derive  # noqa: E402
 from algid.symbolic.models import BUILTIN_MODELS, builtin_model  # noqa: E402
 
@@ -22,6 +23,9 @@ def generated_files():
     for name in BUILTIN_MODELS:
         files[f"{name}.py"] = numpy_module_source(derive(builtin_model(name)))
     files["__init__.py"] = registry_source(BUILTIN_MODELS)
+    for name in BUILTIN_MODELS:  # the embedded C estimator, default options
+        for rel, text in c_sources(derive(builtin_model(name))).items():
+            files[f"c/{rel}"] = text
     return files
 
 
@@ -30,6 +34,7 @@ def write(out: Path) -> list:
     written = []
     for rel, text in generated_files().items():
         path = out / rel
+        path.parent.mkdir(parents=True, exist_ok=True)
         path.write_text(text, encoding="utf-8", newline="\n")
         written.append(path)
     return written

@@ -1,5 +1,5 @@
 """Command line interface: ``algid simulate``, ``algid estimate``, ``algid derive``,
-``algid paper`` and ``algid errata``.
+``algid codegen``, ``algid paper`` and ``algid errata``.
 
 Errors caused by the user (bad data, bad file, unknown model) are printed as one line
 ``algid: error: <message>`` on standard error with exit code 2; usage errors are
@@ -173,6 +173,31 @@ def build_parser() -> argparse.ArgumentParser:
                      help="names of the input and output in --equation (default: f x)")
     der.set_defaults(handler=_cmd_derive)
 
+    gen = commands.add_parser(
+        "codegen",
+        help="write the estimator of a model as C99 source (needs SymPy)",
+        description=("Write the algebraic estimator of a model as a self-contained C99 pair "
+                     "DIR/algid_<model>.h, DIR/algid_<model>.c (libm only, no allocation)."),
+    )
+    gen.add_argument("model", nargs="?", default=None, metavar="MODEL",
+                     help="built-in model (msd, msd_mass); or give --equation")
+    gen.add_argument("--lang", choices=("c",), required=True, help="target language: c")
+    gen.add_argument("--out", required=True, metavar="DIR", help="folder to write into")
+    gen.add_argument("--filter-order", type=_nonnegative_int, default=2, metavar="P",
+                     help="order p of the invariant filter 1/s**p (default: 2)")
+    gen.add_argument("--quadrature-order", type=_nonnegative_int, default=6, metavar="Q",
+                     help="points of the quadrature rule, 2-8 (default: 6)")
+    gen.add_argument("--equation", default=None, metavar="TEXT",
+                     help="your own model instead of MODEL, as for `algid derive`")
+    gen.add_argument("--parameters", default=None, metavar="NAMES",
+                     help="unknowns of --equation, e.g. \"a b\"")
+    gen.add_argument("--signals", nargs=2, default=("f", "x"), metavar=("INPUT", "OUTPUT"),
+                     help="names of the input and output in --equation (default: f x)")
+    gen.add_argument("--name", default=None, metavar="NAME",
+                     help="<model> in the file and function names (default: the model's "
+                          "name; 'custom' for --equation)")
+    gen.set_defaults(handler=_cmd_codegen)
+
     pap = commands.add_parser(
         "paper",
         help="reproduce the experiments of Becedas et al. (2007), Section 3",
@@ -312,6 +337,33 @@ def _cmd_derive(args) -> int:
             output=args.signals[1], name="custom")
     text = symbolic.derivation_report(model, args.format)
     print(str(text).rstrip("\n"))
+    return 0
+
+
+def _cmd_codegen(args) -> int:
+    _require("sympy", "algid codegen needs SymPy: pip install 'algid[derive]'")
+    symbolic = importlib.import_module("algid.symbolic")
+    codegen_c = importlib.import_module("algid.symbolic.codegen_c")
+    if args.equation is not None or args.parameters is not None:
+        if args.equation is None or args.parameters is None:
+            raise ModelError("--equation and --parameters go together")
+        if args.model is not None:
+            raise ModelError(f"give either MODEL ({args.model!r}) or --equation, not both")
+        model = symbolic.LinearODEModel.from_equation(
+            args.equation, parameters=args.parameters, input=args.signals[0],
+            output=args.signals[1], name=args.name or "custom")
+    elif args.model is None:
+        raise ModelError("give a MODEL (msd, msd_mass) or --equation and --parameters")
+    else:
+        model = importlib.import_module("algid.symbolic.models").builtin_model(args.model)
+    try:
+        paths = codegen_c.write_c_sources(symbolic.derive(model), args.out, name=args.name,
+                                          filter_order=args.filter_order,
+                                          quadrature_order=args.quadrature_order)
+    except OSError as exc:
+        raise AlgidError(f"{args.out}: cannot write ({exc.strerror or exc})") from None
+    for path in paths:
+        print(f"wrote {path}")
     return 0
 
 
