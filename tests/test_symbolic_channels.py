@@ -5,7 +5,6 @@ For a nonlinear model the derivation treats every factor as a channel: the resid
 whatever its initial conditions, and must not vanish for wrong parameters.
 """
 
-import pytest
 import sympy as sp
 
 from algid.grammar import parse_equation
