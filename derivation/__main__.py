@@ -14,6 +14,8 @@ sys.path.insert(0, str(ROOT / "src"))
 from algid.symbolic.codegen import numpy_module_source, registry_source  # noqa: E402
 from algid.symbolic.derivation import derive  # noqa: E402
 from algid.symbolic.models import BUILTIN_MODELS, builtin_model  # noqa: E402
+from algid.symbolic.codegen import HEADER  # noqa: E402
+from algid.symbolic.modulating import table_module_source  # noqa: E402
 
 
 def generated_files():
@@ -22,6 +24,7 @@ def generated_files():
     for name in BUILTIN_MODELS:
         files[f"{name}.py"] = numpy_module_source(derive(builtin_model(name)))
     files["__init__.py"] = registry_source(BUILTIN_MODELS)
+    files["modulating.py"] = table_module_source(HEADER)
     return files
 
 
