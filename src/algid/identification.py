@@ -20,12 +20,14 @@ Standard errors come from a Newey-West (HAC) covariance over the window index: t
 residuals of overlapping windows are correlated over about ``length / stride`` windows,
 and the sandwich estimate accounts for it.
 
-Window rule (``window=None``): for a geometric grid of window lengths, estimate with
-multiplicity ``a = 4`` and ``a = 8`` separately and with both stacked; the criterion is
-the larger of the standard error and of the difference between the two multiplicities,
-each parameter's error measured by its effect on the equation (``|error_p| * rms of
-regressor p / rms of the known side``, which stays meaningful for parameters near
-zero such as offsets), worst parameter; the window minimising it is kept.  The
+Window rule (``window=None``): for a geometric grid of window lengths (ratio 1.25,
+from ``max(8, a_max + 4)`` samples up to a thirtieth of the data, so that the HAC
+covariance sees at least 30 independent windows), estimate with multiplicity ``a = 4``
+and ``a = 8`` separately and with both stacked; the criterion is, for the worst
+parameter, the larger of its standard error and of the difference between the two
+multiplicities, relative to the parameter (for a parameter near zero, relative to the
+value at which its term would be 5 % of the known side); the window minimising it is
+kept.  The
 difference between multiplicities estimates the bias (as an embedded Runge-Kutta pair
 estimates its step error), the standard error the variance.
 """
@@ -47,6 +49,9 @@ METHODS = ("ls", "iv")
 
 #: Kernel multiplicities stacked in every estimate (their difference drives the window rule).
 MULTIPLICITIES = (4, 8)
+
+#: A term this small next to the known side (5 %) counts as negligible in the window rule.
+NEGLIGIBLE_TERM = 0.05
 
 #: Windows overlap: a window starts every ``length // WINDOW_OVERLAP`` samples.
 WINDOW_OVERLAP = 8
@@ -141,11 +146,13 @@ class _Fit:
         return np.sqrt(np.maximum(np.diag(self.covariance), 0.0))
 
     def criterion(self):
-        """Worst parameter of max(standard error, multiplicity difference), in the
-        equation's relative units."""
+        """Worst parameter of max(standard error, multiplicity difference), relative to
+        the parameter (or to the value whose term is 1 % of the known side, for a
+        parameter near zero)."""
         values = list(self.separate.values())
         difference = np.abs(values[0] - values[-1])
-        return float(np.max(np.maximum(self.stderr, difference) * self.scale))
+        reference = np.maximum(np.abs(self.theta), NEGLIGIBLE_TERM / self.scale)
+        return float(np.max(np.maximum(self.stderr, difference) / reference))
 
 
 def _solve(problem, length, multiplicities, instruments=None):
