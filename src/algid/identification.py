@@ -210,8 +210,16 @@ def _add_derivatives(model, segments, estimator):
             seg.values[(name, k)] = estimator(seg.values[name], seg.t, k, seg.step)
 
 
-def _derivative_fallback(y, t, order, step):
-    return estimate_derivative(y, t, order, step)
+def _derivative_estimate(y, t, order, step):
+    """Derivative inside a nonlinear factor: the algebraic differentiator when the
+    installed algid has it, else a local polynomial (Savitzky-Golay) derivative."""
+    try:
+        from algid.differentiation import algebraic_derivative
+    except ImportError:
+        return estimate_derivative(y, t, order, step)
+    if step is not None:
+        return algebraic_derivative(y, step, derivative=order)
+    return algebraic_derivative(y, time=t, derivative=order)
 
 
 def _length_of(window, step, segments):
@@ -337,7 +345,7 @@ def identify(data, equation, parameters=None, *, time=None, rate=None, output=No
     multiplicities = _check_multiplicities(model, multiplicities)
     segments, step, n_samples = prepare_records(data, model.signals, time=time, rate=rate,
                                                 min_length=_min_length(multiplicities))
-    _add_derivatives(model, segments, _derivative_fallback)
+    _add_derivatives(model, segments, _derivative_estimate)
     problem = _Problem(model, segments, step)
     length = _length_of(window, step, segments)
     scores = None
