@@ -197,3 +197,14 @@ def test_bad_equation_is_a_model_error():
         algid.identify(record, "y'' + B*K*y = u", "B K")
     with pytest.raises(InputDataError, match="no column 'z'"):
         algid.identify(record, "y'' + B*y' = z", "B")
+
+
+def test_instrumental_variables_remove_the_noise_bias():
+    """On longer windows least squares is biased by the output noise (errors in the
+    regressors); the instruments from the simulated output remove it."""
+    record, truth = linear_offsets(3, noise=0.03, n=3000)
+    ls = algid.identify(record, *LINEAR_EQUATION, window=0.35)
+    iv = algid.identify(record, *LINEAR_EQUATION, window=0.35, method="iv")
+    assert iv.method == "iv"
+    assert abs(iv.K - truth["K"]) < 3 * iv.stderr["K"]
+    assert abs(iv.K - truth["K"]) < abs(ls.K - truth["K"]) / 3
