@@ -93,12 +93,11 @@ def speed_case(name, train, validate, equation, *, rate=None, repeats=3, truth=N
     oe_values = output_error_fit(result, train)
     oe_time = time.perf_counter() - start
     error = result.simulate(validate).rmse
-    oe_result = algid.IdentificationResult(**{**result.__dict__, "values": oe_values})
+    oe_result = result.with_parameters(oe_values)
     oe_error = oe_result.simulate(validate).rmse
     truth_error = None
     if truth is not None:
-        truth_error = algid.IdentificationResult(
-            **{**result.__dict__, "values": dict(truth)}).simulate(validate).rmse
+        truth_error = result.with_parameters(truth).simulate(validate).rmse
     return {"record": name, "samples": int(result.n_samples), "window": result.window,
             "truth_rmse": truth_error,
             "identify_s": min(times), "output_error_s": oe_time,
@@ -148,7 +147,7 @@ def linear_crlb(truth, n, noise):
     """
     from benchmarks import synthetic_records as sr
 
-    freqs, phases, amp = sr._multisine_parts(np.random.default_rng(sr._INPUT_SEED), 0.2,
+    freqs, phases, amp = sr.multisine_lines(np.random.default_rng(sr.INPUT_SEED), 0.2,
                                               15.0, 40, 1.0)
     t = np.arange(n) / 80.0
     w = 2 * np.pi * freqs

@@ -104,7 +104,7 @@ def test_non_uniform_sample_times():
     t = record["t"] + rng.uniform(-0.1, 0.1, len(record["t"])) / 80.0
     # resample the exact signals at the jittered times from the same generator
     from benchmarks import synthetic_records as sr
-    freqs, phases, amp = sr._multisine_parts(np.random.default_rng(sr._INPUT_SEED), 0.2, 15.0,
+    freqs, phases, amp = sr.multisine_lines(np.random.default_rng(sr.INPUT_SEED), 0.2, 15.0,
                                               40, 1.0)
     w = 2 * np.pi * freqs
     H = truth["G"] / (truth["K"] - w ** 2 + 1j * truth["B"] * w)

@@ -18,8 +18,7 @@ from benchmarks.synthetic_records import LINEAR_EQUATION, linear_offsets  # noqa
 def test_output_error_fit_reaches_the_truth_from_a_perturbed_start():
     record, truth = linear_offsets(0, noise=0.0, n=400)
     r = algid.identify(record, *LINEAR_EQUATION, window=0.4)
-    start = algid.IdentificationResult(**{**r.__dict__,
-                                          "values": {p: 1.02 * v for p, v in truth.items()}})
+    start = r.with_parameters({p: 1.02 * v for p, v in truth.items()})
     values = output_error_fit(start, record)
     for p in truth:
         # the cubic-spline input limits the simulation, hence the fit, to about 1e-3

@@ -83,5 +83,5 @@ def test_emps_validation_run_identified_anew(emps_pulses):
     assert all(errors[p] <= limits[p] for p in limits), errors
     # predicted force on this run: measured 13.8 %, not worse than the published
     # parameters under the same measure (14.4 %; published with its filtering: 5.98 %)
-    published = algid.IdentificationResult(**{**r.__dict__, "values": dict(EMPS_PUBLISHED)})
+    published = r.with_parameters(EMPS_PUBLISHED)
     assert r.equation_error(emps_pulses) <= published.equation_error(emps_pulses)

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -119,6 +119,20 @@ class IdentificationResult:
         pieces = ", ".join(f"{p}={v:.6g} ± {self.stderr[p]:.2g}" for p, v in self.values.items())
         return (f"IdentificationResult({self.model.equation!r}: {pieces}; window "
                 f"{self.window:.4g} s, {self.n_samples} samples, {self.method})")
+
+    def with_parameters(self, values):
+        """A copy with other parameter values (e.g. published ones, to validate them
+        the same way); the covariance is kept as it is.
+
+        Parameters
+        ----------
+        values : mapping
+            Parameter name -> value, for every parameter of the model.
+        """
+        missing = [p for p in self.model.parameters if p not in values]
+        if missing:
+            raise InputDataError(f"no value for parameter {missing[0]}")
+        return replace(self, values={p: float(values[p]) for p in self.model.parameters})
 
     # validation -------------------------------------------------------------------------
 
