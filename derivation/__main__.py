@@ -13,6 +13,7 @@ sys.path.insert(0, str(ROOT / "src"))
 
 from algid.symbolic.codegen import numpy_module_source, registry_source  # noqa: E402
 from algid.symbolic.derivation import derive  # noqa: E402
+from algid.symbolic.differentiator import kernel_table_source  # noqa: E402
 from algid.symbolic.models import BUILTIN_MODELS, builtin_model  # noqa: E402
 
 
@@ -22,6 +23,7 @@ def generated_files():
     for name in BUILTIN_MODELS:
         files[f"{name}.py"] = numpy_module_source(derive(builtin_model(name)))
     files["__init__.py"] = registry_source(BUILTIN_MODELS)
+    files["differentiator_kernels.py"] = kernel_table_source()
     return files
 
 
