@@ -15,6 +15,8 @@ from algid.symbolic.codegen import numpy_module_source, registry_source  # noqa:
 from algid.symbolic.derivation import derive  # noqa: E402
 from algid.symbolic.differentiator import kernel_table_source  # noqa: E402
 from algid.symbolic.models import BUILTIN_MODELS, builtin_model  # noqa: E402
+from algid.symbolic.codegen import HEADER  # noqa: E402
+from algid.symbolic.modulating import table_module_source  # noqa: E402
 
 
 def generated_files():
@@ -24,6 +26,7 @@ def generated_files():
         files[f"{name}.py"] = numpy_module_source(derive(builtin_model(name)))
     files["__init__.py"] = registry_source(BUILTIN_MODELS)
     files["differentiator_kernels.py"] = kernel_table_source()
+    files["modulating.py"] = table_module_source(HEADER)
     return files
 
 

@@ -11,12 +11,14 @@ from algid.online import OnlineEstimator
 from algid.cramer_rao import crlb
 from algid.refinement import refine
 from algid.result import EstimationResult
+from algid.identification import identify
+from algid.identification_result import IdentificationResult
 
 __version__ = "0.1.0"
 
 __all__ = ["estimate", "simulate", "available_models", "EstimationResult", "OnlineEstimator",
            "AlgidError", "InputDataError", "DataFileError", "ModelError", "__version__",
-           "refine", "crlb"]
+           "refine", "crlb", "identify", "IdentificationResult"]
 
 
 def __getattr__(name):

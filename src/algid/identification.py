@@ -1,0 +1,357 @@
+"""Identify the parameters of a user model on whole measured records.
+
+The algebraic method's equations hold on every window ``[t0, t0 + T]``, whatever the
+state at ``t0``: each window gives one linear equation in the parameters,
+
+    sum_p theta_p * (sum of c_i * W[D^k_i z_i] over the terms of p) = - (known terms),
+
+where ``W[D^k z]`` is the integral of ``z`` against the term kernel of multiplicity
+``a`` (:mod:`algid.window_kernels`).  The windows slide over every record (overlapping,
+``stride`` samples apart, never across a gap), for two kernel multiplicities, and the
+stacked equations are solved for one parameter set by weighted least squares (each
+multiplicity weighted by the inverse of its residual variance).
+
+``method="iv"`` then replaces the least-squares normal equations by instrumental
+variables, the instruments being the same window integrals of the factors evaluated on
+the output simulated by the current estimate (noise-free), iterated as SRIVC does; this
+removes the bias that output noise causes through the regressors.
+
+Standard errors come from a Newey-West (HAC) covariance over the window index: the
+residuals of overlapping windows are correlated over about ``length / stride`` windows,
+and the sandwich estimate accounts for it.
+
+Window rule (``window=None``): for a geometric grid of window lengths (ratio 1.25,
+from ``max(8, a_max + 4)`` samples up to a thirtieth of the data, so that the HAC
+covariance sees at least 30 independent windows), estimate with multiplicity ``a = 4``
+and ``a = 8`` separately and with both stacked; the criterion is, for the worst
+parameter, the larger of its standard error and of the difference between the two
+multiplicities, relative to the parameter (for a parameter near zero, relative to the
+value at which its term would be 5 % of the known side); the window minimising it is
+kept.  The
+difference between multiplicities estimates the bias (as an embedded Runge-Kutta pair
+estimates its step error), the standard error the variance.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from algid.errors import InputDataError, ModelError
+from algid.grammar import parse_equation
+from algid.model import Model
+from algid.records import estimate_derivative, prepare_records
+from algid.window_kernels import uniform_window_integrals, window_integrals
+
+__all__ = ["identify", "METHODS", "MULTIPLICITIES", "window_grid"]
+
+#: Estimation methods: plain (weighted) least squares, or instrumental variables.
+METHODS = ("ls", "iv")
+
+#: Kernel multiplicities stacked in every estimate (their difference drives the window rule).
+MULTIPLICITIES = (4, 8)
+
+#: A term this small next to the known side (5 %) counts as negligible in the window rule.
+NEGLIGIBLE_TERM = 0.05
+
+#: Windows overlap: a window starts every ``length // WINDOW_OVERLAP`` samples.
+WINDOW_OVERLAP = 8
+
+
+def window_grid(n_min, n_max, ratio=1.25):
+    """Geometric grid of window lengths (samples) between ``n_min`` and ``n_max``."""
+    grid, n = [], float(n_min)
+    while n <= n_max:
+        if not grid or int(round(n)) != grid[-1]:
+            grid.append(int(round(n)))
+        n *= ratio
+    return grid
+
+
+class _Problem:
+    """Channel samples of a model on the segments of the records."""
+
+    def __init__(self, model, segments, step):
+        self.model = model
+        self.segments = segments
+        self.step = step
+        self.parameters = model.parameters
+        self.factors = {}
+
+    def factor_samples(self, factor, which="measured"):
+        key = (factor, which)
+        if key not in self.factors:
+            self.factors[key] = [np.asarray(factor.evaluate(
+                seg.values if which == "measured" else seg.simulated, seg.t), dtype=float)
+                * np.ones(len(seg)) for seg in self.segments]
+        return self.factors[key]
+
+    def rows(self, length, multiplicity, which="measured"):
+        """Regressors ``A``, known side ``b`` and window ids for one multiplicity."""
+        stride = max(1, length // WINDOW_OVERLAP)
+        index = {p: i for i, p in enumerate(self.parameters)}
+        blocks_a, blocks_b, ids = [], [], []
+        for s, seg in enumerate(self.segments):
+            if len(seg) < length:
+                continue
+            n_win = (len(seg) - length) // stride + 1
+            A = np.zeros((n_win, len(self.parameters)))
+            b = np.zeros(n_win)
+            for term in self.model.terms:
+                z = self.factor_samples(term.factor, which)[s]
+                if seg.step is not None:
+                    w = uniform_window_integrals(z, seg.step, length, multiplicity,
+                                                 term.derivative, stride)
+                else:
+                    w = window_integrals(z, seg.t, length, multiplicity, term.derivative,
+                                         stride)
+                if term.parameter is None:
+                    b -= term.coefficient * w
+                else:
+                    A[:, index[term.parameter]] += term.coefficient * w
+            blocks_a.append(A)
+            blocks_b.append(b)
+            ids.append(np.full(n_win, s))
+        if not blocks_a:
+            raise InputDataError(f"no segment holds a window of {length} samples")
+        return np.vstack(blocks_a), np.concatenate(blocks_b), np.concatenate(ids)
+
+
+def _hac_meat(scores, ids, lags):
+    """Newey-West sum of score outer products, lags within each segment."""
+    p = scores.shape[1]
+    meat = np.zeros((p, p))
+    for s in np.unique(ids):
+        g = scores[ids == s]
+        meat += g.T @ g
+        for lag in range(1, min(lags, len(g) - 1) + 1):
+            weight = 1.0 - lag / (lags + 1.0)
+            cross = g[lag:].T @ g[:-lag]
+            meat += weight * (cross + cross.T)
+    return meat
+
+
+class _Fit:
+    """One estimate on one window length: parameters, covariance, diagnostics."""
+
+    def __init__(self, theta, covariance, separate, scale, residuals, n_windows):
+        self.theta = theta
+        self.covariance = covariance
+        self.separate = separate          # multiplicity -> estimate alone
+        self.scale = scale                # effect of a unit parameter error on the equation
+        self.residuals = residuals
+        self.n_windows = n_windows
+
+    @property
+    def stderr(self):
+        return np.sqrt(np.maximum(np.diag(self.covariance), 0.0))
+
+    def criterion(self):
+        """Worst parameter of max(standard error, multiplicity difference), relative to
+        the parameter (or to the value whose term is 1 % of the known side, for a
+        parameter near zero)."""
+        values = list(self.separate.values())
+        difference = np.abs(values[0] - values[-1])
+        reference = np.maximum(np.abs(self.theta), NEGLIGIBLE_TERM / self.scale)
+        return float(np.max(np.maximum(self.stderr, difference) / reference))
+
+
+def _solve(problem, length, multiplicities, instruments=None):
+    blocks = {a: problem.rows(length, a) for a in multiplicities}
+    separate, sigma = {}, {}
+    for a, (A, b, _) in blocks.items():
+        Z = A if instruments is None else instruments[a][0]
+        theta = _lstsq(Z, A, b)
+        separate[a] = theta
+        r = b - A @ theta
+        sigma[a] = max(float(np.sqrt(np.mean(r ** 2))), 1e-300)
+    H = 0.0
+    g = 0.0
+    for a, (A, b, _) in blocks.items():
+        Z = A if instruments is None else instruments[a][0]
+        H = H + Z.T @ A / sigma[a] ** 2
+        g = g + Z.T @ b / sigma[a] ** 2
+    theta = _solve_square(H, g)
+    # scores per window start: sum over multiplicities (same windows, same order)
+    scores, residuals = 0.0, {}
+    for a, (A, b, ids) in blocks.items():
+        Z = A if instruments is None else instruments[a][0]
+        r = b - A @ theta
+        residuals[a] = r
+        scores = scores + Z * (r / sigma[a] ** 2)[:, None]
+    ids = blocks[multiplicities[0]][2]
+    stride = max(1, length // WINDOW_OVERLAP)
+    lags = 2 * int(np.ceil(length / stride))
+    meat = _hac_meat(scores, ids, lags)
+    Hinv = np.linalg.pinv(H)
+    covariance = Hinv @ meat @ Hinv.T
+    A0, b0, _ = blocks[multiplicities[0]]
+    scale = np.sqrt(np.mean(A0 ** 2, axis=0)) / max(float(np.sqrt(np.mean(b0 ** 2))), 1e-300)
+    return _Fit(theta, covariance, separate, scale, residuals, len(ids))
+
+
+def _lstsq(Z, A, b):
+    if Z is A:
+        return np.linalg.lstsq(A, b, rcond=None)[0]
+    return _solve_square(Z.T @ A, Z.T @ b)
+
+
+def _solve_square(H, g):
+    # equilibrate: regressors of very different magnitudes (y'' vs an offset)
+    d = np.sqrt(np.abs(np.diag(H)))
+    d[d == 0] = 1.0
+    return np.linalg.solve(H / d[:, None] / d[None, :], g / d) / d
+
+
+def _add_derivatives(model, segments, estimator):
+    for seg in segments:
+        for name, k in model.needs_derivatives:
+            seg.values[(name, k)] = estimator(seg.values[name], seg.t, k, seg.step)
+
+
+def _derivative_fallback(y, t, order, step):
+    return estimate_derivative(y, t, order, step)
+
+
+def _length_of(window, step, segments):
+    if window is None:
+        return None
+    window = float(window)
+    if not np.isfinite(window) or window <= 0:
+        raise InputDataError(f"window must be a positive number of seconds, got {window}")
+    length = int(round(window / step)) + 1
+    longest = max(len(s) for s in segments)
+    if length > longest:
+        raise InputDataError(f"window {window:g} s ({length} samples) is longer than the "
+                             f"longest run of contiguous samples ({longest})")
+    return length
+
+
+def _check_multiplicities(model, multiplicities):
+    multiplicities = tuple(int(a) for a in multiplicities)
+    if not multiplicities:
+        raise ModelError("give at least one kernel multiplicity")
+    low = min(multiplicities)
+    if low < model.order:
+        raise ModelError(f"kernel multiplicity {low} is below the model order "
+                         f"{model.order}")
+    return multiplicities
+
+
+def _min_length(multiplicities):
+    return max(8, max(multiplicities) + 4)
+
+
+def choose_window(problem, multiplicities, *, n_max=None):
+    """Window length (samples) by the rule of this module; also every grid point's
+    criterion ``{length: value}``."""
+    longest = max(len(s) for s in problem.segments)
+    n_min = _min_length(multiplicities)
+    total = sum(len(s) for s in problem.segments)
+    # at least 30 independent windows: the HAC covariance needs many of them
+    n_max = min(n_max or total // 30, longest, 4096)
+    grid = window_grid(n_min, max(n_min, n_max))
+    scores = {}
+    for length in grid:
+        try:
+            fit = _solve(problem, length, multiplicities)
+        except (np.linalg.LinAlgError, InputDataError):
+            continue
+        value = fit.criterion()
+        if np.isfinite(value):
+            scores[length] = value
+    if not scores:
+        raise InputDataError("no window length gives a solvable system: the records are "
+                             "too short or the signals do not excite the model")
+    return min(scores, key=scores.get), scores
+
+
+def _simulated_values(problem, theta, model):
+    """Noise-free output of the current estimate on every segment (instruments)."""
+    from algid.ode_simulation import OutputEquation, fit_initial_state, simulate_output
+
+    equation = OutputEquation(model, dict(zip(model.parameters, theta)))
+    for seg in problem.segments:
+        inputs = {name: seg.values[name] for name in model.inputs}
+        x0 = fit_initial_state(equation, seg.t, inputs, seg.values[model.output])
+        y = simulate_output(equation, seg.t, inputs, x0)
+        if not np.all(np.isfinite(y)):
+            return False
+        values = dict(seg.values)
+        values[model.output] = y
+        for name, k in model.needs_derivatives:
+            if name == model.output:
+                values[(name, k)] = estimate_derivative(y, seg.t, k, seg.step)
+        seg.simulated = values
+    problem.factors = {k: v for k, v in problem.factors.items() if k[1] == "measured"}
+    return True
+
+
+def identify(data, equation, parameters=None, *, time=None, rate=None, output=None,
+             window=None, method="ls", multiplicities=MULTIPLICITIES, name="custom",
+             iterations=3):
+    """Identify the parameters of a model equation on measured records.
+
+    Parameters
+    ----------
+    data : mapping or list of mappings
+        Column name -> samples; a list of records is identified together.  Rows may be
+        missing from a record with a time column (gaps), and NaN samples are dropped.
+    equation : str or Model
+        The model, e.g. ``"M*q'' + Fv*q' + Fc*sign(q') + off = F"``.
+    parameters : sequence of str or str
+        The unknown parameters (not needed when ``equation`` is a Model).
+    time : str, optional
+        Name of the time column; by default a column ``t`` or ``time``.
+    rate : float, optional
+        Sampling rate (Hz) of records without a time column.
+    output : str, optional
+        Output signal; by default the signal of highest derivative order.
+    window : float, optional
+        Window length (s); chosen from the data when omitted (see the module notes).
+    method : {"ls", "iv"}
+        Weighted least squares, or instrumental variables from the simulated output.
+    multiplicities : tuple of int
+        Kernel multiplicities stacked (each at least the model order).
+    name : str
+        Label of the model.
+    iterations : int
+        Instrumental-variable iterations.
+
+    Returns
+    -------
+    IdentificationResult
+
+    Raises
+    ------
+    ModelError, InputDataError
+        One-line messages for a bad equation or unusable data.
+    """
+    from algid.identification_result import IdentificationResult
+
+    if method not in METHODS:
+        raise InputDataError(f"unknown method {method!r} (choose from {', '.join(METHODS)})")
+    model = equation if isinstance(equation, Model) else parse_equation(
+        equation, parameters, output=output, name=name)
+    multiplicities = _check_multiplicities(model, multiplicities)
+    segments, step, n_samples = prepare_records(data, model.signals, time=time, rate=rate,
+                                                min_length=_min_length(multiplicities))
+    _add_derivatives(model, segments, _derivative_fallback)
+    problem = _Problem(model, segments, step)
+    length = _length_of(window, step, segments)
+    scores = None
+    if length is None:
+        length, scores = choose_window(problem, multiplicities)
+    fit = _solve(problem, length, multiplicities)
+    if method == "iv":
+        for _ in range(iterations):
+            if not _simulated_values(problem, fit.theta, model):
+                raise InputDataError("instrumental variables: the simulated output of the "
+                                     "first estimate diverges; use method='ls'")
+            instruments = {a: problem.rows(length, a, "simulated") for a in multiplicities}
+            fit = _solve(problem, length, multiplicities, instruments)
+    return IdentificationResult(
+        model=model, values=dict(zip(model.parameters, fit.theta.tolist())),
+        covariance=fit.covariance, window=(length - 1) * step, n_samples=n_samples,
+        n_windows=fit.n_windows, method=method, multiplicities=multiplicities,
+        time=time, rate=rate, window_scores=scores,
+        separate={a: dict(zip(model.parameters, v.tolist())) for a, v in fit.separate.items()})

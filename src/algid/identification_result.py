@@ -1,0 +1,282 @@
+"""The result of :func:`algid.identify`: parameters, uncertainty, validation, export."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from algid.errors import InputDataError, ModelError
+from algid.expression import Constant, Signal, Time
+from algid.ode_simulation import OutputEquation, fit_initial_state, simulate_output
+from algid.records import estimate_derivative, prepare_records
+
+__all__ = ["IdentificationResult", "Validation"]
+
+
+@dataclass
+class Validation:
+    """A simulation of the identified model on one record.
+
+    Attributes
+    ----------
+    t, measured, simulated : numpy.ndarray
+        Times, measured and simulated output.
+    initial_state : numpy.ndarray
+        Fitted initial state (output and its derivatives).
+    skip : int
+        Samples used to fit the initial state, left out of the error.
+    """
+
+    t: np.ndarray
+    measured: np.ndarray
+    simulated: np.ndarray
+    initial_state: np.ndarray
+    skip: int
+
+    @property
+    def residuals(self):
+        """Measured minus simulated output."""
+        return self.measured - self.simulated
+
+    @property
+    def rmse(self):
+        """Root-mean-square simulation error after the first ``skip`` samples."""
+        return float(np.sqrt(np.mean(self.residuals[self.skip:] ** 2)))
+
+    @property
+    def fit_percent(self):
+        """``100 (1 - |y - y_sim| / |y - mean(y)|)`` after the first ``skip`` samples."""
+        y = self.measured[self.skip:]
+        return float(100.0 * (1.0 - np.linalg.norm(self.residuals[self.skip:])
+                              / np.linalg.norm(y - y.mean())))
+
+
+@dataclass
+class IdentificationResult:
+    """Parameters identified on records, their uncertainty and validation helpers.
+
+    Attributes
+    ----------
+    model : Model
+        The parsed model.
+    values : dict
+        Parameter name -> estimate (also readable as attributes: ``result.M``).
+    covariance : numpy.ndarray
+        HAC (Newey-West) covariance of the estimates, in ``model.parameters`` order.
+    window : float
+        Window length used (s).
+    n_samples : int
+        Samples used.
+    n_windows : int
+        Windows stacked (per multiplicity).
+    method : str
+        ``"ls"`` or ``"iv"``.
+    multiplicities : tuple
+        Kernel multiplicities stacked.
+    window_scores : dict or None
+        Window length (samples) -> criterion, when the window was chosen automatically.
+    separate : dict
+        Multiplicity -> estimate with that multiplicity alone.
+    """
+
+    model: object
+    values: dict
+    covariance: np.ndarray
+    window: float
+    n_samples: int
+    n_windows: int
+    method: str
+    multiplicities: tuple
+    time: str | None = None
+    rate: float | None = None
+    window_scores: dict | None = None
+    separate: dict = field(default_factory=dict)
+
+    def __getattr__(self, name):
+        values = self.__dict__.get("values", {})
+        if name in values:
+            return values[name]
+        raise AttributeError(f"{type(self).__name__!r} object has no attribute {name!r}")
+
+    @property
+    def parameters(self):
+        """Parameter name -> estimate."""
+        return dict(self.values)
+
+    @property
+    def equation(self):
+        """The model equation as written."""
+        return self.model.equation
+
+    @property
+    def stderr(self):
+        """Parameter name -> standard error."""
+        se = np.sqrt(np.maximum(np.diag(self.covariance), 0.0))
+        return dict(zip(self.model.parameters, se.tolist()))
+
+    def __repr__(self):
+        pieces = ", ".join(f"{p}={v:.6g} ± {self.stderr[p]:.2g}" for p, v in self.values.items())
+        return (f"IdentificationResult({self.model.equation!r}: {pieces}; window "
+                f"{self.window:.4g} s, {self.n_samples} samples, {self.method})")
+
+    # validation -------------------------------------------------------------------------
+
+    def _record(self, data, time, rate):
+        time = self.time if time is None and rate is None else time
+        rate = self.rate if time is None and rate is None else rate
+        segments, _, _ = prepare_records(data, self.model.signals, time=time, rate=rate,
+                                         min_length=2)
+        if len(segments) != 1:
+            raise InputDataError("simulate needs one record without gaps or NaN")
+        return segments[0]
+
+    def simulate(self, data, *, time=None, rate=None, fit_samples=50, substeps=4):
+        """Simulate the identified model on a record, driven by its measured inputs.
+
+        The initial state is fitted on the first ``fit_samples`` samples; the inputs
+        are interpolated by cubic splines and the model integrated by RK4 with
+        ``substeps`` steps per sample.
+
+        Parameters
+        ----------
+        data : mapping
+            One record (column name -> samples).
+        time, rate
+            Time axis, as for :func:`algid.identify` (default: those of the fit).
+        fit_samples : int
+            Samples used to fit the initial state (and left out of the error).
+        substeps : int
+            Runge-Kutta steps per sampling interval.
+
+        Returns
+        -------
+        Validation
+        """
+        seg = self._record(data, time, rate)
+        equation = OutputEquation(self.model, self.values)
+        inputs = {name: seg.values[name] for name in self.model.inputs}
+        y = seg.values[self.model.output]
+        x0 = fit_initial_state(equation, seg.t, inputs, y, samples=fit_samples,
+                               substeps=substeps)
+        simulated = simulate_output(equation, seg.t, inputs, x0, substeps=substeps)
+        return Validation(seg.t, y, simulated, x0, fit_samples)
+
+    def fit_percent(self, data, **kwargs):
+        """Fit (%) of the simulated output on a record (see :meth:`simulate`)."""
+        return self.simulate(data, **kwargs).fit_percent
+
+    def residuals(self, data, **kwargs):
+        """Measured minus simulated output on a record (see :meth:`simulate`)."""
+        return self.simulate(data, **kwargs).residuals
+
+    def equation_error(self, data, *, time=None, rate=None, span=None):
+        """Relative error of the equation on a record, as for an inverse model.
+
+        Every term is evaluated on the record (derivatives by a local polynomial
+        derivative); the result is ``|sum of all terms| / |known terms|``: for
+        ``M*q'' + ... = F`` the relative error of the predicted force.
+        """
+        seg = self._record(data, time, rate)
+        values = dict(seg.values)
+        for term in self.model.terms:
+            if term.derivative and isinstance(term.factor, Signal):
+                key = (term.factor.name, term.derivative)
+                values[key] = estimate_derivative(values[term.factor.name], seg.t,
+                                                  term.derivative, seg.step, span)
+        for name, k in self.model.needs_derivatives:
+            values[(name, k)] = estimate_derivative(values[name], seg.t, k, seg.step, span)
+        total, known = 0.0, 0.0
+        for term in self.model.terms:
+            factor = (Signal(term.factor.name, term.derivative)
+                      if term.derivative else term.factor)
+            z = factor.evaluate(values, seg.t) * term.coefficient
+            if term.parameter is None:
+                known = known + z
+                total = total + z
+            else:
+                total = total + self.values[term.parameter] * z
+        return float(np.linalg.norm(total) / np.linalg.norm(known))
+
+    def plot(self, data, ax=None, **kwargs):
+        """Plot measured against simulated output on a record (matplotlib).
+
+        Returns
+        -------
+        matplotlib.axes.Axes
+        """
+        import matplotlib.pyplot as plt
+
+        v = self.simulate(data, **kwargs)
+        if ax is None:
+            _, ax = plt.subplots(figsize=(8, 3.5))
+        ax.plot(v.t, v.measured, lw=0.8, label="measured")
+        ax.plot(v.t, v.simulated, lw=0.8, label=f"model (fit {v.fit_percent:.1f} %)")
+        ax.plot(v.t, v.residuals, lw=0.6, label="error")
+        ax.set_xlabel("t (s)")
+        ax.set_ylabel(self.model.output)
+        ax.legend(loc="upper right")
+        return ax
+
+    # export -----------------------------------------------------------------------------
+
+    def to_control(self, kind="tf"):
+        """The identified linear model as a python-control ``TransferFunction`` (or
+        ``StateSpace`` with ``kind="ss"``), from the inputs to the output.
+
+        Offset (constant) terms are left out: they are not part of the dynamics.
+        """
+        import control as ct
+
+        model = self.model
+        if not model.is_linear:
+            raise ModelError("to_control needs a linear model; use to_nlsys()")
+        output = model.output
+        den, nums = {}, {}
+        for term in model.terms:
+            value = term.coefficient * (1.0 if term.parameter is None
+                                        else self.values[term.parameter])
+            if isinstance(term.factor, (Constant, Time)):
+                continue
+            name = term.factor.name
+            if name == output:
+                den[term.derivative] = den.get(term.derivative, 0.0) + value
+            else:
+                nums.setdefault(name, {})
+                nums[name][term.derivative] = nums[name].get(term.derivative, 0.0) - value
+        order = max(den)
+        den_coeffs = [den.get(k, 0.0) for k in range(order, -1, -1)]
+        inputs = list(nums)
+        num_coeffs = [[[nums[u].get(k, 0.0) for k in range(max(nums[u]), -1, -1)]
+                       for u in inputs]]
+        if len(inputs) == 1:
+            system = ct.tf(num_coeffs[0][0], den_coeffs, inputs=inputs, outputs=[output])
+        else:
+            system = ct.tf(num_coeffs, [[den_coeffs] * len(inputs)], inputs=inputs,
+                           outputs=[output])
+        return ct.ss(system) if kind == "ss" else system
+
+    def to_nlsys(self):
+        """The identified model as a python-control nonlinear I/O system.
+
+        States: the output and its derivatives below the model order; inputs: the
+        other measured signals (derivatives of inputs are not available).
+        """
+        import control as ct
+
+        equation = OutputEquation(self.model, self.values)
+        names = [name for name, _ in equation.inputs]
+        if any(k for _, k in equation.inputs):
+            raise ModelError("to_nlsys: the model reads a derivative of an input")
+
+        def update(t, x, u, params):
+            return np.array(equation.derivative(t, [float(v) for v in x],
+                                                [float(v) for v in np.atleast_1d(u)]))
+
+        def output(t, x, u, params):
+            return np.array([x[0]])
+
+        out = self.model.output
+        states = [out + "'" * k for k in range(equation.order)]
+        return ct.nlsys(update, output, inputs=names, outputs=[out], states=states,
+                        name=self.model.name)
