@@ -12,15 +12,15 @@ from algid.symbolic.modulating import (T, tau, term_kernel_from_laplace,
 from algid.window_kernels import term_kernel, uniform_window_integrals, window_integrals
 
 
-@pytest.mark.parametrize("a", [1, 2, 3, 5])
+@pytest.mark.parametrize("a", [1, 2, 4])
 def test_laplace_steps_equal_the_modulating_function_derivatives(a):
     for k in range(a + 1):
         laplace = term_kernel_from_laplace(a, k)
         assert sp.expand(laplace - term_kernel_from_modulating_function(a, k)) == 0
-        # and the normalised unit-window kernel is the same polynomial, rescaled
+        # and the normalised unit-window kernel is the same polynomial, rescaled:
+        # proportional coefficients in tau
         unit = unit_term_kernel(a, k).subs(u, tau / T)
-        ratio = sp.simplify(laplace / unit)
-        assert not ratio.has(tau)
+        assert not sp.cancel(laplace / unit).has(tau)
 
 
 def test_kernel_vanishes_to_order_a_minus_k_at_both_ends():
@@ -36,13 +36,14 @@ def test_generated_table_matches_the_derivation():
     assert MAX_MULTIPLICITY >= 8
     points = [sp.Rational(i, 13) for i in range(14)]
     for (a, k) in TERM_KERNELS:
-        exact = np.array([float(unit_term_kernel(a, k).subs(u, p)) for p in points])
+        poly = sp.Poly(unit_term_kernel(a, k), u)
+        exact = np.array([float(poly.eval(p)) for p in points])
         values = term_kernel(a, k, np.array([float(p) for p in points]))
         scale = np.max(np.abs(exact))
         np.testing.assert_allclose(values, exact, rtol=0, atol=1e-12 * scale)
     # the kernel of D^0 has unit integral
     for a in range(1, MAX_MULTIPLICITY + 1):
-        assert sp.integrate(unit_term_kernel(a, 0), (u, 0, 1)) == 1
+        assert sp.Poly(unit_term_kernel(a, 0), u).integrate().eval(1) == 1
 
 
 def test_integration_by_parts_holds_on_samples_at_eight_per_period():

@@ -1,5 +1,5 @@
-"""Command line interface: ``algid simulate``, ``algid estimate``, ``algid derive``,
-``algid paper`` and ``algid errata``.
+"""Command line interface: ``algid simulate``, ``algid estimate``, ``algid identify``,
+``algid derive``, ``algid paper`` and ``algid errata``.
 
 Errors caused by the user (bad data, bad file, unknown model) are printed as one line
 ``algid: error: <message>`` on standard error with exit code 2; usage errors are
@@ -156,6 +156,36 @@ def build_parser() -> argparse.ArgumentParser:
     est.add_argument("--json", action="store_true", help="print one JSON object")
     est.set_defaults(handler=_cmd_estimate)
 
+    ide = commands.add_parser(
+        "identify",
+        help="identify the parameters of your model equation on measured records",
+        description=(
+            "Identify the unknown parameters of a model equation, linear in them, on one "
+            "or more records (CSV columns or .mat variables named as in the equation), "
+            "by the algebraic method on sliding windows. Example: --equation "
+            "\"V2'' + B*V2' + K*V2 + K3*V2**3 = G*V1 + d\" --parameters \"B K K3 G d\"."
+        ),
+    )
+    ide.add_argument("files", nargs="+", metavar="FILE", help="data files (.csv, .txt, .mat)")
+    ide.add_argument("--equation", required=True, metavar="EQ", help="the model equation")
+    ide.add_argument("--parameters", required=True, metavar="\"P1 P2 ...\"",
+                     help="the unknown parameters, separated by spaces")
+    timing = ide.add_mutually_exclusive_group()
+    timing.add_argument("--time", default=None, metavar="COL",
+                        help="time column (default: t or time when present)")
+    timing.add_argument("--rate", type=_positive, default=None, metavar="HZ",
+                        help="sampling rate in Hz, for files without a time column")
+    ide.add_argument("--output", default=None, metavar="COL",
+                     help="output signal (default: the one of highest derivative order)")
+    ide.add_argument("--window", type=_positive, default=None, metavar="SECONDS",
+                     help="window length (default: chosen from the data)")
+    ide.add_argument("--method", choices=("ls", "iv"), default="ls",
+                     help="least squares (default) or instrumental variables")
+    ide.add_argument("--json", action="store_true",
+                     help="print one JSON object: a key per parameter, stderr, window, "
+                          "n_samples")
+    ide.set_defaults(handler=_cmd_identify)
+
     der = commands.add_parser(
         "derive",
         help="print the symbolic derivation of an estimator (needs SymPy)",
@@ -297,6 +327,44 @@ def _cmd_estimate(args) -> int:
         print(f"estimates valid from t = {t_valid:.6g} s")
     else:
         print("no valid estimate: the record gave no usable sample")
+    return 0
+
+
+#: Keys of ``algid identify --json`` besides the parameters.
+IDENTIFY_JSON_KEYS = ("stderr", "window", "n_samples")
+
+
+def _cmd_identify(args) -> int:
+    from .grammar import parse_equation
+    from .identification import identify
+    from .io import read_columns
+    from .records import TIME_COLUMNS
+
+    model = parse_equation(args.equation, args.parameters, output=args.output)
+    clash = [p for p in model.parameters if p in IDENTIFY_JSON_KEYS]
+    if clash:
+        raise ModelError(f"parameter name {clash[0]!r} is reserved by the output "
+                         f"({', '.join(IDENTIFY_JSON_KEYS)}); rename it")
+    names = list(model.signals) + ([args.time] if args.time else [])
+    optional = () if args.time or args.rate else TIME_COLUMNS
+    records = [read_columns(path, names, optional=optional) for path in args.files]
+    result = identify(records, model, time=args.time, rate=args.rate, window=args.window,
+                      method=args.method)
+    stderr = result.stderr
+    if args.json:
+        payload = {p: _finite_or_none(v) for p, v in result.values.items()}
+        payload["stderr"] = {p: _finite_or_none(v) for p, v in stderr.items()}
+        payload["window"] = float(result.window)
+        payload["n_samples"] = int(result.n_samples)
+        print(json.dumps(payload, allow_nan=False))
+        return 0
+    print(f"{model.equation}")
+    print(f"{len(args.files)} record(s), {result.n_samples} samples, window "
+          f"{result.window:.6g} s ({result.n_windows} windows), method {result.method}")
+    width = max([len("parameter")] + [len(p) for p in model.parameters])
+    print(f"{'parameter':<{width}}  {'estimate':>13}  {'std. error':>10}")
+    for p, v in result.values.items():
+        print(f"{p:<{width}}  {v:>13.6g}  {stderr[p]:>10.2g}")
     return 0
 
 

@@ -17,7 +17,7 @@ import numpy as np
 
 from .errors import DataFileError, InputDataError
 
-__all__ = ["read_experiment", "CSV_SUFFIXES", "MAT_SUFFIXES"]
+__all__ = ["read_experiment", "read_columns", "CSV_SUFFIXES", "MAT_SUFFIXES"]
 
 CSV_SUFFIXES = (".csv", ".txt")
 MAT_SUFFIXES = (".mat",)
@@ -92,6 +92,75 @@ def read_experiment(path, *, time="t", input="f", output="x", rate=None):
     else:
         t = columns[time]
     return t, f, x
+
+
+def _checked_path(path):
+    label = os.fspath(path)
+    if isinstance(label, bytes):
+        label = os.fsdecode(label)
+    p = Path(label)
+    suffix = p.suffix.lower()
+    if suffix not in CSV_SUFFIXES + MAT_SUFFIXES:
+        supported = ", ".join(CSV_SUFFIXES + MAT_SUFFIXES)
+        shown = f"extension {p.suffix!r}" if p.suffix else "no extension"
+        raise DataFileError(f"{label}: unknown file type ({shown}); supported: {supported}")
+    if not p.exists():
+        raise DataFileError(f"{label}: file not found")
+    if p.is_dir():
+        raise DataFileError(f"{label}: is a directory, not a data file")
+    return p, label, suffix
+
+
+def _available(p, label, suffix):
+    """Column names of a CSV/text file, or variable names of a .mat file."""
+    if suffix in MAT_SUFFIXES:
+        from scipy.io import whosmat
+        try:
+            return [name for name, _, _ in whosmat(p)]
+        except Exception:  # unreadable: _read_mat reports it
+            return []
+    try:
+        text = p.read_text(encoding="utf-8-sig")
+    except (UnicodeDecodeError, OSError):
+        return []  # _read_csv reports it
+    for _, line in _split_lines(text):
+        try:
+            return _fields(line, _delimiter(line))
+        except csv.Error:
+            return []
+    return []
+
+
+def read_columns(path, names, *, optional=()):
+    """Read named columns (CSV/text) or variables (.mat) of a data file.
+
+    Parameters
+    ----------
+    path : str or path-like
+        A ``.csv``/``.txt`` file with a header line, or a MATLAB ``.mat`` file.
+    names : sequence of str
+        Columns or variables that must be present.
+    optional : sequence of str
+        Columns read only when present (e.g. a time column ``t``).
+
+    Returns
+    -------
+    dict
+        Name -> float64 vector, for ``names`` and the optional names found.
+
+    Raises
+    ------
+    DataFileError
+        Missing file, unknown type, missing or non-numeric column (the message starts
+        with the file name and lists the available columns).
+    """
+    p, label, suffix = _checked_path(path)
+    found = _available(p, label, suffix)
+    wanted = list(dict.fromkeys(list(names) + [n for n in optional if n in found]))
+    if not wanted:
+        raise DataFileError(f"{label}: no column requested")
+    reader = _read_mat if suffix in MAT_SUFFIXES else _read_csv
+    return reader(p, label, wanted, None)
 
 
 def _check_rate(rate) -> float:

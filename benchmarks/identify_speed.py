@@ -1,0 +1,199 @@
+"""``identify`` against an output-error fit (``python -m benchmarks.identify_speed``).
+
+On the same records, in one process:
+
+1. Speed and simulation error.  :func:`algid.identify` (automatic window) against an
+   output-error fit: ``scipy.optimize.least_squares`` over the parameters and the
+   initial state, started from the algebraic estimate, each residual a simulation of
+   the model (RK4, 4 sub-steps per sample, cubic-spline input; the simulator of
+   :meth:`IdentificationResult.simulate`).  Records: Silverbox (identified on rows
+   [40650, 105712), validated on the arrow part [100, 40575), when the data folder is
+   present) and the synthetic linear and cubic records of
+   :mod:`benchmarks.synthetic_records` (validated on a second noise realisation).
+   Reported: the time ratio (output-error time / identify time) and the ratio of the
+   validation simulation errors (identify / output-error).  Target: at least 20x
+   faster at a simulation error within 1.3x.
+2. Monte Carlo on the synthetic records: RMSE of ``identify`` next to that of the
+   output-error fit (linear; target within 3x) and the ratio of the spread of the
+   estimates to the mean reported standard error (every record; target within 1.5x).
+
+Options: ``--runs N`` (Monte Carlo realisations, default 50), ``--oe-runs N``
+(realisations with an output-error fit, default 20), ``--no-silverbox``,
+``--smoke`` (tiny sizes, seconds), ``--out FILE`` (JSON).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+from pathlib import Path
+
+import numpy as np
+from scipy.optimize import least_squares
+
+import algid
+from algid.ode_simulation import OutputEquation, fit_initial_state, simulate_output
+
+from benchmarks.synthetic_records import (CUBIC_EQUATION, FRICTION_EQUATION, LINEAR_EQUATION,
+                                          cubic_spring, friction_loop, linear_offsets)
+
+ROOT = Path(__file__).resolve().parent.parent
+DATA_FOLDERS = (ROOT.parent / "shared" / "data", Path("/work/shared/data"))
+SILVERBOX = ("V2'' + B*V2' + K*V2 + K3*V2**3 = G*V1 + d", "B K K3 G d")
+
+
+def output_error_fit(result, record, *, substeps=4):
+    """Output-error least squares over parameters and initial state, from ``result``.
+
+    Returns
+    -------
+    dict
+        Parameter name -> value.
+    """
+    model = result.model
+    names = model.parameters
+    seg_t = np.asarray(record["t"], dtype=float)
+    inputs = {name: np.asarray(record[name], dtype=float) for name in model.inputs}
+    y = np.asarray(record[model.output], dtype=float)
+    start = np.array([result.values[p] for p in names])
+    x0 = fit_initial_state(OutputEquation(model, result.values), seg_t, inputs, y)
+    scale = np.abs(np.r_[start, x0]) + 1e-12
+
+    def residual(z):
+        values = dict(zip(names, z[:len(names)] * scale[:len(names)]))
+        sim = simulate_output(OutputEquation(model, values), seg_t, inputs,
+                              z[len(names):] * scale[len(names):], substeps=substeps)
+        r = sim - y
+        return np.where(np.isfinite(r), r, 1e3 * np.std(y))
+
+    fit = least_squares(residual, np.r_[start, x0] / scale, method="lm", xtol=1e-10,
+                        ftol=1e-10)
+    return dict(zip(names, (fit.x[:len(names)] * scale[:len(names)]).tolist()))
+
+
+def _with_time(record, rate=None):
+    if "t" in record:
+        return record
+    return dict(record, t=np.arange(len(next(iter(record.values())))) / rate)
+
+
+def speed_case(name, train, validate, equation, *, rate=None, repeats=3):
+    """Time and validation error of identify and of the output-error fit."""
+    train, validate = _with_time(train, rate), _with_time(validate, rate)
+    times = []
+    for _ in range(repeats):
+        start = time.perf_counter()
+        result = algid.identify(train, *equation)
+        times.append(time.perf_counter() - start)
+    start = time.perf_counter()
+    oe_values = output_error_fit(result, train)
+    oe_time = time.perf_counter() - start
+    error = result.simulate(validate).rmse
+    oe_result = algid.IdentificationResult(**{**result.__dict__, "values": oe_values})
+    oe_error = oe_result.simulate(validate).rmse
+    return {"record": name, "samples": int(result.n_samples), "window": result.window,
+            "identify_s": min(times), "output_error_s": oe_time,
+            "speed_ratio": oe_time / min(times), "identify_rmse": error,
+            "output_error_rmse": oe_error, "error_ratio": error / oe_error,
+            "identify": result.values, "output_error": oe_values}
+
+
+def monte_carlo(generator, equation, runs, oe_runs):
+    """RMSE and honesty of the standard errors over noise realisations."""
+    estimates, errors, oe = [], [], []
+    truth = None
+    for seed in range(runs):
+        record, truth = generator(seed)
+        r = algid.identify(record, *equation)
+        estimates.append([r.values[p] for p in truth])
+        errors.append([r.stderr[p] for p in truth])
+        if seed < oe_runs:
+            values = output_error_fit(r, record)
+            oe.append([values[p] for p in truth])
+    true = np.array(list(truth.values()))
+    estimates, errors = np.array(estimates), np.array(errors)
+    out = {"runs": runs, "parameters": list(truth),
+           "rmse": np.sqrt(np.mean((estimates - true) ** 2, axis=0)).tolist(),
+           "spread_over_stderr": (np.std(estimates, axis=0, ddof=1)
+                                  / np.mean(errors, axis=0)).tolist(),
+           "bias_over_stderr": ((np.mean(estimates, axis=0) - true)
+                                / np.mean(errors, axis=0)).tolist()}
+    if oe:
+        oe = np.array(oe)
+        sub = estimates[:len(oe)]
+        out["oe_runs"] = len(oe)
+        out["rmse_same_runs"] = np.sqrt(np.mean((sub - true) ** 2, axis=0)).tolist()
+        out["oe_rmse"] = np.sqrt(np.mean((oe - true) ** 2, axis=0)).tolist()
+        out["rmse_over_oe"] = (np.array(out["rmse_same_runs"]) / np.array(out["oe_rmse"])).tolist()
+    return out
+
+
+def _silverbox():
+    folder = next((f for f in DATA_FOLDERS if (f / "silverbox").is_dir()), None)
+    if folder is None:
+        return None
+    rows = np.loadtxt(folder / "silverbox" / "SNLS80mV.csv", delimiter=",", skiprows=1,
+                      usecols=(0, 1))
+    record = {"V1": rows[:, 0], "V2": rows[:, 1]}
+    return ({k: v[40650:105712] for k, v in record.items()},
+            {k: v[100:40575] for k, v in record.items()})
+
+
+def run(*, runs=50, oe_runs=20, silverbox=True, smoke=False, log=print):
+    """Every measurement; returns JSON-ready data."""
+    n = 600 if smoke else 4000
+    results = {"speed": [], "monte_carlo": {}}
+    cases = []
+    if silverbox and not smoke:
+        data = _silverbox()
+        if data is not None:
+            cases.append(("silverbox", data[0], data[1], SILVERBOX, 610.35))
+    for name, generator, equation in (("linear_offsets", linear_offsets, LINEAR_EQUATION),
+                                      ("cubic_spring", cubic_spring, CUBIC_EQUATION)):
+        cases.append((name, generator(0, n=n)[0], generator(1000, n=n)[0], equation, None))
+    for name, train, validate, equation, rate in cases:
+        row = speed_case(name, train, validate, equation, rate=rate,
+                         repeats=1 if smoke else 3)
+        results["speed"].append(row)
+        log(f"{name:15s} identify {row['identify_s']:.3f} s, output-error "
+            f"{row['output_error_s']:.2f} s: {row['speed_ratio']:.0f}x faster; simulation "
+            f"error {row['identify_rmse']:.4g} vs {row['output_error_rmse']:.4g} "
+            f"({row['error_ratio']:.3f}x)")
+    for name, generator, equation, with_oe in (
+            ("linear_offsets", linear_offsets, LINEAR_EQUATION, True),
+            ("cubic_spring", cubic_spring, CUBIC_EQUATION, False),
+            ("friction_loop", friction_loop, FRICTION_EQUATION, False)):
+        def gen(seed, generator=generator):
+            return generator(seed, n=n) if not smoke or name != "friction_loop" else \
+                generator(seed, n=2000)
+        mc = monte_carlo(gen, equation, 3 if smoke else runs,
+                         (1 if smoke else oe_runs) if with_oe else 0)
+        results["monte_carlo"][name] = mc
+        log(f"{name:15s} {mc['runs']} runs: spread/stderr "
+            + ", ".join(f"{p} {v:.2f}" for p, v in zip(mc["parameters"],
+                                                        mc["spread_over_stderr"]))
+            + ("; RMSE/OE RMSE " + ", ".join(f"{p} {v:.2f}" for p, v in
+                                            zip(mc["parameters"], mc["rmse_over_oe"]))
+               if "rmse_over_oe" in mc else ""))
+    return results
+
+
+def main(argv=None):
+    parser = argparse.ArgumentParser(prog="python -m benchmarks.identify_speed",
+                                     description=__doc__.splitlines()[0])
+    parser.add_argument("--runs", type=int, default=50)
+    parser.add_argument("--oe-runs", type=int, default=20)
+    parser.add_argument("--no-silverbox", action="store_true")
+    parser.add_argument("--smoke", action="store_true")
+    parser.add_argument("--out", type=Path, default=None)
+    args = parser.parse_args(argv)
+    results = run(runs=args.runs, oe_runs=args.oe_runs, silverbox=not args.no_silverbox,
+                  smoke=args.smoke)
+    if args.out:
+        args.out.write_text(json.dumps(results, indent=1, default=float) + "\n")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

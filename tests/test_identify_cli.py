@@ -1,0 +1,85 @@
+"""``algid identify``: output, --json keys, exit codes and one-line errors."""
+
+import json
+import sys
+
+import numpy as np
+import pytest
+from scipy.io import savemat
+
+from algid.cli import main
+
+from conftest import ROOT, assert_one_line_error
+
+if str(ROOT) not in sys.path:
+    sys.path.insert(0, str(ROOT))
+
+from benchmarks.synthetic_records import LINEAR_EQUATION, linear_offsets  # noqa: E402
+
+
+def run(capsys, *argv):
+    code = main([str(arg) for arg in argv])
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+@pytest.fixture(scope="module")
+def record_files(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("identify")
+    record, truth = linear_offsets(0, n=2000)
+    csv = folder / "run.csv"
+    rows = np.column_stack([record["t"], record["u"], record["y"]])
+    np.savetxt(csv, rows, delimiter=",", header="t,u,y", comments="")
+    no_time = folder / "no_time.csv"
+    np.savetxt(no_time, rows[:, 1:], delimiter=",", header="u,y", comments="")
+    second, _ = linear_offsets(1, n=2000)
+    mat = folder / "run2.mat"
+    savemat(mat, {"t": second["t"] + 100, "u": second["u"], "y": second["y"]})
+    return csv, no_time, mat, truth
+
+
+def test_json_has_a_key_per_parameter_stderr_window_and_samples(capsys, record_files):
+    csv, _, mat, truth = record_files
+    code, out, err = run(capsys, "identify", csv, mat, "--equation", LINEAR_EQUATION[0],
+                         "--parameters", LINEAR_EQUATION[1], "--json")
+    assert code == 0, err
+    payload = json.loads(out)
+    assert set(payload) == {"B", "K", "G", "d", "stderr", "window", "n_samples"}
+    assert set(payload["stderr"]) == {"B", "K", "G", "d"}
+    assert payload["n_samples"] == 4000 and 0 < payload["window"] < 1
+    for p in truth:
+        assert abs(payload[p] - truth[p]) < 5 * payload["stderr"][p]
+
+
+def test_text_output_and_rate_and_window(capsys, record_files):
+    _, no_time, _, _ = record_files
+    code, out, err = run(capsys, "identify", no_time, "--equation", LINEAR_EQUATION[0],
+                         "--parameters", LINEAR_EQUATION[1], "--rate", 80, "--window", 0.2)
+    assert code == 0, err
+    assert "window 0.2 s" in out and "std. error" in out and out.count("\n") == 7
+
+
+@pytest.mark.parametrize("extra, fragments", [
+    (["--parameters", "B K G stderr", "--equation", "y'' + B*y' + K*y = G*u + stderr"],
+     ["'stderr' is reserved"]),
+    (["--parameters", "B K", "--equation", "y'' + B*K*y = u"], ["multiplied together"]),
+    (["--parameters", "B K", "--equation", "y'' + B*y' + K*y = z"], ["'z' not found"]),
+    (["--parameters", "B K", "--equation", "y'' + B*y' + K*y = u", "--window", "1000"],
+     ["longer than"]),
+])
+def test_bad_input_exits_2_with_one_line(capsys, record_files, extra, fragments):
+    csv = record_files[0]
+    code, _, err = run(capsys, "identify", csv, *extra)
+    assert_one_line_error(code, err, *fragments)
+
+
+def test_missing_file_and_missing_time(capsys, record_files, tmp_path):
+    code, _, err = run(capsys, "identify", tmp_path / "none.csv", "--equation",
+                       LINEAR_EQUATION[0], "--parameters", LINEAR_EQUATION[1])
+    assert_one_line_error(code, err, "file not found")
+    code, _, err = run(capsys, "identify", record_files[1], "--equation",
+                       LINEAR_EQUATION[0], "--parameters", LINEAR_EQUATION[1])
+    assert_one_line_error(code, err, "no time column")
+    code, _, err = run(capsys, "identify", record_files[0], "--equation",
+                       LINEAR_EQUATION[0], "--parameters", LINEAR_EQUATION[1], "--rate", "-3")
+    assert code == 2
