@@ -14,6 +14,7 @@ sys.path.insert(0, str(ROOT / "src"))
 from algid.symbolic.codegen import numpy_module_source, registry_source  # noqa: E402
 from algid.symbolic.codegen_c import c_sources  # noqa: E402
 from algid.symbolic.derivation import derive  # noqa: E402
+from algid.symbolic.differentiator import kernel_table_source  # noqa: E402
 from algid.symbolic.models import BUILTIN_MODELS, builtin_model  # noqa: E402
 from algid.symbolic.codegen import HEADER  # noqa: E402
 from algid.symbolic.modulating import table_module_source  # noqa: E402
@@ -28,6 +29,7 @@ def generated_files():
     for name in BUILTIN_MODELS:  # the embedded C estimator, default options
         for rel, text in c_sources(derive(builtin_model(name))).items():
             files[f"c/{rel}"] = text
+    files["differentiator_kernels.py"] = kernel_table_source()
     files["modulating.py"] = table_module_source(HEADER)
     return files
 

@@ -1,0 +1,380 @@
+"""Accurate simulation of a :class:`~algid.model.Model` driven by sampled inputs.
+
+The model ``sum_i c_i theta_i D^{k_i} z_i = 0`` is solved for the highest derivative of
+its output ``y``: with the top terms ``c theta y^(n)``,
+
+    y^(n) = -(forcing(t) + sum of the terms that read y) / (c theta),
+
+where *forcing* gathers every term that does not read the output (inputs, their
+derivatives, constants, time).  The state ``(y, y', ..., y^(n-1))`` is integrated by
+:func:`scipy.integrate.solve_ivp` (DOP853 by default, relative tolerance 1e-8), so the
+integration error is negligible next to any model error (unlike the classical RK4 at the
+sampling step, which adds about 1 mV on Silverbox).  Nonlinear factors that read
+the output's derivatives (``sign(q')``) are evaluated on the simulated state.
+
+Between the samples the forcing must be interpolated, and at few samples per period this
+matters more than the integrator:
+
+- ``interpolation="bandlimited"`` (default on uniform grids): the forcing is treated as
+  a band-limited signal, as a sampled physical input is (anti-alias and reconstruction
+  filters): it is upsampled 16 times with a long windowed-sinc filter (96 input samples
+  on each side, Kaiser beta = 13; :func:`scipy.signal.resample_poly`) and the fine samples
+  are joined by a cubic spline.  Measured on sines from 0.001 to 0.4 of the sampling
+  rate: interpolation error below 2e-7 of the amplitude (6e-8 at 0.33, i.e. 200 Hz at
+  Silverbox's 610.35 Hz), against 0.11 at 0.33 for a cubic spline through the samples.
+  On Silverbox (linear model, rows 30100-38100 of the arrow part, where its amplitude
+  is large) the two interpolations change the simulated output by 0.09 mV rms (0.3 mV
+  at most), a fifth of the error of a good model (0.45 mV rms): it matters.  Beyond its
+  ends the record is continued by linear prediction (a 32-tap least-squares
+  predictor), so that the first and last samples are interpolated nearly as well as
+  the rest (band-limited noise up to 0.3 of the sampling rate: 1e-2 of its rms at the
+  first 10 samples, 2e-5 from there on).
+- ``interpolation="cubic"``: a not-a-knot cubic spline through the samples, the only
+  choice on non-uniform grids; accurate when there are many samples per period (error
+  ``~ (2 pi f dt)**4 / 384`` of the amplitude at frequency ``f``).
+
+Derivatives of an input in a plain term (``G*u'``) are derivatives of this interpolant;
+derivatives of an input inside a nonlinear factor (``sign(u')``) are estimated on the
+samples by the algebraic differentiator (:func:`algid.differentiation.algebraic_derivative`,
+default settings), as in identification, then interpolated with the rest of the forcing.
+"""
+
+from __future__ import annotations
+
+import bisect
+import math
+
+import numpy as np
+from scipy.integrate import solve_ivp
+from scipy.interpolate import CubicSpline
+from scipy.optimize import least_squares
+from scipy.signal import firwin, resample_poly
+
+from .differentiation import algebraic_derivative
+from .errors import InputDataError, ModelError
+from .expression import Signal, Time
+
+__all__ = ["simulate_model", "fit_initial_state", "UPSAMPLING", "FILTER_HALF_LENGTH"]
+
+#: Band-limited interpolation: upsampling factor and filter half-length (input samples).
+UPSAMPLING = 16
+FILTER_HALF_LENGTH = 96
+_KAISER_BETA = 13.0
+
+
+def _reads_output(factor, output):
+    return output in factor.signals()
+
+
+def _weight(term, parameters):
+    if term.parameter is None:
+        return float(term.coefficient)
+    if term.parameter not in parameters:
+        raise ModelError(f"no value for the parameter {term.parameter!r}")
+    value = float(parameters[term.parameter])
+    if not math.isfinite(value):
+        raise ModelError(f"parameter {term.parameter!r} is not finite: {value!r}")
+    return float(term.coefficient) * value
+
+
+def _extrapolate(values, count, *, order=32, span=512):
+    """The samples extended by ``count`` linear-prediction samples at both ends.
+
+    A band-limited signal is predictable: a least-squares linear predictor of ``order``
+    taps, fitted on the ``span`` samples next to each end, continues it, so that the
+    interpolation filter sees plausible samples beyond the record instead of a padding
+    (measured on a sine at 9 samples per period: 1e-6 error at the first samples
+    against 1e-2 with odd-reflection padding).  If a prediction runs away (more than
+    four times the record's largest value) the record is returned unextended.
+    """
+    limit = 4.0 * np.max(np.abs(values)) + 1e-300
+
+    def forward(v):
+        v = v[-span:]
+        p = min(order, len(v) // 4)
+        if p < 2:
+            return None
+        rows = np.lib.stride_tricks.sliding_window_view(v[:-1], p)
+        coefficients = np.linalg.lstsq(rows, v[p:], rcond=None)[0]
+        out = list(v[-p:])
+        for _ in range(count):
+            out.append(float(np.dot(coefficients, out[-p:])))
+        tail = np.array(out[p:])
+        return tail if np.all(np.abs(tail) <= limit) else None
+
+    before, after = forward(values[::-1]), forward(values)
+    if before is None or after is None:
+        return values
+    return np.concatenate([before[::-1], values, after])
+
+
+class _Interpolant:
+    """A sampled signal interpolated between samples, evaluated fast at scalar times."""
+
+    def __init__(self, t, values, interpolation):
+        if interpolation == "bandlimited":
+            step = (t[-1] - t[0]) / (len(t) - 1)
+            taps = firwin(2 * FILTER_HALF_LENGTH * UPSAMPLING + 1, 1.0 / UPSAMPLING,
+                          window=("kaiser", _KAISER_BETA))
+            margin = FILTER_HALF_LENGTH + 16
+            extended = _extrapolate(values, margin)
+            fine = resample_poly(extended, UPSAMPLING, 1, window=taps, padtype="antireflect")
+            skip = (margin if len(extended) > len(values) else 0) * UPSAMPLING
+            fine = fine[skip:skip + (len(t) - 1) * UPSAMPLING + 1]
+            grid = t[0] + np.arange(len(fine)) * (step / UPSAMPLING)
+            grid[-1] = t[-1]
+            spline = CubicSpline(grid, fine)
+        else:
+            spline = CubicSpline(t, values)
+        self.spline = spline
+        self.knots = spline.x.tolist()
+        # polynomial pieces c0 (t - x_i)**3 + c1 (...)**2 + c2 (...) + c3, as lists
+        self.coefficients = [row.tolist() for row in spline.c]
+
+    def __call__(self, time):
+        i = min(max(bisect.bisect_right(self.knots, time) - 1, 0), len(self.knots) - 2)
+        h = time - self.knots[i]
+        c = self.coefficients
+        return ((c[0][i] * h + c[1][i]) * h + c[2][i]) * h + c[3][i]
+
+    def derivative_samples(self, t, order):
+        return self.spline(t, order)
+
+
+def _check_time_and_inputs(time, inputs, names):
+    t = np.asarray(time, dtype=float)
+    if t.ndim != 1 or len(t) < 4:
+        raise InputDataError("time must be a 1-D array of at least 4 sample times")
+    if not np.all(np.isfinite(t)) or np.any(np.diff(t) <= 0):
+        raise InputDataError("time must be finite and strictly increasing")
+    columns = {}
+    for name in names:
+        if name not in inputs:
+            raise InputDataError(f"no samples for the input {name!r}")
+        values = np.asarray(inputs[name], dtype=float)
+        if values.shape != t.shape:
+            raise InputDataError(f"input {name!r} has shape {values.shape}, time has {t.shape}")
+        if not np.all(np.isfinite(values)):
+            raise InputDataError(f"input {name!r} has NaN or infinite samples")
+        columns[name] = values
+    return t, columns
+
+
+def _is_uniform(t):
+    steps = np.diff(t)
+    return np.ptp(steps) <= 1e-6 * np.mean(steps)
+
+
+def _differentiate(values, t, order):
+    """The algebraic differentiator's estimate (default settings) on the samples."""
+    if _is_uniform(t):
+        return algebraic_derivative(values, (t[-1] - t[0]) / (len(t) - 1), derivative=order)
+    return algebraic_derivative(values, time=t, derivative=order)
+
+
+class _OutputEquation:
+    """The model solved for the highest derivative of ``output``, ready to integrate."""
+
+    def __init__(self, model, parameters, t, columns, output, interpolation):
+        tops = [term for term in model.terms
+                if term.factor == Signal(output) and term.derivative > 0]
+        if not tops:
+            raise ModelError(f"cannot simulate {model.equation!r}: the output {output!r} "
+                             "is not differentiated in a plain term")
+        self.order = max(term.derivative for term in tops)
+        top_terms = [term for term in tops if term.derivative == self.order]
+        scale = sum(_weight(term, parameters) for term in top_terms)
+        if scale == 0:
+            raise ModelError("cannot simulate: the coefficient of the highest derivative "
+                             "of the output is zero")
+        if interpolation == "bandlimited" and not _is_uniform(t):
+            interpolation = "cubic"
+        self.output, self.interpolation = output, interpolation
+        splines = {name: _Interpolant(t, values, interpolation)
+                   for name, values in columns.items()}
+        forcing = np.zeros_like(t)
+        self.state_terms = []      # (weight, factor): the terms that read the output
+        self.inputs = {}           # interpolants of what those terms read besides it
+        for term in model.terms:
+            if term in top_terms:
+                continue
+            weight = -_weight(term, parameters) / scale
+            factor = term.factor
+            if output in factor.signals():
+                if term.derivative:
+                    factor = Signal(output, term.derivative)
+                for name, k in factor.derivatives():
+                    if name == output and k >= self.order:
+                        raise ModelError(f"cannot simulate {model.equation!r}: {output}"
+                                         f"{chr(39) * k} appears inside a nonlinear factor")
+                    if name != output:
+                        self.inputs[(name, k)] = _Interpolant(
+                            t, _differentiate(columns[name], t, k), interpolation)
+                for name in factor.signals():
+                    if name != output:
+                        self.inputs[name] = splines[name]
+                self.state_terms.append((weight, factor))
+            else:
+                forcing += weight * self._known_values(term, columns, splines, t)
+        self.forcing = _Interpolant(t, forcing, interpolation)
+
+    @staticmethod
+    def _known_values(term, columns, splines, t):
+        """Samples of a term that does not read the output (without its weight)."""
+        factor = term.factor
+        if term.derivative:
+            # D^k of a plain input (derivative of its interpolant), of 1 or of t
+            if isinstance(factor, Signal):
+                return splines[factor.name].derivative_samples(t, term.derivative)
+            if isinstance(factor, Time) and term.derivative == 1:
+                return np.ones_like(t)
+            return np.zeros_like(t)
+        values = dict(columns)
+        for name, k in factor.derivatives():
+            values[(name, k)] = _differentiate(columns[name], t, k)
+        return np.broadcast_to(np.asarray(factor.evaluate(values, time=t), dtype=float),
+                               t.shape)
+
+    def __call__(self, time, state):
+        values = {self.output: np.array([state[0]])}
+        for k in range(1, self.order):
+            values[(self.output, k)] = np.array([state[k]])
+        for key, interpolant in self.inputs.items():
+            values[key] = np.array([interpolant(time)])
+        top = self.forcing(time)
+        when = np.array([time])
+        for weight, factor in self.state_terms:
+            top += weight * float(factor.evaluate(values, time=when)[0])
+        derivative = np.empty(self.order)
+        derivative[:-1] = state[1:]
+        derivative[-1] = top
+        return derivative
+
+
+def _prepare(model, parameters, time, inputs, output, interpolation):
+    if interpolation not in ("bandlimited", "cubic"):
+        raise InputDataError(f"interpolation must be 'bandlimited' or 'cubic', "
+                             f"got {interpolation!r}")
+    output = model.output if output is None else output
+    if output not in model.signals:
+        raise ModelError(f"{output!r} is not a signal of {model.equation!r}")
+    if not any(term.factor == Signal(output) and term.derivative > 0 for term in model.terms):
+        raise ModelError(f"cannot simulate {model.equation!r}: the output {output!r} "
+                         "is not differentiated in a plain term")
+    names = tuple(name for name in model.signals if name != output)
+    t, columns = _check_time_and_inputs(time, inputs, names)
+    return _OutputEquation(model, parameters, t, columns, output, interpolation), t
+
+
+def _integrate(equation, t, initial_state, method, rtol, atol):
+    state = np.zeros(equation.order) if initial_state is None else \
+        np.asarray(initial_state, dtype=float).ravel()
+    if state.shape != (equation.order,) or not np.all(np.isfinite(state)):
+        raise InputDataError(f"initial_state must hold {equation.order} finite values "
+                             f"(the output and its derivatives up to order "
+                             f"{equation.order - 1}), got {initial_state!r}")
+    solution = solve_ivp(equation, (t[0], t[-1]), state, method=method, t_eval=t,
+                         rtol=rtol, atol=atol)
+    out = np.full((equation.order, len(t)), np.nan)
+    out[:, :solution.y.shape[1]] = solution.y  # a diverging model stops early: NaN after
+    return out
+
+
+def simulate_model(model, parameters, time, inputs, *, initial_state=None, output=None,
+                   method="DOP853", interpolation="bandlimited", rtol=1e-8, atol=1e-12,
+                   return_states=False):
+    """Simulate a model's output from sampled inputs, accurately.
+
+    Parameters
+    ----------
+    model : Model
+        The model (from :func:`algid.grammar.parse_equation`).
+    parameters : mapping
+        Parameter name -> value, for every unknown parameter of the model.
+    time : array_like
+        Sample times, strictly increasing (uniform or not).
+    inputs : mapping
+        Signal name -> samples at ``time``, for every signal of the model other than the
+        output (extra entries are ignored).
+    initial_state : array_like, optional
+        The output and its derivatives up to order ``n - 1`` at ``time[0]``; default
+        zeros.  :func:`fit_initial_state` fits it to a measured output.
+    output : str, optional
+        The signal to simulate; default ``model.output``.
+    method : str, optional
+        The :func:`scipy.integrate.solve_ivp` method: ``"DOP853"`` (default), or
+        ``"Radau"``/``"BDF"``/``"LSODA"`` for a stiff model.
+    interpolation : {"bandlimited", "cubic"}, optional
+        How the inputs are interpolated between samples (see the module docstring);
+        ``"bandlimited"`` falls back to ``"cubic"`` on a non-uniform grid.
+    rtol, atol : float, optional
+        Tolerances of the integrator.  The default ``rtol = 1e-8`` changes the Silverbox
+        output by about 1e-7 V from ``rtol = 1e-12`` (cost: about 1.5 ms per sample there,
+        some 35 right-hand-side evaluations per sample at 9 samples per period).
+    return_states : bool, optional
+        If true, return the whole state (``n`` x samples) instead of the output alone.
+
+    Returns
+    -------
+    numpy.ndarray
+        The simulated output at ``time`` (or the states); NaN from where the
+        integration failed (a diverging model).
+
+    Raises
+    ------
+    InputDataError
+        Bad time axis, missing or non-finite inputs, a bad initial state.
+    ModelError
+        A missing parameter, an output that is not differentiated, or the output's
+        highest derivative inside a nonlinear factor.
+    """
+    equation, t = _prepare(model, parameters, time, inputs, output, interpolation)
+    states = _integrate(equation, t, initial_state, method, rtol, atol)
+    return states if return_states else states[0]
+
+
+def fit_initial_state(model, parameters, time, inputs, measured_output, n_samples=50, *,
+                      output=None, method="DOP853", interpolation="bandlimited",
+                      rtol=1e-8, atol=1e-12):
+    """The initial state that best fits the first samples of a measured output.
+
+    Least squares, over the initial state, of the simulated minus the measured output on
+    the first ``n_samples`` samples, started from a local polynomial fit.  The inputs are
+    interpolated on the whole record (so the band-limited interpolant is the same as in
+    the full simulation).
+
+    Parameters
+    ----------
+    model, parameters, time, inputs, output, method, interpolation, rtol, atol
+        As in :func:`simulate_model`.
+    measured_output : array_like
+        The measured output at ``time``.
+    n_samples : int, optional
+        Number of leading samples fitted (default 50).
+
+    Returns
+    -------
+    numpy.ndarray
+        The output and its derivatives up to order ``n - 1`` at ``time[0]``.
+    """
+    equation, t = _prepare(model, parameters, time, inputs, output, interpolation)
+    y = np.asarray(measured_output, dtype=float)
+    if y.shape != t.shape:
+        raise InputDataError(f"measured_output has shape {y.shape}, time has {t.shape}")
+    m = int(n_samples)
+    if not equation.order + 1 <= m <= len(t):
+        raise InputDataError(f"n_samples must be in {equation.order + 1}..{len(t)}, "
+                             f"got {n_samples!r}")
+    if not np.all(np.isfinite(y[:m])):
+        raise InputDataError("measured_output has NaN or infinite values in the fitted part")
+    head = t[:m]
+    degree = min(equation.order + 2, m - 1)
+    start = np.polynomial.polynomial.polyfit(head - head[0], y[:m], degree)
+    guess = np.array([start[k] * math.factorial(k) for k in range(equation.order)])
+    scale = np.std(y[:m]) + np.max(np.abs(y[:m])) + 1e-300
+
+    def residual(state):
+        simulated = _integrate(equation, head, state, method, rtol, atol)[0]
+        return np.where(np.isfinite(simulated), simulated - y[:m], 1e6 * scale)
+
+    return least_squares(residual, guess, x_scale="jac").x
