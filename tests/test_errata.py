@@ -66,6 +66,10 @@ def test_the_wrong_equations(report):
 
 
 def test_explanations_name_the_difference(report):
+    """Partly a snapshot: the wording of the explanations is compared with today's text.
+
+    The corrected (14) and (15) are the forms derived by hand from the model.
+    """
     by = {v.number: v for v in report}
     assert "B*d^2/ds^2[s*X(s)]" in by["11"].explanation
     # (14): the right side must keep the x(s) terms
@@ -251,6 +255,10 @@ def test_chains_agree_with_the_generated_module(msd, closed_form):
 
 
 def test_paper_style_realization_text(msd):
+    """Snapshot of the printed realisation (state names and printing as of today).
+
+    The equations themselves are checked by the tests of the realisation above.
+    """
     text = realize(msd).format()
     assert "p11_z1' = p11_z2 + t**2*x(t)" in text
     assert "where p21_z2 = p11" in text and "where p22_z2 = p12" in text

@@ -78,7 +78,6 @@ def test_noise_free_exact_and_faster_than_paper(reproduction, name):
     assert max(abs(v) for v in tool["final_rel_error"].values()) <= 1e-6
     # the paper's claim (good estimates at 0.04 s step / 0.06 s sine) is met at 0.1 %
     claim = entry["paper"]["t_good"]
-    assert claim == {"step": 0.04, "sine": 0.06}[name]
     assert tool["t_0.1pct"] is not None and tool["t_0.1pct"] <= claim
     assert tool["t_1pct"] <= tool["t_0.1pct"]
     assert tool["t_valid"] <= tool["t_1pct"]

@@ -193,7 +193,8 @@ def test_check_experiment_tiny_jitter_is_uniform():
     t, f, x = experiment(n=1000)
     rng = np.random.default_rng(0)
     t = t + rng.uniform(-1e-9, 1e-9, t.size) * 1e-3
-    check_experiment(t, f, x)
+    _, _, _, h = check_experiment(t, f, x)
+    assert h == pytest.approx(1e-3, rel=1e-9)
 
 
 def test_check_experiment_no_excitation():
@@ -205,4 +206,6 @@ def test_check_experiment_no_excitation():
 
 def test_check_experiment_free_response_is_excitation():
     t, _, x = experiment()
-    check_experiment(t, np.zeros(100), x)
+    _, f_checked, x_checked, _ = check_experiment(t, np.zeros(100), x)
+    np.testing.assert_array_equal(f_checked, 0.0)
+    np.testing.assert_array_equal(x_checked, x)

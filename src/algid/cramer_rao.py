@@ -74,7 +74,24 @@ def fisher_information(t, f, *, B, K, x0=0.0, v0=0.0, noise_std, horizon=None,
                        mass=None, quadrature_order=6):
     """Fisher information of ``(B, K, x0, v0)`` from noisy samples of ``x``.
 
-    Parameters are those of :func:`crlb`.
+    Parameters
+    ----------
+    t : array_like
+        Uniformly spaced sample times [s]; the initial state is at ``t[0]``.
+    f : array_like
+        Input samples, as for :func:`crlb`.
+    B, K : float
+        True parameters (``c/m`` and ``k/m``).
+    x0, v0 : float, optional
+        True initial displacement and velocity.  Default 0.
+    noise_std : float
+        Standard deviation of the white Gaussian noise on each sample of ``x``.
+    horizon : float, optional
+        Use the samples with ``t - t[0] <= horizon`` (default: all).
+    mass : float, optional
+        Known mass: ``f`` is then the force.
+    quadrature_order : int, optional
+        Points of the input interpolation.  Default 6.
 
     Returns
     -------

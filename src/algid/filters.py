@@ -276,7 +276,13 @@ class LowpassFilter:
         return self.A.shape[0]
 
     def dc_gain(self) -> float:
-        """Static gain ``-c A^-1 b``."""
+        """Static gain ``-c A^-1 b``.
+
+        Returns
+        -------
+        float
+            The gain at zero frequency.
+        """
         return float(-self.c @ np.linalg.solve(self.A, self.b))
 
     def apply(self, y, h, *, order=6):

@@ -87,7 +87,13 @@ class RefinementResult:
         return out
 
     def to_dict(self) -> dict:
-        """Estimates, their standard errors (``std_<name>``) and diagnostics, JSON-ready."""
+        """Estimates, their standard errors (``std_<name>``) and diagnostics, JSON-ready.
+
+        Returns
+        -------
+        dict
+            Plain Python numbers, lists and strings.
+        """
         out = dict(self.parameters)
         out.update({f"std_{name}": value for name, value in self.std.items()})
         out.update(noise_std=self.noise_std, iterations=self.iterations,

@@ -182,6 +182,18 @@ def check_experiment(t, f, x, *, names=("t", "f", "x"), min_samples=16):
 def positive_number(value, *, name) -> float:
     """``value`` as a float if it is a finite real number > 0.
 
+    Parameters
+    ----------
+    value : object
+        The value given.
+    name : str
+        Its name, for the error message.
+
+    Returns
+    -------
+    float
+        The value.
+
     Raises
     ------
     InputDataError

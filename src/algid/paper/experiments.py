@@ -88,10 +88,12 @@ class Experiment:
 
     @property
     def noisy(self) -> bool:
+        """Whether the measured position carries noise."""
         return self.noise_std > 0
 
     @property
     def label(self) -> str:
+        """Short description, e.g. ``"step, noise 0.01 m"``."""
         return f"{self.input}, " + (f"noise {self.noise_std:g} m" if self.noisy else "no noise")
 
 

@@ -60,11 +60,28 @@ class PaperReproduction:
     runs: dict = field(default_factory=dict, repr=False)
 
     def table(self) -> str:
-        """The summary as a plain-text table (see :func:`format_summary`)."""
+        """The summary as a plain-text table (see :func:`format_summary`).
+
+        Returns
+        -------
+        str
+            The report.
+        """
         return format_summary(self.summary)
 
     def to_json(self, **kwargs) -> str:
-        """The summary as JSON text."""
+        """The summary as JSON text.
+
+        Parameters
+        ----------
+        **kwargs
+            Passed to :func:`json.dumps` (e.g. ``indent``).
+
+        Returns
+        -------
+        str
+            The JSON document (no NaN: missing values are ``null``).
+        """
         return json.dumps(self.summary, allow_nan=False, **kwargs)
 
 

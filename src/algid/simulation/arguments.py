@@ -16,7 +16,19 @@ __all__ = ["format_value", "real_number", "check_parameters", "time_grid",
 
 
 def format_value(value: Any) -> str:
-    """Format a value compactly (and on one line) for an error message."""
+    """Format a value compactly, on one line, for an error message.
+
+    Parameters
+    ----------
+    value : object
+        The value to show.
+
+    Returns
+    -------
+    str
+        ``repr(float(value))`` for a real number, else its ``repr`` on one line,
+        shortened to 60 characters.
+    """
     if isinstance(value, numbers.Real) and not isinstance(value, bool):
         return repr(float(value))
     text = repr(value)
@@ -25,7 +37,25 @@ def format_value(value: Any) -> str:
 
 
 def real_number(name: str, value: Any) -> float:
-    """Convert a scalar argument to a finite float or raise :class:`InputDataError`."""
+    """Convert a scalar argument to a finite float.
+
+    Parameters
+    ----------
+    name : str
+        The argument's name, for the error message.
+    value : object
+        The value given.
+
+    Returns
+    -------
+    float
+        The value.
+
+    Raises
+    ------
+    InputDataError
+        If the value is not a real number, or not finite.
+    """
     if isinstance(value, (bool, np.bool_)) or isinstance(value, (str, bytes)):
         raise InputDataError(f"{name} must be a real number, got {format_value(value)}")
     try:
@@ -38,7 +68,23 @@ def real_number(name: str, value: Any) -> float:
 
 
 def check_parameters(m: Any, c: Any, k: Any) -> tuple[float, float, float]:
-    """Validate the physical parameters and return them as floats."""
+    """Check the physical parameters of the plant.
+
+    Parameters
+    ----------
+    m, c, k : object
+        Mass (> 0), damping and stiffness (>= 0).
+
+    Returns
+    -------
+    tuple of float
+        ``(m, c, k)``.
+
+    Raises
+    ------
+    InputDataError
+        If a parameter is not a finite real number or out of its range.
+    """
     m_, c_, k_ = real_number("m", m), real_number("c", c), real_number("k", k)
     if m_ <= 0.0:
         raise InputDataError(f"m must be > 0 (mass in kg), got {format_value(m)}")
@@ -50,7 +96,29 @@ def check_parameters(m: Any, c: Any, k: Any) -> tuple[float, float, float]:
 
 
 def time_grid(timepts: Any, duration: Any, rate: Any) -> np.ndarray:
-    """Return the validated time grid as a new 1-D float64 array."""
+    """The time grid of an experiment, checked.
+
+    Parameters
+    ----------
+    timepts : array_like or None
+        Time points, 1-D and strictly increasing; ``None`` to build the grid from
+        ``duration`` and ``rate``.
+    duration : object
+        Length of the experiment in s (> 0), used when ``timepts`` is ``None``.
+    rate : object
+        Sampling rate in Hz (> 0), used when ``timepts`` is ``None``.
+
+    Returns
+    -------
+    numpy.ndarray
+        A new 1-D float64 array of at least 2 time points.
+
+    Raises
+    ------
+    InputDataError
+        For a bad duration or rate, fewer than 2 points, or time points that are not
+        finite and strictly increasing.
+    """
     if timepts is None:
         duration_ = real_number("duration", duration)
         rate_ = real_number("rate", rate)
@@ -89,7 +157,23 @@ def time_grid(timepts: Any, duration: Any, rate: Any) -> np.ndarray:
 
 
 def initial_state_vector(initial_state: Any) -> np.ndarray:
-    """Validate ``initial_state`` and return it as a float64 array ``[x0, v0]``."""
+    """The initial state ``[x0, v0]``, checked.
+
+    Parameters
+    ----------
+    initial_state : object
+        A pair of finite real numbers.
+
+    Returns
+    -------
+    numpy.ndarray
+        Float64 array of shape ``(2,)``.
+
+    Raises
+    ------
+    InputDataError
+        If it is not a pair of finite real numbers.
+    """
     try:
         x0 = np.array(initial_state, dtype=np.float64)
     except (TypeError, ValueError):
@@ -108,7 +192,25 @@ def initial_state_vector(initial_state: Any) -> np.ndarray:
 
 
 def callable_samples(func: Callable, t: np.ndarray) -> np.ndarray:
-    """Evaluate a vectorised input function on the grid and check the result."""
+    """Samples of a vectorised input function on the grid, checked.
+
+    Parameters
+    ----------
+    func : callable
+        ``F(t)``, called with the array of time points.
+    t : numpy.ndarray
+        The time grid.
+
+    Returns
+    -------
+    numpy.ndarray
+        ``func(t)`` as float64, of the shape of ``t``.
+
+    Raises
+    ------
+    InputDataError
+        If ``func`` fails on an array, returns the wrong shape or non-finite values.
+    """
     try:
         f = np.array(func(t.copy()), dtype=np.float64)
     except (TypeError, ValueError) as exc:
@@ -133,7 +235,25 @@ def callable_samples(func: Callable, t: np.ndarray) -> np.ndarray:
 
 
 def array_samples(values: Any, t: np.ndarray) -> np.ndarray:
-    """Check an array of force samples against the time grid."""
+    """An array of force samples, checked against the time grid.
+
+    Parameters
+    ----------
+    values : array_like
+        One force sample per time point.
+    t : numpy.ndarray
+        The time grid.
+
+    Returns
+    -------
+    numpy.ndarray
+        The samples as float64.
+
+    Raises
+    ------
+    InputDataError
+        If the samples are not numbers, not one per time point, or not finite.
+    """
     try:
         f = np.array(values, dtype=np.float64)
     except (TypeError, ValueError):

@@ -32,6 +32,11 @@ class IteratedIntegral(sp.Function):
 
     ``k = 0`` is ``g`` itself.  Kept unevaluated: it names a filter of the measured
     signals, not something SymPy should integrate.
+
+    Parameters
+    ----------
+    *args : sympy.Expr, int
+        The integrand ``g`` and the number of integrations ``k``.
     """
 
     nargs = 2
@@ -59,7 +64,17 @@ def _paren(expr, text):
 
 @dataclass(frozen=True, order=True)
 class Kernel:
-    """One filtered signal: ``k``-fold integral of ``t**power * signal``."""
+    """One filtered signal: ``k``-fold integral of ``t**power * signal``.
+
+    Parameters
+    ----------
+    signal : str
+        Name of the signal.
+    power : int
+        Power of ``t`` multiplying it.
+    order : int
+        Number of integrations from 0.
+    """
 
     signal: str
     power: int
@@ -71,7 +86,13 @@ class Kernel:
         return f"{self.signal}_t{self.power}_i{self.order}"
 
     def expression(self):
-        """The kernel as a SymPy :class:`IteratedIntegral` of ``t**power * signal(t)``."""
+        """The kernel as a SymPy :class:`IteratedIntegral` of ``t**power * signal(t)``.
+
+        Returns
+        -------
+        IteratedIntegral
+            The kernel expression.
+        """
         return IteratedIntegral(t**self.power * sp.Function(self.signal)(t), self.order)
 
 
@@ -119,6 +140,7 @@ class Derivation:
 
     @property
     def parameters(self):
+        """The unknown parameters, in the model's order."""
         return self.model.parameters
 
     @property
@@ -127,21 +149,40 @@ class Derivation:
         return _transform(self.model.output), _transform(self.model.input)
 
     def kernel_symbols(self):
-        """Map each kernel expression to a plain symbol named after the kernel."""
+        """Map each kernel expression to a plain symbol named after the kernel.
+
+        Returns
+        -------
+        dict
+            :class:`IteratedIntegral` -> :class:`sympy.Symbol` (``x_t2_i1``, ...).
+        """
         return {k.expression(): sp.Symbol(k.name) for k in self.kernels}
 
     def entry_symbols(self):
-        """Symbols ``p_i_j`` and ``q_i`` standing for the entries of ``P`` and ``Q``."""
+        """Symbols ``p_i_j`` and ``q_i`` standing for the entries of ``P`` and ``Q``.
+
+        Returns
+        -------
+        P, Q : sympy.Matrix
+            Matrices of symbols of the shapes of ``P`` and ``Q``.
+        """
         n, m = self.P.shape
         Ps = sp.Matrix(n, m, lambda i, j: sp.Symbol(f"p_{i}_{j}"))
         Qs = sp.Matrix(n, 1, lambda i, j: sp.Symbol(f"q_{i}"))
         return Ps, Qs
 
     def cramer(self):
-        """Cramer's rule on symbolic entries: ``(numerators, denominator)``.
+        """Cramer's rule on symbolic entries.
 
         ``theta_i = numerators[i] / denominator``, expressed in ``p_i_j`` and ``q_i``.
         Only for square systems.
+
+        Returns
+        -------
+        numerators : tuple of sympy.Expr
+            One per parameter.
+        denominator : sympy.Expr
+            ``det P``.
         """
         Ps, Qs = self.entry_symbols()
         if Ps.shape[0] != Ps.shape[1]:
@@ -155,7 +196,13 @@ class Derivation:
         return tuple(nums), den
 
     def solution(self):
-        """The closed-form estimate of each parameter in terms of the kernels."""
+        """The closed-form estimate of each parameter in terms of the kernels.
+
+        Returns
+        -------
+        dict
+            Parameter symbol -> quotient of kernel combinations.
+        """
         nums, den = self.cramer()
         Ps, Qs = self.entry_symbols()
         subs = {Ps[i, j]: self.P[i, j] for i in range(Ps.shape[0]) for j in range(Ps.shape[1])}

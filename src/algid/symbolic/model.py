@@ -154,7 +154,13 @@ class LinearODEModel:
         return sp.Function(self.input)(TIME)
 
     def ode(self) -> sp.Eq:
-        """The model as a SymPy equation in the time domain."""
+        """The model as a SymPy equation in the time domain.
+
+        Returns
+        -------
+        sympy.Eq
+            Output side equal to input side.
+        """
         y, u = self.output_function, self.input_function
         n, m = len(self.output_coefficients) - 1, len(self.input_coefficients) - 1
         lhs = sum(c * y.diff(TIME, n - i) for i, c in enumerate(self.output_coefficients))
@@ -162,7 +168,13 @@ class LinearODEModel:
         return sp.Eq(lhs, rhs)
 
     def equation_text(self) -> str:
-        """The ODE in plain text, e.g. ``x'' + B*x' + K*x = f``."""
+        """The ODE in plain text, e.g. ``x'' + B*x' + K*x = f``.
+
+        Returns
+        -------
+        str
+            The equation.
+        """
 
         def side(coeffs, sig):
             n = len(coeffs) - 1

@@ -43,6 +43,16 @@ BUILTIN_MODELS = {"msd": _msd, "msd_mass": _msd_mass}
 def builtin_model(name: str) -> LinearODEModel:
     """Return the built-in model called ``name``.
 
+    Parameters
+    ----------
+    name : str
+        ``"msd"`` or ``"msd_mass"``.
+
+    Returns
+    -------
+    LinearODEModel
+        The model.
+
     Raises
     ------
     ModelError

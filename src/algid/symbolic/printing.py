@@ -14,8 +14,16 @@ __all__ = ["TextPrinter", "show"]
 
 
 class TextPrinter(StrPrinter):
-    """Plain text: ``X''(s)`` for derivatives of a function in its argument,
-    ``d^2/ds^2[...]`` for derivatives of compound expressions."""
+    """Plain-text SymPy printer with primes for derivatives.
+
+    ``X''(s)`` for derivatives of a function in its own argument, ``d^2/ds^2[...]`` for
+    derivatives of compound expressions, ``[a, b; c, d]`` for matrices.
+
+    Parameters
+    ----------
+    settings : dict, optional
+        Settings of :class:`sympy.printing.str.StrPrinter`.
+    """
 
     def _print_Derivative(self, expr):
         (var, n), *rest = expr.variable_count

@@ -104,7 +104,18 @@ def _add(d, key, value):
 
 
 def from_kernel_terms(terms: dict):
-    """Inverse of :func:`kernel_terms`: the canonical SymPy expression."""
+    """Inverse of :func:`kernel_terms`: the canonical SymPy expression.
+
+    Parameters
+    ----------
+    terms : dict
+        ``(signal, power, order) -> coefficient``.
+
+    Returns
+    -------
+    sympy.Expr
+        The sum of the iterated integrals.
+    """
     total = sp.Integer(0)
     for (sig, p, k), c in sorted(terms.items(), key=lambda kv: (kv[0][2], kv[0][0], kv[0][1])):
         g = t**p * sp.Function(sig)(t)
@@ -113,7 +124,18 @@ def from_kernel_terms(terms: dict):
 
 
 def same_integral_form(a, b) -> bool:
-    """Whether two kernel combinations are the same filter (equal coefficients)."""
+    """Whether two kernel combinations are the same filter (equal coefficients).
+
+    Parameters
+    ----------
+    a, b : sympy.Expr
+        Kernel combinations.
+
+    Returns
+    -------
+    bool
+        Whether their coefficients agree.
+    """
     ta, tb = kernel_terms(a), kernel_terms(b)
     keys = set(ta) | set(tb)
     return all(sp.simplify(ta.get(k, 0) - tb.get(k, 0)) == 0 for k in keys)
@@ -202,6 +224,16 @@ def integrate_from_zero(expr):
     """``int_0^t expr(tau) dtau`` for sums of ``c t**n exp(a t)``, in closed form.
 
     Terms of another shape are handed to :func:`sympy.integrate`.
+
+    Parameters
+    ----------
+    expr : sympy.Expr
+        A function of ``t``.
+
+    Returns
+    -------
+    sympy.Expr
+        The integral from 0 to ``t``.
     """
     total = sp.Integer(0)
     tau = sp.Dummy("tau", nonnegative=True)
@@ -237,6 +269,16 @@ def entry_names(derivation: Derivation) -> tuple:
     """Names of the entries of ``P`` and ``Q``, one-based as in the literature.
 
     ``P[i, j]`` is ``p{i+1}{j+1}`` and ``Q[i]`` is ``q{i+1}``; ``P`` row by row first.
+
+    Parameters
+    ----------
+    derivation : Derivation
+        The derivation.
+
+    Returns
+    -------
+    tuple of str
+        The names.
     """
     n, m = derivation.P.shape
     return tuple(f"p{i + 1}{j + 1}" for i in range(n) for j in range(m)) + \
@@ -244,7 +286,18 @@ def entry_names(derivation: Derivation) -> tuple:
 
 
 def entries(derivation: Derivation) -> dict:
-    """Entry name (see :func:`entry_names`) -> its kernel combination."""
+    """The entries of ``P`` and ``Q`` by name.
+
+    Parameters
+    ----------
+    derivation : Derivation
+        The derivation.
+
+    Returns
+    -------
+    dict
+        Entry name (see :func:`entry_names`) -> its kernel combination.
+    """
     n, m = derivation.P.shape
     values = [derivation.P[i, j] for i in range(n) for j in range(m)] + list(derivation.Q)
     return dict(zip(entry_names(derivation), values))
@@ -290,13 +343,25 @@ class Realization:
     chains: tuple = ()
 
     def state_equations(self) -> dict:
-        """State symbol -> right-hand side ``(A z + B(t) u)_i``."""
+        """The state equations.
+
+        Returns
+        -------
+        dict
+            State symbol -> right-hand side ``(A z + B(t) u)_i``.
+        """
         z, u = sp.Matrix(self.states), sp.Matrix(self.inputs)
         rhs = self.A * z + self.B * u if self.states else sp.zeros(0, 1)
         return {zi: sp.expand(r) for zi, r in zip(self.states, rhs)}
 
     def output_equations(self) -> dict:
-        """Output name -> ``(C z + D(t) u)_i``."""
+        """The output equations.
+
+        Returns
+        -------
+        dict
+            Output name -> ``(C z + D(t) u)_i``.
+        """
         u = sp.Matrix(self.inputs)
         y = self.D * u
         if self.states:
@@ -304,11 +369,23 @@ class Realization:
         return {name: sp.expand(e) for name, e in zip(self.outputs, y)}
 
     def integral_form(self) -> dict:
-        """Output name (and state) -> the kernel combination the filter computes."""
+        """What each filter computes, as a kernel combination.
+
+        Returns
+        -------
+        dict
+            Output name (and state) -> the kernel combination.
+        """
         return solve_state_equations(self.state_equations(), self.output_equations())
 
     def check(self) -> bool:
-        """Whether every output reproduces its target kernel combination exactly."""
+        """Whether every output reproduces its target kernel combination exactly.
+
+        Returns
+        -------
+        bool
+            ``True`` if all outputs match.
+        """
         form = self.integral_form()
         return all(same_integral_form(form[name], self.targets[name]) for name in self.outputs)
 
@@ -336,8 +413,10 @@ class Realization:
                 for name, y in self.output_equations().items()}
 
     def where(self) -> dict:
-        """Shared values: for each chain of the ``"entries"`` layout, its first state
-        that carries the value of an earlier output or of a state of an earlier chain.
+        """Shared values of the ``"entries"`` layout.
+
+        For each chain, its first state that carries the value of an earlier output or of a
+        state of an earlier chain.
 
         Returns
         -------
@@ -373,6 +452,11 @@ class Realization:
         ----------
         names : iterable of str, optional
             Outputs to show (default: all).
+
+        Returns
+        -------
+        str
+            The lines.
         """
         names = self.outputs if names is None else tuple(names)
         eqs, outs = self.state_equations(), self.output_equations()

@@ -27,8 +27,15 @@ FORMATS = ("text", "latex", "markdown")
 class Step:
     """One step of the derivation: a heading, an explanation and display equations.
 
-    ``equations`` holds ``(lhs, rhs)`` pairs of SymPy objects (or ``(None, expr)`` for an
-    expression shown alone).
+    Parameters
+    ----------
+    title : str
+        The heading.
+    text : str
+        The explanation.
+    equations : tuple
+        ``(lhs, rhs)`` pairs of SymPy objects (or ``(None, expr)`` for an expression
+        shown alone).
     """
 
     title: str
@@ -61,7 +68,18 @@ def _text(expr, d: Derivation) -> str:
 
 
 def derivation_steps(d: Derivation) -> list:
-    """The derivation as a list of :class:`Step` objects."""
+    """The derivation as a list of steps.
+
+    Parameters
+    ----------
+    d : Derivation
+        The derivation.
+
+    Returns
+    -------
+    list of Step
+        In reading order.
+    """
     model = d.model
     X, _ = d.transforms
     params = ", ".join(str(p) for p in model.parameters)

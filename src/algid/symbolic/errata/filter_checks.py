@@ -89,6 +89,21 @@ def _printed_filter_form(flt):
 
 
 def check_filter(printed, filters):
+    """Check a printed filter (26)-(31) against the entry it claims to realise.
+
+    Parameters
+    ----------
+    printed : PrintedFilter
+        The printed filter.
+    filters : tuple of PrintedFilter
+        All printed filters, for the "where" remarks.
+
+    Returns
+    -------
+    tuple
+        ``(correct, corrected, explanation)``; the corrected form is the realisation
+        of the entry.
+    """
     flt = printed
     model = reference_derivation().model
     name = _PAPER_NAMES.get(flt.output, flt.output)

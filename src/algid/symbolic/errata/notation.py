@@ -20,6 +20,11 @@ class LowPass(sp.Function):
 
     The paper writes the filter in the frequency domain and its argument in the time
     domain; Remark 2.1 takes ``F(s) = 1/s**p``, that is ``p``-fold integration from 0.
+
+    Parameters
+    ----------
+    *args : sympy.Expr
+        The filtered expression ``e``.
     """
 
     nargs = 1
@@ -67,8 +72,22 @@ class PrintedFilter:
 
 
 def nested_integral(phi, n):
-    """The footnote's iterated integral, as printed:
-    ``int_0^t int_0^sigma1 ... int_0^sigma(n-1) phi(sigma_n) dsigma_n ... dsigma_1``."""
+    """The footnote's iterated integral, as printed.
+
+    ``int_0^t int_0^sigma1 ... int_0^sigma(n-1) phi(sigma_n) dsigma_n ... dsigma_1``.
+
+    Parameters
+    ----------
+    phi : sympy.FunctionClass
+        The integrand.
+    n : int
+        Number of integrals.
+
+    Returns
+    -------
+    sympy.Integral
+        Unevaluated nested integrals.
+    """
     sig = sp.symbols(f"sigma1:{n + 1}")
     expr = phi(sig[-1])
     for i in range(n - 1, -1, -1):

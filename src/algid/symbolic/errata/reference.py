@@ -60,7 +60,18 @@ def _kernel_value(signal, power, order):
 
 
 def value_on_trajectory(expr):
-    """Value on :func:`trajectory` of a kernel combination."""
+    """Value on :func:`trajectory` of a kernel combination.
+
+    Parameters
+    ----------
+    expr : sympy.Expr
+        A linear combination of iterated integrals of the signals.
+
+    Returns
+    -------
+    sympy.Expr
+        A function of ``t`` (and of ``B``, ``K``).
+    """
     return sp.expand(sum((c * _kernel_value(*key) for key, c in kernel_terms(expr).items()),
                          sp.Integer(0)))
 
@@ -78,6 +89,16 @@ def is_zero(expr) -> bool:
 
     A nonzero value at a fixed probe point proves it does not (and is much faster than
     :func:`sympy.simplify` on large expressions); otherwise SymPy decides.
+
+    Parameters
+    ----------
+    expr : sympy.Expr
+        The expression.
+
+    Returns
+    -------
+    bool
+        Whether it is identically zero.
     """
     expr = sp.expand(expr)
     if expr == 0:
@@ -93,8 +114,34 @@ def is_zero(expr) -> bool:
 
 
 def signal_atoms(expr):
+    """The signals in an expression: functions, derivatives and iterated integrals.
+
+    Parameters
+    ----------
+    expr : sympy.Expr
+        The expression.
+
+    Returns
+    -------
+    set
+        The atoms.
+    """
     return expr.atoms(AppliedUndef, sp.Derivative, IteratedIntegral)
 
 
 def is_constant(expr, forbidden=()) -> bool:
+    """Whether an expression is free of the signals, ``s``, ``t`` and ``forbidden``.
+
+    Parameters
+    ----------
+    expr : sympy.Expr
+        The expression.
+    forbidden : iterable of sympy.Symbol, optional
+        Further symbols that must not appear.
+
+    Returns
+    -------
+    bool
+        Whether it is a constant.
+    """
     return not signal_atoms(expr) and not (expr.free_symbols & ({s, t} | set(forbidden)))

@@ -39,6 +39,14 @@ class EquationVerdict:
     reading: str = ""
 
     def as_dict(self) -> dict:
+        """The verdict as a JSON-ready dictionary.
+
+        Returns
+        -------
+        dict
+            ``number``, ``correct``, ``printed``, ``corrected``, ``explanation`` and
+            ``reading``.
+        """
         return {"number": self.number, "correct": self.correct, "printed": self.printed,
                 "corrected": self.corrected, "explanation": self.explanation,
                 "reading": self.reading}

@@ -66,12 +66,18 @@ class PrintedEquation:
     reading: str = ""
 
     def evaluate(self, table=None):
-        """Run the check: ``(correct, corrected, explanation)``, ``corrected`` as an object.
+        """Run the check of this equation.
 
         Parameters
         ----------
         table : tuple of PrintedEquation, optional
             The transcription the cross references point into (default :data:`PRINTED`).
+
+        Returns
+        -------
+        tuple
+            ``(correct, corrected, explanation)``: a bool, the corrected form as an object
+            (``None`` when correct), and a one-line explanation.
         """
         table = PRINTED if table is None else table
         filters = tuple(e.printed for e in table if isinstance(e.printed, PrintedFilter))
