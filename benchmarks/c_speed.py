@@ -16,8 +16,9 @@ samples, it times
 - the C estimator on one chunk, and in chunks of 1000 and of 1 sample;
 - one ``numpy.cumsum`` pass over the same samples: the memory-bandwidth ceiling.
 
-Times are the best of ``repeats`` wall times (the machine is shared: compare the
-ratios).  The section is :func:`c_speed`; :func:`markdown` and :func:`target` format it
+Times are the best of ``repeats`` process CPU times (``time.process_time``; every
+method runs in this one thread), which other users of a shared machine disturb less
+than the wall time; compare the ratios.  The section is :func:`c_speed`; :func:`markdown` and :func:`target` format it
 for the suite's report.
 """
 
@@ -32,6 +33,7 @@ import shutil
 import subprocess
 import sys
 import tempfile
+import time
 
 import numpy as np
 
@@ -39,7 +41,6 @@ if __package__ in (None, ""):  # run as a script
     sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent.parent))
 
 from benchmarks import baselines as bl  # noqa: E402
-from benchmarks.measure import best_time  # noqa: E402
 
 __all__ = ["c_speed", "markdown", "target", "GENERATED", "FLAGS"]
 
@@ -72,6 +73,13 @@ def _signals(n):
     f = np.sin(1.3 * t) + 0.5 * np.sin(0.37 * t)
     x = 0.4 * np.sin(1.3 * t - 0.8) + 0.2 * np.sin(0.37 * t - 0.1)
     return t, f, x
+
+
+def _cpu_time(func):
+    """Process CPU time of one call of ``func()`` [s]."""
+    start = time.process_time()
+    func()
+    return time.process_time() - start
 
 
 def _compiler():
@@ -188,7 +196,7 @@ def c_speed(config):
         times = {key: math.inf for key in timed}
         for _ in range(repeats):  # interleaved: the load of the machine varies
             for key, run in timed.items():
-                times[key] = min(times[key], best_time(run, 1))
+                times[key] = min(times[key], _cpu_time(run))
         ref = times["naive_numpy"]
         labels = {"naive_numpy": "naive NumPy (paper's formulas, cumulative_trapezoid) "
                                  "[baseline]",

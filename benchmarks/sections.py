@@ -25,11 +25,12 @@ from algid.result import convergence_time
 from algid.simulation import simulate
 
 from benchmarks import baselines as bl
+from benchmarks.c_speed import c_speed  # section 6, in a module of its own
 from benchmarks.measure import (best_time, both_converged, peak_memory, piecewise_stream,
                                 relative_errors, sine_stream)
 
 __all__ = ["Config", "CONFIGS", "TRUE", "RTOL", "accuracy", "efficiency", "performance",
-           "long_stream", "tracking", "optional_features"]
+           "long_stream", "tracking", "c_speed", "optional_features"]
 
 #: True parameters of the paper's system.
 TRUE = {"B": 2.0, "K": 3.0}
