@@ -13,6 +13,7 @@ TARGETS = {
     "long_stream": ("long stream with re-anchoring: max relative error after convergence",
                     1e-6),
     "tracking": ("parameter change: time until within 0.1 % (s)", 0.1),
+    "c_speed": ("C estimator (-O2) on one chunk: its time / the numba loop's", 1.0),
 }
 
 
@@ -85,6 +86,11 @@ def targets(results):
         add("tracking", math.inf if math.isnan(worst) else worst,
             "worst of step/sine, the three changes and the change instants, except a "
             "change of B alone on a settled step (not excited)")
+    cs = results.get("c_speed")
+    if cs and cs.get("c_over_numba", {}).get("O2"):
+        from benchmarks.c_speed import target
+        measured, detail = target(cs)
+        add("c_speed", 1.0 / measured, detail)
     return out
 
 
@@ -235,6 +241,9 @@ def markdown(results):
                          f"settled is barely excited (at rest x does not depend on B); it "
                          f"is left out of the target.\n\n"
                          + _table(["estimator"] + [f"{i}, {c}" for i, c in cols], rows))
+    if results.get("c_speed"):
+        from benchmarks.c_speed import markdown as c_speed_markdown
+        parts.append(c_speed_markdown(results["c_speed"]))
     tg = results.get("targets")
     if tg:
         rows = [[t["description"], f"≤ {t['limit']:g}", _num(t["measured"], ".3g"),

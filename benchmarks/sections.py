@@ -24,6 +24,7 @@ import algid
 from algid.result import convergence_time
 from algid.simulation import simulate
 from benchmarks import baselines as bl
+from benchmarks.c_speed import c_speed  # section 6, in a module of its own
 from benchmarks.measure import (
     best_time,
     both_converged,
@@ -34,7 +35,7 @@ from benchmarks.measure import (
 )
 
 __all__ = ["Config", "CONFIGS", "TRUE", "RTOL", "accuracy", "efficiency", "performance",
-           "long_stream", "tracking", "optional_features"]
+           "long_stream", "tracking", "c_speed", "optional_features"]
 
 #: True parameters of the paper's system.
 TRUE = {"B": 2.0, "K": 3.0}

@@ -41,10 +41,10 @@ def test_smoke_run_writes_every_section(smoke):
     assert set(SECTIONS) | {"meta", "targets"} <= set(results)
     assert results["meta"]["mode"] == "smoke"
     assert results["meta"]["sections"] == list(SECTIONS)
-    for heading in ("### 1.", "### 2.", "### 3.", "### 4.", "### 5.", "### Targets"):
+    for heading in ("### 1.", "### 2.", "### 3.", "### 4.", "### 5.", "### 6.", "### Targets"):
         assert heading in stdout
     names = {t["name"] for t in results["targets"]}
-    assert names == {"convergence", "efficiency", "long_stream", "tracking"}
+    assert names - {"c_speed"} == {"convergence", "efficiency", "long_stream", "tracking"}
     for t in results["targets"]:
         assert set(t) == {"name", "description", "limit", "measured", "met", "detail"}
 
@@ -222,3 +222,18 @@ def test_output_error_nls_recovers_the_parameters(kind):
     assert fit.K == pytest.approx(3.0, rel=tol)
     assert fit.extra["x0"] == pytest.approx(IC[0], rel=tol)
     assert fit.extra["v0"] == pytest.approx(IC[1], rel=tol)
+
+
+def test_smoke_c_speed(smoke):
+    cs = smoke[0]["c_speed"]
+    if "not_available" in cs:
+        pytest.skip(cs["not_available"])
+    assert cs["compiler_warnings"] == {"O2": "", "O2_native": ""}
+    rows = {r["method"]: r for r in cs["rows"] if "not_available" not in r}
+    assert rows["naive_numpy"]["throughput_ratio"] == pytest.approx(1.0)
+    for build in ("O2", "O2_native"):
+        assert set(cs["c_ns_per_sample"][build]) == {"1", "1000", "all"}
+        assert all(v > 0 for v in cs["c_ns_per_sample"][build].values())
+        assert cs["fraction_of_cumsum"][build] > 0
+    # the timed C estimator computes the batch estimate (chunks of 1, 1000, all alike)
+    assert cs["max_rel_diff_c_numpy"] <= 1e-10

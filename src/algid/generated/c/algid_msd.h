@@ -48,7 +48,10 @@ int algid_msd_init(void *state, double dt, double reset_period);
    the previous ones) and write n rows of ALGID_MSD_N_PARAMETERS estimates to theta
    (row i: B, K), each from the samples up to sample i; NaN where not
    yet defined (start-up, zero or non-finite denominator).  Chunks of any size
-   give the same numbers.  Returns n (0 if a pointer is NULL). */
+   give the same numbers (bit for bit when compiled without floating-point
+   contraction into fused multiply-adds: ISO modes such as -std=c99 do that;
+   with -std=gnu99 and -march with FMA add -ffp-contract=off).
+   Returns n (0 if a pointer is NULL). */
 size_t algid_msd_update(void *state, const double *u, const double *y, size_t n,
                        double *theta);
 
