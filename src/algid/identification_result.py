@@ -145,7 +145,8 @@ class IdentificationResult:
             raise InputDataError("simulate needs one record without gaps or NaN")
         return segments[0]
 
-    def simulate(self, data, *, time=None, rate=None, fit_samples=50, substeps=4):
+    def simulate(self, data, *, time=None, rate=None, fit_samples=50, substeps=4,
+                 interpolation="cubic"):
         """Simulate the identified model on a record, driven by its measured inputs.
 
         The initial state is fitted on the first ``fit_samples`` samples; the inputs
@@ -162,6 +163,8 @@ class IdentificationResult:
             Samples used to fit the initial state (and left out of the error).
         substeps : int
             Runge-Kutta steps per sampling interval.
+        interpolation : {"cubic", "bandlimited"}
+            Input between samples: cubic spline, or band-limited (uniform grids).
 
         Returns
         -------
@@ -172,8 +175,9 @@ class IdentificationResult:
         inputs = {name: seg.values[name] for name in self.model.inputs}
         y = seg.values[self.model.output]
         x0 = fit_initial_state(equation, seg.t, inputs, y, samples=fit_samples,
-                               substeps=substeps)
-        simulated = simulate_output(equation, seg.t, inputs, x0, substeps=substeps)
+                               substeps=substeps, interpolation=interpolation)
+        simulated = simulate_output(equation, seg.t, inputs, x0, substeps=substeps,
+                                    interpolation=interpolation)
         return Validation(seg.t, y, simulated, x0, fit_samples)
 
     def fit_percent(self, data, **kwargs):
