@@ -21,6 +21,10 @@ variables, the instruments being the same window integrals of the factors evalua
 the output simulated by the current estimate (noise-free), iterated as SRIVC does; this
 removes the bias that output noise causes through the regressors.
 
+A derivative inside a nonlinear factor (``sign(q')``) is estimated numerically: by
+the algebraic differentiator :func:`algid.differentiation.algebraic_derivative` when
+it is available, else by a local polynomial (Savitzky-Golay) derivative.
+
 Standard errors come from a HAC (heteroscedasticity and autocorrelation consistent)
 sandwich covariance over the window index: the residuals of overlapping windows are
 correlated over ``length / stride`` windows; the lag weights are flat up to that lag and
@@ -319,7 +323,11 @@ def identify(data, equation, parameters=None, *, time=None, rate=None, output=No
     window : float, optional
         Window length (s); chosen from the data when omitted (see the module notes).
     method : {"ls", "iv"}
-        Weighted least squares, or instrumental variables from the simulated output.
+        Least squares (the default: it meets the Silverbox and EMPS targets and needs
+        no simulation, so it also works in closed loop and on integrating plants), or
+        instrumental variables from the output simulated by the current estimate (for
+        open-loop stable plants with noticeable output noise: it removes the noise
+        bias of least squares on longer windows; about 10 to 20 times slower).
     multiplicities : tuple of int
         Kernel multiplicities stacked (each at least the model order).
     name : str
