@@ -8,9 +8,9 @@ On the same records, in one process:
    the model (RK4, 4 sub-steps per sample; the simulator of
    :meth:`IdentificationResult.simulate`, with a cubic-spline input on Silverbox and a
    band-limited one on the synthetic multisines: a spline of their 15 Hz lines at
-   80 Hz sampling adds errors that the output-error fit absorbs into its parameters).  Records: Silverbox (identified on rows
-   [40650, 105712), validated on the arrow part [100, 40575), when the data folder is
-   present) and the synthetic linear and cubic records of
+   80 Hz sampling adds errors that the output-error fit absorbs into its parameters).
+   Records: Silverbox (identified on rows [40650, 105712), validated on the arrow part
+   [100, 40575), when the data folder is present) and the synthetic linear and cubic records of
    :mod:`benchmarks.synthetic_records` (validated on a second noise realisation).
    Reported: the time ratio (output-error time / identify time) and the ratio of the
    validation simulation errors (identify / output-error).  Target: at least 20x
@@ -38,9 +38,14 @@ from scipy.optimize import least_squares
 
 import algid
 from algid.ode_simulation import OutputEquation, fit_initial_state, simulate_output
-
-from benchmarks.synthetic_records import (CUBIC_EQUATION, FRICTION_EQUATION, LINEAR_EQUATION,
-                                          cubic_spring, friction_loop, linear_offsets)
+from benchmarks.synthetic_records import (
+    CUBIC_EQUATION,
+    FRICTION_EQUATION,
+    LINEAR_EQUATION,
+    cubic_spring,
+    friction_loop,
+    linear_offsets,
+)
 
 ROOT = Path(__file__).resolve().parent.parent
 DATA_FOLDERS = (ROOT.parent / "shared" / "data", Path("/work/shared/data"))

@@ -5,18 +5,23 @@ import sys
 
 import numpy as np
 import pytest
+from conftest import ROOT
 
 import algid
 from algid.errors import InputDataError, ModelError
 
-from conftest import ROOT
-
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
-from benchmarks.synthetic_records import (CUBIC_EQUATION, FRICTION_EQUATION,  # noqa: E402
-                                          LINEAR_EQUATION, cubic_spring, drop_rows,
-                                          friction_loop, linear_offsets)
+from benchmarks.synthetic_records import (  # noqa: E402
+    CUBIC_EQUATION,
+    FRICTION_EQUATION,
+    LINEAR_EQUATION,
+    cubic_spring,
+    drop_rows,
+    friction_loop,
+    linear_offsets,
+)
 
 
 def relative_errors(result, truth):

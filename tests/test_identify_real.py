@@ -8,10 +8,9 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import ROOT
 
 import algid
-
-from conftest import ROOT
 
 DATA_FOLDERS = (ROOT.parent / "shared" / "data", Path("/work/shared/data"))
 DATA = next((folder for folder in DATA_FOLDERS if folder.is_dir()), None)

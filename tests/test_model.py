@@ -2,7 +2,7 @@
 
 import pytest
 
-from algid.expression import ONE, Call, Signal, Sum, Product, Power, Constant, Time
+from algid.expression import ONE, Call, Constant, Power, Product, Signal, Sum, Time
 from algid.grammar import parse_equation
 
 

@@ -69,7 +69,19 @@ WINDOW_OVERLAP = 8
 
 
 def window_grid(n_min, n_max, ratio=1.25):
-    """Geometric grid of window lengths (samples) between ``n_min`` and ``n_max``."""
+    """Geometric grid of window lengths (samples) between ``n_min`` and ``n_max``.
+
+    Parameters
+    ----------
+    n_min, n_max : int
+        Shortest and longest window (samples).
+    ratio : float
+        Ratio of successive lengths (before rounding).
+
+    Returns
+    -------
+    list of int
+    """
     grid, n = [], float(n_min)
     while n <= n_max:
         if not grid or int(round(n)) != grid[-1]:

@@ -137,7 +137,21 @@ class OutputEquation:
         return sum(w * f(x, u, t) for w, f in self.terms)
 
     def derivative(self, t, x, u):
-        """State derivative (for python-control and SciPy integrators)."""
+        """State derivative (for python-control and SciPy integrators).
+
+        Parameters
+        ----------
+        t : float
+            Time.
+        x : sequence of float
+            State: the output and its derivatives below the model order.
+        u : sequence of float
+            Inputs, in the order of :attr:`inputs`.
+
+        Returns
+        -------
+        list of float
+        """
         return list(x[1:]) + [self(x, u, t)]
 
 
@@ -230,6 +244,23 @@ def fit_initial_state(equation, t, inputs, y, *, samples=50, substeps=4,
 
     Least squares over the initial state of the simulation on the first samples,
     started from a local polynomial fit of the measured output.
+
+    Parameters
+    ----------
+    equation : OutputEquation
+        The model solved for its highest output derivative.
+    t : numpy.ndarray
+        Sample times.
+    inputs : mapping
+        Input name -> samples.
+    y : numpy.ndarray
+        Measured output.
+    samples : int
+        Samples fitted.
+    substeps : int
+        Runge-Kutta steps per sampling interval.
+    interpolation : {"cubic", "bandlimited"}
+        Input interpolation (see :func:`simulate_output`).
 
     Returns
     -------
