@@ -276,10 +276,9 @@ def test_third_order_user_model_equals_batch_estimate(build, user_registered):
     r = algid.estimate(t, u, y, model="third", engine="numpy")
     ref = np.column_stack([r.a, r.b, r.c])
     np.testing.assert_array_equal(np.isnan(est), np.isnan(ref))
-    # with three integrations more than msd, det P ~ t**12 is smaller still at early
-    # times: the start-up's round-off (NumPy sums it through BLAS, in an order of its
-    # own) is magnified more.  Measured: 6e-9 from 0.05 s, 7e-10 from 0.2 s, 4e-11
-    # from 0.5 s, 2e-12 from 1 s.
+    # the two agree to round-off, which the conditioning of P magnifies; with three
+    # integrations more than msd, det P is smaller still at early times.  Measured:
+    # 6e-9 from 0.05 s, 7e-10 from 0.2 s, 4e-11 from 0.5 s, 2e-12 from 1 s.
     assert _max_rel(est[t >= SETTLE], ref[t >= SETTLE]) <= 1e-8
     assert _max_rel(est[t >= 0.5], ref[t >= 0.5]) <= RTOL
 
@@ -338,16 +337,15 @@ def test_re_anchoring_equals_online_estimator(build, user_registered, model, dur
     age = index - np.array([_reported_origin(i, half) for i in index])
     old = age * dt >= SETTLE
     if period >= 2 * SETTLE:
-        # the first window starts as the batch estimator does; the start-up's round-off
-        # (NumPy sums it through BLAS, in an order of its own) stays in its integrals,
-        # and where P is ill-conditioned (the sine passes through states where det P is
-        # small) it is magnified: measured 2e-15 (msd), 3e-10 (msd_mass, 0.5-1 s old)
+        # NumPy's streaming realisation and the C code agree to round-off (bit for bit
+        # on most samples); where P is ill-conditioned (the sine passes through states
+        # where det P is small) the round-off is magnified: measured 2e-15 (msd),
+        # 3e-10 (msd_mass, in the first window, 0.5-1 s old)
         assert _max_rel(est[old], ref[old]) <= 10 * RTOL
     else:
         # the reported windows are 25-49 samples old, younger than the 0.05 s of the
-        # criterion: round-off of the start-up (NumPy sums it through BLAS, in an order
-        # of its own) is magnified by the conditioning of P at that age.  Measured:
-        # 5e-9 for msd.
+        # criterion: round-off is magnified by the conditioning of P at that age.
+        # Measured: 5e-9 for msd.
         assert not old.any()
         finite = np.isfinite(ref)
         assert np.max(np.abs(est[finite] / ref[finite] - 1)) <= 1e-7
