@@ -30,7 +30,7 @@ from conftest import ROOT, assert_one_line_error
 
 CC = shutil.which("gcc") or shutil.which("cc")
 needs_cc = pytest.mark.skipif(CC is None, reason="no C compiler (gcc or cc) on PATH")
-CFLAGS = ["-O2", "-std=c99", "-Wall", "-Wextra", "-Werror", "-pedantic"]
+CFLAGS = ["-O2", "-std=c99", "-Wall", "-Wextra", "-Werror", "-pedantic", "-Wconversion", "-Wshadow"]
 
 #: The linear user model: x'' + 2 x' + 3 x = 1.5 u with u = f / 1.5.
 USER_EQUATION = "y'' + a*y' + b*y = g*u"

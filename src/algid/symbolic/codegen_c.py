@@ -422,7 +422,7 @@ class _Writer:
             f"        if (j == {q - 1}) {{",
             f"            {pre}_start(w, dt, theta + i * {n_par});",
             "        } else {",
-            f"            for (r = 0; r < {n_par}; ++r) theta[i * {n_par} + r] = NAN;",
+            f"            for (r = 0; r < {n_par}; ++r) theta[i * {n_par} + (size_t)r] = NAN;",
             "        }",
             "        ++i;",
             "    }",
