@@ -38,6 +38,12 @@ def test_silverbox_shape_sampling_and_segments():
     assert "Wigren" in sb.citation
 
 
+def test_reachable_as_an_attribute_of_the_package():
+    code = "import algid; print(algid.datasets.emps().n_samples)"
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0 and done.stdout.strip() == "24841", done.stderr
+
+
 def test_silverbox_arrays_are_fresh_copies():
     first = datasets.silverbox()
     first.V1[:] = 0.0

@@ -5,18 +5,23 @@ import sys
 
 import numpy as np
 import pytest
+from conftest import ROOT
 
 import algid
 from algid.errors import InputDataError, ModelError
 
-from conftest import ROOT
-
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
-from benchmarks.synthetic_records import (CUBIC_EQUATION, FRICTION_EQUATION,  # noqa: E402
-                                          LINEAR_EQUATION, cubic_spring, drop_rows,
-                                          friction_loop, linear_offsets)
+from benchmarks.synthetic_records import (  # noqa: E402
+    CUBIC_EQUATION,
+    FRICTION_EQUATION,
+    LINEAR_EQUATION,
+    cubic_spring,
+    drop_rows,
+    friction_loop,
+    linear_offsets,
+)
 
 
 def relative_errors(result, truth):
@@ -208,3 +213,14 @@ def test_instrumental_variables_remove_the_noise_bias():
     assert iv.method == "iv"
     assert abs(iv.K - truth["K"]) < 3 * iv.stderr["K"]
     assert abs(iv.K - truth["K"]) < abs(ls.K - truth["K"]) / 3
+
+
+def test_output_drift_is_a_parameter_of_time():
+    record, truth = linear_offsets(0, noise=0.0, n=2000)
+    rate = 0.002                                     # output drift per second
+    drifting = dict(record, y=record["y"] + rate * record["t"])
+    r = algid.identify(drifting, "y'' + B*y' + K*y = G*u + d0 + d1*t", "B K G d0 d1",
+                       window=0.5)
+    for p in ("B", "K", "G"):
+        assert abs(r.values[p] / truth[p] - 1) < 1e-6, p
+    assert abs(r.d1 / (truth["K"] * rate) - 1) < 1e-6

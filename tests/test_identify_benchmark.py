@@ -3,10 +3,9 @@
 import sys
 
 import numpy as np
+from conftest import ROOT
 
 import algid
-
-from conftest import ROOT
 
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))

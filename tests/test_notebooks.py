@@ -25,7 +25,8 @@ nbclient = pytest.importorskip("nbclient", reason="needs the 'notebooks' extra")
 pytest.importorskip("ipykernel", reason="needs the 'notebooks' extra")
 
 NOTEBOOKS = ROOT / "notebooks"
-NAMES = ("01_derivation", "02_paper_figures", "03_noise_and_filter", "04_online_realisation")
+NAMES = ("01_derivation", "02_paper_figures", "03_noise_and_filter", "04_online_realisation",
+         "05_silverbox", "06_emps")
 MARKER = "ALGID_NOTEBOOK_RESULTS="
 CELL_TIMEOUT = 600  # seconds; the quick workload takes a few seconds per notebook
 
@@ -201,3 +202,33 @@ def test_04_online_realisation(kernel, record_property):
     settle = res["tracking_settle_s"]
     assert math.isnan(settle["noise-free/no re-anchoring"])
     assert 0.0 <= settle["noise-free/T = 0.05 s"] <= 0.05
+
+
+def test_05_silverbox(kernel, record_property):
+    res, elapsed = run_notebook("05_silverbox", kernel)
+    record_property("seconds", round(elapsed, 1))
+    print(f"05_silverbox: {elapsed:.1f} s")
+    assert 67.5 < res["natural_frequency_hz"] < 69.0
+    assert 0.04 < res["damping_ratio"] < 0.06
+    assert res["K3"] > 0  # a hardening spring
+    # quick workload: the first 3000 samples of the arrow part (full part: 0.476 mV
+    # cubic, 14.6 mV linear)
+    assert res["rmse_mV_cubic"] < 0.5
+    assert res["rmse_mV_cubic"] < res["rmse_mV_linear"] / 3
+
+
+def test_06_emps(kernel, record_property):
+    res, elapsed = run_notebook("06_emps", kernel)
+    record_property("seconds", round(elapsed, 1))
+    print(f"06_emps: {elapsed:.1f} s")
+    for p, limit in {"M": 0.01, "Fv": 0.02, "Fc": 0.03, "off": 0.05}.items():
+        assert abs(res[f"estimation_relative_error_{p}"]) <= limit, p
+    for p, limit in {"M": 0.03, "Fv": 0.05, "Fc": 0.05}.items():
+        assert abs(res[f"validation_relative_error_{p}"]) <= limit, p
+    # predicted force (published 4.08 % and 5.98 % with their own filtering)
+    assert res["force_error_estimation"] < 0.05
+    assert res["force_error_validation"] <= res["force_error_validation_published_values"]
+    assert abs(res["pulses_coefficient_in_force_balance"]) < 0.1
+    assert res["no_friction_c_over_Fv"] > 1.5
+    # closed loop on the first 5 s (quick workload): measured 7.8 %
+    assert res["closed_loop_force_error_identified"] < 0.12

@@ -26,4 +26,8 @@ def __getattr__(name):
     if name == "simulate":
         from algid.simulation import simulate
         return simulate
+    # the benchmark records are read from package data on first use
+    if name == "datasets":
+        import importlib
+        return importlib.import_module("algid.datasets")
     raise AttributeError(f"module 'algid' has no attribute {name!r}")

@@ -52,7 +52,7 @@ from scipy.signal import firwin, resample_poly
 
 from .differentiation import algebraic_derivative
 from .errors import InputDataError, ModelError
-from .expression import Signal, Time
+from .expression import Call, Constant, Power, Product, Signal, Sum, Time
 
 __all__ = ["simulate_model", "fit_initial_state", "UPSAMPLING", "FILTER_HALF_LENGTH"]
 
@@ -62,8 +62,52 @@ FILTER_HALF_LENGTH = 96
 _KAISER_BETA = 13.0
 
 
-def _reads_output(factor, output):
-    return output in factor.signals()
+_SCALAR = {
+    "sign": lambda v: float((v > 0) - (v < 0)), "abs": abs, "tanh": math.tanh,
+    "sin": math.sin, "cos": math.cos, "tan": math.tan, "exp": math.exp, "log": math.log,
+    "sqrt": math.sqrt, "sinh": math.sinh, "cosh": math.cosh, "arctan": math.atan,
+}
+
+
+def _scalar(expr, slot):
+    """A closure ``f(values, time) -> float`` for ``expr`` on scalars (fast per step).
+
+    ``slot(name, k)`` is the index in ``values`` of a signal or derivative.  Returns
+    ``None`` for a node or function it does not know (the caller then evaluates the
+    expression with NumPy).
+    """
+    if isinstance(expr, Constant):
+        value = float(expr.value)
+        return lambda v, t: value
+    if isinstance(expr, Time):
+        return lambda v, t: t
+    if isinstance(expr, Signal):
+        index = slot(expr.name, expr.derivative)
+        return lambda v, t: v[index]
+    if isinstance(expr, Call):
+        function = _SCALAR.get(expr.function)
+        args = [_scalar(a, slot) for a in expr.args]
+        if function is None or len(args) != 1 or args[0] is None:
+            return None
+        (arg,) = args
+        return lambda v, t: function(arg(v, t))
+    if isinstance(expr, Power):
+        base, exponent = _scalar(expr.base, slot), float(expr.exponent)
+        if base is None:
+            return None
+        if exponent == int(exponent):
+            e = int(exponent)
+            return lambda v, t: base(v, t) ** e
+        return lambda v, t: base(v, t) ** exponent
+    if isinstance(expr, (Sum, Product)):
+        parts = [_scalar(p, slot) for p in (expr.terms if isinstance(expr, Sum)
+                                            else expr.factors)]
+        if any(p is None for p in parts):
+            return None
+        if isinstance(expr, Sum):
+            return lambda v, t: sum(p(v, t) for p in parts)
+        return lambda v, t: math.prod(p(v, t) for p in parts)
+    return None
 
 
 def _weight(term, parameters):
@@ -217,6 +261,13 @@ class _OutputEquation:
             else:
                 forcing += weight * self._known_values(term, columns, splines, t)
         self.forcing = _Interpolant(t, forcing, interpolation)
+        # fast scalar closures over one list: the state, then the interpolated inputs
+        keys = [(output, k) for k in range(self.order)] + list(self.inputs)
+        index = {(key if isinstance(key, tuple) else (key, 0)): i for i, key in enumerate(keys)}
+        self.input_interpolants = list(self.inputs.values())
+        compiled = [(w, _scalar(f, lambda name, k: index[(name, k)]))
+                    for w, f in self.state_terms]
+        self.compiled = None if any(f is None for _, f in compiled) else compiled
 
     @staticmethod
     def _known_values(term, columns, splines, t):
@@ -236,6 +287,16 @@ class _OutputEquation:
                                t.shape)
 
     def __call__(self, time, state):
+        if self.compiled is not None:
+            values = [float(x) for x in state]
+            values.extend(f(time) for f in self.input_interpolants)
+            top = self.forcing(time)
+            for weight, f in self.compiled:
+                top += weight * f(values, time)
+            derivative = np.empty(self.order)
+            derivative[:-1] = state[1:]
+            derivative[-1] = top
+            return derivative
         values = {self.output: np.array([state[0]])}
         for k in range(1, self.order):
             values[(self.output, k)] = np.array([state[k]])

@@ -413,11 +413,11 @@ def block_loop_function(w):
               "        }",
               "        /* the last M values of every level start the next block */",
               f"        for (i = 0; i < {P}_M; ++i) {{",
-              f"            for (k = 0; k < {w.levels}; ++k) lv[k][i] = lv[k][nb + i];"]
+              f"            for (k = 0; k < {w.levels}; ++k) lv[k][i] = lv[k][nb + (size_t)i];"]
     if w.p:
         lines += [f"            for (lev = 0; lev < {w.p}; ++lev) {{",
                   f"                for (r = 0; r < {w.lanes}; ++r) "
-                  "fl[lev][r][i] = fl[lev][r][nb + i];",
+                  "fl[lev][r][i] = fl[lev][r][nb + (size_t)i];",
                   "            }"]
     lines += ["        }", "        count += (double)nb;", "    }",
               f"    for (k = 0; k < {P}_NI; ++k) w->sum[k] = s[k];",

@@ -64,6 +64,9 @@ DEFAULT_FILTER_ORDER = 2
 DEFAULT_QUADRATURE_ORDER = 6
 #: Points of the quadrature rules that can be generated.
 QUADRATURE_ORDERS = (2, 3, 4, 5, 6, 7, 8)
+#: Samples per block of the generated loop, unless ``ALGID_<NAME>_BLOCK`` is defined
+#: when compiling (the numbers do not depend on it; the stack does).
+BLOCK = 64
 #: Largest filter order offered (each order adds ``n_parameters + 1`` integrators).
 MAX_FILTER_ORDER = 8
 
@@ -228,6 +231,11 @@ class _Writer:
         self.window_doubles = 1 + self.n_int + self.n_int * m + 2 * q
         self.state_doubles = 4 + 2 * self.window_doubles
 
+    def stack_bytes(self, block):
+        """Bytes of the arrays of the block loop for blocks of ``block`` samples."""
+        rows = self.levels + (self.p + 1) * self.lanes
+        return 8 * (rows * (self.q - 1 + block) + self.width * block)
+
     # ------------------------------------------------------------------ files
 
     def files(self):
@@ -262,6 +270,11 @@ class _Writer:
             f"/* Size of the state in doubles: a buffer `double state[{P}_STATE_DOUBLES]`",
             f"   is large enough and suitably aligned ({pre}_state_size() bytes). */",
             f"#define {P}_STATE_DOUBLES {self.state_doubles}",
+            f"/* Stack: update works on blocks of {P}_BLOCK samples (default {BLOCK}:",
+            f"   about {self.stack_bytes(BLOCK) // 1024} kB of stack); define {P}_BLOCK when "
+            "compiling the .c for a",
+            f"   smaller stack ({P}_BLOCK=4: about {self.stack_bytes(4) // 1024 + 1} kB), "
+            "with the same numbers. */",
             "", "/* Return values of init. */",
             f"#define {P}_OK 0",
             f"#define {P}_BAD_STATE 1  /* state is NULL */",
@@ -319,7 +332,7 @@ class _Writer:
                  f"#ifndef {self.PRE}_BLOCK  /* samples per block of the loop: the stack holds",
                  f"                             about {self.levels + (self.p + 1) * self.lanes + 1} "
                  "arrays of M + BLOCK doubles */",
-                 f"#define {self.PRE}_BLOCK 64",
+                 f"#define {self.PRE}_BLOCK {BLOCK}",
                  "#endif",
                  "",
                  f"/* {q}-point Adams-Moulton rule (weights times dt): the integral over",
@@ -409,7 +422,7 @@ class _Writer:
             f"        if (j == {q - 1}) {{",
             f"            {pre}_start(w, dt, theta + i * {n_par});",
             "        } else {",
-            f"            for (r = 0; r < {n_par}; ++r) theta[i * {n_par} + r] = NAN;",
+            f"            for (r = 0; r < {n_par}; ++r) theta[i * {n_par} + (size_t)r] = NAN;",
             "        }",
             "        ++i;",
             "    }",

@@ -431,9 +431,9 @@ static void algid_msd_blocks(algid_msd_window *w, const double *u, const double 
         }
         /* the last M values of every level start the next block */
         for (i = 0; i < ALGID_MSD_M; ++i) {
-            for (k = 0; k < 16; ++k) lv[k][i] = lv[k][nb + i];
+            for (k = 0; k < 16; ++k) lv[k][i] = lv[k][nb + (size_t)i];
             for (lev = 0; lev < 2; ++lev) {
-                for (r = 0; r < 3; ++r) fl[lev][r][i] = fl[lev][r][nb + i];
+                for (r = 0; r < 3; ++r) fl[lev][r][i] = fl[lev][r][nb + (size_t)i];
             }
         }
         count += (double)nb;
@@ -485,7 +485,7 @@ static void algid_msd_feed(algid_msd_window *w, const double *u, const double *y
         if (j == 5) {
             algid_msd_start(w, dt, theta + i * 2);
         } else {
-            for (r = 0; r < 2; ++r) theta[i * 2 + r] = NAN;
+            for (r = 0; r < 2; ++r) theta[i * 2 + (size_t)r] = NAN;
         }
         ++i;
     }

@@ -509,9 +509,9 @@ static void algid_msd_mass_blocks(algid_msd_mass_window *w, const double *u, con
         }
         /* the last M values of every level start the next block */
         for (i = 0; i < ALGID_MSD_MASS_M; ++i) {
-            for (k = 0; k < 20; ++k) lv[k][i] = lv[k][nb + i];
+            for (k = 0; k < 20; ++k) lv[k][i] = lv[k][nb + (size_t)i];
             for (lev = 0; lev < 2; ++lev) {
-                for (r = 0; r < 4; ++r) fl[lev][r][i] = fl[lev][r][nb + i];
+                for (r = 0; r < 4; ++r) fl[lev][r][i] = fl[lev][r][nb + (size_t)i];
             }
         }
         count += (double)nb;
@@ -567,7 +567,7 @@ static void algid_msd_mass_feed(algid_msd_mass_window *w, const double *u, const
         if (j == 5) {
             algid_msd_mass_start(w, dt, theta + i * 3);
         } else {
-            for (r = 0; r < 3; ++r) theta[i * 3 + r] = NAN;
+            for (r = 0; r < 3; ++r) theta[i * 3 + (size_t)r] = NAN;
         }
         ++i;
     }

@@ -25,6 +25,9 @@ extern "C" {
 /* Size of the state in doubles: a buffer `double state[ALGID_MSD_MASS_STATE_DOUBLES]`
    is large enough and suitably aligned (algid_msd_mass_state_size() bytes). */
 #define ALGID_MSD_MASS_STATE_DOUBLES 318
+/* Stack: update works on blocks of ALGID_MSD_MASS_BLOCK samples (default 64:
+   about 19 kB of stack); define ALGID_MSD_MASS_BLOCK when compiling the .c for a
+   smaller stack (ALGID_MSD_MASS_BLOCK=4: about 3 kB), with the same numbers. */
 
 /* Return values of init. */
 #define ALGID_MSD_MASS_OK 0
