@@ -1,11 +1,14 @@
-"""Throughput and memory of the two estimation engines (``python -m benchmarks.engine_speed``).
+"""Throughput and memory of the two backends of the estimator core
+(``python -m benchmarks.engine_speed``).
 
 Measures, in one process (the machine is shared: ratios are what to compare):
 
-- samples per second of :func:`algid.estimate` with ``engine="numpy"`` and
-  ``engine="numba"`` (validation and result included), and of the compiled loop alone
-  (:func:`algid.engine.run_chunk` on one chunk);
-- streaming in chunks of 1000 samples through :func:`algid.engine.run_chunk`, as a
+- samples per second of the naive NumPy trapezoid estimator
+  (:func:`benchmarks.baselines.naive_algebraic`), of :func:`algid.estimate` with
+  ``engine="numpy"`` and ``engine="numba"`` (validation and result included), and of
+  the compiled loop alone (:func:`algid.core.advance` on one chunk), with the ratios
+  to the naive estimator;
+- streaming in chunks of 1000 samples through :func:`algid.core.advance`, as a
   ratio to one chunk; the cost per call of chunks of one sample;
 - the peak of traced memory (:mod:`tracemalloc`) of each engine, and the growth of
   the peak resident set size of a fresh process, as ratios to the bytes of the input
@@ -16,7 +19,7 @@ Measures, in one process (the machine is shared: ratios are what to compare):
 Times are the minimum over repeats of the process CPU time (``time.process_time``),
 which other users of the machine disturb less than the wall time; the wall time is
 given as well.  Options: ``--sizes 1e6 1e7``, ``--model msd``, ``--repeats 3``,
-``--skip-numpy-above 2e7``.
+``--skip-numpy-above 2e7``, ``--no-compile``.
 """
 
 from __future__ import annotations
@@ -31,8 +34,10 @@ import time
 import numpy as np
 
 import algid
-from algid import engine
-from algid.estimator import load_model
+from algid import core
+from algid.registry import load_model
+
+from benchmarks.baselines import naive_algebraic
 from benchmarks.measure import peak_memory
 
 
@@ -56,19 +61,21 @@ def _best(func, repeats):
 def _stream(state, f, x, chunk, out):
     for start in range(0, f.size, chunk):
         stop = min(start + chunk, f.size)
-        engine.run_chunk(state, f[start:stop], x[start:stop], out=out[:, start:stop])
+        core.advance(state, (f[start:stop], x[start:stop]), backend="numba",
+                     out=out[:, start:stop])
 
 
 def _compile_times(model, q):
     """(import of numba, compile with an empty cache, load from the cache) [s, wall],
     each in a fresh process."""
     code = ("import time; t0 = time.perf_counter(); import numba; t1 = time.perf_counter(); "
-            "from algid import engine; from algid.estimator import load_model; "
+            "from algid import core; from algid.registry import load_model; "
             f"gen = load_model({model!r}); t2 = time.perf_counter(); "
-            f"engine.prepare(gen, {q}); "
+            f"s = core.new_state(gen, points={q}, filter_order=0, dt=1.0); "
+            f"core.advance(s, [[0.0] * {q + 1}] * 2, backend='numba'); "
             "print(t1 - t0, time.perf_counter() - t2)")
     with tempfile.TemporaryDirectory() as tmp:
-        env = dict(os.environ, ALGID_CACHE_DIR=tmp)
+        env = dict(os.environ, NUMBA_CACHE_DIR=tmp)
         runs = [subprocess.run([sys.executable, "-c", code], env=env, check=True,
                                capture_output=True, text=True).stdout.split()
                 for _ in range(2)]
@@ -103,20 +110,21 @@ def main(argv=None):
     parser.add_argument("--sizes", type=float, nargs="+", default=[1e6, 1e7])
     parser.add_argument("--model", default="msd")
     parser.add_argument("--filter-order", type=int, default=2)
-    parser.add_argument("--quadrature-order", type=int, default=6)
+    parser.add_argument("--quadrature-points", type=int, default=6)
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--skip-numpy-above", type=float, default=2e7)
     parser.add_argument("--no-compile", action="store_true", help="skip the compile timing")
     args = parser.parse_args(argv)
-    model, p, q = args.model, args.filter_order, args.quadrature_order
+    model, p, q = args.model, args.filter_order, args.quadrature_points
     gen = load_model(model)
-    opts = dict(model=model, filter_order=p, quadrature_order=q)
+    opts = dict(model=model, filter_order=p, quadrature_points=q)
 
     if not args.no_compile:
         imp, cold, warm = _compile_times(model, q)
         print(f"import numba: {imp:.2f} s; compile the loop (empty cache): {cold:.2f} s; "
               f"load it from the cache: {warm:.2f} s (wall, fresh processes)")
-    engine.prepare(gen, q)
+    core.advance(core.new_state(gen, points=q, filter_order=p, dt=1e-3),
+                 [np.ones(2 * q)] * 2, backend="numba")  # compile or load the loop
 
     for n in (int(v) for v in args.sizes):
         t, f, x = _signals(n)
@@ -124,41 +132,45 @@ def main(argv=None):
         in_bytes = t.nbytes + f.nbytes + x.nbytes
         print(f"\n== {model}, q={q}, p={p}, n={n:.0e} samples (input {in_bytes / 1e6:.0f} MB)")
         rows = []
+        if model == "msd":  # the naive estimator is that of this model
+            cpu, wall = _best(lambda: naive_algebraic(t, f, x), args.repeats)
+            rows.append(("naive NumPy trapezoid (baseline)", cpu, wall))
         if n <= args.skip_numpy_above:
-            cpu, wall = _best(lambda: algid.estimate(t, f, x, engine="numpy", **opts), 1)
+            cpu, wall = _best(lambda: algid.estimate(t, f, x, engine="numpy", **opts),
+                              args.repeats)
             rows.append(("estimate, engine='numpy'", cpu, wall))
         cpu, wall = _best(lambda: algid.estimate(t, f, x, engine="numba", **opts),
                           args.repeats)
         rows.append(("estimate, engine='numba'", cpu, wall))
         out = np.empty((len(gen.PARAMETERS), n))
 
-        def core():
-            state = engine.make_state(gen, q, p, step=h)
-            engine.run_chunk(state, f, x, out=out)
+        def one_chunk():
+            state = core.new_state(gen, points=q, filter_order=p, dt=h)
+            core.advance(state, (f, x), backend="numba", out=out)
 
         def chunked():
-            state = engine.make_state(gen, q, p, step=h)
+            state = core.new_state(gen, points=q, filter_order=p, dt=h)
             _stream(state, f, x, 1000, out)
 
-        cpu_core, wall_core = _best(core, args.repeats)
+        cpu_core, wall_core = _best(one_chunk, args.repeats)
         rows.append(("engine loop, one chunk", cpu_core, wall_core))
         cpu_ch, wall_ch = _best(chunked, args.repeats)
         rows.append(("engine loop, chunks of 1000", cpu_ch, wall_ch))
+        naive = rows[0][1] if rows[0][0].startswith("naive") else None
         for name, cpu, wall in rows:
-            print(f"  {name:30s} {n / cpu / 1e6:8.2f} M samples/s CPU "
-                  f"({n / wall / 1e6:6.2f} wall)")
-        if n <= args.skip_numpy_above:
-            print(f"  speed-up numba/numpy (estimate, CPU): {rows[0][1] / rows[1][1]:.1f}")
+            ratio = "" if naive is None else f"  ratio to naive {naive / cpu:5.2f}"
+            print(f"  {name:34s} {n / cpu / 1e6:8.2f} M samples/s CPU "
+                  f"({n / wall / 1e6:6.2f} wall){ratio}")
         print(f"  chunk-1000 / one-chunk time (CPU): {cpu_ch / cpu_core:.2f}")
 
         m = min(n, 20_000)
-        state = engine.make_state(gen, q, p, step=h)
+        state = core.new_state(gen, points=q, filter_order=p, dt=h)
         f1, x1 = f[:m], x[:m]
 
         def single():
-            state.reset()
+            state.restart()
             for i in range(m):
-                engine.run_chunk(state, f1[i:i + 1], x1[i:i + 1])
+                core.advance(state, (f1[i:i + 1], x1[i:i + 1]), backend="numba")
 
         cpu1, wall1 = _best(single, 2)
         print(f"  chunks of 1 sample: {cpu1 / m * 1e6:.2f} us per call CPU "

@@ -155,11 +155,8 @@ def _numba_engine():
     """Whether ``algid.estimate(..., engine="numba")`` can run here, and why not."""
     if "engine" not in inspect.signature(algid.estimate).parameters:
         return False, "algid.estimate has no engine option"
-    try:
-        from algid import engine
-    except ImportError:
-        return False, "algid.engine not available"
-    if not engine.available():
+    from algid.backends import numba_available
+    if not numba_available():
         return False, "numba not installed"
     return True, "available"
 
@@ -187,8 +184,8 @@ def optional_features():
 ACCURACY_METHODS = {
     "algid": ("algid default (6-point rule, filter 1/s^2)", "online"),
     "algid_p0": ("algid, filter_order=0", "online"),
-    "algid_trap_p0": ("algid trapezoid (quadrature_order=2), p=0", "online"),
-    "algid_trap_p1": ("algid trapezoid (quadrature_order=2), p=1", "online"),
+    "algid_trap_p0": ("algid trapezoid (quadrature_points=2), p=0", "online"),
+    "algid_trap_p1": ("algid trapezoid (quadrature_points=2), p=1", "online"),
     "naive_numpy": ("naive NumPy, paper's formulas + cumulative_trapezoid", "online"),
     "svf_rls": (f"SVF + RLS (lam={bl.SVF_LAMBDA:g}, forgetting 1)", "online"),
     "svf_ls": (f"SVF + least squares (lam={bl.SVF_LAMBDA:g})", "batch"),
@@ -213,9 +210,9 @@ def _trajectory(key, t, f, x):
     if key == "algid_p0":
         return algid.estimate(t, f, x, filter_order=0).estimates
     if key == "algid_trap_p0":
-        return algid.estimate(t, f, x, quadrature_order=2, filter_order=0).estimates
+        return algid.estimate(t, f, x, quadrature_points=2, filter_order=0).estimates
     if key == "algid_trap_p1":
-        return algid.estimate(t, f, x, quadrature_order=2, filter_order=1).estimates
+        return algid.estimate(t, f, x, quadrature_points=2, filter_order=1).estimates
     if key == "naive_numpy":
         B, K = bl.naive_algebraic(t, f, x)
         return {"B": B, "K": K}
@@ -307,9 +304,9 @@ _INPUTS = ("step", "sine")
 
 def _baseline_final(key, t, f, x):
     if key == "algid_trap_p0":
-        return algid.estimate(t, f, x, quadrature_order=2, filter_order=0).final()
+        return algid.estimate(t, f, x, quadrature_points=2, filter_order=0).final()
     if key == "algid_trap_p1":
-        return algid.estimate(t, f, x, quadrature_order=2, filter_order=1).final()
+        return algid.estimate(t, f, x, quadrature_points=2, filter_order=1).final()
     if key == "svf_rls":
         B, K = bl.svf_rls(t, f, x)
         return {"B": float(B[-1]), "K": float(K[-1])}
@@ -429,7 +426,7 @@ def _batch_methods(n_oe):
                                   None)
     methods.update({
         "algid_trap_p0": ("algid trapezoid, p=0 (NumPy engine)",
-                          lambda t, f, x: algid.estimate(t, f, x, quadrature_order=2,
+                          lambda t, f, x: algid.estimate(t, f, x, quadrature_points=2,
                                                          filter_order=0, **numpy_engine),
                           None),
         "svf_ls": ("SVF + least squares", bl.svf_least_squares, None),
@@ -457,31 +454,33 @@ def _streamers(online):
         name, kw = engines[0]
         suffix = "" if name == "default" else f", {name} engine"
         out["online_trap_p0"] = (f"OnlineEstimator trapezoid, p=0{suffix}",
-                                 lambda: online.OnlineEstimator(rate=RATE, quadrature_order=2,
+                                 lambda: online.OnlineEstimator(rate=RATE, quadrature_points=2,
                                                                 filter_order=0, **kw))
         numba_online = any(name == "numba" for name, _ in engines)
     else:
         numba_online = False
     ok, _ = _numba_engine()
     if ok and not numba_online:
-        out["engine_numba"] = ("algid.engine state + run_chunk (numba)", _EngineStream)
+        out["engine_numba"] = ("algid.core state + advance (numba)", _EngineStream)
     out["svf_rls"] = ("SVF + RLS", bl.SVFRecursiveLeastSquares)
     return out
 
 
 class _EngineStream:
-    """The compiled engine's streaming interface behind ``update(t, f, x)``."""
+    """The estimator core's streaming interface (numba backend) behind ``update(t, f,
+    x)``."""
 
     def __init__(self):
-        from algid import engine
-        from algid.estimator import load_model
+        from algid import core
+        from algid.registry import load_model
 
-        self._engine = engine
-        self._state = engine.make_state(load_model("msd"), quadrature_order=6,
-                                        filter_order=2, step=1.0 / RATE)
+        self._core = core
+        self._state = core.new_state(load_model("msd"), points=6, filter_order=2,
+                                     dt=1.0 / RATE)
 
     def update(self, t, f, x):
-        return self._engine.run_chunk(self._state, np.atleast_1d(f), np.atleast_1d(x))
+        return self._core.advance(self._state, (np.atleast_1d(f), np.atleast_1d(x)),
+                                  backend="numba")[0]
 
 
 def _feed(factory, t, f, x, chunk):

@@ -22,7 +22,7 @@ import time
 import numpy as np
 
 import algid
-from algid import engine
+from algid.backends import numba_available
 
 RATE = 1000.0
 
@@ -74,7 +74,7 @@ def measure(n=1_000_000, n_single=100_000, reset_period=2.0, repeats=3):
     """Cost per sample [µs] of every case, as a list of ``(label, µs per sample)``
     (batch first), and the two batch costs."""
     t, f, x = _signals(n)
-    have_numba = engine.available()
+    have_numba = numba_available()
     rows = []
     if have_numba:
         algid.estimate(t[:1000], f[:1000], x[:1000], engine="numba")  # compile or load

@@ -1,7 +1,9 @@
 """``python -m derivation [--out DIR]``: write every generated file, byte for byte.
 
 Run from the repository root.  Without ``--out`` the files go to
-``src/algid/generated/``; a test writes them to a temporary folder and compares.
+``src/algid/generated/``; a test writes them to a temporary folder and compares.  For
+every built-in model: ``<model>.py``, the NumPy module (the model algebra), and
+``<model>_numba.py``, the compiled loop of the numba backend.
 """
 
 import argparse
@@ -11,12 +13,13 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT / "src"))
 
-from algid.symbolic.codegen import numpy_module_source, registry_source  # noqa: E402
-from algid.symbolic.codegen_c import c_sources  # noqa: E402
+from algid.symbolic.codegen import (HEADER, module_from_source,  # noqa: E402
+                                    numpy_module_source, registry_source)
+from algid.symbolic.codegen_numba import numba_module_source  # noqa: E402
 from algid.symbolic.derivation import derive  # noqa: E402
+from algid.symbolic.models import BUILTIN_MODELS, KNOWN_MASS, builtin_model  # noqa: E402
+from algid.symbolic.codegen_c import c_sources  # noqa: E402
 from algid.symbolic.differentiator import kernel_table_source  # noqa: E402
-from algid.symbolic.models import BUILTIN_MODELS, builtin_model  # noqa: E402
-from algid.symbolic.codegen import HEADER  # noqa: E402
 from algid.symbolic.modulating import table_module_source  # noqa: E402
 
 
@@ -24,7 +27,16 @@ def generated_files():
     """Map relative file name -> text of every generated file."""
     files = {}
     for name in BUILTIN_MODELS:
-        files[f"{name}.py"] = numpy_module_source(derive(builtin_model(name)))
+        mass_scaled, mass_divided = KNOWN_MASS.get(name, ({}, ()))
+        text = numpy_module_source(derive(builtin_model(name)), mass_scaled=mass_scaled,
+                                   mass_divided=mass_divided)
+        files[f"{name}.py"] = text
+        # the loop reads the model's tables from the module text just written
+        module = module_from_source(text, f"algid.generated.{name}")
+        try:
+            files[f"{name}_numba.py"] = numba_module_source(module, header=HEADER)
+        finally:
+            del sys.modules[f"algid.generated.{name}"]
     files["__init__.py"] = registry_source(BUILTIN_MODELS)
     for name in BUILTIN_MODELS:  # the embedded C estimator, default options
         for rel, text in c_sources(derive(builtin_model(name))).items():

@@ -1,4 +1,4 @@
-"""The compiled engine (algid.engine) against the NumPy estimator, and its streaming API.
+"""The estimator core (algid.core): one state, the NumPy and numba backends, chunking.
 
 The numba-specific tests are skipped when numba is not installed; the option handling
 of ``estimate(engine=...)`` is tested either way.
@@ -9,10 +9,10 @@ import sys
 import numpy as np
 import pytest
 
-from algid import engine as compiled
-from algid import estimator
+from algid import backends, core
 from algid.errors import InputDataError
-from algid.estimator import estimate, load_model
+from algid.estimator import estimate
+from algid.registry import load_model
 from algid.validation import check_experiment
 
 from conftest import exact_response
@@ -41,33 +41,56 @@ def _assert_same(a, b, rtol):
     np.testing.assert_allclose(a[ok], b[ok], rtol=rtol, atol=0)
 
 
+def _state(model, points, filter_order, dt, **kw):
+    return core.new_state(load_model(model), points=points, filter_order=filter_order, dt=dt,
+                          **kw)
+
+
+def _run_chunked(state, f, x, sizes, backend):
+    pieces, start = [], 0
+    for size in sizes:
+        est, state = core.advance(state, (f[start:start + size], x[start:start + size]),
+                                  backend=backend)
+        pieces.append(est)
+        start += size
+    assert start == f.size
+    return np.concatenate(pieces, axis=1)
+
+
+def _random_sizes(n, rng, high):
+    sizes = []
+    while sum(sizes) < n:
+        sizes.append(int(min(rng.integers(0, high), n - sum(sizes))))
+    return sizes
+
+
 # --------------------------------------------------------------------------------------
-# numba engine = numpy engine
+# numba backend = numpy backend
 # --------------------------------------------------------------------------------------
 
 
-@pytest.mark.parametrize("quadrature_order", [2, 4, 6])
+@pytest.mark.parametrize("points", [2, 4, 6])
 @pytest.mark.parametrize("model", MODELS)
-def test_numba_engine_equals_numpy_engine(data, model, quadrature_order):
+def test_numba_backend_equals_numpy_backend(data, model, points):
     """Same operations in the same order: equal to round-off (in practice bit for bit)
     for every filter order, including the first estimates, which amplify any
     difference in the start-up by many orders of magnitude."""
     _numba()
     t, f, x = data
     for filter_order in range(4):
-        opts = dict(model=model, filter_order=filter_order, quadrature_order=quadrature_order)
+        opts = dict(model=model, filter_order=filter_order, quadrature_points=points)
         fast = estimate(t, f, x, engine="numba", **opts)
         slow = estimate(t, f, x, engine="numpy", **opts)
         assert fast.parameters == slow.parameters
         for name in slow.parameters:
             _assert_same(fast.estimates[name], slow.estimates[name], 1e-10)
-        assert fast.valid_index == slow.valid_index == quadrature_order - 1
+        assert fast.valid_index == slow.valid_index == points - 1
         # the estimates are those of the method, not just equal to each other
         final = fast.final()
         assert final["K" if model == "msd" else "k"] == pytest.approx(3.0, rel=1e-4)
 
 
-def test_numba_engine_with_known_mass(data):
+def test_numba_backend_with_known_mass(data):
     _numba()
     t, f, x = data
     mass = 2.5
@@ -84,128 +107,123 @@ def test_auto_engine_chooses_by_size(data, monkeypatch):
     _numba()
     t, f, x = data
     calls = []
-    original = compiled.estimate_arrays
+    original = core.advance
 
-    def spy(*args, **kwargs):
-        calls.append(1)
-        return original(*args, **kwargs)
+    def spy(state, channels, *, backend="numpy", out=None):
+        calls.append(backend)
+        return original(state, channels, backend=backend, out=out)
 
-    monkeypatch.setattr(compiled, "estimate_arrays", spy)
+    monkeypatch.setattr(core, "advance", spy)
     estimate(t, f, x)
-    assert calls == []  # 1501 samples: NumPy
-    monkeypatch.setattr(estimator, "AUTO_ENGINE_MIN_SAMPLES", t.size)
+    assert calls == ["numpy"]  # 1501 samples: NumPy
+    monkeypatch.setattr(backends, "AUTO_ENGINE_MIN_SAMPLES", t.size)
     auto = estimate(t, f, x)
-    assert calls == [1]
+    assert calls == ["numpy", "numba"]
     _assert_same(auto.B, estimate(t, f, x, engine="numpy").B, 1e-10)
-    estimate(t, f, x, lowpass=([100.0], [1.0, 20.0, 100.0]))
-    assert calls == [1]
+    estimate(t, f, x, lowpass=([100.0], [1.0, 20.0, 100.0]))  # not through the core
+    assert calls == ["numpy", "numba", "numpy"]
     with pytest.raises(InputDataError, match="lowpass"):
         estimate(t, f, x, engine="numba", lowpass=([100.0], [1.0, 20.0, 100.0]))
 
 
 # --------------------------------------------------------------------------------------
-# streaming: run_chunk with carried state
+# streaming: advance with carried state
 # --------------------------------------------------------------------------------------
 
 
-def _run_chunked(state, f, x, sizes):
-    pieces, start = [], 0
-    for size in sizes:
-        pieces.append(compiled.run_chunk(state, f[start:start + size], x[start:start + size]))
-        start += size
-    assert start == f.size
-    return np.concatenate(pieces, axis=1)
-
-
-def _random_sizes(n, rng, high):
-    sizes = []
-    while sum(sizes) < n:
-        sizes.append(int(min(rng.integers(0, high), n - sum(sizes))))
-    return sizes
-
-
+@pytest.mark.parametrize("backend", ["numpy", "numba"])
 @pytest.mark.parametrize("model", MODELS)
-def test_random_chunks_equal_one_chunk(data, model):
-    """The block boundaries and chunk boundaries do not change a single operation."""
-    _numba()
+def test_random_chunks_equal_one_chunk(data, model, backend):
+    """Chunk (and block) boundaries do not change a single operation."""
+    if backend == "numba":
+        _numba()
     t, f, x = data
-    h = t[1] - t[0]
-    gen = load_model(model)
+    dt = t[1] - t[0]
     rng = np.random.default_rng(7)
     for filter_order, q in ((2, 6), (0, 4), (3, 2)):
-        whole = compiled.run_chunk(compiled.make_state(gen, q, filter_order, step=h), f, x)
+        whole, _ = core.advance(_state(model, q, filter_order, dt), (f, x), backend=backend)
         for high in (4, 40, 700):  # chunks smaller than q, around a block, larger
             sizes = _random_sizes(f.size, rng, high)
-            state = compiled.make_state(gen, q, filter_order, step=h)
-            np.testing.assert_array_equal(_run_chunked(state, f, x, sizes), whole)
+            state = _state(model, q, filter_order, dt)
+            np.testing.assert_array_equal(_run_chunked(state, f, x, sizes, backend), whole)
             assert state.n_seen == f.size
+
+
+def test_numpy_blocks_do_not_change_the_numbers(data, monkeypatch):
+    from algid import core_numpy
+    t, f, x = data
+    dt = t[1] - t[0]
+    whole, _ = core.advance(_state("msd", 6, 2, dt), (f, x))
+    monkeypatch.setattr(core_numpy, "BLOCK", 97)
+    np.testing.assert_array_equal(core.advance(_state("msd", 6, 2, dt), (f, x))[0], whole)
 
 
 @pytest.mark.parametrize("q", [2, 6])
 def test_startup_with_chunks_smaller_than_q(data, q):
     """Samples 0 .. q-2 are NaN whatever the chunking; sample q-1 is the first estimate,
     returned by the call that delivers it, and it is the batch value."""
-    _numba()
     t, f, x = data
-    h = t[1] - t[0]
-    gen = load_model("msd")
-    whole = compiled.run_chunk(compiled.make_state(gen, q, 2, step=h), f[:50], x[:50])
+    dt = t[1] - t[0]
+    whole, _ = core.advance(_state("msd", q, 2, dt), (f[:50], x[:50]))
     assert np.isnan(whole[:, : q - 1]).all() and np.isfinite(whole[:, q - 1:]).all()
     for sizes in ([1] * 50, [q - 1, 1, 50 - q], [q - 2, 0, 2, 50 - q] if q > 2 else [1, 0, 1, 48]):
-        state = compiled.make_state(gen, q, 2, step=h)
-        np.testing.assert_array_equal(_run_chunked(state, f[:50], x[:50], sizes), whole)
-    state = compiled.make_state(gen, q, 2, step=h)
-    first = compiled.run_chunk(state, f[:q - 1], x[:q - 1])
+        state = _state("msd", q, 2, dt)
+        np.testing.assert_array_equal(_run_chunked(state, f[:50], x[:50], sizes, "numpy"),
+                                      whole)
+    state = _state("msd", q, 2, dt)
+    first, _ = core.advance(state, (f[:q - 1], x[:q - 1]))
     assert first.shape == (2, q - 1) and np.isnan(first).all()
-    assert state.n_seen == q - 1 and not state.sums.any()  # only buffered so far
-    np.testing.assert_array_equal(compiled.run_chunk(state, f[q - 1:q], x[q - 1:q]),
+    assert state.n_seen == q - 1 and not state.integrals.any()  # only buffered so far
+    np.testing.assert_array_equal(core.advance(state, (f[q - 1:q], x[q - 1:q]))[0],
                                   whole[:, q - 1:q])
 
 
-def test_copy_and_reset(data):
-    _numba()
+def test_copy_and_restart(data):
     t, f, x = data
-    h = t[1] - t[0]
-    gen = load_model("msd_mass")
-    state = compiled.make_state(gen, 6, 2, step=h)
-    head = compiled.run_chunk(state, f[:300], x[:300])
+    dt = t[1] - t[0]
+    state = _state("msd_mass", 6, 2, dt)
+    head, _ = core.advance(state, (f[:300], x[:300]))
     twin = state.copy()
-    a = compiled.run_chunk(state, f[300:], x[300:])
-    b = compiled.run_chunk(twin, f[300:], x[300:])
+    a, _ = core.advance(state, (f[300:], x[300:]))
+    b, _ = core.advance(twin, (f[300:], x[300:]))
     np.testing.assert_array_equal(a, b)
-    state.reset()
+    state.restart()
     assert state.n_seen == 0
-    np.testing.assert_array_equal(compiled.run_chunk(state, f[:300], x[:300]), head)
+    np.testing.assert_array_equal(core.advance(state, (f[:300], x[:300]))[0], head)
     # re-anchoring: a state started at sample 700 is the batch estimator on x[700:]
-    late = compiled.run_chunk(compiled.make_state(gen, 6, 2, step=h), f[700:], x[700:])
+    late, _ = core.advance(_state("msd_mass", 6, 2, dt), (f[700:], x[700:]))
     batch = estimate(t[700:], f[700:], x[700:], model="msd_mass", engine="numpy")
     _assert_same(late[2], batch.k, 1e-10)
 
 
 def test_out_argument_and_bad_shapes(data):
-    _numba()
     t, f, x = data
-    h = t[1] - t[0]
-    gen = load_model("msd")
-    whole = compiled.run_chunk(compiled.make_state(gen, 6, 2, step=h), f, x)
+    dt = t[1] - t[0]
+    whole, _ = core.advance(_state("msd", 6, 2, dt), (f, x))
     big = np.full((2, f.size + 10), -1.0)
-    state = compiled.make_state(gen, 6, 2, step=h)
-    compiled.run_chunk(state, f[:500], x[:500], out=big[:, 5:505])
-    compiled.run_chunk(state, f[500:], x[500:], out=big[:, 505:-5])
+    state = _state("msd", 6, 2, dt)
+    core.advance(state, (f[:500], x[:500]), out=big[:, 5:505])
+    core.advance(state, np.stack((f[500:], x[500:])), out=big[:, 505:-5])  # a 2-D array
     np.testing.assert_array_equal(big[:, 5:-5], whole)
     assert (big[:, :5] == -1).all() and (big[:, -5:] == -1).all()
-    with pytest.raises(InputDataError, match="shape"):
-        compiled.run_chunk(state, f[:3], x[:4])
+    with pytest.raises(InputDataError, match="equally long"):
+        core.advance(state, (f[:3], x[:4]))
+    with pytest.raises(InputDataError, match="2 equally long"):
+        core.advance(state, (f[:3],))
     with pytest.raises(InputDataError, match="out must be"):
-        compiled.run_chunk(state, f[:3], x[:3], out=np.empty((3, 3)))
-    with pytest.raises(InputDataError, match="step"):
-        compiled.make_state(gen, 6, 2, step=0.0)
-    with pytest.raises(InputDataError, match="quadrature_order"):
-        compiled.make_state(gen, 9, 2, step=h)
+        core.advance(state, (f[:3], x[:3]), out=np.empty((3, 3)))
+    with pytest.raises(InputDataError, match="dt"):
+        _state("msd", 6, 2, 0.0)
+    with pytest.raises(InputDataError, match="quadrature_points"):
+        _state("msd", 9, 2, dt)
+    with pytest.raises(InputDataError, match="divisors"):
+        _state("msd", 6, 2, dt, divisors=(1.0, -2.0))
+    with pytest.raises(InputDataError, match="backend"):
+        core.advance(state, (f[:3], x[:3]), backend="fortran")
 
 
 # --------------------------------------------------------------------------------------
-# the one-pass check of the signals
+# the compiled check of the signals
 # --------------------------------------------------------------------------------------
 
 
@@ -229,10 +247,11 @@ def _bad_experiments(t, f, x):
     yield "2-D", (t, f[None, :], x)
 
 
-def test_one_pass_check_agrees_with_check_experiment(data):
+def test_compiled_check_agrees_with_check_experiment(data):
     _numba()
+    from algid.validation_numba import check_experiment_compiled
     t, f, x = data
-    ok = compiled.check_experiment(t, f, x, min_samples=12)
+    ok = check_experiment_compiled(t, f, x, min_samples=12)
     assert ok[0] is t and ok[1] is f and ok[2] is x
     assert ok[3] == check_experiment(t, f, x, min_samples=12)[3]
     for what, args in _bad_experiments(t, f, x):
@@ -240,10 +259,10 @@ def test_one_pass_check_agrees_with_check_experiment(data):
             expected = check_experiment(*args, min_samples=12)
         except InputDataError as err:
             with pytest.raises(InputDataError) as got:
-                compiled.check_experiment(*args, min_samples=12)
+                check_experiment_compiled(*args, min_samples=12)
             assert str(got.value) == str(err), what
         else:  # accepted by both (e.g. integer input converted)
-            got = compiled.check_experiment(*args, min_samples=12)
+            got = check_experiment_compiled(*args, min_samples=12)
             assert got[3] == expected[3], what
 
 
@@ -262,31 +281,23 @@ def test_numba_engine_without_numba(data, monkeypatch):
     """Without numba: engine='numba' says how to install it; 'auto' falls back."""
     t, f, x = data
     monkeypatch.setitem(sys.modules, "numba", None)  # import numba -> ImportError
-    assert not compiled.available()
+    assert not backends.numba_available()
     with pytest.raises(InputDataError, match=r"needs numba.*pip install"):
         estimate(t, f, x, engine="numba")
-    monkeypatch.setattr(estimator, "AUTO_ENGINE_MIN_SAMPLES", 0)
+    monkeypatch.setattr(backends, "AUTO_ENGINE_MIN_SAMPLES", 0)
     r = estimate(t, f, x)  # auto -> numpy
     assert r.final()["B"] == pytest.approx(2.0, rel=1e-6)
-    with pytest.raises(InputDataError, match="pip install"):
-        compiled._require_numba()
 
 
-def test_compiled_in_memory_when_the_cache_cannot_be_written(data, monkeypatch, tmp_path):
-    """An unwritable cache directory: the loop is compiled in memory, same numbers."""
+def test_deprecated_engine_interface(data):
+    """algid.engine stays for a release: the core with the numba backend, warning."""
     _numba()
+    from algid import engine
     t, f, x = data
-    h = t[1] - t[0]
-    gen = load_model("msd")
-    reference = compiled.run_chunk(compiled.make_state(gen, 2, 1, step=h), f, x)
-    blocker = tmp_path / "file"
-    blocker.write_text("")
-    monkeypatch.setattr(compiled, "CACHE_DIR", str(blocker / "engine"))  # not a directory
-    assert compiled._load_cached(gen, 2) is None
-    compiled._compiled.cache_clear()
-    try:
-        state = compiled.make_state(gen, 2, 1, step=h)
-        assert state._advance.__module__ == "_algid_engine_msd_q2"  # built by exec
-        np.testing.assert_array_equal(compiled.run_chunk(state, f, x), reference)
-    finally:
-        compiled._compiled.cache_clear()  # later tests load the cached loops again
+    dt = t[1] - t[0]
+    with pytest.warns(DeprecationWarning, match="algid.core"):
+        state = engine.make_state(load_model("msd"), 6, 2, step=dt, input_divisor=2.0)
+    with pytest.warns(DeprecationWarning, match="algid.core"):
+        got = engine.run_chunk(state, 2.0 * f, x)
+    np.testing.assert_array_equal(got, core.advance(_state("msd", 6, 2, dt), (f, x),
+                                                    backend="numba")[0])

@@ -42,7 +42,7 @@ def test_initial_conditions_do_not_matter(inputs):
 
 def test_trapezoid_is_the_slow_baseline():
     sim = simulate("step", **PAPER)
-    r = estimate(sim.t, sim.f, sim.x, quadrature_order=2, filter_order=0)
+    r = estimate(sim.t, sim.f, sim.x, quadrature_points=2, filter_order=0)
     # O(h^2) error: 1e-6 .. 1e-9 at 5 s, and 0.1 % only after about half a second
     assert 1e-10 < max(_rel(r, TRUE).values()) < 1e-6
     assert max(r.convergence_times(TRUE, 1e-3).values()) > 0.3
@@ -116,7 +116,8 @@ def test_result_interface():
     (dict(mass="2"), InputDataError, "mass must be a positive"),
     (dict(filter_order=-1), InputDataError, "filter_order"),
     (dict(filter_order=1.5), InputDataError, "filter_order"),
-    (dict(quadrature_order=11), InputDataError, "quadrature_order"),
+    (dict(quadrature_points=11), InputDataError, "quadrature_points"),
+    (dict(quadrature_points=4, quadrature_order=6), InputDataError, "not both"),
 ])
 def test_bad_options(kwargs, error, match):
     sim = simulate("step", **PAPER, duration=0.1)
@@ -137,6 +138,16 @@ def test_bad_signals_are_refused():
         estimate(t)
 
 
+def test_quadrature_order_is_a_deprecated_alias():
+    sim = simulate("step", **PAPER, duration=0.2)
+    with pytest.warns(DeprecationWarning, match="quadrature_points"):
+        old = estimate(sim.t, sim.f, sim.x, quadrature_order=4)
+    new = estimate(sim.t, sim.f, sim.x, quadrature_points=4)
+    np.testing.assert_array_equal(old.B, new.B)
+    assert new.quadrature_points == 4
+    with pytest.warns(DeprecationWarning):
+        assert new.quadrature_order == 4
+
+
 def test_public_namespace():
     assert algid.estimate is estimate
-    assert callable(algid.simulate)

@@ -104,14 +104,18 @@ def test_noise_free_estimates_stay_exact(kind, filter_order, lowpass):
     # free estimate is exact.  The data are exact to round-off and the quadrature error
     # is O(h**6) ~ 1e-18 relative, so what remains is round-off amplified by the
     # conditioning of det P, which is large only at the very start (the bound is the
-    # one the invariant filter alone meets on the same data, with a factor 10 slack).
+    # round-off level the invariant filter alone has on the same data: its largest error
+    # within 10 ms of the instant, a single sample's error being a matter of luck, with
+    # a factor 10 slack).
     t, f, x = analytic_response(kind, duration=5.0)
     r = estimate(t, f, x, filter_order=filter_order, lowpass=lowpass)
     ref = estimate(t, f, x, filter_order=2)
     for time in (0.2, 1.0, 5.0):
-        got, base = r.at(time), ref.at(time)
+        got = r.at(time)
+        near = np.abs(t - time) <= 0.01
         for name, true in (("B", 2.0), ("K", 3.0)):
-            bound = 10 * max(abs(base[name] - true), 1e3 * EPS * true)
+            base = np.max(np.abs(ref.estimates[name][near] - true))
+            bound = 10 * max(base, 1e3 * EPS * true)
             assert abs(got[name] - true) <= bound, (time, name, got[name])
 
 

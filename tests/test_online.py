@@ -9,9 +9,11 @@ import math
 import numpy as np
 import pytest
 
+from algid import backends
 from algid.errors import InputDataError, ModelError
 from algid.estimator import estimate, load_model
 from algid.online import TRACKING_RESET_PERIOD, OnlineEstimator, run_stream
+from algid.reanchoring import anchor_plan
 from algid.simulation import simulate
 
 from conftest import exact_response
@@ -57,6 +59,9 @@ def _chunks(n, kind, rng=None):
         return [s for s in sizes if s]
     if kind == "all":
         return [n]
+    if kind == "1":  # one sample at a time through the start-up and beyond, then the rest
+        head = min(n, 150)
+        return [1] * head + ([n - head] if n > head else [])
     size = int(kind)
     return [size] * (n // size) + ([n % size] if n % size else [])
 
@@ -104,12 +109,12 @@ def _feed_as(est, t, f, x, kind, rng):
 
 @pytest.mark.parametrize("model, mass", [("msd", None), ("msd", 2.0), ("msd_mass", None)])
 @pytest.mark.parametrize("filter_order", [0, 2])
-@pytest.mark.parametrize("quadrature_order", [2, 6])
+@pytest.mark.parametrize("quadrature_points", [2, 6])
 def test_any_chunking_gives_the_batch_estimates(engine, model, mass, filter_order,
-                                                quadrature_order):
+                                                quadrature_points):
     t, f, x = _record(duration=0.6)
     opts = dict(model=model, mass=mass, filter_order=filter_order,
-                quadrature_order=quadrature_order)
+                quadrature_points=quadrature_points)
     batch = estimate(t, f, x, engine="numpy", **opts).estimates
     # the compiled engine gives the compiled batch estimates bit for bit
     exact = estimate(t, f, x, engine="numba", **opts).estimates if engine == "numba" else None
@@ -158,13 +163,13 @@ def test_scalars_and_empty_chunks(engine):
                          + [("numba", q) for q in (2, 4, 6)], indirect=["engine"])
 def test_startup_is_nan_until_sample_q_minus_1(engine, q):
     t, f, x = _record(duration=0.05)
-    est = OnlineEstimator(quadrature_order=q, engine=engine)
+    est = OnlineEstimator(quadrature_points=q, engine=engine)
     assert est.startup_samples == q - 1
     for n in range(q - 1):
         r = est.update(t[n], f[n], x[n])
         assert np.isnan(r.B[0]) and np.isnan(r.K[0])
     r = est.update(t[q - 1], f[q - 1], x[q - 1])  # the call delivering sample q - 1
-    batch = estimate(t, f, x, quadrature_order=q)
+    batch = estimate(t, f, x, quadrature_points=q)
     if q > 2:
         assert np.isfinite(r.B[0]) and np.isfinite(r.K[0])
         assert batch.valid_index == q - 1
@@ -203,7 +208,7 @@ def test_reset_starts_a_new_stream(engine):
 # --------------------------------------------------------------------------- re-anchoring
 
 
-def test_reanchored_estimates_are_batch_estimates_from_the_window_origin(engine):
+def test_reanchored_estimates_are_batch_estimates_from_the_anchor_origin(engine):
     t, f, x = _record(duration=0.7)
     # rounded to 2 * 50 samples
     est = OnlineEstimator(rate=EXACT_RATE, reset_period=0.0977, engine=engine)
@@ -222,15 +227,15 @@ def test_reanchored_estimates_are_batch_estimates_from_the_window_origin(engine)
         for name in ("B", "K"):
             np.testing.assert_allclose(got[name][sel], ref[name][idx], rtol=RTOL_BATCH, atol=0)
     assert np.isnan(got["B"][:5]).all() and np.isfinite(got["B"][5:]).all()
-    # the last sample (n = 716) is reported by the window started at 650
+    # the last sample (n = 716) is reported by the estimator started at 650
     assert est.t_origin == t[650]
-    assert sorted(est.window_origins) == [t[650], t[700]]
+    assert sorted(est.anchor_origins) == [t[650], t[700]]
 
 
 @pytest.mark.parametrize("mass", [None, 2.0])
 def test_reanchored_engines_agree_in_any_chunking(mass):
     """The compiled engine re-anchors at the same samples as the NumPy one: the same
-    estimates, window origins and state, however the stream is cut."""
+    estimates, anchor origins and state, however the stream is cut."""
     pytest.importorskip("numba")
     t, f, x = _record(duration=0.4)
     rng = np.random.default_rng(3)
@@ -248,7 +253,7 @@ def test_reanchored_engines_agree_in_any_chunking(mass):
         assert set(got) == ({"B", "K"} if mass is None else {"B", "K", "c", "k"})
         assert fast.reset_period == slow.reset_period == 50 / EXACT_RATE
         assert fast.t_origin == slow.t_origin
-        assert fast.window_origins == slow.window_origins
+        assert fast.anchor_origins == slow.anchor_origins
         assert fast.state_magnitude == pytest.approx(slow.state_magnitude, rel=RTOL_ENGINES)
 
 
@@ -276,7 +281,7 @@ def test_parameter_change_is_followed_within_a_tenth_of_a_second(engine, kind, a
     assert np.max(np.abs(B[settled] / 2.0 - 1)) <= 1e-3
     assert np.max(np.abs(K[settled] / 3.0 - 1)) <= 1e-3
     # required: within 0.1 % no later than 0.1 s after the change; by design: once the
-    # reported window starts after the change, at most one period after it
+    # reported estimator's origin is after the change, at most one period after it
     for deadline in (0.1, est.reset_period):
         late = t >= t_change + deadline - 1e-9
         assert np.max(np.abs(B[late] / after[0] - 1)) <= 1e-3
@@ -307,8 +312,9 @@ class _Bound:
         return self
 
 
-def _state_bound(model, filter_order, window, max_u, max_x):
-    """Bound of every integral and carried sample of a window no longer than `window`:
+def _state_bound(model, filter_order, span, max_u, max_x):
+    """Bound of every integral and carried sample of an estimator whose origin is at
+    most `span` seconds old:
     the l-fold integral of tau**p * s over [0, T] is at most max|s| T**(p+l) p!/(p+l)!."""
     gen = load_model(model)
     sig = {gen.INPUT: max_u, gen.OUTPUT: max_x}
@@ -316,12 +322,12 @@ def _state_bound(model, filter_order, window, max_u, max_x):
     for s, p, depth in gen.CHAINS:
         for level in range(depth + 1):
             kern[gen.kernel_name(s, p, level)] = (
-                sig[s] * window ** (p + level) * math.factorial(p) / math.factorial(p + level))
+                sig[s] * span ** (p + level) * math.factorial(p) / math.factorial(p + level))
     bounds = list(kern.values())
     P, Q = gen.regressors({k: _Bound(v) for k, v in kern.items()})
     numerators, denominator = gen.cramer(P, Q)
     for b in (*numerators, denominator):
-        bounds += [b.v * window ** j / math.factorial(j) for j in range(filter_order + 1)]
+        bounds += [b.v * span ** j / math.factorial(j) for j in range(filter_order + 1)]
     return max(bounds)
 
 
@@ -336,10 +342,10 @@ def test_long_stream_stays_accurate_and_bounded(engine):
     summary = run_stream(est, chunks, true_values={"B": 2.0, "K": 3.0},
                          settle_time=period / 2)
     assert summary["n_samples"] == t.size and summary["n_undefined"] == 0
-    # converged windows (age >= period / 2) of exact data: quadrature error O(h**6)
+    # converged estimators (age >= period / 2) of exact data: quadrature error O(h**6)
     assert summary["max_rel_error"]["B"] <= 1e-6
     assert summary["max_rel_error"]["K"] <= 1e-6
-    # the state never exceeds what a window of one period can hold (plus round-off and
+    # the state never exceeds what one period of integration can hold (plus round-off and
     # quadrature error, far below 1e-6 relative)
     bound = _state_bound("msd", 2, period, np.max(np.abs(f)), np.max(np.abs(x)))
     assert summary["max_state_magnitude"] <= bound * (1 + 1e-6)
@@ -410,11 +416,10 @@ def test_engine_option(monkeypatch):
     _one_line_error("engine must be one of 'auto', 'numpy', 'numba'",
                     lambda: OnlineEstimator(engine="fortran"))
     assert "engine='numpy'" in repr(OnlineEstimator(engine="numpy"))
-    from algid import engine as compiled
-    monkeypatch.setattr(compiled, "available", lambda: False)  # as without numba
+    monkeypatch.setattr(backends, "numba_available", lambda: False)  # as without numba
     assert OnlineEstimator().engine == "numpy"
     msg = _one_line_error("engine='numba' needs numba", lambda: OnlineEstimator(engine="numba"))
-    assert compiled.INSTALL_HINT in msg
+    assert backends.INSTALL_HINT in msg
 
 
 def test_auto_engine_is_numba_when_installed():
@@ -431,7 +436,7 @@ def test_bad_options():
     for kwargs, match in [({"mass": -1.0}, "mass"), ({"dt": 0.0}, "dt"),
                           ({"rate": np.nan}, "rate"), ({"dt": H, "rate": RATE}, "at most one"),
                           ({"filter_order": -1}, "filter_order"),
-                          ({"quadrature_order": 9}, "quadrature_order"),
+                          ({"quadrature_points": 9}, "quadrature_points"),
                           ({"reset_period": 0.0}, "reset_period"),
                           ({"reset_period": 0.01, "rate": RATE}, "too short")]:
         _one_line_error(match, lambda kw=kwargs: OnlineEstimator(**kw))
@@ -440,3 +445,47 @@ def test_bad_options():
     t, f, x = _record(duration=0.05)
     _one_line_error("too short", est.update, t, f, x)
     assert est.n_seen == 0
+
+
+# --------------------------------------------------------------------------- anchor plan
+
+
+def _plan_per_sample(first, count, half):
+    """(restart or None, reported, running) of every sample, from anchor_plan."""
+    out = []
+    for seg in anchor_plan(first, count, half):
+        for pos in range(seg.start, seg.stop):
+            out.append((seg.restart if pos == seg.start else None, seg.reported, seg.running))
+    return out
+
+
+def test_anchor_plan_restarts_and_reports_the_older_estimator():
+    half = 4
+    plan = _plan_per_sample(0, 20, half)
+    restarts = [(n, r[0]) for n, r in enumerate(plan) if r[0] is not None]
+    # estimator 0 at 0, 8, 16; estimator 1 at 4, 12
+    assert restarts == [(0, 0), (4, 1), (8, 0), (12, 1), (16, 0)]
+    origin = {0: None, 1: None}
+    for n, (restart, reported, running) in enumerate(plan):
+        if restart is not None:
+            origin[restart] = n
+        assert running == ((0,) if n < half else (0, 1))
+        age = n - origin[reported]
+        # the older one: at least half a period old once both run, never a full period
+        assert (age >= half or n < half) and age < 2 * half
+        others = [origin[i] for i in running if i != reported]
+        assert all(o is None or o > origin[reported] for o in others)
+
+
+@pytest.mark.parametrize("half", [1, 3, 25])
+def test_anchor_plan_does_not_depend_on_how_the_run_is_cut(half):
+    whole = _plan_per_sample(0, 200, half)
+    rng = np.random.default_rng(half)
+    pieces, start = [], 0
+    while start < 200:
+        size = int(min(rng.integers(1, 2 * half + 3), 200 - start))
+        pieces += _plan_per_sample(start, size, half)
+        start += size
+    assert pieces == whole
+    with pytest.raises(ValueError, match="half"):
+        anchor_plan(0, 10, 0)

@@ -1,68 +1,43 @@
 """Batch algebraic estimation: ``algid.estimate``.
 
-Runs the generated estimator of a model on measured signals: the kernels (iterated
-integrals of ``t**k`` times the signals, see :mod:`algid.quadrature`), the linear system
-``P(t) theta = Q(t)``, Cramer's rule, and the invariant filter ``1/s**p`` applied to the
-numerators and the common denominator alike before dividing.  NumPy only.
+A thin layer over the estimator core (:mod:`algid.core`): the checks of the signals and
+options, a fresh state and one chunk, the known mass, the result.  Also the extra
+low-pass filter ``lowpass``, which needs the whole record (NumPy only).
 """
 
 from __future__ import annotations
 
-import importlib
-
 import numpy as np
 
-from algid.errors import InputDataError, ModelError
+from algid import backends, core
+from algid.errors import InputDataError
 from algid.filters import as_lowpass
-from algid.generated import MODULES
+from algid.options import (DEFAULT_FILTER_ORDER, DEFAULT_QUADRATURE_POINTS, channel_divisors,
+                           check_filter_order, known_mass, quadrature_points_option,
+                           with_mass_scaled)
 from algid.quadrature import iterated_integrals, startup_samples
+from algid.registry import available_models, load_model
 from algid.result import EstimationResult
-from algid.validation import check_experiment, positive_number
+from algid.validation import check_experiment
 
-__all__ = ["estimate", "available_models", "load_model", "DEFAULT_FILTER_ORDER",
-           "DEFAULT_QUADRATURE_ORDER", "kernel_values", "ENGINES", "AUTO_ENGINE_MIN_SAMPLES"]
+__all__ = ["estimate", "available_models", "load_model", "kernel_values",
+           "DEFAULT_FILTER_ORDER", "DEFAULT_QUADRATURE_POINTS", "DEFAULT_QUADRATURE_ORDER",
+           "ENGINES", "AUTO_ENGINE_MIN_SAMPLES"]
 
-#: Default order ``p`` of the invariant filter ``1/s**p``.
-DEFAULT_FILTER_ORDER = 2
-#: Default number of points of the cumulative quadrature rule.
-DEFAULT_QUADRATURE_ORDER = 6
-#: Values of the ``engine`` option of :func:`estimate`.
-ENGINES = ("auto", "numpy", "numba")
-#: ``engine="auto"`` uses the compiled engine (:mod:`algid.engine`) from this many
-#: samples on: below it NumPy takes a few tens of milliseconds, less than importing
-#: numba (about half a second) and loading the compiled loop.
-AUTO_ENGINE_MIN_SAMPLES = 100_000
+#: Deprecated spelling of :data:`DEFAULT_QUADRATURE_POINTS`.
+DEFAULT_QUADRATURE_ORDER = DEFAULT_QUADRATURE_POINTS
+#: Values of the ``engine`` option (see :mod:`algid.backends`).
+ENGINES = backends.ENGINES
 
 
-def available_models():
-    """Names of the models that have a generated estimator."""
-    return tuple(MODULES)
+def __getattr__(name):
+    # read at call time from algid.backends, where it can be changed
+    if name == "AUTO_ENGINE_MIN_SAMPLES":
+        return backends.AUTO_ENGINE_MIN_SAMPLES
+    raise AttributeError(f"module 'algid.estimator' has no attribute {name!r}")
 
 
-def load_model(name):
-    """The generated estimator module of model ``name``.
-
-    Raises
-    ------
-    ModelError
-        If no estimator was generated for ``name``.
-    """
-    if not isinstance(name, str) or name not in MODULES:
-        raise ModelError(f"unknown model {name!r} (known: {', '.join(MODULES)})")
-    return importlib.import_module(MODULES[name])
-
-
-def _check_options(filter_order, quadrature_order):
-    if isinstance(filter_order, bool) or not isinstance(filter_order, (int, np.integer)) \
-            or filter_order < 0:
-        raise InputDataError(f"filter_order must be an integer >= 0, got {filter_order!r}")
-    from algid.quadrature import QUADRATURE_ORDERS
-    if quadrature_order not in QUADRATURE_ORDERS:
-        raise InputDataError(f"quadrature_order must be one of {QUADRATURE_ORDERS}, "
-                             f"got {quadrature_order!r}")
-
-
-def kernel_values(module, signals, tau, h, *, order):
+def kernel_values(module, signals, tau, h, *, points=None, order=None):
     """Values of every kernel of a generated model on uniformly sampled signals.
 
     Parameters
@@ -75,64 +50,28 @@ def kernel_values(module, signals, tau, h, *, order):
         Time since the first sample.
     h : float
         Sampling step.
-    order : int
-        Quadrature rule (number of points).
+    points : int, optional
+        Points of the quadrature rule.  Default 6.
+    order : int, optional
+        Deprecated spelling of ``points``.
 
     Returns
     -------
     dict
         Kernel name -> array.
     """
+    if order is not None:
+        import warnings
+        warnings.warn("the keyword 'order' is deprecated: use 'points'", DeprecationWarning,
+                      stacklevel=2)
+        points = order
+    points = DEFAULT_QUADRATURE_POINTS if points is None else points
     values = {}
     for signal, power, depth in module.CHAINS:
         weighted = signals[signal] if power == 0 else tau**power * signals[signal]
-        for level, arr in enumerate(iterated_integrals(weighted, h, depth, order=order)):
+        for level, arr in enumerate(iterated_integrals(weighted, h, depth, points=points)):
             values[module.kernel_name(signal, power, level)] = arr
     return values
-
-
-def _choose_engine(engine, n, lowpass, *, min_samples=None):
-    """``"numpy"`` or ``"numba"`` for an ``engine`` option.
-
-    ``"auto"`` takes numba when it is installed, there is no ``lowpass`` and there are at
-    least ``min_samples`` samples (default :data:`AUTO_ENGINE_MIN_SAMPLES`, read at call
-    time; a stream passes 0: there the cost per call matters).
-    """
-    if min_samples is None:
-        min_samples = AUTO_ENGINE_MIN_SAMPLES
-    if not isinstance(engine, str) or engine not in ENGINES:
-        raise InputDataError(f"engine must be one of {', '.join(map(repr, ENGINES))}, "
-                             f"got {engine!r}")
-    if engine == "numpy":
-        return "numpy"
-    from algid import engine as compiled
-    if engine == "numba":
-        if not compiled.available():
-            raise InputDataError(f"engine='numba' needs numba, which is not installed: "
-                                 f"{compiled.INSTALL_HINT}")
-        if lowpass is not None:
-            raise InputDataError("engine='numba' does not support lowpass; use "
-                                 "engine='numpy' (or 'auto')")
-        return "numba"
-    use = lowpass is None and n >= min_samples and compiled.available()
-    return "numba" if use else "numpy"
-
-
-def _known_mass(gen, model, mass):
-    """The validated known mass, or None; refused for a model that estimates the mass."""
-    if mass is None:
-        return None
-    if "m" in gen.PARAMETERS:
-        raise ModelError(f"model {model!r} estimates the mass: do not give mass")
-    return positive_number(mass, name="mass")
-
-
-def _with_physical_parameters(estimates, mass):
-    """Add ``c = B m`` and ``k = K m`` to ``estimates`` when the mass is known."""
-    if mass is not None:
-        estimates["c"] = estimates["B"] * mass
-        estimates["k"] = estimates["K"] * mass
-    return estimates
 
 
 def _unpack_timeresponse(data):
@@ -147,7 +86,7 @@ def _unpack_timeresponse(data):
 
 
 def estimate(t, f=None, x=None, *, model="msd", filter_order=DEFAULT_FILTER_ORDER, mass=None,
-             quadrature_order=DEFAULT_QUADRATURE_ORDER, lowpass=None, engine="auto"):
+             quadrature_points=None, lowpass=None, engine="auto", quadrature_order=None):
     """Estimate the parameters of a model from its input and output, algebraically.
 
     The estimate at each instant uses only the data up to that instant and does not
@@ -164,17 +103,19 @@ def estimate(t, f=None, x=None, *, model="msd", filter_order=DEFAULT_FILTER_ORDE
         unless ``mass`` is given, in which case it is the force ``F`` [N].  For
         ``model="msd_mass"`` it is the force ``F``.
     x : array_like
-        Measured displacement [m].
-    model : str, optional
+        Measured displacement [m] (the model's output).
+    model : str or module, optional
         ``"msd"`` (``x'' + B x' + K x = f``, default) or ``"msd_mass"``
-        (``m x'' + c x' + k x = F``); see :func:`available_models`.
+        (``m x'' + c x' + k x = F``); see :func:`available_models`.  Also a generated
+        module (:func:`algid.symbolic.codegen.compile_model`).
     filter_order : int, optional
         ``p`` of the invariant low-pass filter ``1/s**p`` applied to numerators and
         denominator alike (0 = none).  Default 2.
     mass : float, optional
-        Known mass [kg] (model ``"msd"`` only): ``f`` is then the force, and the result
-        also holds ``c = B m`` and ``k = K m``.
-    quadrature_order : int, optional
+        Known mass [kg] (models that declare it, e.g. ``"msd"``): ``f`` is then the
+        force, and the result also holds the quantities it scales (``c = B m`` and
+        ``k = K m``).
+    quadrature_points : int, optional
         Points of the cumulative quadrature rule (2 = trapezoid).  Default 6.
     lowpass : tuple, scipy.signal.lti or python-control system, optional
         A strictly proper, stable, continuous-time SISO filter (e.g. ``([100], [1, 20,
@@ -183,12 +124,15 @@ def estimate(t, f=None, x=None, *, model="msd", filter_order=DEFAULT_FILTER_ORDE
         denominator alike after ``1/s**filter_order``; the estimate stays exact.  Use
         ``filter_order=0`` for this filter alone.  Default: none.
     engine : {"auto", "numpy", "numba"}, optional
-        ``"numpy"``: full-length arrays, NumPy only.  ``"numba"``: the compiled
-        single-pass engine of :mod:`algid.engine` (needs ``algid[fast]``; about ten
-        times faster and needs memory only for the result; no ``lowpass``).  Both give
-        the same numbers (bit for bit on the platforms tested).  ``"auto"`` (default):
+        The backend of the estimator core (:mod:`algid.core`): ``"numpy"``, NumPy and
+        SciPy only; ``"numba"``, the compiled loop generated for the model (needs
+        ``algid[fast]``; several times faster; no ``lowpass``).  Both give the same
+        numbers (bit for bit on the platforms tested).  ``"auto"`` (default):
         ``"numba"`` if numba is installed, there are at least
-        :data:`AUTO_ENGINE_MIN_SAMPLES` samples and no ``lowpass``, else ``"numpy"``.
+        :data:`~algid.backends.AUTO_ENGINE_MIN_SAMPLES` samples and no ``lowpass``,
+        else ``"numpy"``.
+    quadrature_order : int, optional
+        Deprecated spelling of ``quadrature_points``.
 
     Returns
     -------
@@ -205,7 +149,7 @@ def estimate(t, f=None, x=None, *, model="msd", filter_order=DEFAULT_FILTER_ORDE
         filter that is not strictly proper, not stable or not continuous-time;
         ``engine="numba"`` without numba installed or with ``lowpass``).
     ModelError
-        Unknown model, or ``mass`` given for a model that estimates the mass.
+        Unknown model, or ``mass`` given for a model that takes none.
 
     Examples
     --------
@@ -220,46 +164,55 @@ def estimate(t, f=None, x=None, *, model="msd", filter_order=DEFAULT_FILTER_ORDE
         t, f, x = _unpack_timeresponse(t)
     elif f is None or x is None:
         raise InputDataError("estimate needs the input f and the output x")
-    gen = load_model(model)
-    _check_options(filter_order, quadrature_order)
+    module = load_model(model)
+    filter_order = check_filter_order(filter_order)
+    points = quadrature_points_option(quadrature_points, quadrature_order)
     lowpass_filter = None if lowpass is None else as_lowpass(lowpass)
-    _choose_engine(engine, 0, lowpass_filter)  # refuse a bad engine option before the data
-    mass = _known_mass(gen, model, mass)
-    min_samples = max(2 * quadrature_order, 8)
+    backends.choose_engine(engine, 0, lowpass_filter)  # refuse a bad option before the data
+    mass = known_mass(module, mass)
+    min_samples = max(2 * points, 8)
     try:
         n = len(t)
     except TypeError:
         n = 0  # not a sequence: check_experiment says what is wrong
-    if _choose_engine(engine, n, lowpass_filter) == "numba":
-        from algid import engine as compiled
-        t, f, x, h = compiled.check_experiment(t, f, x, min_samples=min_samples)
-        values = compiled.estimate_arrays(gen, f, x, step=h, quadrature_order=quadrature_order,
-                                          filter_order=int(filter_order),
-                                          input_divisor=1.0 if mass is None else mass)
+    backend = backends.choose_engine(engine, n, lowpass_filter)
+    if backend == "numba":
+        from algid.validation_numba import check_experiment_compiled
+        t, f, x, dt = check_experiment_compiled(t, f, x, min_samples=min_samples)
     else:
-        t, f, x, h = check_experiment(t, f, x, min_samples=min_samples)
-        values = _numpy_estimates(gen, f / mass if mass is not None else f, x, h,
-                                  filter_order=int(filter_order),
-                                  quadrature_order=quadrature_order, lowpass=lowpass_filter)
-    estimates = _with_physical_parameters(dict(zip(gen.PARAMETERS, values)), mass)
-    return EstimationResult(t=t, estimates=estimates, model=model, filter_order=int(filter_order),
-                            quadrature_order=quadrature_order, mass=mass)
+        t, f, x, dt = check_experiment(t, f, x, min_samples=min_samples)
+    state = core.new_state(module, points=points, filter_order=filter_order, dt=dt,
+                           divisors=channel_divisors(module, mass))
+    signals = {module.INPUT: f, module.OUTPUT: x}
+    channels = tuple(signals[name] for name in module.CHANNELS)
+    if lowpass_filter is None:
+        values, _ = core.advance(state, channels, backend=backend)
+    else:
+        values = _with_lowpass(state, channels, lowpass_filter)
+    estimates = with_mass_scaled(module, dict(zip(module.PARAMETERS, values)), mass)
+    return EstimationResult(t=t, estimates=estimates, model=module.MODEL,
+                            filter_order=filter_order, quadrature_points=points, mass=mass,
+                            mass_scaled=tuple(estimates)[len(module.PARAMETERS):])
 
 
-def _numpy_estimates(gen, u, x, h, *, filter_order, quadrature_order, lowpass):
-    """The NumPy engine: one array of estimates per parameter, NaN where undefined."""
-    tau = np.arange(u.size) * h  # time origin at the first sample: the method allows it
-    kern = kernel_values(gen, {gen.INPUT: u, gen.OUTPUT: x}, tau, h, order=quadrature_order)
-    numerators, denominator = gen.cramer(*gen.regressors(kern))
-    if filter_order:
-        numerators = [iterated_integrals(num, h, filter_order, order=quadrature_order)[-1]
-                      for num in numerators]
-        denominator = iterated_integrals(denominator, h, filter_order,
-                                         order=quadrature_order)[-1]
-    if lowpass is not None:
-        numerators = [lowpass.apply(num, h, order=quadrature_order) for num in numerators]
-        denominator = lowpass.apply(denominator, h, order=quadrature_order)
+def _with_lowpass(state, channels, lowpass):
+    """Estimates with the extra filter ``lowpass`` applied after ``1/s**p`` to the
+    numerators and the denominator alike.  It needs them over the whole record: the
+    kernels, the algebra and ``1/s**p`` are formed here from the same integrators
+    (:mod:`algid.quadrature`) as in the core, then filtered and divided."""
+    module, points, dt = state.model, state.points, state.dt
+    scaled = [c / d for c, d in zip(channels, state.divisors)]
+    tau = np.arange(scaled[0].size) * dt
+    kern = kernel_values(module, dict(zip(module.CHANNELS, scaled)), tau, dt, points=points)
+    numerators, denominator = module.cramer(*module.regressors(kern))
+    lanes = [np.broadcast_to(np.asarray(v, dtype=float), tau.shape)
+             for v in (*numerators, denominator)]
+    if state.filter_order:
+        lanes = [iterated_integrals(v, dt, state.filter_order, points=points)[-1]
+                 for v in lanes]
+    lanes = [lowpass.apply(v, dt, order=points) for v in lanes]
+    denominator = lanes[-1]
     undefined = ~np.isfinite(denominator) | (denominator == 0)
-    undefined[: startup_samples(quadrature_order)] = True
+    undefined[:startup_samples(points)] = True
     with np.errstate(divide="ignore", invalid="ignore"):
-        return [np.where(undefined, np.nan, num / denominator) for num in numerators]
+        return [np.where(undefined, np.nan, num / denominator) for num in lanes[:-1]]

@@ -37,6 +37,7 @@ import numpy as np
 import scipy.signal
 
 from algid.errors import InputDataError
+from algid.options import check_quadrature_points
 
 __all__ = ["LowpassFilter", "as_lowpass", "lti_response", "interval_input_matrices",
            "expm_small"]
@@ -45,14 +46,6 @@ __all__ = ["LowpassFilter", "as_lowpass", "lti_response", "interval_input_matric
 # --------------------------------------------------------------------------------------
 # exact discretisation for piecewise-polynomial inputs
 # --------------------------------------------------------------------------------------
-
-
-def _check_order(order):
-    from algid.quadrature import QUADRATURE_ORDERS
-
-    if isinstance(order, bool) or order not in QUADRATURE_ORDERS:
-        raise InputDataError(f"quadrature order must be one of {QUADRATURE_ORDERS}, "
-                             f"got {order!r}")
 
 
 #: Terms of the Taylor series of the matrix exponential (after scaling to norm <= 1/2
@@ -136,7 +129,7 @@ def interval_input_matrices(A, b, h, *, order=6):
     startup : ndarray, shape (q - 2, n, q)
         ``z[j] = Phi z[j-1] + startup[j-1] @ u[0 : q]`` for ``j = 1, ..., q - 2``.
     """
-    _check_order(order)
+    check_quadrature_points(order, name="order (points of the interpolation)")
     A = np.atleast_2d(np.asarray(A, dtype=float))
     b = np.asarray(b, dtype=float).reshape(-1)
     n, q = A.shape[0], order

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import warnings
 from functools import cached_property
 
 import numpy as np
@@ -52,18 +53,35 @@ class EstimationResult:
     n_samples : int
     model : str
     filter_order : int
-    quadrature_order : int
+    quadrature_points : int
+        Points of the quadrature rule (``quadrature_order`` is its deprecated spelling).
     mass : float or None
+    mass_scaled : tuple of str
+        The estimates that are a model parameter times the known mass (``c``, ``k``).
     """
 
-    def __init__(self, *, t, estimates, model, filter_order, quadrature_order, mass=None):
+    def __init__(self, *, t, estimates, model, filter_order, quadrature_points=None,
+                 mass=None, mass_scaled=(), quadrature_order=None):
+        if quadrature_order is not None:
+            warnings.warn("quadrature_order is deprecated: use quadrature_points",
+                          DeprecationWarning, stacklevel=2)
+            quadrature_points = quadrature_order if quadrature_points is None \
+                else quadrature_points
         self.t = t
         self.estimates = dict(estimates)
         self.parameters = tuple(self.estimates)
         self.model = model
         self.filter_order = filter_order
-        self.quadrature_order = quadrature_order
+        self.quadrature_points = quadrature_points
         self.mass = mass
+        self.mass_scaled = tuple(mass_scaled)
+
+    @property
+    def quadrature_order(self) -> int:
+        """Deprecated spelling of :attr:`quadrature_points`."""
+        warnings.warn("quadrature_order is deprecated: use quadrature_points",
+                      DeprecationWarning, stacklevel=2)
+        return self.quadrature_points
 
     @cached_property
     def valid_index(self):
@@ -140,8 +158,8 @@ class EstimationResult:
 
         if ax is None:
             _, ax = plt.subplots(figsize=(7, 4))
-        names = parameters or [p for p in self.parameters if p not in ("c", "k")
-                               or self.model != "msd"]
+        # by default the model's own parameters, not the quantities a known mass scales
+        names = parameters or [p for p in self.parameters if p not in self.mass_scaled]
         for name in names:
             line, = ax.plot(self.t, self.estimates[name], label=f"{name} (estimate)")
             if true_values and name in true_values:

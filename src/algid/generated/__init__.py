@@ -9,3 +9,9 @@ MODULES = {
     'msd': "algid.generated.msd",
     'msd_mass': "algid.generated.msd_mass",
 }
+
+#: Model name -> module holding its compiled loop (numba).
+NUMBA_MODULES = {
+    'msd': "algid.generated.msd_numba",
+    'msd_mass': "algid.generated.msd_mass_numba",
+}

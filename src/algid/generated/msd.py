@@ -12,6 +12,13 @@ DESCRIPTION = 'mass-spring-damper with known mass: B = c/m, K = k/m, f = F/m'
 PARAMETERS = ('B', 'K')
 INPUT = 'f'
 OUTPUT = 'x'
+#: Signals that drive the integrator chains: the rows of the channels the core
+#: (algid.core.advance) takes, in this order.
+CHANNELS = ('f', 'x')
+#: With a known mass m: estimated quantity -> the parameter it is m times.
+MASS_SCALED = {'c': 'B', 'k': 'K'}
+#: With a known mass: the channels given as forces, divided by the mass.
+MASS_DIVIDED = ('f',)
 ORDER = 2
 N_EQUATIONS = 2
 

@@ -12,6 +12,13 @@ DESCRIPTION = 'mass-spring-damper with unknown mass, damping and stiffness; F is
 PARAMETERS = ('m', 'c', 'k')
 INPUT = 'F'
 OUTPUT = 'x'
+#: Signals that drive the integrator chains: the rows of the channels the core
+#: (algid.core.advance) takes, in this order.
+CHANNELS = ('F', 'x')
+#: With a known mass m: estimated quantity -> the parameter it is m times.
+MASS_SCALED = {}
+#: With a known mass: the channels given as forces, divided by the mass.
+MASS_DIVIDED = ()
 ORDER = 2
 N_EQUATIONS = 3
 

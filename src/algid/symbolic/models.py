@@ -7,7 +7,7 @@ import sympy as sp
 from algid.errors import ModelError
 from algid.symbolic.model import LinearODEModel
 
-__all__ = ["BUILTIN_MODELS", "builtin_model"]
+__all__ = ["BUILTIN_MODELS", "KNOWN_MASS", "builtin_model"]
 
 
 def _msd() -> LinearODEModel:
@@ -38,6 +38,10 @@ def _msd_mass() -> LinearODEModel:
 
 #: Name -> factory of every built-in model.
 BUILTIN_MODELS = {"msd": _msd, "msd_mass": _msd_mass}
+
+#: Name -> (quantity -> the parameter it is the known mass times, channels divided by the
+#: mass) for the built-in models that take a known mass.
+KNOWN_MASS = {"msd": ({"c": "B", "k": "K"}, ("f",))}
 
 
 def builtin_model(name: str) -> LinearODEModel:

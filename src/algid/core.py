@@ -1,0 +1,288 @@
+"""The estimator core: one state, one ``advance`` per backend.
+
+Like :func:`scipy.signal.lfilter` with ``zi``, the estimator of a model is a function
+of explicit state::
+
+    state = new_state(module, points=6, filter_order=2, dt=1e-3)
+    estimates, state = advance(state, channels)          # channels: (n_channels, m)
+    estimates, state = advance(state, more_channels)     # continues where it stopped
+
+A batch estimate is a fresh state and one chunk; a stream is successive chunks, with
+the same numbers bit for bit however it is cut (within one backend).  The channels are
+the signals that drive the integrator chains of the generated module, in the order of
+its ``CHANNELS``.
+
+Realisation
+-----------
+The generated module lists in ``CHAINS`` the integrator chains ``(signal, power,
+depth)``: level ``l`` of a chain is the ``l``-fold integral of ``tau**power *
+signal``, where ``tau = n * dt`` is the time since the origin.  At every sample the
+core steps every chain with the causal rule of :mod:`algid.quadrature`
+(:func:`~algid.quadrature.advance_integrators`), evaluates ``P`` and ``Q`` and the
+Cramer numerators and denominator with the generated algebra, integrates those
+``filter_order`` more times (the invariant filter ``1/s**p``) and divides, reporting
+NaN where the denominator is zero or not finite.
+
+The state
+---------
+Per integrator its integral and its last ``points - 1`` integrand samples
+(:class:`EstimatorState`; integrator order given by :func:`integrator_layout`), the
+number of samples since the origin and, before the first ``points`` samples have
+arrived, those samples (the start-up: the rule integrates the first ``points - 2``
+intervals with the polynomial through samples ``0 .. points - 1``, so nothing is
+computed before sample ``points - 1``; the estimates of samples ``0 .. points - 2`` are
+NaN).  The start-up is done here, once, with NumPy, for every backend.
+
+Backends
+--------
+``"numpy"`` (:mod:`algid.core_numpy`, ``scipy.signal.lfilter`` over blocks of samples)
+and ``"numba"`` (:mod:`algid.core_numba`, the compiled loop generated for the model,
+needs ``algid[fast]``).  Both perform the same operations in the same order: their
+numbers agree to round-off (bit for bit on the platforms tested).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from functools import lru_cache
+from types import ModuleType
+
+import numpy as np
+
+from algid import core_numpy
+from algid.backends import require_backend
+from algid.errors import InputDataError
+from algid.options import check_filter_order, check_quadrature_points
+from algid.quadrature import integrator_weights
+
+__all__ = ["EstimatorState", "IntegratorLayout", "integrator_layout", "layout_of", "new_state",
+           "advance"]
+
+
+@dataclasses.dataclass
+class EstimatorState:
+    """Everything an estimator remembers between chunks; its size does not grow.
+
+    Attributes
+    ----------
+    model : module
+        The generated estimator module (:func:`algid.registry.load_model`).
+    points : int
+        Points of the quadrature rule.
+    filter_order : int
+        Order ``p`` of the invariant filter ``1/s**p``.
+    dt : float
+        Sampling step [s].
+    divisors : ndarray, shape (n_channels,)
+        Every channel is divided by its divisor before use (a known mass).
+    n_seen : int
+        Samples since the time origin.
+    integrals : ndarray, shape (n_integrators,)
+        Integral of every integrator up to the last sample.
+    history : ndarray, shape (n_integrators, points - 1)
+        The last ``points - 1`` integrand samples of every integrator, oldest first.
+    startup : ndarray, shape (n_channels, points)
+        The first samples of the channels while fewer than ``points`` have arrived.
+    """
+
+    model: ModuleType
+    points: int
+    filter_order: int
+    dt: float
+    divisors: np.ndarray
+    n_seen: int
+    integrals: np.ndarray
+    history: np.ndarray
+    startup: np.ndarray
+
+    def copy(self) -> "EstimatorState":
+        """An independent state that continues from the same point."""
+        return dataclasses.replace(self, divisors=self.divisors.copy(),
+                                   integrals=self.integrals.copy(),
+                                   history=self.history.copy(), startup=self.startup.copy())
+
+    def restart(self) -> None:
+        """Move the time origin to the next sample (re-anchoring): forget the past."""
+        self.n_seen = 0
+        self.integrals.fill(0.0)
+        self.history.fill(0.0)
+        self.startup.fill(0.0)
+
+    def magnitude(self) -> float:
+        """Largest absolute value held: integrals, carried and buffered samples."""
+        held = [self.integrals, self.history]
+        if self.n_seen < self.points:
+            held.append(self.startup[:, :self.n_seen])
+        return max([0.0] + [float(np.max(np.abs(a))) for a in held if a.size])
+
+
+@dataclasses.dataclass(frozen=True)
+class IntegratorLayout:
+    """Where every integrator of a model sits in :class:`EstimatorState`.
+
+    Attributes
+    ----------
+    chains : tuple of (channel, power, depth)
+        The chains of the generated module, with the index of their channel.
+    levels : tuple of tuple of int
+        ``levels[l - 1]``: the chains that have a level ``l``, in state order.  The
+        integrators of chain level ``l`` are consecutive, level after level; then come
+        the filter integrators, filter level after filter level, each with the
+        numerators in ``PARAMETERS`` order and the denominator last.
+    kernels : tuple of (level, row)
+        For every entry of ``KERNELS``: its level and its row among ``levels[level -
+        1]`` (the chain's index for level 0).
+    n_chain_integrators : int
+    n_lanes : int
+        Numerators and denominator: ``len(PARAMETERS) + 1``.
+    """
+
+    chains: tuple
+    levels: tuple
+    kernels: tuple
+    n_chain_integrators: int
+    n_lanes: int
+
+    def n_integrators(self, filter_order: int) -> int:
+        """Number of integrators with a filter of order ``filter_order``."""
+        return self.n_chain_integrators + self.n_lanes * filter_order
+
+    def level_start(self, level: int) -> int:
+        """Index of the first integrator of chain level ``level >= 1`` (for ``level =
+        depth + 1``: of the filter)."""
+        return sum(len(rows) for rows in self.levels[:level - 1])
+
+
+def layout_of(chains, kernels, channels, n_parameters) -> IntegratorLayout:
+    """The :class:`IntegratorLayout` of the ``CHAINS``, ``KERNELS``, ``CHANNELS`` and
+    number of ``PARAMETERS`` of a generated module.
+
+    Chains are ordered by decreasing depth (stable), so that the chains that have a
+    given level come first and a level is a contiguous block of rows.
+    """
+    channels = tuple(channels)
+    order = sorted(range(len(chains)), key=lambda c: -chains[c][2])
+    ordered = tuple((channels.index(chains[c][0]), chains[c][1], chains[c][2]) for c in order)
+    depth = max(d for _, _, d in ordered)
+    levels = tuple(tuple(i for i, (_, _, d) in enumerate(ordered) if d >= level)
+                   for level in range(1, depth + 1))
+    where = {(chains[c][0], chains[c][1]): i for i, c in enumerate(order)}
+    placed = tuple((level, where[(signal, power)]) for signal, power, level in kernels)
+    return IntegratorLayout(chains=ordered, levels=levels, kernels=placed,
+                            n_chain_integrators=sum(len(rows) for rows in levels),
+                            n_lanes=n_parameters + 1)
+
+
+@lru_cache(maxsize=None)
+def integrator_layout(module: ModuleType) -> IntegratorLayout:
+    """The :class:`IntegratorLayout` of a generated module (see :func:`layout_of`)."""
+    return layout_of(module.CHAINS, module.KERNELS, module.CHANNELS, len(module.PARAMETERS))
+
+
+def new_state(module, *, points, filter_order, dt, divisors=None) -> EstimatorState:
+    """A fresh state, with the time origin at the next sample.
+
+    Parameters
+    ----------
+    module : module
+        Generated estimator module (:func:`algid.registry.load_model`).
+    points : int
+        Points of the quadrature rule (see :mod:`algid.quadrature`).
+    filter_order : int
+        Order ``p >= 0`` of the invariant filter ``1/s**p``.
+    dt : float
+        Sampling step [s].
+    divisors : sequence of float, optional
+        One per channel: the channel is divided by it (default: all 1).
+
+    Returns
+    -------
+    EstimatorState
+
+    Raises
+    ------
+    InputDataError
+        If an option is invalid.
+    """
+    check_filter_order(filter_order)
+    check_quadrature_points(points)
+    n_channels = len(module.CHANNELS)
+    div = np.ones(n_channels) if divisors is None else np.array(divisors, dtype=float)
+    for name, values in (("dt", np.array([dt], dtype=float)), ("divisors", div)):
+        if values.shape != ((n_channels,) if name == "divisors" else (1,)) or \
+                not (np.isfinite(values).all() and (values > 0).all()):
+            raise InputDataError(f"{name} must be positive numbers, got {values.tolist()!r}"
+                                 if name == "divisors" else
+                                 f"dt must be a positive number, got {dt!r}")
+    n_int = integrator_layout(module).n_integrators(int(filter_order))
+    return EstimatorState(model=module, points=int(points), filter_order=int(filter_order),
+                          dt=float(dt), divisors=div, n_seen=0, integrals=np.zeros(n_int),
+                          history=np.zeros((n_int, points - 1)),
+                          startup=np.zeros((n_channels, points)))
+
+
+def _as_channels(state, channels):
+    """The chunk as a tuple of equally long float64 1-D arrays, one per channel."""
+    n_channels = state.startup.shape[0]
+    try:
+        rows = tuple(np.ascontiguousarray(c, dtype=np.float64) for c in channels)
+    except (TypeError, ValueError):
+        raise InputDataError("channels must be a sequence of 1-D arrays of numbers") from None
+    if len(rows) != n_channels or any(r.ndim != 1 or r.shape != rows[0].shape for r in rows):
+        raise InputDataError(f"channels must be {n_channels} equally long 1-D arrays "
+                             f"({', '.join(state.model.CHANNELS)}), got shapes "
+                             f"{[r.shape for r in rows]}")
+    return rows
+
+
+def advance(state, channels, *, backend="numpy", out=None):
+    """Estimates over one chunk of samples, advancing ``state``.
+
+    Parameters
+    ----------
+    state : EstimatorState
+        From :func:`new_state`; updated in place (and returned).
+    channels : array_like, shape (n_channels, m), or sequence of n_channels arrays
+        The chunk: samples of every channel in the generated module's ``CHANNELS``
+        order, uniformly sampled with ``state.dt`` and continuing the samples seen
+        before (the caller checks this).  ``m`` may be 0.
+    backend : {"numpy", "numba"}, optional
+        Which implementation advances the state.  Default ``"numpy"``.
+    out : ndarray, shape (n_parameters, m), optional
+        Float64 array to write the estimates into.
+
+    Returns
+    -------
+    estimates : ndarray, shape (n_parameters, m)
+        Row ``i`` estimates ``PARAMETERS[i]``; NaN for the first ``points - 1`` samples
+        after the origin and where the denominator is zero or not finite.
+    state : EstimatorState
+        The same object, advanced past the chunk.
+    """
+    rows = _as_channels(state, channels)
+    m = rows[0].size
+    shape = (len(state.model.PARAMETERS), m)
+    if out is None:
+        out = np.empty(shape)
+    elif not (isinstance(out, np.ndarray) and out.shape == shape and out.dtype == np.float64):
+        raise InputDataError(f"out must be a float64 array of shape {shape}, got "
+                             f"{getattr(out, 'shape', None)} {getattr(out, 'dtype', None)}")
+    run = require_backend(backend)
+    q = state.points
+    done = 0
+    if state.n_seen < q and m:  # the start-up: buffer samples 0 .. q - 1
+        seen = state.n_seen
+        done = min(q - seen, m)
+        for c, row in enumerate(rows):
+            state.startup[c, seen:seen + done] = row[:done]
+        out[:, :done] = np.nan
+        state.n_seen = seen + done
+        if state.n_seen == q:  # sample q - 1 arrived: integrate from the origin
+            first = np.empty((shape[0], q))
+            core_numpy.advance_from_origin(state, integrator_layout(state.model),
+                                           tuple(state.startup), first)
+            out[:, done - 1] = first[:, -1]
+    if done < m:
+        run(state, integrator_layout(state.model), tuple(r[done:] for r in rows),
+            out[:, done:])
+    return out, state

@@ -1,0 +1,104 @@
+"""Checks of the estimator options shared by :func:`algid.estimate` and
+:class:`algid.OnlineEstimator`, and the known mass."""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+
+from algid.errors import InputDataError, ModelError
+from algid.quadrature import QUADRATURE_POINTS
+from algid.validation import positive_number
+
+__all__ = ["DEFAULT_FILTER_ORDER", "DEFAULT_QUADRATURE_POINTS", "check_filter_order",
+           "check_quadrature_points", "quadrature_points_option", "known_mass",
+           "channel_divisors", "with_mass_scaled"]
+
+#: Default order ``p`` of the invariant filter ``1/s**p``.
+DEFAULT_FILTER_ORDER = 2
+#: Default number of points of the cumulative quadrature rule.
+DEFAULT_QUADRATURE_POINTS = 6
+
+
+def check_filter_order(filter_order) -> int:
+    """``filter_order`` as an int, if it is an integer ``>= 0``.
+
+    Raises
+    ------
+    InputDataError
+        Otherwise.
+    """
+    if isinstance(filter_order, (bool, np.bool_)) or \
+            not isinstance(filter_order, (int, np.integer)) or filter_order < 0:
+        raise InputDataError(f"filter_order must be an integer >= 0, got {filter_order!r}")
+    return int(filter_order)
+
+
+def check_quadrature_points(points, *, name="quadrature_points") -> int:
+    """``points`` as an int, if it is one of :data:`algid.quadrature.QUADRATURE_POINTS`.
+
+    Raises
+    ------
+    InputDataError
+        Otherwise; the message names the option ``name``.
+    """
+    if isinstance(points, (bool, np.bool_)) or points not in QUADRATURE_POINTS:
+        raise InputDataError(f"{name} must be one of {QUADRATURE_POINTS}, got {points!r}")
+    return int(points)
+
+
+def quadrature_points_option(quadrature_points, quadrature_order, *, stacklevel=3) -> int:
+    """The checked number of points from the option ``quadrature_points`` or its
+    deprecated spelling ``quadrature_order`` (which warns).
+
+    Raises
+    ------
+    InputDataError
+        A bad value, or both spellings with different values.
+    """
+    if quadrature_order is None:
+        return check_quadrature_points(
+            DEFAULT_QUADRATURE_POINTS if quadrature_points is None else quadrature_points)
+    warnings.warn("quadrature_order is deprecated: use quadrature_points (the number of "
+                  "points of the rule)", DeprecationWarning, stacklevel=stacklevel)
+    if quadrature_points is not None and quadrature_points != quadrature_order:
+        raise InputDataError("give quadrature_points, not both quadrature_points and "
+                             "quadrature_order")
+    return check_quadrature_points(quadrature_order, name="quadrature_order")
+
+
+def known_mass(module, mass):
+    """The validated known mass, or None.
+
+    Raises
+    ------
+    ModelError
+        If the model declares no parameter that a known mass scales (it estimates the
+        mass, or has none).
+    InputDataError
+        If the mass is not a positive number.
+    """
+    if mass is None:
+        return None
+    if not module.MASS_SCALED:
+        what = "estimates the mass" if "m" in module.PARAMETERS else "takes no known mass"
+        raise ModelError(f"model {module.MODEL!r} {what}: do not give mass")
+    return positive_number(mass, name="mass")
+
+
+def channel_divisors(module, mass):
+    """One divisor per channel: the mass for the channels the model declares as forces
+    (``MASS_DIVIDED``), 1 for the others; ``None`` without a mass."""
+    if mass is None:
+        return None
+    return tuple(mass if name in module.MASS_DIVIDED else 1.0 for name in module.CHANNELS)
+
+
+def with_mass_scaled(module, estimates, mass):
+    """Add the quantities a known mass scales (``MASS_SCALED``, e.g. ``c = B m``) to the
+    dict ``estimates`` (name -> array), in place; returns it."""
+    if mass is not None:
+        for name, parameter in module.MASS_SCALED.items():
+            estimates[name] = estimates[parameter] * mass
+    return estimates

@@ -1,0 +1,179 @@
+"""Checks of the chunks of a stream (:class:`algid.OnlineEstimator`).
+
+A chunk must continue the stream: finite samples, equally long, time strictly
+increasing from the previous chunk on and uniform within
+:data:`~algid.validation.UNIFORM_RTOL` of the step.  Anything else is an
+:class:`~algid.errors.InputDataError` whose one-line message names the stream sample.
+"""
+
+from __future__ import annotations
+
+import math
+import numbers
+from functools import lru_cache
+
+import numpy as np
+
+from algid.errors import InputDataError
+from algid.validation import UNIFORM_RTOL, as_signal
+
+__all__ = ["check_chunk", "compiled_scan"]
+
+_FLOAT64 = np.dtype(np.float64)
+
+
+def _fmt(value) -> str:
+    return f"{float(value):.10g}"
+
+
+def _check_sample(t, f, x, n, t_last, dt):
+    """:func:`check_chunk` for one sample given as three numbers (faster)."""
+    where = f"in the chunk starting at stream sample {n}"
+    values = (float(t), float(f), float(x))
+    for name, v in zip(("t", "f", "x"), values):
+        if not math.isfinite(v):
+            what = "NaN" if v != v else ("inf" if v > 0 else "-inf")
+            raise InputDataError(f"signal {name!r} has {what} at row 0 {where}")
+    if t_last is not None:
+        step = values[0] - t_last
+        if not step > 0:
+            raise InputDataError(f"time 't' is not increasing at stream sample {n}: "
+                                 f"{_fmt(values[0])} after {_fmt(t_last)}")
+        if dt is None:
+            dt = step
+        elif abs(step - dt) > UNIFORM_RTOL * dt:
+            raise InputDataError(f"time 't' is not uniformly sampled at stream sample {n}: "
+                                 f"step {_fmt(step)} where {_fmt(dt)} is expected")
+    return np.array(values[:1]), np.array(values[1:2]), np.array(values[2:]), dt
+
+
+def _scan_chunk(scan, t, f, x, t_last, dt):
+    """The checks in one compiled pass, for 1-D contiguous float64 arrays of equal,
+    nonzero length that pass every check; ``None`` otherwise."""
+    if not (type(t) is np.ndarray and type(f) is np.ndarray and type(x) is np.ndarray):
+        return None
+    m = t.size
+    if not (m and t.ndim == 1 and f.shape == t.shape and x.shape == t.shape
+            and t.dtype == _FLOAT64 and f.dtype == _FLOAT64 and x.dtype == _FLOAT64
+            and t.flags.c_contiguous and f.flags.c_contiguous and x.flags.c_contiguous):
+        return None
+    if dt is None:  # the first step, as the general check takes it
+        if t_last is not None:
+            dt = float(t[0]) - t_last
+        elif m > 1:
+            dt = float(t[1] - t[0])
+    step = math.nan if dt is None else dt
+    if not scan(t, f, x, math.nan if t_last is None else t_last, step, UNIFORM_RTOL * step):
+        return None
+    return t, f, x, dt
+
+
+def check_chunk(t, f, x, *, n, t_last, dt, scan=None):
+    """Check the next chunk of a stream.
+
+    Parameters
+    ----------
+    t, f, x : float or array_like
+        The chunk: times, input and output samples.
+    n : int
+        Stream index of the chunk's first sample.
+    t_last : float or None
+        Time of the previous sample (None at the start).
+    dt : float or None
+        The sampling step, if known.
+    scan : callable, optional
+        :func:`compiled_scan`, to check float64 arrays in one compiled pass.
+
+    Returns
+    -------
+    t, f, x : ndarray
+        The chunk as float64 1-D arrays.
+    dt : float or None
+        The step (taken from the chunk if it was not known and can be).
+
+    Raises
+    ------
+    InputDataError
+        Not 1-D numbers, NaN or inf, different lengths, time not increasing (within the
+        chunk or from the previous one) or not uniform.
+    """
+    if scan is not None:
+        checked = _scan_chunk(scan, t, f, x, t_last, dt)
+        if checked is not None:
+            return checked
+    if all(isinstance(v, numbers.Real) for v in (t, f, x)):
+        return _check_sample(t, f, x, n, t_last, dt)
+    if all(isinstance(v, np.ndarray) and v.shape == (1,) and v.dtype.kind in "fiu"
+           for v in (t, f, x)):
+        return _check_sample(t[0], f[0], x[0], n, t_last, dt)
+    where = f"in the chunk starting at stream sample {n}"
+    arrays = []
+    for name, values in (("t", t), ("f", f), ("x", x)):
+        try:
+            arr = np.asarray(values)
+        except (TypeError, ValueError):
+            raise InputDataError(f"signal {name!r} is not a 1-D array of numbers "
+                                 f"{where}") from None
+        if arr.ndim == 0:
+            arr = arr.reshape(1)
+        if arr.ndim == 1 and arr.size == 0:
+            arrays.append(np.empty(0))
+            continue
+        try:
+            arrays.append(as_signal(arr, name=name))
+        except InputDataError as exc:
+            raise InputDataError(f"{exc} {where}") from None
+    t, f, x = arrays
+    if not t.size == f.size == x.size:
+        raise InputDataError(f"signals have different lengths {where}: 't' has {t.size}, "
+                             f"'f' has {f.size}, 'x' has {x.size}")
+    if t.size == 0:
+        return t, f, x, dt
+    full = t if t_last is None else np.concatenate(([t_last], t))
+    first = n - (full.size - t.size)  # stream index of full[0]
+    steps = np.diff(full)
+    bad = np.flatnonzero(~(steps > 0))
+    if bad.size:
+        i = int(bad[0])
+        raise InputDataError(f"time 't' is not increasing at stream sample {first + i + 1}: "
+                             f"{_fmt(full[i + 1])} after {_fmt(full[i])}")
+    if dt is None and steps.size:
+        dt = float(steps[0])
+    if dt is not None and steps.size:
+        deviation = np.abs(steps - dt)
+        i = int(np.argmax(deviation))
+        if deviation[i] > UNIFORM_RTOL * dt:
+            raise InputDataError(
+                f"time 't' is not uniformly sampled at stream sample {first + i + 1}: "
+                f"step {_fmt(steps[i])} where {_fmt(dt)} is expected")
+    return t, f, x, dt
+
+
+@lru_cache(maxsize=None)
+def compiled_scan():
+    """The value checks of :func:`check_chunk` on float64 samples, compiled (needs
+    numba): ``scan(t, f, x, t_prev, dt, tolerance)`` is True when ``t``, ``f``, ``x``
+    are finite and every step of ``t`` (from ``t_prev`` on, unless NaN) is positive
+    and within ``tolerance`` of ``dt`` (unless NaN)."""
+    import numba
+
+    # reductions in any order (vectorised); the result does not depend on the order:
+    # a sum of v * 0 is NaN if and only if some v is not finite
+    @numba.njit("boolean(float64[::1], float64[::1], float64[::1], float64, float64, float64)",
+                cache=True, nogil=True, fastmath={"reassoc"})
+    def scan(t, f, x, t_prev, dt, tolerance):
+        nan_if_bad = 0.0
+        for i in range(t.shape[0]):
+            nan_if_bad += t[i] * 0.0 + f[i] * 0.0 + x[i] * 0.0
+        if nan_if_bad != 0.0:
+            return False
+        violations = 0
+        if t_prev == t_prev:
+            step = t[0] - t_prev
+            violations += (not step > 0.0) + (abs(step - dt) > tolerance)
+        for i in range(t.shape[0] - 1):
+            step = t[i + 1] - t[i]
+            violations += (not step > 0.0) + (abs(step - dt) > tolerance)
+        return violations == 0
+
+    return scan

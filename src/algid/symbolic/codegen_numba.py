@@ -1,0 +1,184 @@
+"""Code generation: the compiled (numba) estimation loop of a generated model.
+
+The loop performs, sample by sample, exactly the operations of the NumPy backend
+(:mod:`algid.core_numpy`): every integrator is ``y[n] = y[n-1] + inc[n]`` with the
+increment ``inc[n] = ((x[n-q+1] w[0] + x[n-q+2] w[1]) + ...) + x[n] w[q-1]`` (see
+:func:`algid.quadrature.integrate_padded`); the model algebra is the generated
+module's own ``regressors_packed`` and ``cramer``, compiled.  It works on blocks of
+:data:`BLOCK` samples: for each level the increments of every sample of the block
+first (loops the compiler vectorises), then the running integrals (one dependency
+chain per integrator, interleaved across integrators).
+
+The text depends only on the model: ``python -m derivation`` writes it for every
+built-in model beside its NumPy module; a user model gets it in memory
+(:func:`algid.symbolic.codegen.compile_model`).
+"""
+
+from __future__ import annotations
+
+from algid.core import layout_of
+
+__all__ = ["numba_module_source", "BLOCK"]
+
+#: Samples per block of the compiled loop.
+BLOCK = 256
+
+
+def _increments_source():
+    """Lines of ``_increments``: the increments of a block, written out for every number
+    of points so that the compiler unrolls and vectorises each."""
+    from algid.quadrature import QUADRATURE_POINTS
+    lines = ["@numba.njit(cache=CACHE, nogil=True, inline=\"always\")",
+             "def _increments(src, dst, nb, weights):",
+             '    """dst[b] = weights @ src[b : b + points], summed oldest sample first."""',
+             "    points = weights.shape[0]"]
+    for i, points in enumerate(QUADRATURE_POINTS):
+        lines.append(f"    {'if' if i == 0 else 'elif'} points == {points}:")
+        lines.append("        " + ", ".join(f"w{j}" for j in range(points)) + ", = weights")
+        total = "src[b] * w0"
+        for j in range(1, points):
+            total = f"{total if j == 1 else '(' + total + ')'} + src[b + {j}] * w{j}"
+        lines.append("        for b in range(nb):")
+        lines.append(f"            dst[b] = {total}")
+    return lines
+
+
+def numba_module_source(module, *, header, cache=True) -> str:
+    """Source of the compiled loop of a generated NumPy module.
+
+    Parameters
+    ----------
+    module : module
+        The generated NumPy module (``MODEL``, ``CHAINS``, ``KERNELS``, ``CHANNELS``,
+        ``PARAMETERS``, ``regressors_packed``, ``cramer``); its ``__name__`` is
+        imported by the loop's module.
+    header : str
+        How the file was generated (the docstring's last paragraph).
+    cache : bool, optional
+        Let numba cache the machine code beside the file (needs a file).
+
+    Returns
+    -------
+    str
+    """
+    layout = layout_of(module.CHAINS, module.KERNELS, module.CHANNELS, len(module.PARAMETERS))
+    n_par = len(module.PARAMETERS)
+    lanes = layout.n_lanes
+    channels = [f"channel_{i}" for i in range(len(module.CHANNELS))]
+    depth = len(layout.levels)
+    chain_depth = [d for _, _, d in layout.chains]
+    src = [f'"""Compiled estimation loop of the model {module.MODEL!r} (numba).', "",
+           f"Channels: {', '.join(f'{c} = {n!r}' for c, n in zip(channels, module.CHANNELS))}.",
+           "", header, '"""', "", "import math", "", "import numba", "import numpy as np", "",
+           f"from {module.__name__} import cramer, regressors_packed", "",
+           f"CACHE = {bool(cache)!r}", f"BLOCK = {BLOCK}", "",
+           "_regressors_packed = numba.njit(cache=CACHE, nogil=True)(regressors_packed)",
+           "_cramer = numba.njit(cache=CACHE, nogil=True)(cramer)", "", "",
+           *_increments_source(), "", "",
+           "@numba.njit(cache=CACHE, nogil=True)",
+           f"def advance({', '.join(channels)}, out, integrals, history, n0, dt, divisors,",
+           "            weights, filter_order):",
+           '    """Advance the state (integrals, history) over the chunk; estimates into out.',
+           "",
+           "    The state layout is that of algid.core.integrator_layout.",
+           '    """']
+    a = src.append
+    a("    W = weights.shape[0] - 1")
+    a(f"    size = {channels[0]}.shape[0]")
+    a("    # y<c>_<l>[:W]: the last W values of level l of chain c before the block;")
+    a("    # y<c>_<l>[W + b]: its value at sample b of the block")
+    for c, d in enumerate(chain_depth):
+        for level in range(d + 1):
+            a(f"    y{c}_{level} = np.empty(W + BLOCK)")
+    for c in range(len(chain_depth)):
+        a(f"    e{c} = np.empty(BLOCK)")
+    a(f"    fb = np.empty((filter_order + 1, {lanes}, W + BLOCK))")
+    a(f"    fe = np.empty(({lanes}, BLOCK))")
+    a(f"    fs = np.empty((filter_order, {lanes}))")
+    k = 0
+    for level, rows in enumerate(layout.levels, start=1):
+        for c in rows:
+            a(f"    s{c}_{level} = integrals[{k}]")
+            a(f"    y{c}_{level - 1}[:W] = history[{k}]")
+            k += 1
+    a("    for lev in range(filter_order):")
+    a(f"        for r in range({lanes}):")
+    a(f"            fs[lev, r] = integrals[{k} + lev * {lanes} + r]")
+    a(f"            fb[lev, r, :W] = history[{k} + lev * {lanes} + r]")
+    for i in range(len(channels)):
+        a(f"    d{i} = divisors[{i}]")
+    a("    for start in range(0, size, BLOCK):")
+    a("        nb = min(BLOCK, size - start)")
+    a("        # level 0: tau**power * channel / divisor")
+    a("        for b in range(nb):")
+    a("            tau = (n0 + start + b) * dt")
+    for i, name in enumerate(channels):
+        # as NumPy, which divides only by a divisor other than 1 (the same numbers)
+        a(f"            v{i} = {name}[start + b]")
+        a(f"            if d{i} != 1.0:")
+        a(f"                v{i} = v{i} / d{i}")
+    for c, (channel, power, _) in enumerate(layout.chains):
+        factor = "tau"
+        for _ in range(power - 1):
+            factor = f"({factor} * tau)"
+        rhs = f"v{channel}" if power == 0 else f"{factor} * v{channel}"
+        a(f"            y{c}_0[W + b] = {rhs}")
+
+    def fir(buffer, target):
+        a(f"        _increments({buffer}, {target}, nb, weights)")
+
+    for level, rows in enumerate(layout.levels, start=1):
+        a(f"        # level {level}: the increments (vectorised), then the running integrals")
+        for c in rows:
+            fir(f"y{c}_{level - 1}", f"e{c}")
+        a("        for b in range(nb):")
+        for c in rows:
+            a(f"            s{c}_{level} = s{c}_{level} + e{c}[b]")
+            a(f"            y{c}_{level}[W + b] = s{c}_{level}")
+    kernels = ", ".join(f"y{row}_{level}[W + b]" for level, row in layout.kernels)
+    a("        # P, Q and Cramer's rule: the generated algebra")
+    a("        for b in range(nb):")
+    a(f"            P, Q = _regressors_packed(({kernels},))")
+    a("            nums, den = _cramer(P, Q)")
+    for r in range(n_par):
+        a(f"            fb[0, {r}, W + b] = nums[{r}]")
+    a(f"            fb[0, {n_par}, W + b] = den")
+    a("        # the invariant filter 1/s**p on the numerators and the denominator")
+    a("        for lev in range(filter_order):")
+    a(f"            for r in range({lanes}):")
+    a("                _increments(fb[lev, r], fe[r], nb, weights)")
+    for r in range(lanes):
+        a(f"            t{r} = fs[lev, {r}]")
+    a("            for b in range(nb):")
+    for r in range(lanes):
+        a(f"                t{r} = t{r} + fe[{r}, b]")
+        a(f"                fb[lev + 1, {r}, W + b] = t{r}")
+    for r in range(lanes):
+        a(f"            fs[lev, {r}] = t{r}")
+    a("        for b in range(nb):")
+    a(f"            d = fb[filter_order, {n_par}, W + b]")
+    a("            if d == 0.0 or not math.isfinite(d):")
+    for r in range(n_par):
+        a(f"                out[{r}, start + b] = np.nan")
+    a("            else:")
+    for r in range(n_par):
+        a(f"                out[{r}, start + b] = fb[filter_order, {r}, W + b] / d")
+    a("        # the last W values of every integrand start the next block")
+    a("        for i in range(W):")
+    for c, d in enumerate(chain_depth):
+        for level in range(d):
+            a(f"            y{c}_{level}[i] = y{c}_{level}[nb + i]")
+    a("            for lev in range(filter_order):")
+    a(f"                for r in range({lanes}):")
+    a("                    fb[lev, r, i] = fb[lev, r, nb + i]")
+    k = 0
+    for level, rows in enumerate(layout.levels, start=1):
+        for c in rows:
+            a(f"    integrals[{k}] = s{c}_{level}")
+            a(f"    history[{k}] = y{c}_{level - 1}[:W]")
+            k += 1
+    a("    for lev in range(filter_order):")
+    a(f"        for r in range({lanes}):")
+    a(f"            integrals[{k} + lev * {lanes} + r] = fs[lev, r]")
+    a(f"            history[{k} + lev * {lanes} + r] = fb[lev, r, :W]")
+    return "\n".join(src) + "\n"
