@@ -86,7 +86,7 @@ def _unpack_timeresponse(data):
 
 
 def estimate(t, f=None, x=None, *, model="msd", filter_order=DEFAULT_FILTER_ORDER, mass=None,
-             quadrature_points=None, lowpass=None, engine="auto", quadrature_order=None):
+             quadrature_points=None, lowpass=None, engine="auto", quadrature_order=None, signals=None):
     """Estimate the parameters of a model from its input and output, algebraically.
 
     The estimate at each instant uses only the data up to that instant and does not
@@ -133,6 +133,12 @@ def estimate(t, f=None, x=None, *, model="msd", filter_order=DEFAULT_FILTER_ORDE
         else ``"numpy"``.
     quadrature_order : int, optional
         Deprecated spelling of ``quadrature_points``.
+    signals : mapping, optional
+        For a model of several signals or nonlinear factors (a module from
+        :func:`algid.user_models.compile_equation`): measured signal name -> samples
+        at ``t``, given instead of ``f`` and ``x``.  Nonlinear factors (``y**3``,
+        ``sign(q')``) are computed from them; a derivative inside a factor is
+        estimated by :func:`algid.differentiation.algebraic_derivative`.
 
     Returns
     -------
@@ -158,6 +164,11 @@ def estimate(t, f=None, x=None, *, model="msd", filter_order=DEFAULT_FILTER_ORDE
     >>> round(r.final()["B"], 6), round(r.final()["K"], 6)
     (2.0, 3.0)
     """
+    if signals is not None:
+        return _estimate_signals(t, signals, model=model, filter_order=filter_order,
+                                 quadrature_points=quadrature_points,
+                                 quadrature_order=quadrature_order, engine=engine,
+                                 given=(f, x, mass, lowpass))
     if hasattr(t, "time") and hasattr(t, "outputs"):
         if f is not None or x is not None:
             raise InputDataError("give either a TimeResponseData or the arrays t, f, x, not both")
@@ -216,3 +227,32 @@ def _with_lowpass(state, channels, lowpass):
     undefined[:startup_samples(points)] = True
     with np.errstate(divide="ignore", invalid="ignore"):
         return [np.where(undefined, np.nan, num / denominator) for num in lanes[:-1]]
+
+
+def _estimate_signals(t, signals, *, model, filter_order, quadrature_points, quadrature_order,
+                      engine, given):
+    """:func:`estimate` for a model of several signals or nonlinear factors (``signals=``)."""
+    from algid.user_models import channel_samples
+
+    if any(v is not None for v in given):
+        raise InputDataError("with signals= give no f, x, mass or lowpass: the signals "
+                             "mapping holds every measured signal")
+    if not hasattr(signals, "items") or not signals:
+        raise InputDataError("signals must be a non-empty mapping of signal name -> samples")
+    module = load_model(model)
+    filter_order = check_filter_order(filter_order)
+    points = quadrature_points_option(quadrature_points, quadrature_order)
+    checked, dt = {}, None
+    for name, samples in signals.items():
+        t_checked, values, _, dt = check_experiment(t, samples, samples,
+                                                    names=("t", str(name), str(name)),
+                                                    min_samples=max(2 * points, 8))
+        checked[name] = values
+    channels = channel_samples(module, checked, t_checked, dt)
+    backend = backends.choose_engine(engine, t_checked.size, None)
+    state = core.new_state(module, points=points, filter_order=filter_order, dt=dt,
+                           divisors=np.ones(len(module.CHANNELS)))
+    values, _ = core.advance(state, channels, backend=backend)
+    return EstimationResult(t=t_checked, estimates=dict(zip(module.PARAMETERS, values)),
+                            model=module.MODEL, filter_order=filter_order,
+                            quadrature_points=points)

@@ -15,6 +15,8 @@ OUTPUT = 'x'
 #: Signals that drive the integrator chains: the rows of the channels the core
 #: (algid.core.advance) takes, in this order.
 CHANNELS = ('F', 'x')
+#: Channels that are not a measured signal: identifier -> factor of the model.
+FACTORS = {}
 #: With a known mass m: estimated quantity -> the parameter it is m times.
 MASS_SCALED = {}
 #: With a known mass: the channels given as forces, divided by the mass.

@@ -15,48 +15,10 @@ from __future__ import annotations
 
 import sympy as sp
 
-from algid.expression import Constant, Signal, Time
 from algid.model import Model
+from algid.user_models import channel_names
 
 __all__ = ["ChannelModel", "channel_names"]
-
-
-def channel_names(model: Model) -> dict:
-    """Channel name of every factor of ``model``, in order of appearance.
-
-    Parameters
-    ----------
-    model : Model
-
-    Returns
-    -------
-    dict
-        Factor (:class:`algid.expression.Expr`) -> identifier: the signal's name for a
-        plain measured signal, ``one`` for the constant 1, ``time`` for time and ``z1``,
-        ``z2``, ... for the other factors (skipping names taken by signals).
-    """
-    taken = set(model.signals)
-    names = {}
-    counter = 0
-    for factor in model.channels:
-        if isinstance(factor, Signal) and factor.derivative == 0:
-            name = factor.name
-        elif isinstance(factor, Constant) and factor.value == 1:
-            name = "one"
-        elif isinstance(factor, Time):
-            name = "time"
-        else:
-            counter += 1
-            name = f"z{counter}"
-            while name in taken:
-                counter += 1
-                name = f"z{counter}"
-        if name in names.values() or (name in taken and not isinstance(factor, Signal)):
-            # a signal called 'one', 'time' or 'z1' keeps its name; the factor moves on
-            counter += 1
-            name = f"z{counter}"
-        names[factor] = name
-    return names
 
 
 def _exact(value: float):
@@ -98,9 +60,27 @@ class ChannelModel:
         self.factors = {name: factor for factor, name in names.items()}
         self._names = names
         self.order = model.order
+        self.output = model.output
+        self.input = model.inputs[0] if model.inputs else model.output
+        #: the channels in the order the generated estimator takes them
+        self.estimator_channels = self.channels
+
+    def factor_texts(self) -> dict:
+        """Channel identifier -> its factor as text (``"V2**3"``, ``"1"``, ``"t"``).
+
+        Returns
+        -------
+        dict
+        """
+        return {name: str(factor) for name, factor in self.factors.items()}
 
     def channel_terms(self) -> tuple:
-        """The equation as ``(coefficient, channel, derivative)`` terms summing to zero."""
+        """The equation as ``(coefficient, channel, derivative)`` terms summing to zero.
+
+        Returns
+        -------
+        tuple of (sympy.Expr, str, int)
+        """
         terms = []
         for term in self.model.terms:
             coefficient = _exact(term.coefficient)
@@ -110,7 +90,12 @@ class ChannelModel:
         return tuple(terms)
 
     def equation_text(self) -> str:
-        """The equation as the user wrote it."""
+        """The equation as the user wrote it.
+
+        Returns
+        -------
+        str
+        """
         return self.model.equation
 
     def __repr__(self):

@@ -69,6 +69,12 @@ def numpy_module_source(derivation: Derivation, *, mass_scaled=None, mass_divide
     Q = derivation.Q.xreplace(ksyms)
     n_eq, n_par = P.shape
     nums, den = derivation.cramer()
+    # a model of several signals or nonlinear factors names its channels; the
+    # input/output models of the paper are driven by the input and the output
+    channels = tuple(getattr(model, "estimator_channels", (model.input, model.output)))
+    factor_texts = getattr(model, "factor_texts", None)
+    factors = {} if factor_texts is None else {
+        name: text for name, text in factor_texts().items() if name not in model.model.signals}
     lines = [f'"""Algebraic estimator of the model {model.name!r}: {model.equation_text()}.', ""]
     if model.description:
         lines += [model.description[0].upper() + model.description[1:] + ".", ""]
@@ -79,7 +85,9 @@ def numpy_module_source(derivation: Derivation, *, mass_scaled=None, mass_divide
               f"INPUT = {model.input!r}", f"OUTPUT = {model.output!r}",
               "#: Signals that drive the integrator chains: the rows of the channels the core",
               "#: (algid.core.advance) takes, in this order.",
-              f"CHANNELS = {(model.input, model.output)!r}",
+              f"CHANNELS = {channels!r}",
+              "#: Channels that are not a measured signal: identifier -> factor of the model.",
+              f"FACTORS = {factors!r}",
               "#: With a known mass m: estimated quantity -> the parameter it is m times.",
               f"MASS_SCALED = {dict(mass_scaled or {})!r}",
               "#: With a known mass: the channels given as forces, divided by the mass.",
