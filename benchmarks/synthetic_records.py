@@ -17,6 +17,7 @@ from __future__ import annotations
 import numpy as np
 
 __all__ = ["linear_offsets", "cubic_spring", "friction_loop", "drop_rows",
+           "multisine_lines", "INPUT_SEED",
            "LINEAR_EQUATION", "CUBIC_EQUATION", "FRICTION_EQUATION"]
 
 LINEAR_EQUATION = ("y'' + B*y' + K*y = G*u + d", "B K G d")
@@ -24,13 +25,14 @@ CUBIC_EQUATION = ("y'' + B*y' + K*y + K3*y**3 = G*u + d", "B K K3 G d")
 FRICTION_EQUATION = ("M*q'' + Fv*q' + Fc*sign(q') + off = F", "M Fv Fc off")
 
 
-def _multisine_parts(rng, f_low, f_high, count, rms):
+def multisine_lines(rng, f_low, f_high, count, rms):
+    """Frequencies, random phases and the common amplitude of a multisine of rms ``rms``."""
     freqs = np.linspace(f_low, f_high, count)
     return freqs, rng.uniform(0, 2 * np.pi, count), rms * np.sqrt(2.0 / count)
 
 
 def _multisine(rng, f_low, f_high, count, rms=1.0):
-    freqs, phases, amp = _multisine_parts(rng, f_low, f_high, count, rms)
+    freqs, phases, amp = multisine_lines(rng, f_low, f_high, count, rms)
 
     def u(t):
         t = np.asarray(t, dtype=float)
@@ -61,12 +63,13 @@ def _rk4(rhs, x0, t_end, steps, drive):
 #: RK4 steps per sample of the generators (step 1/(16 rate): errors below 1e-6).
 FINE = 16
 
-_INPUT_SEED = 12345
+#: Seed of the input multisine's phases (the same input in every realisation).
+INPUT_SEED = 12345
 
 
 def _drive(n, rate):
     """The multisine input (0.2-15 Hz, 40 lines) at every half step of the fine grid."""
-    u = _multisine(np.random.default_rng(_INPUT_SEED), 0.2, 15.0, 40)
+    u = _multisine(np.random.default_rng(INPUT_SEED), 0.2, 15.0, 40)
     return u, u(np.arange(2 * FINE * (n - 1) + 1) / (2 * FINE * rate))
 
 
@@ -92,13 +95,13 @@ def linear_offsets(seed=0, *, n=4000, noise=0.01):
     K = (2 * np.pi * f0) ** 2
     B, G = 2.0 * 0.05 * 2 * np.pi * f0, K
     offsets = (0.1, -0.05)
-    freqs, phases, amp = _multisine_parts(np.random.default_rng(_INPUT_SEED), 0.2, 15.0, 40, 1.0)
+    freqs, phases, amp = multisine_lines(np.random.default_rng(INPUT_SEED), 0.2, 15.0, 40, 1.0)
     t = np.arange(n) / rate
     w = 2 * np.pi * freqs
     H = G / (K - w ** 2 + 1j * B * w)
     y = np.sum(amp * np.abs(H)[:, None] * np.sin(w[:, None] * t + phases[:, None]
                                                   + np.angle(H)[:, None]), axis=0)
-    u = _multisine(np.random.default_rng(_INPUT_SEED), 0.2, 15.0, 40)
+    u = _multisine(np.random.default_rng(INPUT_SEED), 0.2, 15.0, 40)
     record = _measured(t, u, y, np.random.default_rng(seed), noise, offsets)
     return record, {"B": B, "K": K, "G": G, "d": K * offsets[1] - G * offsets[0]}
 

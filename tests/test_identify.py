@@ -5,18 +5,23 @@ import sys
 
 import numpy as np
 import pytest
+from conftest import ROOT
 
 import algid
 from algid.errors import InputDataError, ModelError
 
-from conftest import ROOT
-
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
-from benchmarks.synthetic_records import (CUBIC_EQUATION, FRICTION_EQUATION,  # noqa: E402
-                                          LINEAR_EQUATION, cubic_spring, drop_rows,
-                                          friction_loop, linear_offsets)
+from benchmarks.synthetic_records import (  # noqa: E402
+    CUBIC_EQUATION,
+    FRICTION_EQUATION,
+    LINEAR_EQUATION,
+    cubic_spring,
+    drop_rows,
+    friction_loop,
+    linear_offsets,
+)
 
 
 def relative_errors(result, truth):
@@ -104,7 +109,7 @@ def test_non_uniform_sample_times():
     t = record["t"] + rng.uniform(-0.1, 0.1, len(record["t"])) / 80.0
     # resample the exact signals at the jittered times from the same generator
     from benchmarks import synthetic_records as sr
-    freqs, phases, amp = sr._multisine_parts(np.random.default_rng(sr._INPUT_SEED), 0.2, 15.0,
+    freqs, phases, amp = sr.multisine_lines(np.random.default_rng(sr.INPUT_SEED), 0.2, 15.0,
                                               40, 1.0)
     w = 2 * np.pi * freqs
     H = truth["G"] / (truth["K"] - w ** 2 + 1j * truth["B"] * w)
@@ -197,3 +202,25 @@ def test_bad_equation_is_a_model_error():
         algid.identify(record, "y'' + B*K*y = u", "B K")
     with pytest.raises(InputDataError, match="no column 'z'"):
         algid.identify(record, "y'' + B*y' = z", "B")
+
+
+def test_instrumental_variables_remove_the_noise_bias():
+    """On longer windows least squares is biased by the output noise (errors in the
+    regressors); the instruments from the simulated output remove it."""
+    record, truth = linear_offsets(3, noise=0.03, n=3000)
+    ls = algid.identify(record, *LINEAR_EQUATION, window=0.35)
+    iv = algid.identify(record, *LINEAR_EQUATION, window=0.35, method="iv")
+    assert iv.method == "iv"
+    assert abs(iv.K - truth["K"]) < 3 * iv.stderr["K"]
+    assert abs(iv.K - truth["K"]) < abs(ls.K - truth["K"]) / 3
+
+
+def test_output_drift_is_a_parameter_of_time():
+    record, truth = linear_offsets(0, noise=0.0, n=2000)
+    rate = 0.002                                     # output drift per second
+    drifting = dict(record, y=record["y"] + rate * record["t"])
+    r = algid.identify(drifting, "y'' + B*y' + K*y = G*u + d0 + d1*t", "B K G d0 d1",
+                       window=0.5)
+    for p in ("B", "K", "G"):
+        assert abs(r.values[p] / truth[p] - 1) < 1e-6, p
+    assert abs(r.d1 / (truth["K"] * rate) - 1) < 1e-6

@@ -3,10 +3,9 @@
 import sys
 
 import numpy as np
+from conftest import ROOT
 
 import algid
-
-from conftest import ROOT
 
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
@@ -18,8 +17,7 @@ from benchmarks.synthetic_records import LINEAR_EQUATION, linear_offsets  # noqa
 def test_output_error_fit_reaches_the_truth_from_a_perturbed_start():
     record, truth = linear_offsets(0, noise=0.0, n=400)
     r = algid.identify(record, *LINEAR_EQUATION, window=0.4)
-    start = algid.IdentificationResult(**{**r.__dict__,
-                                          "values": {p: 1.02 * v for p, v in truth.items()}})
+    start = r.with_parameters({p: 1.02 * v for p, v in truth.items()})
     values = output_error_fit(start, record)
     for p in truth:
         # the cubic-spline input limits the simulation, hence the fit, to about 1e-3

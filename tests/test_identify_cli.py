@@ -5,11 +5,10 @@ import sys
 
 import numpy as np
 import pytest
+from conftest import ROOT, assert_one_line_error
 from scipy.io import savemat
 
 from algid.cli import main
-
-from conftest import ROOT, assert_one_line_error
 
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))

@@ -8,10 +8,9 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import ROOT
 
 import algid
-
-from conftest import ROOT
 
 DATA_FOLDERS = (ROOT.parent / "shared" / "data", Path("/work/shared/data"))
 DATA = next((folder for folder in DATA_FOLDERS if folder.is_dir()), None)
@@ -57,7 +56,7 @@ def rows(record, start, stop):
 def test_silverbox_cubic_model_simulates_the_arrow_part_within_half_a_millivolt(silverbox):
     r = algid.identify(rows(silverbox, 40650, 105712), SILVERBOX_EQUATION, "B K K3 G d",
                        rate=SILVERBOX_RATE)
-    # measured: 0.469 mV (RK4, 4 sub-steps per sample, cubic-spline input; initial state
+    # measured: 0.470 mV (RK4, 4 sub-steps per sample, cubic-spline input; initial state
     # fitted on the first 50 samples, error over the rest)
     v = r.simulate(rows(silverbox, 100, 40575), fit_samples=50)
     assert v.rmse <= 0.5e-3
@@ -83,5 +82,5 @@ def test_emps_validation_run_identified_anew(emps_pulses):
     assert all(errors[p] <= limits[p] for p in limits), errors
     # predicted force on this run: measured 13.8 %, not worse than the published
     # parameters under the same measure (14.4 %; published with its filtering: 5.98 %)
-    published = algid.IdentificationResult(**{**r.__dict__, "values": dict(EMPS_PUBLISHED)})
+    published = r.with_parameters(EMPS_PUBLISHED)
     assert r.equation_error(emps_pulses) <= published.equation_error(emps_pulses)

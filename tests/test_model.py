@@ -2,7 +2,7 @@
 
 import pytest
 
-from algid.expression import ONE, Call, Signal, Sum, Product, Power, Constant, Time
+from algid.expression import ONE, Call, Constant, Power, Product, Signal, Sum, Time
 from algid.grammar import parse_equation
 
 
@@ -35,3 +35,12 @@ def test_models_are_immutable():
     m = parse_equation("x'' + B*x' + K*x = f", "B K")
     with pytest.raises(AttributeError):
         m.output = "f"
+
+
+def test_builtin_models_convert_to_a_model():
+    from algid.symbolic.models import builtin_model
+
+    m = builtin_model("msd_mass").to_model()
+    assert m.parameters == ("m", "c", "k") and m.output == "x" and m.inputs == ("F",)
+    assert m.is_linear and m.order == 2 and len(m.known_terms) == 1
+    assert builtin_model("msd").to_model().equation == "x'' + B*x' + K*x = f"

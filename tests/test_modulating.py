@@ -6,9 +6,14 @@ import pytest
 import sympy as sp
 
 from algid.generated.modulating import MAX_MULTIPLICITY, TERM_KERNELS
-from algid.symbolic.modulating import (T, tau, term_kernel_from_laplace,
-                                       term_kernel_from_modulating_function,
-                                       unit_term_kernel, u)
+from algid.symbolic.modulating import (
+    T,
+    tau,
+    term_kernel_from_laplace,
+    term_kernel_from_modulating_function,
+    u,
+    unit_term_kernel,
+)
 from algid.window_kernels import term_kernel, uniform_window_integrals, window_integrals
 
 

@@ -82,11 +82,21 @@ class Expr:
         raise NotImplementedError
 
     def signals(self) -> tuple:
-        """Names of the measured signals read, in order of first appearance."""
+        """Names of the measured signals read, in order of first appearance.
+
+        Returns
+        -------
+        tuple of str
+        """
         return tuple(dict.fromkeys(name for name, _ in self._reads()))
 
     def derivatives(self) -> tuple:
-        """``(name, k)`` pairs with ``k >= 1`` that the expression reads."""
+        """List the ``(name, k)`` pairs with ``k >= 1`` that the expression reads.
+
+        Returns
+        -------
+        tuple of tuple
+        """
         return tuple(dict.fromkeys(pair for pair in self._reads() if pair[1] > 0))
 
     def _reads(self):
@@ -99,7 +109,15 @@ class Expr:
 
 @dataclass(frozen=True)
 class Signal(Expr):
-    """A measured signal, or its ``derivative``-th time derivative."""
+    """A measured signal, or its ``derivative``-th time derivative.
+
+    Attributes
+    ----------
+    name : str
+        Signal name.
+    derivative : int
+        Order of the time derivative (0 for the signal itself).
+    """
 
     name: str
     derivative: int = 0
@@ -119,7 +137,13 @@ class Signal(Expr):
 
 @dataclass(frozen=True)
 class Constant(Expr):
-    """A known real number."""
+    """A known real number.
+
+    Attributes
+    ----------
+    value : float
+        The number.
+    """
 
     value: float
 
@@ -131,6 +155,7 @@ class Constant(Expr):
 
     @property
     def precedence(self):
+        """Binding strength for printing (a negative number prints as a sum)."""
         return 100 if self.value >= 0 else 5
 
 
@@ -149,7 +174,15 @@ class Time(Expr):
 
 @dataclass(frozen=True)
 class Call(Expr):
-    """A whitelisted function (:data:`FUNCTIONS`) of sub-expressions."""
+    """A whitelisted function (:data:`FUNCTIONS`) of sub-expressions.
+
+    Attributes
+    ----------
+    function : str
+        Name of the function, a key of :data:`FUNCTIONS`.
+    args : tuple of Expr
+        Its arguments.
+    """
 
     function: str
     args: tuple
@@ -170,7 +203,13 @@ class Call(Expr):
 
 @dataclass(frozen=True)
 class Sum(Expr):
-    """A sum of sub-expressions."""
+    """A sum of sub-expressions.
+
+    Attributes
+    ----------
+    terms : tuple of Expr
+        The terms.
+    """
 
     terms: tuple
     precedence = 10
@@ -194,7 +233,13 @@ class Sum(Expr):
 
 @dataclass(frozen=True)
 class Product(Expr):
-    """A product of sub-expressions."""
+    """A product of sub-expressions.
+
+    Attributes
+    ----------
+    factors : tuple of Expr
+        The factors.
+    """
 
     factors: tuple
     precedence = 20
@@ -214,7 +259,15 @@ class Product(Expr):
 
 @dataclass(frozen=True)
 class Power(Expr):
-    """``base ** exponent`` with a numeric exponent."""
+    """``base ** exponent`` with a numeric exponent.
+
+    Attributes
+    ----------
+    base : Expr
+        The base.
+    exponent : float
+        The exponent.
+    """
 
     base: Expr
     exponent: float
@@ -237,6 +290,9 @@ class Power(Expr):
             exponent = f"({exponent})"
         return f"{self.base._wrapped(31)}**{exponent}"
 
+
+for _node in (Signal, Constant, Time, Call, Sum, Product, Power):
+    _node.evaluate.__doc__ = Expr.evaluate.__doc__
 
 #: The factor of an offset term.
 ONE = Constant(1.0)

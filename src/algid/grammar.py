@@ -20,8 +20,7 @@ import math
 import re
 
 from algid.errors import ModelError
-from algid.expression import FUNCTIONS, ONE, Call, Constant, Expr, Power, Product, Signal, \
-    Sum, Time
+from algid.expression import FUNCTIONS, ONE, Call, Constant, Expr, Power, Product, Signal, Sum, Time
 from algid.model import Model, Term
 
 __all__ = ["parse_equation", "RESERVED_NAMES"]

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -74,6 +74,10 @@ class IdentificationResult:
         ``"ls"`` or ``"iv"``.
     multiplicities : tuple
         Kernel multiplicities stacked.
+    time : str or None
+        Time column of the records (as given to :func:`algid.identify`).
+    rate : float or None
+        Sampling rate of the records (as given to :func:`algid.identify`).
     window_scores : dict or None
         Window length (samples) -> criterion, when the window was chosen automatically.
     separate : dict
@@ -120,6 +124,25 @@ class IdentificationResult:
         return (f"IdentificationResult({self.model.equation!r}: {pieces}; window "
                 f"{self.window:.4g} s, {self.n_samples} samples, {self.method})")
 
+    def with_parameters(self, values):
+        """Return a copy with other parameter values (e.g. published ones).
+
+        The covariance is kept as it is; use it to validate other values the same way.
+
+        Parameters
+        ----------
+        values : mapping
+            Parameter name -> value, for every parameter of the model.
+
+        Returns
+        -------
+        IdentificationResult
+        """
+        missing = [p for p in self.model.parameters if p not in values]
+        if missing:
+            raise InputDataError(f"no value for parameter {missing[0]}")
+        return replace(self, values={p: float(values[p]) for p in self.model.parameters})
+
     # validation -------------------------------------------------------------------------
 
     def _record(self, data, time, rate):
@@ -131,7 +154,8 @@ class IdentificationResult:
             raise InputDataError("simulate needs one record without gaps or NaN")
         return segments[0]
 
-    def simulate(self, data, *, time=None, rate=None, fit_samples=50, substeps=4):
+    def simulate(self, data, *, time=None, rate=None, fit_samples=50, substeps=4,
+                 interpolation="cubic"):
         """Simulate the identified model on a record, driven by its measured inputs.
 
         The initial state is fitted on the first ``fit_samples`` samples; the inputs
@@ -148,6 +172,8 @@ class IdentificationResult:
             Samples used to fit the initial state (and left out of the error).
         substeps : int
             Runge-Kutta steps per sampling interval.
+        interpolation : {"cubic", "bandlimited"}
+            Input between samples: cubic spline, or band-limited (uniform grids).
 
         Returns
         -------
@@ -158,16 +184,41 @@ class IdentificationResult:
         inputs = {name: seg.values[name] for name in self.model.inputs}
         y = seg.values[self.model.output]
         x0 = fit_initial_state(equation, seg.t, inputs, y, samples=fit_samples,
-                               substeps=substeps)
-        simulated = simulate_output(equation, seg.t, inputs, x0, substeps=substeps)
+                               substeps=substeps, interpolation=interpolation)
+        simulated = simulate_output(equation, seg.t, inputs, x0, substeps=substeps,
+                                    interpolation=interpolation)
         return Validation(seg.t, y, simulated, x0, fit_samples)
 
     def fit_percent(self, data, **kwargs):
-        """Fit (%) of the simulated output on a record (see :meth:`simulate`)."""
+        """Fit (%) of the simulated output on a record.
+
+        Parameters
+        ----------
+        data : mapping
+            One record.
+        **kwargs
+            Options of :meth:`simulate`.
+
+        Returns
+        -------
+        float
+        """
         return self.simulate(data, **kwargs).fit_percent
 
     def residuals(self, data, **kwargs):
-        """Measured minus simulated output on a record (see :meth:`simulate`)."""
+        """Measured minus simulated output on a record.
+
+        Parameters
+        ----------
+        data : mapping
+            One record.
+        **kwargs
+            Options of :meth:`simulate`.
+
+        Returns
+        -------
+        numpy.ndarray
+        """
         return self.simulate(data, **kwargs).residuals
 
     def equation_error(self, data, *, time=None, rate=None, span=None):
@@ -176,6 +227,19 @@ class IdentificationResult:
         Every term is evaluated on the record (derivatives by a local polynomial
         derivative); the result is ``|sum of all terms| / |known terms|``: for
         ``M*q'' + ... = F`` the relative error of the predicted force.
+
+        Parameters
+        ----------
+        data : mapping
+            One record.
+        time, rate
+            Time axis, as for :func:`algid.identify` (default: those of the fit).
+        span : int, optional
+            Samples of the local polynomial derivative (default: 2k + 7).
+
+        Returns
+        -------
+        float
         """
         seg = self._record(data, time, rate)
         values = dict(seg.values)
@@ -201,6 +265,15 @@ class IdentificationResult:
     def plot(self, data, ax=None, **kwargs):
         """Plot measured against simulated output on a record (matplotlib).
 
+        Parameters
+        ----------
+        data : mapping
+            One record.
+        ax : matplotlib.axes.Axes, optional
+            Axes to draw on (a new figure by default).
+        **kwargs
+            Options of :meth:`simulate`.
+
         Returns
         -------
         matplotlib.axes.Axes
@@ -221,10 +294,18 @@ class IdentificationResult:
     # export -----------------------------------------------------------------------------
 
     def to_control(self, kind="tf"):
-        """The identified linear model as a python-control ``TransferFunction`` (or
-        ``StateSpace`` with ``kind="ss"``), from the inputs to the output.
+        """Export the identified linear model to python-control.
 
         Offset (constant) terms are left out: they are not part of the dynamics.
+
+        Parameters
+        ----------
+        kind : {"tf", "ss"}
+            A ``TransferFunction`` or a ``StateSpace``, from the inputs to the output.
+
+        Returns
+        -------
+        control.TransferFunction or control.StateSpace
         """
         import control as ct
 
@@ -261,6 +342,10 @@ class IdentificationResult:
 
         States: the output and its derivatives below the model order; inputs: the
         other measured signals (derivatives of inputs are not available).
+
+        Returns
+        -------
+        control.NonlinearIOSystem
         """
         import control as ct
 

@@ -101,8 +101,10 @@ class Model:
 
     @property
     def needs_derivatives(self) -> tuple:
-        """``(signal, k)`` pairs estimated numerically: derivatives inside nonlinear
-        factors (a derivative of a plain signal moves onto the kernel instead)."""
+        """``(signal, k)`` pairs to estimate numerically (inside nonlinear factors).
+
+        A derivative of a plain signal moves onto the kernel instead.
+        """
         pairs = {}
         for term in self.terms:
             for pair in term.factor.derivatives():
@@ -120,7 +122,17 @@ class Model:
         return tuple(term for term in self.terms if term.parameter is None)
 
     def parameter_terms(self, parameter: str) -> tuple:
-        """The terms multiplied by ``parameter``."""
+        """The terms multiplied by ``parameter``.
+
+        Parameters
+        ----------
+        parameter : str
+            A parameter name.
+
+        Returns
+        -------
+        tuple of Term
+        """
         return tuple(term for term in self.terms if term.parameter == parameter)
 
     @property

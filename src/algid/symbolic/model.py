@@ -159,6 +159,14 @@ class LinearODEModel:
         return f"{side(self.output_coefficients, self.output)} = {side(self.input_coefficients, self.input)}"
 
     # ------------------------------------------------------------------ parsing
+    def to_model(self):
+        """This model as an :class:`algid.model.Model` (the representation of user
+        equations used by :func:`algid.identify`)."""
+        from algid.grammar import parse_equation
+
+        return parse_equation(self.equation_text(), [str(p) for p in self.parameters],
+                              output=self.output, name=self.name)
+
     @classmethod
     def from_equation(cls, equation: str, *, parameters, output="x", input="f", name="custom",
                       description=""):

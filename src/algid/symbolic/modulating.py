@@ -34,7 +34,7 @@ cancellation of monomial coefficients at high multiplicity.
 from __future__ import annotations
 
 from fractions import Fraction
-from functools import lru_cache
+from functools import cache
 
 import sympy as sp
 
@@ -92,7 +92,19 @@ def term_kernel_from_laplace(multiplicity: int, derivative: int):
 
 
 def term_kernel_from_modulating_function(multiplicity: int, derivative: int):
-    """``(-1)^k phi^(k)(tau)`` with ``phi = (-1)^a tau^a (T - tau)^a / a!``."""
+    """Return ``(-1)^k phi^(k)(tau)`` with ``phi = (-1)^a tau^a (T - tau)^a / a!``.
+
+    Parameters
+    ----------
+    multiplicity : int
+        ``a``.
+    derivative : int
+        ``k``.
+
+    Returns
+    -------
+    sympy.Expr
+    """
     a, k = multiplicity, derivative
     phi = (-1) ** a * tau ** a * (T - tau) ** a / sp.factorial(a)
     return sp.expand((-1) ** k * sp.diff(phi, tau, k))
@@ -106,11 +118,24 @@ def _unit_term_kernel_poly(a, k):
 
 
 def unit_term_kernel(multiplicity: int, derivative: int):
-    """Normalised term kernel ``(-1)^k psi_a^(k)(u)`` on the unit window."""
+    """Return the normalised term kernel ``(-1)^k psi_a^(k)(u)`` on the unit window.
+
+    Parameters
+    ----------
+    multiplicity : int
+        ``a``.
+    derivative : int
+        ``k``.
+
+    Returns
+    -------
+    sympy.Expr
+        A polynomial in ``u``.
+    """
     return _unit_term_kernel_poly(multiplicity, derivative).as_expr()
 
 
-@lru_cache(maxsize=None)
+@cache
 def _chebyshev(degree):
     """Integer coefficients (ascending) of T_degree(x)."""
     if degree < 2:
@@ -128,6 +153,15 @@ def chebyshev_coefficients(polynomial_in_u):
     """Exact Chebyshev coefficients (ascending) of a polynomial in ``u``, in ``x = 2u-1``.
 
     Exact rational arithmetic (:class:`fractions.Fraction`) on the coefficients.
+
+    Parameters
+    ----------
+    polynomial_in_u : sympy.Expr or sympy.Poly
+        Polynomial in ``u`` with rational coefficients.
+
+    Returns
+    -------
+    list of sympy.Rational
     """
     in_u = polynomial_in_u if isinstance(polynomial_in_u, sp.Poly) else sp.Poly(
         polynomial_in_u, u, domain=sp.QQ)
@@ -152,13 +186,35 @@ def chebyshev_coefficients(polynomial_in_u):
 
 
 def kernel_table(max_multiplicity: int = MAX_MULTIPLICITY):
-    """``{(a, k): exact Chebyshev coefficients}`` for ``1 <= a <= max``, ``0 <= k <= a``."""
+    """Kernel table ``{(a, k): exact Chebyshev coefficients}``, ``0 <= k <= a <= max``.
+
+    Parameters
+    ----------
+    max_multiplicity : int
+        Largest multiplicity ``a``.
+
+    Returns
+    -------
+    dict
+    """
     return {(a, k): chebyshev_coefficients(_unit_term_kernel_poly(a, k))
             for a in range(1, max_multiplicity + 1) for k in range(a + 1)}
 
 
 def table_module_source(header: str, max_multiplicity: int = MAX_MULTIPLICITY) -> str:
-    """Source of ``algid/generated/modulating.py``: the runtime kernel table."""
+    """Source of ``algid/generated/modulating.py``: the runtime kernel table.
+
+    Parameters
+    ----------
+    header : str
+        The generated-code notice.
+    max_multiplicity : int
+        Largest multiplicity ``a``.
+
+    Returns
+    -------
+    str
+    """
     lines = ['"""Term kernels of the modulating-function form of the algebraic method.', "",
              "TERM_KERNELS[(a, k)] holds the Chebyshev coefficients (ascending, in",
              "x = 2u - 1 on the unit window u in [0, 1]) of the kernel (-1)^k psi_a^(k)(u),",
