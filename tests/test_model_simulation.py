@@ -171,3 +171,17 @@ def test_non_uniform_time_falls_back_to_the_cubic_spline():
     simulated = simulate_model(LINEAR, {"B": B, "K": K}, t, {"f": np.sin(omega * t)},
                                initial_state=[0.2, 0.1], rtol=1e-10)
     assert np.max(np.abs(simulated - exact)) < 1e-8 * np.max(np.abs(exact))
+
+
+def test_a_diverging_model_gives_nan_after_the_integration_stops():
+    model = parse_equation("x'' + K*x**3 = f", ["K"])
+    t = np.linspace(0.0, 3.0, 301)
+    # x'' = x**3 from x = 2 blows up near t = 0.5
+    simulated = simulate_model(model, {"K": -1.0}, t, {"f": np.zeros_like(t)},
+                               initial_state=[2.0, 0.0], interpolation="cubic")
+    assert np.all(np.isfinite(simulated[:20])) and np.all(np.isnan(simulated[-100:]))
+    # outside a function's domain: sqrt of a negative output stops the integration too
+    model = parse_equation("x'' + K*sqrt(x) = f", ["K"])
+    simulated = simulate_model(model, {"K": 1.0}, t, {"f": np.zeros_like(t)},
+                               initial_state=[0.5, 0.0], interpolation="cubic")
+    assert np.isfinite(simulated[0]) and np.isnan(simulated[-1])

@@ -70,6 +70,8 @@ DEFAULT_WINDOW_STEPS = 20
 #: Default kernel exponents: the kernel vanishes like ``u**2`` and ``(1-u)**2``.
 DEFAULT_KAPPA = 2
 DEFAULT_MU = 2
+#: Windows integrated at once on a non-uniform grid (bounds the working memory).
+_CHUNK_ROWS = 4096
 #: Largest step allowed on a non-uniform grid, as a fraction of the window.
 _MAX_GAP = 0.25
 _MAX_DERIVATIVE = DERIVATIVES.stop - 1 - (EXTRA_ORDERS.stop - 1)
@@ -283,10 +285,12 @@ def _nonuniform(y, t, n, kappa, mu, N, window, causal):
         sign = 1.0
     out = np.full(len(t), np.nan)
     for truncation in np.unique(order):
-        rows = np.flatnonzero(valid & (order == truncation))
-        if rows.size:
-            out[rows] = sign * _window_integrals(y, t, start[rows], T, at[rows], n, kappa,
-                                                 mu, int(truncation), reverse=causal)
+        selected = np.flatnonzero(valid & (order == truncation))
+        # in chunks: each row holds a window's samples times the polynomial basis
+        for rows in np.array_split(selected, max(1, len(selected) // _CHUNK_ROWS)):
+            if rows.size:
+                out[rows] = sign * _window_integrals(y, t, start[rows], T, at[rows], n, kappa,
+                                                     mu, int(truncation), reverse=causal)
     return out
 
 

@@ -72,9 +72,7 @@ _SCALAR = {
 def _scalar(expr, slot):
     """A closure ``f(values, time) -> float`` for ``expr`` on scalars (fast per step).
 
-    ``slot(name, k)`` is the index in ``values`` of a signal or derivative.  Returns
-    ``None`` for a node or function it does not know (the caller then evaluates the
-    expression with NumPy).
+    ``slot(name, k)`` is the index in ``values`` of a signal or derivative.
     """
     if isinstance(expr, Constant):
         value = float(expr.value)
@@ -84,30 +82,21 @@ def _scalar(expr, slot):
     if isinstance(expr, Signal):
         index = slot(expr.name, expr.derivative)
         return lambda v, t: v[index]
-    if isinstance(expr, Call):
-        function = _SCALAR.get(expr.function)
-        args = [_scalar(a, slot) for a in expr.args]
-        if function is None or len(args) != 1 or args[0] is None:
-            return None
-        (arg,) = args
+    if isinstance(expr, Call) and expr.function in _SCALAR and len(expr.args) == 1:
+        function, arg = _SCALAR[expr.function], _scalar(expr.args[0], slot)
         return lambda v, t: function(arg(v, t))
     if isinstance(expr, Power):
         base, exponent = _scalar(expr.base, slot), float(expr.exponent)
-        if base is None:
-            return None
         if exponent == int(exponent):
-            e = int(exponent)
-            return lambda v, t: base(v, t) ** e
+            exponent = int(exponent)
         return lambda v, t: base(v, t) ** exponent
-    if isinstance(expr, (Sum, Product)):
-        parts = [_scalar(p, slot) for p in (expr.terms if isinstance(expr, Sum)
-                                            else expr.factors)]
-        if any(p is None for p in parts):
-            return None
-        if isinstance(expr, Sum):
-            return lambda v, t: sum(p(v, t) for p in parts)
+    if isinstance(expr, Sum):
+        parts = [_scalar(p, slot) for p in expr.terms]
+        return lambda v, t: sum(p(v, t) for p in parts)
+    if isinstance(expr, Product):
+        parts = [_scalar(p, slot) for p in expr.factors]
         return lambda v, t: math.prod(p(v, t) for p in parts)
-    return None
+    raise ModelError(f"cannot simulate the factor {expr}")
 
 
 def _weight(term, parameters):
@@ -220,11 +209,9 @@ class _OutputEquation:
     """The model solved for the highest derivative of ``output``, ready to integrate."""
 
     def __init__(self, model, parameters, t, columns, output, interpolation):
+        # (the caller checked that the output is differentiated in a plain term)
         tops = [term for term in model.terms
                 if term.factor == Signal(output) and term.derivative > 0]
-        if not tops:
-            raise ModelError(f"cannot simulate {model.equation!r}: the output {output!r} "
-                             "is not differentiated in a plain term")
         self.order = max(term.derivative for term in tops)
         top_terms = [term for term in tops if term.derivative == self.order]
         scale = sum(_weight(term, parameters) for term in top_terms)
@@ -261,13 +248,12 @@ class _OutputEquation:
             else:
                 forcing += weight * self._known_values(term, columns, splines, t)
         self.forcing = _Interpolant(t, forcing, interpolation)
-        # fast scalar closures over one list: the state, then the interpolated inputs
+        # scalar closures over one list: the state, then the interpolated inputs
         keys = [(output, k) for k in range(self.order)] + list(self.inputs)
         index = {(key if isinstance(key, tuple) else (key, 0)): i for i, key in enumerate(keys)}
         self.input_interpolants = list(self.inputs.values())
-        compiled = [(w, _scalar(f, lambda name, k: index[(name, k)]))
-                    for w, f in self.state_terms]
-        self.compiled = None if any(f is None for _, f in compiled) else compiled
+        self.compiled = [(w, _scalar(f, lambda name, k: index[(name, k)]))
+                         for w, f in self.state_terms]
 
     @staticmethod
     def _known_values(term, columns, splines, t):
@@ -287,25 +273,14 @@ class _OutputEquation:
                                t.shape)
 
     def __call__(self, time, state):
-        if self.compiled is not None:
-            values = [float(x) for x in state]
-            values.extend(f(time) for f in self.input_interpolants)
-            top = self.forcing(time)
+        values = [float(x) for x in state]
+        values.extend(f(time) for f in self.input_interpolants)
+        top = self.forcing(time)
+        try:
             for weight, f in self.compiled:
                 top += weight * f(values, time)
-            derivative = np.empty(self.order)
-            derivative[:-1] = state[1:]
-            derivative[-1] = top
-            return derivative
-        values = {self.output: np.array([state[0]])}
-        for k in range(1, self.order):
-            values[(self.output, k)] = np.array([state[k]])
-        for key, interpolant in self.inputs.items():
-            values[key] = np.array([interpolant(time)])
-        top = self.forcing(time)
-        when = np.array([time])
-        for weight, factor in self.state_terms:
-            top += weight * float(factor.evaluate(values, time=when)[0])
+        except (ArithmeticError, ValueError):
+            top = math.nan  # outside a function's domain, or overflow: the solver stops
         derivative = np.empty(self.order)
         derivative[:-1] = state[1:]
         derivative[-1] = top
