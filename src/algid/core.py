@@ -31,7 +31,9 @@ number of samples since the origin and, before the first ``points`` samples have
 arrived, those samples (the start-up: the rule integrates the first ``points - 2``
 intervals with the polynomial through samples ``0 .. points - 1``, so nothing is
 computed before sample ``points - 1``; the estimates of samples ``0 .. points - 2`` are
-NaN).  The start-up is done here, once, with NumPy, for every backend.
+NaN).  The start-up is decided here, once, for every backend: when sample
+``points - 1`` arrives, the backend integrates the buffered samples from the origin
+with the start-up rule, then continues with the regular one.
 
 Backends
 --------
@@ -49,7 +51,6 @@ from types import ModuleType
 
 import numpy as np
 
-from algid import core_numpy
 from algid.backends import require_backend
 from algid.errors import InputDataError
 from algid.options import check_filter_order, check_quadrature_points
@@ -279,8 +280,8 @@ def advance(state, channels, *, backend="numpy", out=None):
         state.n_seen = seen + done
         if state.n_seen == q:  # sample q - 1 arrived: integrate from the origin
             first = np.empty((shape[0], q))
-            core_numpy.advance_from_origin(state, integrator_layout(state.model),
-                                           tuple(state.startup), first)
+            run(state, integrator_layout(state.model), tuple(state.startup), first,
+                from_origin=True)
             out[:, done - 1] = first[:, -1]
     if done < m:
         run(state, integrator_layout(state.model), tuple(r[done:] for r in rows),

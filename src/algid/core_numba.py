@@ -14,6 +14,7 @@ import importlib
 from functools import lru_cache
 
 import numba  # noqa: F401  (ImportError here: the backend is not available)
+import numpy as np
 
 from algid.generated import MODULES, NUMBA_MODULES
 from algid.quadrature import integrator_weights
@@ -36,13 +37,19 @@ def compiled_loop(module):
 
 @lru_cache(maxsize=64)
 def _weights(points, dt):
-    return integrator_weights(points, dt)[0]
+    return integrator_weights(points, dt)
 
 
-def advance(state, layout, channels, out):
-    """Estimates of a chunk that continues the stream (after the start-up) into
-    ``out``, in one compiled pass."""
+def advance(state, layout, channels, out, *, from_origin=False):
+    """Estimates of a chunk into ``out``, in one compiled pass: a chunk that continues
+    the stream, or with ``from_origin`` the first samples after the time origin (at
+    least ``points`` of them; the estimates of samples ``0 .. points - 2`` are NaN)."""
     loop = _loop_of(state.model)
+    weights, startup = _weights(state.points, state.dt)
+    if from_origin:
+        state.n_seen = 0
     loop(*channels, out, state.integrals, state.history, state.n_seen, state.dt,
-         state.divisors, _weights(state.points, state.dt), state.filter_order)
+         state.divisors, weights, startup, state.filter_order, bool(from_origin))
+    if from_origin:
+        out[:, :state.points - 1] = np.nan
     state.n_seen += channels[0].size

@@ -137,9 +137,13 @@ def _block(state, layout, channels, out):
     state.n_seen += m
 
 
-def advance(state, layout, channels, out):
-    """Estimates of a chunk that continues the stream (after the start-up) into
-    ``out``, block by block."""
+def advance(state, layout, channels, out, *, from_origin=False):
+    """Estimates of a chunk into ``out``, block by block: a chunk that continues the
+    stream, or with ``from_origin`` the first ``points`` samples after the time
+    origin (:func:`advance_from_origin`)."""
+    if from_origin:
+        advance_from_origin(state, layout, channels, out)
+        return
     m = channels[0].size
     for start in range(0, m, BLOCK):
         stop = min(m, start + BLOCK)

@@ -37,7 +37,7 @@ def __getattr__(name):
     raise AttributeError(f"module 'algid.estimator' has no attribute {name!r}")
 
 
-def kernel_values(module, signals, tau, h, *, points=None, order=None):
+def kernel_values(module, signals, tau, dt, *, points=None, order=None):
     """Values of every kernel of a generated model on uniformly sampled signals.
 
     Parameters
@@ -48,7 +48,7 @@ def kernel_values(module, signals, tau, h, *, points=None, order=None):
         Signal name -> samples.
     tau : ndarray
         Time since the first sample.
-    h : float
+    dt : float
         Sampling step.
     points : int, optional
         Points of the quadrature rule.  Default 6.
@@ -69,7 +69,7 @@ def kernel_values(module, signals, tau, h, *, points=None, order=None):
     values = {}
     for signal, power, depth in module.CHAINS:
         weighted = signals[signal] if power == 0 else tau**power * signals[signal]
-        for level, arr in enumerate(iterated_integrals(weighted, h, depth, points=points)):
+        for level, arr in enumerate(iterated_integrals(weighted, dt, depth, points=points)):
             values[module.kernel_name(signal, power, level)] = arr
     return values
 

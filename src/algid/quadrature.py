@@ -15,7 +15,7 @@ y[q-1]`` instead.  That start-up is the only look-ahead: every value from sample
 ``q - 1`` has arrived (:data:`startup_samples`).  ``points=2`` is the trapezoid rule.
 
 The rules are exact for polynomials of degree ``q - 1``; the error of the cumulative
-integral of a smooth signal is ``O(h**q)``.
+integral of a smooth signal is ``O(dt**q)``.
 """
 
 from __future__ import annotations
@@ -218,15 +218,15 @@ def advance_integrators(samples, integrals, history, weights, startup=None):
     return out
 
 
-def cumulative_integral(y, h: float, *, points: int | None = None,
+def cumulative_integral(y, dt: float, *, points: int | None = None,
                         order: int | None = None) -> np.ndarray:
     """Cumulative integral ``I[n] = int_{t[0]}^{t[n]} y``, with ``I[0] = 0``.
 
     Parameters
     ----------
     y : array_like, shape (n,)
-        Samples on a uniform grid of step ``h``; ``n >= points``.
-    h : float
+        Samples on a uniform grid of step ``dt``; ``n >= points``.
+    dt : float
         Sampling step.
     points : int, optional
         Number of points of the rule (2 = trapezoid).  Default 6.
@@ -240,7 +240,7 @@ def cumulative_integral(y, h: float, *, points: int | None = None,
     points = _points_keyword(points, order)
     y = np.asarray(y, dtype=float)
     n = y.shape[-1]
-    weights, startup = integrator_weights(points, h)
+    weights, startup = integrator_weights(points, dt)
     if n < points:
         raise ValueError(f"{n} samples are too few for a rule of {points} points")
     rows = y.reshape(1, n)
@@ -248,7 +248,7 @@ def cumulative_integral(y, h: float, *, points: int | None = None,
                                startup)[0]
 
 
-def iterated_integrals(y, h: float, depth: int, *, points: int | None = None,
+def iterated_integrals(y, dt: float, depth: int, *, points: int | None = None,
                        order: int | None = None) -> list:
     """``[y, int y, int int y, ...]``: the iterated integrals of ``y`` up to ``depth``.
 
@@ -258,8 +258,8 @@ def iterated_integrals(y, h: float, depth: int, *, points: int | None = None,
     Parameters
     ----------
     y : array_like, shape (n,)
-        Samples on a uniform grid of step ``h``.
-    h : float
+        Samples on a uniform grid of step ``dt``.
+    dt : float
         Sampling step.
     depth : int
         Number of integrations.
@@ -275,7 +275,7 @@ def iterated_integrals(y, h: float, depth: int, *, points: int | None = None,
     points = _points_keyword(points, order)
     levels = [np.asarray(y, dtype=float)]
     for _ in range(depth):
-        levels.append(cumulative_integral(levels[-1], h, points=points))
+        levels.append(cumulative_integral(levels[-1], dt, points=points))
     return levels
 
 

@@ -55,43 +55,64 @@ def _increments(src, dst, nb, weights):
 
 
 @numba.njit(cache=CACHE, nogil=True)
+def _startup_increments(src, dst, startup):
+    """At the time origin (src[W + i] is sample i): dst[0] = 0 and dst[j], j < W,
+    the start-up rule over samples 0 .. W (algid.quadrature.advance_integrators)."""
+    W = startup.shape[1] - 1
+    dst[0] = 0.0
+    for j in range(1, W):
+        acc = src[W] * startup[j - 1, 0]
+        for i in range(1, W + 1):
+            acc = acc + src[W + i] * startup[j - 1, i]
+        dst[j] = acc
+
+
+@numba.njit(cache=CACHE, nogil=True)
 def advance(channel_0, channel_1, out, integrals, history, n0, dt, divisors,
-            weights, filter_order):
+            weights, startup, filter_order, from_origin):
     """Advance the state (integrals, history) over the chunk; estimates into out.
 
-    The state layout is that of algid.core.integrator_layout.
+    The state layout is that of algid.core.integrator_layout.  With from_origin
+    the chunk starts at the time origin and holds at least len(weights) samples.
     """
     W = weights.shape[0] - 1
     size = channel_0.shape[0]
     # y<c>_<l>[:W]: the last W values of level l of chain c before the block;
-    # y<c>_<l>[W + b]: its value at sample b of the block
-    y0_0 = np.empty(W + BLOCK)
-    y0_1 = np.empty(W + BLOCK)
-    y0_2 = np.empty(W + BLOCK)
-    y0_3 = np.empty(W + BLOCK)
-    y0_4 = np.empty(W + BLOCK)
-    y1_0 = np.empty(W + BLOCK)
-    y1_1 = np.empty(W + BLOCK)
-    y1_2 = np.empty(W + BLOCK)
-    y1_3 = np.empty(W + BLOCK)
-    y1_4 = np.empty(W + BLOCK)
-    y2_0 = np.empty(W + BLOCK)
-    y2_1 = np.empty(W + BLOCK)
-    y2_2 = np.empty(W + BLOCK)
-    y2_3 = np.empty(W + BLOCK)
-    y2_4 = np.empty(W + BLOCK)
-    y3_0 = np.empty(W + BLOCK)
-    y3_1 = np.empty(W + BLOCK)
-    y3_2 = np.empty(W + BLOCK)
-    y3_3 = np.empty(W + BLOCK)
-    y3_4 = np.empty(W + BLOCK)
-    e0 = np.empty(BLOCK)
-    e1 = np.empty(BLOCK)
-    e2 = np.empty(BLOCK)
-    e3 = np.empty(BLOCK)
-    fb = np.empty((filter_order + 1, 4, W + BLOCK))
-    fe = np.empty((4, BLOCK))
-    fs = np.empty((filter_order, 4))
+    # y<c>_<l>[W + b]: its value at sample b of the block; all are views into one
+    # scratch array (one allocation per call)
+    span = W + BLOCK
+    work = np.empty(20 * span + 4 * BLOCK + (filter_order + 1) * 4 * span + 4 * BLOCK + filter_order * 4)
+    y0_0 = work[0 * span:1 * span]
+    y0_1 = work[1 * span:2 * span]
+    y0_2 = work[2 * span:3 * span]
+    y0_3 = work[3 * span:4 * span]
+    y0_4 = work[4 * span:5 * span]
+    y1_0 = work[5 * span:6 * span]
+    y1_1 = work[6 * span:7 * span]
+    y1_2 = work[7 * span:8 * span]
+    y1_3 = work[8 * span:9 * span]
+    y1_4 = work[9 * span:10 * span]
+    y2_0 = work[10 * span:11 * span]
+    y2_1 = work[11 * span:12 * span]
+    y2_2 = work[12 * span:13 * span]
+    y2_3 = work[13 * span:14 * span]
+    y2_4 = work[14 * span:15 * span]
+    y3_0 = work[15 * span:16 * span]
+    y3_1 = work[16 * span:17 * span]
+    y3_2 = work[17 * span:18 * span]
+    y3_3 = work[18 * span:19 * span]
+    y3_4 = work[19 * span:20 * span]
+    at = 20 * span
+    e0 = work[at + 0 * BLOCK:at + 1 * BLOCK]
+    e1 = work[at + 1 * BLOCK:at + 2 * BLOCK]
+    e2 = work[at + 2 * BLOCK:at + 3 * BLOCK]
+    e3 = work[at + 3 * BLOCK:at + 4 * BLOCK]
+    at += 4 * BLOCK
+    fb = work[at:at + (filter_order + 1) * 4 * span].reshape((filter_order + 1, 4, span))
+    at += (filter_order + 1) * 4 * span
+    fe = work[at:at + 4 * BLOCK].reshape((4, BLOCK))
+    at += 4 * BLOCK
+    fs = work[at:at + filter_order * 4].reshape((filter_order, 4))
     s0_1 = integrals[0]
     y0_0[:W] = history[0]
     s1_1 = integrals[1]
@@ -147,9 +168,17 @@ def advance(channel_0, channel_1, out, integrals, history, n0, dt, divisors,
             y3_0[W + b] = (tau * tau) * v1
         # level 1: the increments (vectorised), then the running integrals
         _increments(y0_0, e0, nb, weights)
+        if from_origin and start == 0:
+            _startup_increments(y0_0, e0, startup)
         _increments(y1_0, e1, nb, weights)
+        if from_origin and start == 0:
+            _startup_increments(y1_0, e1, startup)
         _increments(y2_0, e2, nb, weights)
+        if from_origin and start == 0:
+            _startup_increments(y2_0, e2, startup)
         _increments(y3_0, e3, nb, weights)
+        if from_origin and start == 0:
+            _startup_increments(y3_0, e3, startup)
         for b in range(nb):
             s0_1 = s0_1 + e0[b]
             y0_1[W + b] = s0_1
@@ -161,9 +190,17 @@ def advance(channel_0, channel_1, out, integrals, history, n0, dt, divisors,
             y3_1[W + b] = s3_1
         # level 2: the increments (vectorised), then the running integrals
         _increments(y0_1, e0, nb, weights)
+        if from_origin and start == 0:
+            _startup_increments(y0_1, e0, startup)
         _increments(y1_1, e1, nb, weights)
+        if from_origin and start == 0:
+            _startup_increments(y1_1, e1, startup)
         _increments(y2_1, e2, nb, weights)
+        if from_origin and start == 0:
+            _startup_increments(y2_1, e2, startup)
         _increments(y3_1, e3, nb, weights)
+        if from_origin and start == 0:
+            _startup_increments(y3_1, e3, startup)
         for b in range(nb):
             s0_2 = s0_2 + e0[b]
             y0_2[W + b] = s0_2
@@ -175,9 +212,17 @@ def advance(channel_0, channel_1, out, integrals, history, n0, dt, divisors,
             y3_2[W + b] = s3_2
         # level 3: the increments (vectorised), then the running integrals
         _increments(y0_2, e0, nb, weights)
+        if from_origin and start == 0:
+            _startup_increments(y0_2, e0, startup)
         _increments(y1_2, e1, nb, weights)
+        if from_origin and start == 0:
+            _startup_increments(y1_2, e1, startup)
         _increments(y2_2, e2, nb, weights)
+        if from_origin and start == 0:
+            _startup_increments(y2_2, e2, startup)
         _increments(y3_2, e3, nb, weights)
+        if from_origin and start == 0:
+            _startup_increments(y3_2, e3, startup)
         for b in range(nb):
             s0_3 = s0_3 + e0[b]
             y0_3[W + b] = s0_3
@@ -189,9 +234,17 @@ def advance(channel_0, channel_1, out, integrals, history, n0, dt, divisors,
             y3_3[W + b] = s3_3
         # level 4: the increments (vectorised), then the running integrals
         _increments(y0_3, e0, nb, weights)
+        if from_origin and start == 0:
+            _startup_increments(y0_3, e0, startup)
         _increments(y1_3, e1, nb, weights)
+        if from_origin and start == 0:
+            _startup_increments(y1_3, e1, startup)
         _increments(y2_3, e2, nb, weights)
+        if from_origin and start == 0:
+            _startup_increments(y2_3, e2, startup)
         _increments(y3_3, e3, nb, weights)
+        if from_origin and start == 0:
+            _startup_increments(y3_3, e3, startup)
         for b in range(nb):
             s0_4 = s0_4 + e0[b]
             y0_4[W + b] = s0_4
@@ -213,6 +266,8 @@ def advance(channel_0, channel_1, out, integrals, history, n0, dt, divisors,
         for lev in range(filter_order):
             for r in range(4):
                 _increments(fb[lev, r], fe[r], nb, weights)
+                if from_origin and start == 0:
+                    _startup_increments(fb[lev, r], fe[r], startup)
             t0 = fs[lev, 0]
             t1 = fs[lev, 1]
             t2 = fs[lev, 2]

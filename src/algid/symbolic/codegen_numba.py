@@ -43,6 +43,21 @@ def _increments_source():
     return lines
 
 
+def _startup_source():
+    """Lines of ``_startup_increments``: the first increments after the time origin."""
+    return ["@numba.njit(cache=CACHE, nogil=True)",
+            "def _startup_increments(src, dst, startup):",
+            '    """At the time origin (src[W + i] is sample i): dst[0] = 0 and dst[j], j < W,',
+            '    the start-up rule over samples 0 .. W (algid.quadrature.advance_integrators)."""',
+            "    W = startup.shape[1] - 1",
+            "    dst[0] = 0.0",
+            "    for j in range(1, W):",
+            "        acc = src[W] * startup[j - 1, 0]",
+            "        for i in range(1, W + 1):",
+            "            acc = acc + src[W + i] * startup[j - 1, i]",
+            "        dst[j] = acc"]
+
+
 def numba_module_source(module, *, header, cache=True) -> str:
     """Source of the compiled loop of a generated NumPy module.
 
@@ -74,27 +89,40 @@ def numba_module_source(module, *, header, cache=True) -> str:
            f"CACHE = {bool(cache)!r}", f"BLOCK = {BLOCK}", "",
            "_regressors_packed = numba.njit(cache=CACHE, nogil=True)(regressors_packed)",
            "_cramer = numba.njit(cache=CACHE, nogil=True)(cramer)", "", "",
-           *_increments_source(), "", "",
+           *_increments_source(), "", "", *_startup_source(), "", "",
            "@numba.njit(cache=CACHE, nogil=True)",
            f"def advance({', '.join(channels)}, out, integrals, history, n0, dt, divisors,",
-           "            weights, filter_order):",
+           "            weights, startup, filter_order, from_origin):",
            '    """Advance the state (integrals, history) over the chunk; estimates into out.',
            "",
-           "    The state layout is that of algid.core.integrator_layout.",
+           "    The state layout is that of algid.core.integrator_layout.  With from_origin",
+           "    the chunk starts at the time origin and holds at least len(weights) samples.",
            '    """']
     a = src.append
     a("    W = weights.shape[0] - 1")
     a(f"    size = {channels[0]}.shape[0]")
     a("    # y<c>_<l>[:W]: the last W values of level l of chain c before the block;")
-    a("    # y<c>_<l>[W + b]: its value at sample b of the block")
+    a("    # y<c>_<l>[W + b]: its value at sample b of the block; all are views into one")
+    a("    # scratch array (one allocation per call)")
+    n_buffers = sum(d + 1 for d in chain_depth)
+    a(f"    span = W + BLOCK")
+    a(f"    work = np.empty({n_buffers} * span + {len(chain_depth)} * BLOCK"
+      f" + (filter_order + 1) * {lanes} * span + {lanes} * BLOCK + filter_order * {lanes})")
+    offset = 0
     for c, d in enumerate(chain_depth):
         for level in range(d + 1):
-            a(f"    y{c}_{level} = np.empty(W + BLOCK)")
+            a(f"    y{c}_{level} = work[{offset} * span:{offset + 1} * span]")
+            offset += 1
+    a(f"    at = {n_buffers} * span")
     for c in range(len(chain_depth)):
-        a(f"    e{c} = np.empty(BLOCK)")
-    a(f"    fb = np.empty((filter_order + 1, {lanes}, W + BLOCK))")
-    a(f"    fe = np.empty(({lanes}, BLOCK))")
-    a(f"    fs = np.empty((filter_order, {lanes}))")
+        a(f"    e{c} = work[at + {c} * BLOCK:at + {c + 1} * BLOCK]")
+    a(f"    at += {len(chain_depth)} * BLOCK")
+    a(f"    fb = work[at:at + (filter_order + 1) * {lanes} * span]"
+      f".reshape((filter_order + 1, {lanes}, span))")
+    a(f"    at += (filter_order + 1) * {lanes} * span")
+    a(f"    fe = work[at:at + {lanes} * BLOCK].reshape(({lanes}, BLOCK))")
+    a(f"    at += {lanes} * BLOCK")
+    a(f"    fs = work[at:at + filter_order * {lanes}].reshape((filter_order, {lanes}))")
     k = 0
     for level, rows in enumerate(layout.levels, start=1):
         for c in rows:
@@ -126,6 +154,8 @@ def numba_module_source(module, *, header, cache=True) -> str:
 
     def fir(buffer, target):
         a(f"        _increments({buffer}, {target}, nb, weights)")
+        a("        if from_origin and start == 0:")
+        a(f"            _startup_increments({buffer}, {target}, startup)")
 
     for level, rows in enumerate(layout.levels, start=1):
         a(f"        # level {level}: the increments (vectorised), then the running integrals")
@@ -147,6 +177,8 @@ def numba_module_source(module, *, header, cache=True) -> str:
     a("        for lev in range(filter_order):")
     a(f"            for r in range({lanes}):")
     a("                _increments(fb[lev, r], fe[r], nb, weights)")
+    a("                if from_origin and start == 0:")
+    a("                    _startup_increments(fb[lev, r], fe[r], startup)")
     for r in range(lanes):
         a(f"            t{r} = fs[lev, {r}]")
     a("            for b in range(nb):")
