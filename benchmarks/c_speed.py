@@ -18,8 +18,8 @@ samples, it times
 
 Times are the best of ``repeats`` process CPU times (``time.process_time``; every
 method runs in this one thread), which other users of a shared machine disturb less
-than the wall time; compare the ratios.  The section is :func:`c_speed`; :func:`markdown` and :func:`target` format it
-for the suite's report.
+than the wall time; compare the ratios.  The section is :func:`c_speed`;
+:func:`markdown` and :func:`target` format it for the suite's report.
 """
 
 from __future__ import annotations

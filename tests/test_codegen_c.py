@@ -15,18 +15,22 @@ import types
 
 import numpy as np
 import pytest
+from conftest import ROOT, assert_one_line_error
 
 import algid
 from algid.cli import main as cli_main
 from algid.errors import ModelError
 from algid.symbolic import LinearODEModel, derive
 from algid.symbolic.codegen import numpy_module_source
-from algid.symbolic.codegen_c import (DEFAULT_FILTER_ORDER, DEFAULT_QUADRATURE_ORDER,
-                                      QUADRATURE_ORDERS, c_sources, quadrature_weights,
-                                      write_c_sources)
+from algid.symbolic.codegen_c import (
+    DEFAULT_FILTER_ORDER,
+    DEFAULT_QUADRATURE_ORDER,
+    QUADRATURE_ORDERS,
+    c_sources,
+    quadrature_weights,
+    write_c_sources,
+)
 from algid.symbolic.models import BUILTIN_MODELS, builtin_model
-
-from conftest import ROOT, assert_one_line_error
 
 CC = shutil.which("gcc") or shutil.which("cc")
 needs_cc = pytest.mark.skipif(CC is None, reason="no C compiler (gcc or cc) on PATH")

@@ -8,11 +8,11 @@ figures matplotlib (``algid[plot]``).
 from algid.cramer_rao import crlb
 from algid.errors import AlgidError, DataFileError, InputDataError, ModelError
 from algid.estimator import available_models, estimate
+from algid.identification import identify
+from algid.identification_result import IdentificationResult
 from algid.online import OnlineEstimator
 from algid.refinement import refine
 from algid.result import EstimationResult
-from algid.identification import identify
-from algid.identification_result import IdentificationResult
 
 __version__ = "0.1.0"
 

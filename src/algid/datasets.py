@@ -172,7 +172,7 @@ def _data_file(name):
     return resources.files("algid").joinpath("data", name)
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def _silverbox_arrays():
     with _data_file(SILVERBOX_FILE).open("rb") as raw, gzip.open(raw, "rb") as unzipped:
         text = io.TextIOWrapper(unzipped, encoding="ascii")
@@ -181,7 +181,7 @@ def _silverbox_arrays():
     return table[:, 0], table[:, 1]
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def _emps_variables(file_name):
     from scipy.io import loadmat
 

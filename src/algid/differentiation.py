@@ -59,8 +59,7 @@ from fractions import Fraction
 import numpy as np
 
 from .errors import InputDataError
-from .generated.differentiator_kernels import (DERIVATIVES, EXTRA_ORDERS, KAPPA,
-                                               KERNELS, MU)
+from .generated.differentiator_kernels import DERIVATIVES, EXTRA_ORDERS, KAPPA, KERNELS, MU
 
 __all__ = ["algebraic_derivative", "differentiator_response", "differentiator_delay",
            "DEFAULT_WINDOW_STEPS", "DEFAULT_KAPPA", "DEFAULT_MU"]

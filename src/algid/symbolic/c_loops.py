@@ -261,7 +261,7 @@ def sample_loop_function(w):
         "    double count = w->n;",
         f"    double kv[{len(w.kernels)}], lanes[{w.lanes}];",
         "    size_t i;",
-        f"    for (i = 0; i < n; ++i, count += 1.0) {{",
+        "    for (i = 0; i < n; ++i, count += 1.0) {",
         "        const double tau = count * dt;",
     ]
     value = {}
@@ -269,7 +269,7 @@ def sample_loop_function(w):
         lines.append(f"        const double c{c}_0 = {level0(w, c, 'tau', 'u[i]', 'y[i]')};")
         value[(c, 0)] = f"c{c}_0"
     # level by level: independent chains side by side
-    for k, (c, lev) in enumerate(sorted(w.chain_ints, key=lambda cl: (cl[1], cl[0]))):
+    for c, lev in sorted(w.chain_ints, key=lambda cl: (cl[1], cl[0])):
         idx = w.chain_ints.index((c, lev))
         lines.append(f"        const double c{c}_{lev} = {pre}_integrate(&s[{idx}], h[{idx}], "
                      f"c{c}_{lev - 1}, dt);")
@@ -347,7 +347,7 @@ def block_loop_function(w):
                   f"fl[lev][r][i] = w->hist[{n_chain} + lev * {w.lanes} + r][i];",
                   "        }"]
     lines += ["    }",
-              f"    for (start = 0; start < n; start += nb) {{",
+              "    for (start = 0; start < n; start += nb) {",
               f"        nb = n - start < {P}_BLOCK ? n - start : {P}_BLOCK;",
               "        if (nb < " + P + "_BLOCK) {  /* the increments run over whole blocks",
               "                                   (a loop the compiler vectorises): give the",

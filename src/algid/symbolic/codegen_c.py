@@ -261,9 +261,9 @@ class _Writer:
             "#ifdef __cplusplus", 'extern "C" {', "#endif", "",
             f"/* Parameters estimated, in the order of the rows of theta: {params}. */",
             f"#define {P}_N_PARAMETERS {self.n_par}",
-            f"/* Order p of the invariant filter 1/s**p (fixed when generated). */",
+            "/* Order p of the invariant filter 1/s**p (fixed when generated). */",
             f"#define {P}_FILTER_ORDER {self.p}",
-            f"/* Points of the Adams-Moulton cumulative quadrature rule (fixed when generated). */",
+            "/* Points of the Adams-Moulton cumulative quadrature rule (fixed when generated). */",
             f"#define {P}_QUADRATURE_ORDER {self.q}",
             f"/* Samples 0 .. {self.q - 2} after every time origin have NaN estimates. */",
             f"#define {P}_STARTUP_SAMPLES {self.q - 1}",
@@ -330,8 +330,8 @@ class _Writer:
         lines = [f"#define {self.PRE}_M {m}  /* integrand samples kept per integrator */",
                  f"#define {self.PRE}_NI {self.n_int}  /* integrators: chains, then filter */",
                  f"#ifndef {self.PRE}_BLOCK  /* samples per block of the loop: the stack holds",
-                 f"                             about {self.levels + (self.p + 1) * self.lanes + 1} "
-                 "arrays of M + BLOCK doubles */",
+                 "                             about "
+                 f"{self.levels + (self.p + 1) * self.lanes + 1} arrays of M + BLOCK doubles */",
                  f"#define {self.PRE}_BLOCK {BLOCK}",
                  "#endif",
                  "",
@@ -341,7 +341,8 @@ class _Writer:
         lines += [f"    {_literal(w)}," for w in self.regular]
         lines.append("};")
         if q > 2:
-            lines += ["/* Start-up: row j-1 integrates over [t[j-1], t[j]] from samples 0 .. q-1. */",
+            lines += ["/* Start-up: row j-1 integrates over [t[j-1], t[j]] from samples "
+                      "0 .. q-1. */",
                       f"static const double {pre}_ws[{q - 2}][{q}] = {{"]
             for row in self.startup:
                 lines.append("    {" + ", ".join(_literal(w) for w in row) + "},")
