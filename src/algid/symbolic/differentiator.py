@@ -150,6 +150,18 @@ def jacobi_kernel(derivative, kappa, mu):
     """The minimal kernel in Jacobi form, ``c u**kappa (1-u)**mu P_n^(mu,kappa)(2u-1)``.
 
     The constant ``c`` makes ``int_0^1 h(u) u**n / n! du = 1`` (exactness on ``t**n``).
+
+    Parameters
+    ----------
+    derivative : int
+        Order ``n`` of the derivative estimated.
+    kappa, mu : int
+        Multiplicities of the kernel's zeros at ``u = 0`` and ``u = 1``.
+
+    Returns
+    -------
+    sympy.Expr
+        The kernel as a polynomial in ``u`` on the unit window.
     """
     n = int(derivative)
     _check(n, kappa, mu, n)
@@ -167,7 +179,12 @@ def _factored(h, kappa, mu):
 
 
 def kernel_table_source():
-    """Text of ``algid/generated/differentiator_kernels.py``: the kernel table."""
+    """Text of ``algid/generated/differentiator_kernels.py``: the kernel table.
+
+    Returns
+    -------
+    str
+    """
     lines = [
         '"""Kernels of the algebraic differentiator (Mboup, Join and Fliess).',
         "",

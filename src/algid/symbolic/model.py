@@ -138,6 +138,10 @@ class LinearODEModel:
         Output terms carry their coefficient, input terms its negative (the equation
         ``lhs - rhs = 0``); this is the form :func:`~algid.symbolic.derivation.derive`
         works on, shared with models of several signals and nonlinear factors.
+
+        Returns
+        -------
+        tuple of (sympy.Expr, str, int)
         """
         n, m = len(self.output_coefficients) - 1, len(self.input_coefficients) - 1
         return (tuple((c, self.output, n - i) for i, c in enumerate(self.output_coefficients))
@@ -191,8 +195,13 @@ class LinearODEModel:
 
     # ------------------------------------------------------------------ parsing
     def to_model(self):
-        """This model as an :class:`algid.model.Model` (the representation of user
-        equations used by :func:`algid.identify`)."""
+        """This model as an :class:`algid.model.Model`.
+
+        Returns
+        -------
+        Model
+            The representation of user equations used by :func:`algid.identify`.
+        """
         from algid.grammar import parse_equation
 
         return parse_equation(self.equation_text(), [str(p) for p in self.parameters],
