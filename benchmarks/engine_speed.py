@@ -36,7 +36,6 @@ import numpy as np
 import algid
 from algid import core
 from algid.registry import load_model
-
 from benchmarks.baselines import naive_algebraic
 from benchmarks.measure import peak_memory
 

@@ -13,7 +13,8 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT / "src"))
 
-from algid.symbolic.codegen import HEADER, module_from_source, numpy_module_source, registry_source  # noqa: E402
+from algid.registry import module_from_source  # noqa: E402
+from algid.symbolic.codegen import HEADER, numpy_module_source, registry_source  # noqa: E402
 from algid.symbolic.codegen_c import c_sources  # noqa: E402
 from algid.symbolic.codegen_numba import numba_module_source  # noqa: E402
 from algid.symbolic.derivation import derive  # noqa: E402

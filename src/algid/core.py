@@ -46,7 +46,7 @@ numbers agree to round-off (bit for bit on the platforms tested).
 from __future__ import annotations
 
 import dataclasses
-from functools import lru_cache
+from functools import cache
 from types import ModuleType
 
 import numpy as np
@@ -54,7 +54,6 @@ import numpy as np
 from algid.backends import require_backend
 from algid.errors import InputDataError
 from algid.options import check_filter_order, check_quadrature_points
-from algid.quadrature import integrator_weights
 
 __all__ = ["EstimatorState", "IntegratorLayout", "integrator_layout", "layout_of", "new_state",
            "advance"]
@@ -96,7 +95,7 @@ class EstimatorState:
     history: np.ndarray
     startup: np.ndarray
 
-    def copy(self) -> "EstimatorState":
+    def copy(self) -> EstimatorState:
         """An independent state that continues from the same point."""
         return dataclasses.replace(self, divisors=self.divisors.copy(),
                                    integrals=self.integrals.copy(),
@@ -174,7 +173,7 @@ def layout_of(chains, kernels, channels, n_parameters) -> IntegratorLayout:
                             n_lanes=n_parameters + 1)
 
 
-@lru_cache(maxsize=None)
+@cache
 def integrator_layout(module: ModuleType) -> IntegratorLayout:
     """The :class:`IntegratorLayout` of a generated module (see :func:`layout_of`)."""
     return layout_of(module.CHAINS, module.KERNELS, module.CHANNELS, len(module.PARAMETERS))

@@ -11,22 +11,22 @@ order (see :mod:`algid.symbolic.codegen_numba`).
 from __future__ import annotations
 
 import importlib
-from functools import lru_cache
+from functools import cache, lru_cache
 
 import numba  # noqa: F401  (ImportError here: the backend is not available)
 import numpy as np
 
 from algid.generated import MODULES, NUMBA_MODULES
 from algid.quadrature import integrator_weights
+from algid.registry import module_from_source
 
 __all__ = ["advance", "compiled_loop"]
 
 
-@lru_cache(maxsize=None)
+@cache
 def _loop_of(module):
     if MODULES.get(module.MODEL) == module.__name__:
         return importlib.import_module(NUMBA_MODULES[module.MODEL]).advance
-    from algid.symbolic.codegen import module_from_source
     return module_from_source(module.NUMBA_SOURCE, module.__name__ + "_numba").advance
 
 

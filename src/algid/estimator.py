@@ -12,9 +12,15 @@ import numpy as np
 from algid import backends, core
 from algid.errors import InputDataError
 from algid.filters import as_lowpass
-from algid.options import (DEFAULT_FILTER_ORDER, DEFAULT_QUADRATURE_POINTS, channel_divisors,
-                           check_filter_order, known_mass, quadrature_points_option,
-                           with_mass_scaled)
+from algid.options import (
+    DEFAULT_FILTER_ORDER,
+    DEFAULT_QUADRATURE_POINTS,
+    channel_divisors,
+    check_filter_order,
+    known_mass,
+    quadrature_points_option,
+    with_mass_scaled,
+)
 from algid.quadrature import iterated_integrals, startup_samples
 from algid.registry import available_models, load_model
 from algid.result import EstimationResult
@@ -22,7 +28,7 @@ from algid.validation import check_experiment
 
 __all__ = ["estimate", "available_models", "load_model", "kernel_values",
            "DEFAULT_FILTER_ORDER", "DEFAULT_QUADRATURE_POINTS", "DEFAULT_QUADRATURE_ORDER",
-           "ENGINES", "AUTO_ENGINE_MIN_SAMPLES"]
+           "ENGINES", "AUTO_ENGINE_MIN_SAMPLES"]  # noqa: F822 - served by __getattr__
 
 #: Deprecated spelling of :data:`DEFAULT_QUADRATURE_POINTS`.
 DEFAULT_QUADRATURE_ORDER = DEFAULT_QUADRATURE_POINTS
@@ -86,7 +92,8 @@ def _unpack_timeresponse(data):
 
 
 def estimate(t, f=None, x=None, *, model="msd", filter_order=DEFAULT_FILTER_ORDER, mass=None,
-             quadrature_points=None, lowpass=None, engine="auto", quadrature_order=None, signals=None):
+             quadrature_points=None, lowpass=None, engine="auto", quadrature_order=None,
+             signals=None):
     """Estimate the parameters of a model from its input and output, algebraically.
 
     The estimate at each instant uses only the data up to that instant and does not

@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 from algid.expression import Constant, Expr, Signal, Time
 
-__all__ = ["Term", "Model"]
+__all__ = ["Term", "Model", "channel_names"]
 
 
 @dataclass(frozen=True)
@@ -142,3 +142,41 @@ class Model:
 
     def __str__(self):
         return f"{self.name}: {self.equation}"
+
+
+def channel_names(model: Model) -> dict:
+    """Channel identifier of every factor of ``model``, in order of appearance.
+
+    Parameters
+    ----------
+    model : Model
+
+    Returns
+    -------
+    dict
+        Factor (:class:`algid.expression.Expr`) -> identifier: the signal's name for a
+        plain measured signal, ``one`` for the constant 1, ``time`` for time and ``z1``,
+        ``z2``, ... for the other factors (skipping names taken by signals).
+    """
+    taken = set(model.signals)
+    names = {}
+    counter = 0
+
+    def fresh():
+        nonlocal counter
+        counter += 1
+        while f"z{counter}" in taken:
+            counter += 1
+        return f"z{counter}"
+
+    for factor in model.channels:
+        if isinstance(factor, Signal) and factor.derivative == 0:
+            name = factor.name
+        elif isinstance(factor, Constant) and factor.value == 1 and "one" not in taken:
+            name = "one"
+        elif isinstance(factor, Time) and "time" not in taken:
+            name = "time"
+        else:
+            name = fresh()
+        names[factor] = name
+    return names

@@ -3,12 +3,13 @@
 from __future__ import annotations
 
 import importlib
+import sys
 from types import ModuleType
 
 from algid.errors import ModelError
 from algid.generated import MODULES
 
-__all__ = ["available_models", "load_model"]
+__all__ = ["available_models", "load_model", "module_from_source"]
 
 
 def available_models():
@@ -39,3 +40,27 @@ def load_model(name):
     if not isinstance(name, str) or name not in MODULES:
         raise ModelError(f"unknown model {name!r} (known: {', '.join(MODULES)})")
     return importlib.import_module(MODULES[name])
+
+
+def module_from_source(source: str, name: str) -> ModuleType:
+    """Execute generated source text as a module registered in :data:`sys.modules`.
+
+    Only for text written by this package's own generators (user models compiled in
+    memory, :func:`algid.symbolic.codegen.compile_model`); never for user text.
+
+    Parameters
+    ----------
+    source : str
+        Text of a generated module.
+    name : str
+        Module name to register it under.
+
+    Returns
+    -------
+    module
+    """
+    module = ModuleType(name)
+    module.__file__ = f"<generated {name}>"
+    sys.modules[name] = module
+    exec(compile(source, module.__file__, "exec"), module.__dict__)
+    return module

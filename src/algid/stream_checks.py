@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import math
 import numbers
-from functools import lru_cache
+from functools import cache
 
 import numpy as np
 
@@ -149,7 +149,7 @@ def check_chunk(t, f, x, *, n, t_last, dt, scan=None):
     return t, f, x, dt
 
 
-@lru_cache(maxsize=None)
+@cache
 def compiled_scan():
     """The value checks of :func:`check_chunk` on float64 samples, compiled (needs
     numba): ``scan(t, f, x, t_prev, dt, tolerance)`` is True when ``t``, ``f``, ``x``

@@ -18,11 +18,10 @@ from __future__ import annotations
 import numpy as np
 
 from algid.errors import InputDataError, ModelError
-from algid.expression import Constant, Signal, Time
 from algid.grammar import parse_equation
-from algid.model import Model
+from algid.model import channel_names
 
-__all__ = ["compile_equation", "channel_samples", "channel_names", "model_of"]
+__all__ = ["compile_equation", "channel_samples", "model_of"]
 
 
 def compile_equation(equation, parameters, *, output=None, name="custom"):
@@ -126,41 +125,3 @@ def channel_samples(module, signals, time, dt):
     return tuple(values[name] if name not in factors
                  else np.broadcast_to(factor_of[name].evaluate(values, time), np.shape(time))
                  for name in module.CHANNELS)
-
-
-def channel_names(model: Model) -> dict:
-    """Channel identifier of every factor of ``model``, in order of appearance.
-
-    Parameters
-    ----------
-    model : Model
-
-    Returns
-    -------
-    dict
-        Factor (:class:`algid.expression.Expr`) -> identifier: the signal's name for a
-        plain measured signal, ``one`` for the constant 1, ``time`` for time and ``z1``,
-        ``z2``, ... for the other factors (skipping names taken by signals).
-    """
-    taken = set(model.signals)
-    names = {}
-    counter = 0
-
-    def fresh():
-        nonlocal counter
-        counter += 1
-        while f"z{counter}" in taken:
-            counter += 1
-        return f"z{counter}"
-
-    for factor in model.channels:
-        if isinstance(factor, Signal) and factor.derivative == 0:
-            name = factor.name
-        elif isinstance(factor, Constant) and factor.value == 1 and "one" not in taken:
-            name = "one"
-        elif isinstance(factor, Time) and "time" not in taken:
-            name = "time"
-        else:
-            name = fresh()
-        names[factor] = name
-    return names

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import math
-from functools import lru_cache
+from functools import cache
 
 import numpy as np
 
@@ -12,7 +12,7 @@ from algid.validation import UNIFORM_RTOL, check_experiment
 __all__ = ["check_experiment_compiled"]
 
 
-@lru_cache(maxsize=None)
+@cache
 def _signal_scan():
     """Compiled passes over ``t``, ``f``, ``x``: True when they pass every check of
     :func:`algid.validation.check_experiment` that looks at the values."""

@@ -15,8 +15,7 @@ from __future__ import annotations
 
 import sympy as sp
 
-from algid.model import Model
-from algid.user_models import channel_names
+from algid.model import Model, channel_names
 
 __all__ = ["ChannelModel", "channel_names"]
 

@@ -11,10 +11,10 @@ from __future__ import annotations
 
 import hashlib
 import sys
-import types
 
 from sympy.printing.pycode import PythonCodePrinter
 
+from algid.registry import module_from_source
 from algid.symbolic.derivation import Derivation
 
 __all__ = ["numpy_module_source", "registry_source", "compile_model", "HEADER"]
@@ -158,16 +158,6 @@ def registry_source(names) -> str:
             f"#: Model name -> module holding its generated estimator.\nMODULES = {{\n{body},\n}}\n"
             f"\n#: Model name -> module holding its compiled loop (numba).\n"
             f"NUMBA_MODULES = {{\n{loops},\n}}\n")
-
-
-def module_from_source(source: str, name: str) -> types.ModuleType:
-    """Execute generated source text (of this package's generators only) as a module
-    registered under ``name`` in :data:`sys.modules`."""
-    module = types.ModuleType(name)
-    module.__file__ = f"<generated {name}>"
-    sys.modules[name] = module
-    exec(compile(source, module.__file__, "exec"), module.__dict__)
-    return module
 
 
 def compile_model(derivation: Derivation, *, mass_scaled=None, mass_divided=()):

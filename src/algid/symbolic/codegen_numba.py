@@ -80,7 +80,6 @@ def numba_module_source(module, *, header, cache=True) -> str:
     n_par = len(module.PARAMETERS)
     lanes = layout.n_lanes
     channels = [f"channel_{i}" for i in range(len(module.CHANNELS))]
-    depth = len(layout.levels)
     chain_depth = [d for _, _, d in layout.chains]
     src = [f'"""Compiled estimation loop of the model {module.MODEL!r} (numba).', "",
            f"Channels: {', '.join(f'{c} = {n!r}' for c, n in zip(channels, module.CHANNELS))}.",
@@ -105,7 +104,7 @@ def numba_module_source(module, *, header, cache=True) -> str:
     a("    # y<c>_<l>[W + b]: its value at sample b of the block; all are views into one")
     a("    # scratch array (one allocation per call)")
     n_buffers = sum(d + 1 for d in chain_depth)
-    a(f"    span = W + BLOCK")
+    a("    span = W + BLOCK")
     a(f"    work = np.empty({n_buffers} * span + {len(chain_depth)} * BLOCK"
       f" + (filter_order + 1) * {lanes} * span + {lanes} * BLOCK + filter_order * {lanes})")
     offset = 0
