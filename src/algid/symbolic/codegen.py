@@ -34,14 +34,6 @@ def _code(expr) -> str:
     return _Printer({"fully_qualified_modules": False}).doprint(expr)
 
 
-def _chains(kernels):
-    depth = {}
-    for k in kernels:
-        key = (k.signal, k.power)
-        depth[key] = max(depth.get(key, 0), k.order)
-    return tuple((sig, power, d) for (sig, power), d in sorted(depth.items()))
-
-
 def numpy_module_source(derivation: Derivation, *, mass_scaled=None, mass_divided=()) -> str:
     """Source text of the generated estimator module for ``derivation``.
 
@@ -103,7 +95,7 @@ def numpy_module_source(derivation: Derivation, *, mass_scaled=None, mass_divide
               "#: time-varying linear system; state l of a chain is the l-fold integral of",
               "#: t**power * signal, driven by the state before it (the first by the signal).",
               "CHAINS = ("]
-    for sig, power, depth in _chains(derivation.kernels):
+    for sig, power, depth in derivation.chains():
         lines.append(f"    ({sig!r}, {power}, {depth}),")
     lines += [")", "", "", "def kernel_name(signal, power, order):",
               '    """Name of a kernel in the mapping taken by :func:`regressors`."""',

@@ -115,14 +115,6 @@ def _literal(value) -> str:
     return text if ("." in text or "e" in text or "n" in text) else text + ".0"
 
 
-def _chains(kernels):
-    depth = {}
-    for k in kernels:
-        key = (k.signal, k.power)
-        depth[key] = max(depth.get(key, 0), k.order)
-    return tuple((sig, power, d) for (sig, power), d in sorted(depth.items()))
-
-
 def _check(derivation, name, filter_order, quadrature_order):
     if not isinstance(derivation, Derivation):
         raise ModelError(f"expected a Derivation, got {type(derivation).__name__}")
@@ -211,7 +203,7 @@ class _Writer:
         self.p, self.q = p, q
         self.params = [str(s) for s in model.parameters]
         self.kernels = derivation.kernels
-        self.chains = _chains(derivation.kernels)
+        self.chains = derivation.chains()
         ksyms = derivation.kernel_symbols()
         self.P = derivation.P.xreplace(ksyms)
         self.Q = derivation.Q.xreplace(ksyms)

@@ -148,6 +148,22 @@ class Derivation:
         """The Laplace-domain functions of the output and the input, ``X(s)``, ``F(s)``."""
         return _transform(self.model.output), _transform(self.model.input)
 
+    def chains(self) -> tuple:
+        """The integrator chains that realise the kernels, sorted.
+
+        Returns
+        -------
+        tuple of (str, int, int)
+            ``(channel, power, depth)``: level ``l`` of a chain is the ``l``-fold
+            integral of ``t**power`` times the channel; ``depth`` is the deepest level
+            a kernel needs.
+        """
+        depth = {}
+        for k in self.kernels:
+            key = (k.signal, k.power)
+            depth[key] = max(depth.get(key, 0), k.order)
+        return tuple((sig, power, d) for (sig, power), d in sorted(depth.items()))
+
     def kernel_symbols(self):
         """Map each kernel expression to a plain symbol named after the kernel.
 
