@@ -20,7 +20,13 @@ INSTALL_HINT = 'pip install "algid[fast]" (or: pip install "numba>=0.59")'
 
 
 def numba_available() -> bool:
-    """Whether numba is installed, i.e. whether the compiled backend can run."""
+    """Whether numba is installed, i.e. whether the compiled backend can run.
+
+    Returns
+    -------
+    bool
+        True if numba can be imported.
+    """
     try:
         return importlib.util.find_spec("numba") is not None
     except ValueError:  # numba in sys.modules as None (import blocked)
@@ -76,6 +82,16 @@ def choose_engine(engine, n, lowpass, *, min_samples=None) -> str:
 
 def require_backend(name):
     """The ``advance(state, layout, channels, out)`` function of backend ``name``.
+
+    Parameters
+    ----------
+    name : {"numpy", "numba"}
+        The backend.
+
+    Returns
+    -------
+    callable
+        ``advance`` of :mod:`algid.core_numpy` or :mod:`algid.core_numba`.
 
     Raises
     ------

@@ -96,7 +96,13 @@ class EstimatorState:
     startup: np.ndarray
 
     def copy(self) -> EstimatorState:
-        """An independent state that continues from the same point."""
+        """An independent state that continues from the same point.
+
+        Returns
+        -------
+        EstimatorState
+            A copy whose arrays are not shared with this state (the model is shared).
+        """
         return dataclasses.replace(self, divisors=self.divisors.copy(),
                                    integrals=self.integrals.copy(),
                                    history=self.history.copy(), startup=self.startup.copy())
@@ -109,7 +115,13 @@ class EstimatorState:
         self.startup.fill(0.0)
 
     def magnitude(self) -> float:
-        """Largest absolute value held: integrals, carried and buffered samples."""
+        """Largest absolute value held: integrals, carried and buffered samples.
+
+        Returns
+        -------
+        float
+            The largest absolute value, 0.0 if nothing is held.
+        """
         held = [self.integrals, self.history]
         if self.n_seen < self.points:
             held.append(self.startup[:, :self.n_seen])
@@ -144,21 +156,59 @@ class IntegratorLayout:
     n_lanes: int
 
     def n_integrators(self, filter_order: int) -> int:
-        """Number of integrators with a filter of order ``filter_order``."""
+        """Number of integrators with a filter of order ``filter_order``.
+
+        Parameters
+        ----------
+        filter_order : int
+            Order ``p`` of the invariant filter ``1/s**p``.
+
+        Returns
+        -------
+        int
+            Chain integrators plus ``n_lanes * filter_order`` filter integrators.
+        """
         return self.n_chain_integrators + self.n_lanes * filter_order
 
     def level_start(self, level: int) -> int:
-        """Index of the first integrator of chain level ``level >= 1`` (for ``level =
-        depth + 1``: of the filter)."""
+        """Index of the first integrator of chain level ``level >= 1``.
+
+        For ``level = depth + 1`` this is the index of the first filter integrator.
+
+        Parameters
+        ----------
+        level : int
+            Chain level, ``1 .. depth + 1``.
+
+        Returns
+        -------
+        int
+            Index in :attr:`EstimatorState.integrals`.
+        """
         return sum(len(rows) for rows in self.levels[:level - 1])
 
 
 def layout_of(chains, kernels, channels, n_parameters) -> IntegratorLayout:
-    """The :class:`IntegratorLayout` of the ``CHAINS``, ``KERNELS``, ``CHANNELS`` and
-    number of ``PARAMETERS`` of a generated module.
+    """The :class:`IntegratorLayout` of the tables of a generated module.
 
     Chains are ordered by decreasing depth (stable), so that the chains that have a
     given level come first and a level is a contiguous block of rows.
+
+    Parameters
+    ----------
+    chains : sequence of (signal, power, depth)
+        ``CHAINS`` of the generated module.
+    kernels : sequence of (signal, power, level)
+        ``KERNELS`` of the generated module.
+    channels : sequence of str
+        ``CHANNELS`` of the generated module (the signal names, in channel order).
+    n_parameters : int
+        Number of ``PARAMETERS`` of the generated module.
+
+    Returns
+    -------
+    IntegratorLayout
+        The layout.
     """
     channels = tuple(channels)
     order = sorted(range(len(chains)), key=lambda c: -chains[c][2])

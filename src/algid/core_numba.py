@@ -31,7 +31,19 @@ def _loop_of(module):
 
 
 def compiled_loop(module):
-    """The compiled ``advance`` loop of a generated module."""
+    """The compiled ``advance`` loop of a generated module.
+
+    Parameters
+    ----------
+    module : module
+        Generated estimator module: a built-in one, or one with ``NUMBA_SOURCE``
+        (:func:`algid.symbolic.codegen.compile_model`).
+
+    Returns
+    -------
+    callable
+        The numba-compiled loop (cached per module).
+    """
     return _loop_of(module)
 
 
@@ -41,9 +53,26 @@ def _weights(points, dt):
 
 
 def advance(state, layout, channels, out, *, from_origin=False):
-    """Estimates of a chunk into ``out``, in one compiled pass: a chunk that continues
-    the stream, or with ``from_origin`` the first samples after the time origin (at
-    least ``points`` of them; the estimates of samples ``0 .. points - 2`` are NaN)."""
+    """Estimates of a chunk into ``out``, in one compiled pass.
+
+    The chunk continues the stream, or with ``from_origin`` it holds the first samples
+    after the time origin (at least ``points`` of them; the estimates of samples
+    ``0 .. points - 2`` are NaN).
+
+    Parameters
+    ----------
+    state : EstimatorState
+        The state (:func:`algid.core.new_state`); advanced in place.
+    layout : IntegratorLayout
+        Layout of the state's model (:func:`algid.core.integrator_layout`).
+    channels : tuple of ndarray
+        The chunk: one float64 1-D array per channel, all of length ``m``, in the
+        model's ``CHANNELS`` order.
+    out : ndarray, shape (n_parameters, m)
+        Float64 array the estimates are written into.
+    from_origin : bool, optional
+        The chunk starts at the time origin (the state holds no sample yet).
+    """
     loop = _loop_of(state.model)
     weights, startup = _weights(state.points, state.dt)
     if from_origin:

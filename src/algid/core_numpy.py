@@ -66,8 +66,23 @@ def _divide(lanes, out):
 
 
 def advance_from_origin(state, layout, channels, out):
-    """The first ``points`` samples after the time origin, with the start-up rule;
-    ``state`` holds no sample yet.  Estimates into ``out`` (NaN but the last)."""
+    """Estimates of the first ``points`` samples after the time origin.
+
+    They are integrated with the start-up rule; ``state`` holds no sample yet.  The
+    estimates written into ``out`` are NaN but the last.
+
+    Parameters
+    ----------
+    state : EstimatorState
+        The state (:func:`algid.core.new_state`); advanced in place.
+    layout : IntegratorLayout
+        Layout of the state's model (:func:`algid.core.integrator_layout`).
+    channels : tuple of ndarray
+        The chunk: one float64 1-D array per channel, all of length ``m``, in the
+        model's ``CHANNELS`` order.
+    out : ndarray, shape (n_parameters, m)
+        Float64 array the estimates are written into.
+    """
     m = channels[0].size
     weights, startup = _weights(state.points, state.dt)
     integrals, history = state.integrals, state.history
@@ -138,9 +153,25 @@ def _block(state, layout, channels, out):
 
 
 def advance(state, layout, channels, out, *, from_origin=False):
-    """Estimates of a chunk into ``out``, block by block: a chunk that continues the
-    stream, or with ``from_origin`` the first ``points`` samples after the time
-    origin (:func:`advance_from_origin`)."""
+    """Estimates of a chunk into ``out``, block by block.
+
+    The chunk continues the stream, or with ``from_origin`` it holds the first
+    ``points`` samples after the time origin (:func:`advance_from_origin`).
+
+    Parameters
+    ----------
+    state : EstimatorState
+        The state (:func:`algid.core.new_state`); advanced in place.
+    layout : IntegratorLayout
+        Layout of the state's model (:func:`algid.core.integrator_layout`).
+    channels : tuple of ndarray
+        The chunk: one float64 1-D array per channel, all of length ``m``, in the
+        model's ``CHANNELS`` order.
+    out : ndarray, shape (n_parameters, m)
+        Float64 array the estimates are written into.
+    from_origin : bool, optional
+        The chunk starts at the time origin (the state holds no sample yet).
+    """
     if from_origin:
         advance_from_origin(state, layout, channels, out)
         return

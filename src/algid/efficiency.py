@@ -86,7 +86,7 @@ def crlb_study(n_runs=200, horizons=(1, 2.5, 5), inputs=("step", "sine"), noise_
             for T, n in zip(horizons, lengths):
                 t, f, x = sim.t[:n], sim.f[:n], x_run[:n]
                 alg = estimate(t, f, x, filter_order=filter_order, lowpass=lowpass,
-                               quadrature_order=quadrature_order).final()
+                               quadrature_points=quadrature_order).final()
                 errors[T, "algebraic"].append([alg["B"] - B, alg["K"] - K])
                 if refined:
                     try:

@@ -27,7 +27,13 @@ def _deprecated(name, instead):
 
 
 def available() -> bool:
-    """Whether numba is installed (see :func:`algid.backends.numba_available`)."""
+    """Whether numba is installed (see :func:`algid.backends.numba_available`).
+
+    Returns
+    -------
+    bool
+        True if numba can be imported.
+    """
     return numba_available()
 
 
@@ -48,7 +54,26 @@ def prepare(module, quadrature_points):
 
 
 def make_state(module, quadrature_points, filter_order, *, step, input_divisor=1.0):
-    """Deprecated: :func:`algid.core.new_state` (``input_divisor`` divides the input)."""
+    """Deprecated: :func:`algid.core.new_state` (``input_divisor`` divides the input).
+
+    Parameters
+    ----------
+    module : module
+        Generated estimator module.
+    quadrature_points : int
+        Points of the quadrature rule.
+    filter_order : int
+        Order ``p`` of the invariant filter ``1/s**p``.
+    step : float
+        Sampling step [s].
+    input_divisor : float, optional
+        Divisor of the input channel (a known mass); the other channels are not divided.
+
+    Returns
+    -------
+    EngineState
+        A fresh state, with the time origin at the next sample.
+    """
     _deprecated("make_state", "algid.core.new_state")
     choose_engine("numba", 0, None)
     divisors = [input_divisor if name == module.INPUT else 1.0 for name in module.CHANNELS]
@@ -57,7 +82,22 @@ def make_state(module, quadrature_points, filter_order, *, step, input_divisor=1
 
 
 def run_chunk(state, f, x, *, out=None):
-    """Deprecated: :func:`algid.core.advance` with ``backend="numba"``."""
+    """Deprecated: :func:`algid.core.advance` with ``backend="numba"``.
+
+    Parameters
+    ----------
+    state : EngineState
+        From :func:`make_state`; advanced in place.
+    f, x : ndarray
+        The chunk of the input and output samples.
+    out : ndarray, shape (n_parameters, m), optional
+        Float64 array to write the estimates into.
+
+    Returns
+    -------
+    ndarray, shape (n_parameters, m)
+        Row ``i`` estimates ``PARAMETERS[i]`` (see :func:`algid.core.advance`).
+    """
     _deprecated("run_chunk", "algid.core.advance")
     signals = {state.model.INPUT: f, state.model.OUTPUT: x}
     return core.advance(state, [signals[name] for name in state.model.CHANNELS],
@@ -66,7 +106,28 @@ def run_chunk(state, f, x, *, out=None):
 
 def estimate_arrays(module, f, x, *, step, quadrature_points, filter_order,
                     input_divisor=1.0):
-    """Deprecated: batch estimation on the numba backend (a fresh state, one chunk)."""
+    """Deprecated: batch estimation on the numba backend (a fresh state, one chunk).
+
+    Parameters
+    ----------
+    module : module
+        Generated estimator module.
+    f, x : ndarray
+        Input and output samples.
+    quadrature_points : int
+        Points of the quadrature rule.
+    filter_order : int
+        Order ``p`` of the invariant filter ``1/s**p``.
+    step : float
+        Sampling step [s].
+    input_divisor : float, optional
+        Divisor of the input channel (a known mass); the other channels are not divided.
+
+    Returns
+    -------
+    ndarray, shape (n_parameters, n)
+        Row ``i`` estimates ``PARAMETERS[i]`` (see :func:`algid.core.advance`).
+    """
     _deprecated("estimate_arrays", "algid.estimate(engine='numba')")
     state = make_state(module, quadrature_points, filter_order, step=step,
                        input_divisor=input_divisor)
@@ -74,7 +135,22 @@ def estimate_arrays(module, f, x, *, step, quadrature_points, filter_order,
 
 
 def check_experiment(t, f, x, *, min_samples=16):
-    """Deprecated: :func:`algid.validation_numba.check_experiment_compiled`."""
+    """Deprecated: :func:`algid.validation_numba.check_experiment_compiled`.
+
+    Parameters
+    ----------
+    t, f, x : array_like
+        Time, input and output.
+    min_samples : int, optional
+        Smallest number of samples accepted.
+
+    Returns
+    -------
+    t, f, x : ndarray
+        The checked arrays.
+    dt : float
+        The sampling step.
+    """
     _deprecated("check_experiment", "algid.validation.check_experiment")
     from algid.validation_numba import check_experiment_compiled
     return check_experiment_compiled(t, f, x, min_samples=min_samples)

@@ -256,8 +256,10 @@ class OnlineEstimator:
 
     @property
     def reset_period(self):
-        """Re-anchoring period actually used [s]: ``2 * round(T / (2 dt)) * dt``
-        (``None`` without re-anchoring; the requested value until ``dt`` is known)."""
+        """Re-anchoring period actually used [s]: ``2 * round(T / (2 dt)) * dt``.
+
+        ``None`` without re-anchoring; the requested value until ``dt`` is known.
+        """
         if self._requested_period is None:
             return None
         if self._half is None:
@@ -266,15 +268,19 @@ class OnlineEstimator:
 
     @property
     def t_origin(self) -> float:
-        """Time origin of the estimate returned last: the time of the first sample its
-        estimator has seen (the first sample of the stream without re-anchoring; NaN
-        before any sample)."""
+        """Time origin of the estimate returned last.
+
+        It is the time of the first sample its estimator has seen (the first sample of
+        the stream without re-anchoring; NaN before any sample).
+        """
         return self._origins[self._reported]
 
     @property
     def anchor_origins(self) -> tuple:
-        """Time origins of the running estimators (one, or two with re-anchoring; NaN
-        for one not started yet)."""
+        """Time origins of the running estimators.
+
+        One, or two with re-anchoring; NaN for one not started yet.
+        """
         return tuple(self._origins)
 
     @property
@@ -287,9 +293,11 @@ class OnlineEstimator:
 
     @property
     def state_magnitude(self) -> float:
-        """Largest absolute value held in the state: the integrals of every chain and
-        filter, and the carried samples of their integrands (a check that re-anchoring
-        keeps them bounded)."""
+        """Largest absolute value held in the state.
+
+        It covers the integrals of every chain and filter, and the carried samples of
+        their integrands (a check that re-anchoring keeps them bounded).
+        """
         return max(state.magnitude() for state in self._states)
 
     def __repr__(self):

@@ -24,6 +24,16 @@ DEFAULT_QUADRATURE_POINTS = 6
 def check_filter_order(filter_order) -> int:
     """``filter_order`` as an int, if it is an integer ``>= 0``.
 
+    Parameters
+    ----------
+    filter_order : int
+        Order ``p`` of the invariant filter ``1/s**p``.
+
+    Returns
+    -------
+    int
+        ``filter_order`` as a Python int.
+
     Raises
     ------
     InputDataError
@@ -38,6 +48,18 @@ def check_filter_order(filter_order) -> int:
 def check_quadrature_points(points, *, name="quadrature_points") -> int:
     """``points`` as an int, if it is one of :data:`algid.quadrature.QUADRATURE_POINTS`.
 
+    Parameters
+    ----------
+    points : int
+        Number of points of the cumulative quadrature rule.
+    name : str, optional
+        Name of the option, used in the error message.
+
+    Returns
+    -------
+    int
+        ``points`` as a Python int.
+
     Raises
     ------
     InputDataError
@@ -49,8 +71,26 @@ def check_quadrature_points(points, *, name="quadrature_points") -> int:
 
 
 def quadrature_points_option(quadrature_points, quadrature_order, *, stacklevel=3) -> int:
-    """The checked number of points from the option ``quadrature_points`` or its
-    deprecated spelling ``quadrature_order`` (which warns).
+    """The checked number of quadrature points from either spelling of the option.
+
+    The option is ``quadrature_points``, or its deprecated spelling
+    ``quadrature_order`` (which emits a :class:`DeprecationWarning`).
+
+    Parameters
+    ----------
+    quadrature_points : int or None
+        Number of points of the rule; None means :data:`DEFAULT_QUADRATURE_POINTS`
+        (unless ``quadrature_order`` is given).
+    quadrature_order : int or None
+        Deprecated spelling of ``quadrature_points``; None if not given.
+    stacklevel : int, optional
+        ``stacklevel`` of the deprecation warning, so that it points at the caller's
+        caller.
+
+    Returns
+    -------
+    int
+        The checked number of points.
 
     Raises
     ------
@@ -71,6 +111,18 @@ def quadrature_points_option(quadrature_points, quadrature_order, *, stacklevel=
 def known_mass(module, mass):
     """The validated known mass, or None.
 
+    Parameters
+    ----------
+    module : module
+        Generated model module (declares ``MODEL``, ``PARAMETERS``, ``MASS_SCALED``).
+    mass : float or None
+        Known mass, or None if not given.
+
+    Returns
+    -------
+    float or None
+        The mass as a positive float, or None when ``mass`` is None.
+
     Raises
     ------
     ModelError
@@ -88,16 +140,48 @@ def known_mass(module, mass):
 
 
 def channel_divisors(module, mass):
-    """One divisor per channel: the mass for the channels the model declares as forces
-    (``MASS_DIVIDED``), 1 for the others; ``None`` without a mass."""
+    """One divisor per channel, from the known mass.
+
+    The divisor is the mass for the channels the model declares as forces
+    (``MASS_DIVIDED``), 1 for the others.
+
+    Parameters
+    ----------
+    module : module
+        Generated model module (declares ``CHANNELS`` and ``MASS_DIVIDED``).
+    mass : float or None
+        Known mass, or None.
+
+    Returns
+    -------
+    tuple of float or None
+        One divisor per entry of ``module.CHANNELS``; None without a mass.
+    """
     if mass is None:
         return None
     return tuple(mass if name in module.MASS_DIVIDED else 1.0 for name in module.CHANNELS)
 
 
 def with_mass_scaled(module, estimates, mass):
-    """Add the quantities a known mass scales (``MASS_SCALED``, e.g. ``c = B m``) to the
-    dict ``estimates`` (name -> array), in place; returns it."""
+    """Add the quantities a known mass scales to the estimates, in place.
+
+    The model declares them in ``MASS_SCALED`` (e.g. ``c = B m``); nothing is added
+    without a mass.
+
+    Parameters
+    ----------
+    module : module
+        Generated model module (declares ``MASS_SCALED``: name -> scaled parameter).
+    estimates : dict
+        Estimates, name -> array; modified in place.
+    mass : float or None
+        Known mass, or None.
+
+    Returns
+    -------
+    dict
+        ``estimates`` itself.
+    """
     if mass is not None:
         for name, parameter in module.MASS_SCALED.items():
             estimates[name] = estimates[parameter] * mass

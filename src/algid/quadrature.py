@@ -56,6 +56,16 @@ def startup_samples(points: int) -> int:
 
     The estimate at sample ``n`` can be reported once sample ``max(n, points - 1)`` has
     arrived; samples ``0 .. points - 2`` are the start-up.
+
+    Parameters
+    ----------
+    points : int
+        Number of points of the rule, one of :data:`QUADRATURE_POINTS`.
+
+    Returns
+    -------
+    int
+        ``points - 1``.
     """
     _check_points(points)
     return points - 1

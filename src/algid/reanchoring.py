@@ -22,8 +22,9 @@ __all__ = ["AnchorSegment", "anchor_plan"]
 
 
 class AnchorSegment(NamedTuple):
-    """Samples ``start .. stop - 1`` of a run, over which nothing restarts after
-    ``start`` and the same estimator is reported.
+    """Samples ``start .. stop - 1`` of a run, reported by one estimator.
+
+    Over a segment nothing restarts after ``start``, and the same estimator is reported.
 
     Attributes
     ----------

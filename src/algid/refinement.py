@@ -111,7 +111,7 @@ def _start_values(start, t, f, x, *, mass, filter_order, quadrature_order):
         from algid.estimator import estimate
 
         start = estimate(t, f, x, filter_order=filter_order, mass=mass,
-                         quadrature_order=quadrature_order).final()
+                         quadrature_points=quadrature_order).final()
     elif hasattr(start, "final") and callable(start.final):  # an EstimationResult
         start = start.final()
     if isinstance(start, dict):

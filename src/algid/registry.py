@@ -13,7 +13,13 @@ __all__ = ["available_models", "load_model", "module_from_source"]
 
 
 def available_models():
-    """Names of the models that have a generated estimator."""
+    """Names of the models that have a generated estimator.
+
+    Returns
+    -------
+    tuple of str
+        The built-in model names.
+    """
     return tuple(MODULES)
 
 

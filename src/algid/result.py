@@ -54,7 +54,10 @@ class EstimationResult:
     model : str
     filter_order : int
     quadrature_points : int
-        Points of the quadrature rule (``quadrature_order`` is its deprecated spelling).
+        Points of the quadrature rule.
+    quadrature_order : int
+        Deprecated spelling of ``quadrature_points`` (as a constructor keyword and as an
+        attribute; both warn).
     mass : float or None
     mass_scaled : tuple of str
         The estimates that are a model parameter times the known mass (``c``, ``k``).
@@ -103,6 +106,7 @@ class EstimationResult:
 
     @property
     def n_samples(self) -> int:
+        """Number of samples (the size of :attr:`t`)."""
         return int(self.t.size)
 
     def __getattr__(self, name):
@@ -116,24 +120,69 @@ class EstimationResult:
         return sorted(set(super().__dir__()) | set(self.estimates))
 
     def final(self) -> dict:
-        """Estimates at the last sample, as ``{name: float}``."""
+        """Estimates at the last sample.
+
+        Returns
+        -------
+        dict
+            ``{name: float}``, one entry per estimated quantity.
+        """
         return {k: float(v[-1]) for k, v in self.estimates.items()}
 
     def at(self, time) -> dict:
-        """Estimates at the last sample at or before ``time``."""
+        """Estimates at the last sample at or before ``time``.
+
+        Parameters
+        ----------
+        time : float
+            Instant, on the scale of :attr:`t`.
+
+        Returns
+        -------
+        dict
+            ``{name: float}``, one entry per estimated quantity.
+
+        Raises
+        ------
+        ValueError
+            If ``time`` is before the first sample.
+        """
         i = int(np.searchsorted(self.t, time, side="right")) - 1
         if i < 0:
             raise ValueError(f"time {time} is before the first sample {self.t[0]}")
         return {k: float(v[i]) for k, v in self.estimates.items()}
 
     def convergence_times(self, true_values: dict, rtol: float) -> dict:
-        """For each parameter in ``true_values``, the first instant from which the
-        estimate stays within ``rtol`` of it (see :func:`convergence_time`)."""
+        """Convergence time of each parameter in ``true_values``.
+
+        The convergence time is the first instant from which the estimate stays within
+        ``rtol`` of the true value (see :func:`convergence_time`).
+
+        Parameters
+        ----------
+        true_values : dict
+            Parameter name -> nonzero reference value.
+        rtol : float
+            Relative tolerance.
+
+        Returns
+        -------
+        dict
+            Parameter name -> time (NaN if the estimate is outside the band at the last
+            sample).
+        """
         return {k: convergence_time(self.t, self.estimates[k], v, rtol)
                 for k, v in true_values.items()}
 
     def to_dict(self) -> dict:
-        """Final estimates plus ``t_valid`` and ``n_samples`` (NaN as None), JSON-ready."""
+        """Final estimates plus ``t_valid`` and ``n_samples``, JSON-ready.
+
+        Returns
+        -------
+        dict
+            ``{name: float or None}`` of the final estimates, plus ``"t_valid"`` and
+            ``"n_samples"``; NaN becomes None.
+        """
         out = {k: (v if np.isfinite(v) else None) for k, v in self.final().items()}
         out["t_valid"] = self.t_valid if np.isfinite(self.t_valid) else None
         out["n_samples"] = self.n_samples

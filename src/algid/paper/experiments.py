@@ -14,7 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from algid.errors import AlgidError
-from algid.estimator import DEFAULT_FILTER_ORDER, DEFAULT_QUADRATURE_ORDER, estimate
+from algid.estimator import DEFAULT_FILTER_ORDER, DEFAULT_QUADRATURE_POINTS, estimate
 from algid.result import convergence_time
 
 __all__ = ["SYSTEM", "TRUE_VALUES", "DURATION", "RATE", "NOISE_STD", "TOLERANCES",
@@ -39,7 +39,7 @@ FREQUENCY = 1.0
 TOLERANCES = (1e-2, 1e-3)
 
 #: Estimator settings of the toolkit (the defaults of :func:`algid.estimate`).
-TOOLKIT = {"quadrature_order": DEFAULT_QUADRATURE_ORDER, "filter_order": DEFAULT_FILTER_ORDER}
+TOOLKIT = {"quadrature_order": DEFAULT_QUADRATURE_POINTS, "filter_order": DEFAULT_FILTER_ORDER}
 #: Paper-style settings: cumulative trapezoid; unfiltered without noise, ``1/s`` with.
 PAPER_STYLE = {"quadrature_order": 2, "filter_order": 0}
 PAPER_STYLE_NOISY = {"quadrature_order": 2, "filter_order": 1}
@@ -141,7 +141,7 @@ def simulate_experiment(experiment, *, seed=None, rate=RATE, duration=DURATION):
                     seed=seed if exp.noisy else None)
 
 
-def estimate_experiment(sim, *, quadrature_order=DEFAULT_QUADRATURE_ORDER,
+def estimate_experiment(sim, *, quadrature_order=DEFAULT_QUADRATURE_POINTS,
                         filter_order=DEFAULT_FILTER_ORDER):
     """Estimate ``B`` and ``K`` from a simulated experiment (force per unit mass).
 
@@ -149,13 +149,14 @@ def estimate_experiment(sim, *, quadrature_order=DEFAULT_QUADRATURE_ORDER,
     ----------
     sim : algid.simulation.SimulationResult
     quadrature_order, filter_order : int, optional
-        Passed to :func:`algid.estimate`.
+        Passed to :func:`algid.estimate` (``quadrature_order`` as its
+        ``quadrature_points``: the number of points of the rule).
 
     Returns
     -------
     algid.result.EstimationResult
     """
-    return estimate(sim.t, sim.f / sim.m, sim.x, quadrature_order=quadrature_order,
+    return estimate(sim.t, sim.f / sim.m, sim.x, quadrature_points=quadrature_order,
                     filter_order=filter_order)
 
 

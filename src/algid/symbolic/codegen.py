@@ -142,7 +142,19 @@ def numpy_module_source(derivation: Derivation, *, mass_scaled=None, mass_divide
 
 
 def registry_source(names) -> str:
-    """Source of ``algid/generated/__init__.py``: the list of generated models."""
+    """Source of ``algid/generated/__init__.py``: the list of generated models.
+
+    Parameters
+    ----------
+    names : iterable of str
+        Names of the generated models (sorted in the output).
+
+    Returns
+    -------
+    str
+        Python source defining ``MODULES`` and ``NUMBA_MODULES`` (model name -> module
+        path of its estimator and of its compiled loop).
+    """
     names = sorted(names)
     body = ",\n".join(f"    {n!r}: \"algid.generated.{n}\"" for n in names)
     loops = ",\n".join(f"    {n!r}: \"algid.generated.{n}_numba\"" for n in names)
