@@ -180,9 +180,14 @@ def _max_rel(a, b):
 
 
 def test_defaults_are_those_of_the_python_estimator():
+    from algid.options import DEFAULT_FILTER_ORDER as estimator_filter_order
+    from algid.options import DEFAULT_QUADRATURE_POINTS
+
     params = inspect.signature(algid.estimate).parameters
-    assert params["filter_order"].default == DEFAULT_FILTER_ORDER
-    assert params["quadrature_order"].default == DEFAULT_QUADRATURE_ORDER
+    assert params["filter_order"].default == DEFAULT_FILTER_ORDER == estimator_filter_order
+    # estimate's quadrature_points=None means the shared default
+    assert params["quadrature_points"].default is None
+    assert DEFAULT_QUADRATURE_ORDER == DEFAULT_QUADRATURE_POINTS
 
 
 @pytest.mark.parametrize("order", QUADRATURE_ORDERS)

@@ -154,14 +154,14 @@ def startup_functions(w):
     ]
     if q > 2:
         lines += [f"    for (j = 0; j < {q - 2}; ++j) {{",
-                  f"        double acc = {pre}_ws[j][0] * a[0];",
-                  f"        for (i = 1; i < {q}; ++i) acc += {pre}_ws[j][i] * a[i];",
+                  f"        double acc = ({pre}_ws[j][0] * dt) * a[0];",
+                  f"        for (i = 1; i < {q}; ++i) acc += ({pre}_ws[j][i] * dt) * a[i];",
                   "        inc[j] = acc;", "    }"]
-    lines += [f"    inc[{q - 2}] = {pre}_w[0] * a[0];",
-              f"    for (i = 1; i < {q}; ++i) inc[{q - 2}] += {pre}_w[i] * a[i];",
+    lines += [f"    inc[{q - 2}] = ({pre}_w[0] * dt) * a[0];",
+              f"    for (i = 1; i < {q}; ++i) inc[{q - 2}] += ({pre}_w[i] * dt) * a[i];",
               "    out[0] = 0.0;",
               f"    for (j = 1; j < {q}; ++j) {{",
-              "        s += inc[j - 1];", "        out[j] = s * dt;", "    }",
+              "        s += inc[j - 1];", "        out[j] = s;", "    }",
               "    w->sum[k] = s;",
               f"    for (i = 0; i < {m}; ++i) w->hist[k][i] = a[i + 1];",
               "}", "",
@@ -224,7 +224,8 @@ def integrator_step_function(w):
     """
     pre, q = w.pre, w.q
     m = q - 1
-    terms = " + ".join([f"{pre}_w[{i}] * hist[{i}]" for i in range(m)] + [f"{pre}_w[{m}] * v"])
+    terms = " + ".join([f"({pre}_w[{i}] * dt) * hist[{i}]" for i in range(m)]
+                      + [f"({pre}_w[{m}] * dt) * v"])
     lines = [
         "/* One step of an integrator: v is its integrand at this sample; returns the",
         "   integral.  The increment is summed left to right, as NumPy does. */",
@@ -233,7 +234,7 @@ def integrator_step_function(w):
         f"    const double inc = {terms};",
     ]
     lines += [f"    hist[{i}] = hist[{i + 1}];" for i in range(m - 1)]
-    lines += [f"    hist[{m - 1}] = v;", "    *sum += inc;", "    return *sum * dt;", "}", ""]
+    lines += [f"    hist[{m - 1}] = v;", "    *sum += inc;", "    return *sum;", "}", ""]
     return lines
 
 def sample_loop_function(w):
@@ -307,7 +308,7 @@ def block_loop_function(w):
         base[c] = offset
         offset += d + 1
     chain_of = {(s, pw): c for c, (s, pw, _) in enumerate(w.chains)}
-    fir = " + ".join(f"{pre}_w[{j}] * a[b + {j}]" for j in range(q))
+    fir = " + ".join(f"({pre}_w[{j}] * dt) * a[b + {j}]" for j in range(q))
     lines = [
         "/* Samples after the start-up (w->n >= q), a block of at most BLOCK samples at",
         "   a time: for each level the increments of the block (a loop without",
@@ -380,7 +381,7 @@ def block_loop_function(w):
         out.append(f"{pad}for (b = 0; b < nb; ++b) {{")
         for j, (_, dst, _) in enumerate(pairs):
             out += [f"{pad}    acc[{j}] += inc[{j}][b];",
-                    f"{pad}    {dst}[{P}_M + b] = acc[{j}] * dt;"]
+                    f"{pad}    {dst}[{P}_M + b] = acc[{j}];"]
         out.append(f"{pad}}}")
         for j, (_, _, k) in enumerate(pairs):
             out.append(f"{pad}s[{k}] = acc[{j}];")

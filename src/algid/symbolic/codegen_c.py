@@ -328,7 +328,8 @@ class _Writer:
                  "#endif",
                  "",
                  f"/* {q}-point Adams-Moulton rule (weights times dt): the integral over",
-                 "   [t[n-1], t[n]] from the samples n-q+1 .. n. */",
+                 "   [t[n-1], t[n]] from the samples n-q+1 .. n; each weight is multiplied",
+                 "   by dt first, as in algid.quadrature.integrator_weights. */",
                  f"static const double {pre}_w[{q}] = {{"]
         lines += [f"    {_literal(w)}," for w in self.regular]
         lines.append("};")
@@ -347,7 +348,7 @@ class _Writer:
         chains = ", ".join(f"({s}, {pw}, {d})" for s, pw, d in self.chains)
         return [
             "/* One estimator with its time origin at its last restart.  Integrator k keeps",
-            "   the running sum of its increments (the integral divided by dt) and the last",
+            "   its integral (the running sum of its increments, weights times dt) and the last",
             "   M samples of its integrand, oldest first.  Integrators: the levels 1 .. depth",
             f"   of the chains (signal, power, depth) {chains},",
             "   then filter level by filter level the numerators and the denominator. */",

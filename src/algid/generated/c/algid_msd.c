@@ -18,7 +18,8 @@
 #endif
 
 /* 6-point Adams-Moulton rule (weights times dt): the integral over
-   [t[n-1], t[n]] from the samples n-q+1 .. n. */
+   [t[n-1], t[n]] from the samples n-q+1 .. n; each weight is multiplied
+   by dt first, as in algid.quadrature.integrator_weights. */
 static const double algid_msd_w[6] = {
     0.01875,
     -0.12013888888888889,
@@ -36,7 +37,7 @@ static const double algid_msd_ws[4][6] = {
 };
 
 /* One estimator with its time origin at its last restart.  Integrator k keeps
-   the running sum of its increments (the integral divided by dt) and the last
+   its integral (the running sum of its increments, weights times dt) and the last
    M samples of its integrand, oldest first.  Integrators: the levels 1 .. depth
    of the chains (signal, power, depth) (f, 2, 3), (x, 0, 3), (x, 1, 3), (x, 2, 3),
    then filter level by filter level the numerators and the denominator. */
@@ -108,16 +109,16 @@ static void algid_msd_start_level(algid_msd_window *w, int k, const double *a, d
     double s = 0.0;
     int i, j;
     for (j = 0; j < 4; ++j) {
-        double acc = algid_msd_ws[j][0] * a[0];
-        for (i = 1; i < 6; ++i) acc += algid_msd_ws[j][i] * a[i];
+        double acc = (algid_msd_ws[j][0] * dt) * a[0];
+        for (i = 1; i < 6; ++i) acc += (algid_msd_ws[j][i] * dt) * a[i];
         inc[j] = acc;
     }
-    inc[4] = algid_msd_w[0] * a[0];
-    for (i = 1; i < 6; ++i) inc[4] += algid_msd_w[i] * a[i];
+    inc[4] = (algid_msd_w[0] * dt) * a[0];
+    for (i = 1; i < 6; ++i) inc[4] += (algid_msd_w[i] * dt) * a[i];
     out[0] = 0.0;
     for (j = 1; j < 6; ++j) {
         s += inc[j - 1];
-        out[j] = s * dt;
+        out[j] = s;
     }
     w->sum[k] = s;
     for (i = 0; i < 5; ++i) w->hist[k][i] = a[i + 1];
@@ -179,14 +180,14 @@ static void algid_msd_start(algid_msd_window *w, double dt, double *theta)
    integral.  The increment is summed left to right, as NumPy does. */
 static double algid_msd_integrate(double *sum, double *hist, double v, double dt)
 {
-    const double inc = algid_msd_w[0] * hist[0] + algid_msd_w[1] * hist[1] + algid_msd_w[2] * hist[2] + algid_msd_w[3] * hist[3] + algid_msd_w[4] * hist[4] + algid_msd_w[5] * v;
+    const double inc = (algid_msd_w[0] * dt) * hist[0] + (algid_msd_w[1] * dt) * hist[1] + (algid_msd_w[2] * dt) * hist[2] + (algid_msd_w[3] * dt) * hist[3] + (algid_msd_w[4] * dt) * hist[4] + (algid_msd_w[5] * dt) * v;
     hist[0] = hist[1];
     hist[1] = hist[2];
     hist[2] = hist[3];
     hist[3] = hist[4];
     hist[4] = v;
     *sum += inc;
-    return *sum * dt;
+    return *sum;
 }
 
 /* Samples after the start-up (w->n >= q), one by one: for short chunks, where
@@ -304,78 +305,78 @@ static void algid_msd_blocks(algid_msd_window *w, const double *u, const double 
             lv[12][ALGID_MSD_M + b] = (tau*tau) * y[start + b];
         }
         a = lv[0];
-        for (b = 0; b < ALGID_MSD_BLOCK; ++b) inc[0][b] = algid_msd_w[0] * a[b + 0] + algid_msd_w[1] * a[b + 1] + algid_msd_w[2] * a[b + 2] + algid_msd_w[3] * a[b + 3] + algid_msd_w[4] * a[b + 4] + algid_msd_w[5] * a[b + 5];
+        for (b = 0; b < ALGID_MSD_BLOCK; ++b) inc[0][b] = (algid_msd_w[0] * dt) * a[b + 0] + (algid_msd_w[1] * dt) * a[b + 1] + (algid_msd_w[2] * dt) * a[b + 2] + (algid_msd_w[3] * dt) * a[b + 3] + (algid_msd_w[4] * dt) * a[b + 4] + (algid_msd_w[5] * dt) * a[b + 5];
         a = lv[4];
-        for (b = 0; b < ALGID_MSD_BLOCK; ++b) inc[1][b] = algid_msd_w[0] * a[b + 0] + algid_msd_w[1] * a[b + 1] + algid_msd_w[2] * a[b + 2] + algid_msd_w[3] * a[b + 3] + algid_msd_w[4] * a[b + 4] + algid_msd_w[5] * a[b + 5];
+        for (b = 0; b < ALGID_MSD_BLOCK; ++b) inc[1][b] = (algid_msd_w[0] * dt) * a[b + 0] + (algid_msd_w[1] * dt) * a[b + 1] + (algid_msd_w[2] * dt) * a[b + 2] + (algid_msd_w[3] * dt) * a[b + 3] + (algid_msd_w[4] * dt) * a[b + 4] + (algid_msd_w[5] * dt) * a[b + 5];
         a = lv[8];
-        for (b = 0; b < ALGID_MSD_BLOCK; ++b) inc[2][b] = algid_msd_w[0] * a[b + 0] + algid_msd_w[1] * a[b + 1] + algid_msd_w[2] * a[b + 2] + algid_msd_w[3] * a[b + 3] + algid_msd_w[4] * a[b + 4] + algid_msd_w[5] * a[b + 5];
+        for (b = 0; b < ALGID_MSD_BLOCK; ++b) inc[2][b] = (algid_msd_w[0] * dt) * a[b + 0] + (algid_msd_w[1] * dt) * a[b + 1] + (algid_msd_w[2] * dt) * a[b + 2] + (algid_msd_w[3] * dt) * a[b + 3] + (algid_msd_w[4] * dt) * a[b + 4] + (algid_msd_w[5] * dt) * a[b + 5];
         a = lv[12];
-        for (b = 0; b < ALGID_MSD_BLOCK; ++b) inc[3][b] = algid_msd_w[0] * a[b + 0] + algid_msd_w[1] * a[b + 1] + algid_msd_w[2] * a[b + 2] + algid_msd_w[3] * a[b + 3] + algid_msd_w[4] * a[b + 4] + algid_msd_w[5] * a[b + 5];
+        for (b = 0; b < ALGID_MSD_BLOCK; ++b) inc[3][b] = (algid_msd_w[0] * dt) * a[b + 0] + (algid_msd_w[1] * dt) * a[b + 1] + (algid_msd_w[2] * dt) * a[b + 2] + (algid_msd_w[3] * dt) * a[b + 3] + (algid_msd_w[4] * dt) * a[b + 4] + (algid_msd_w[5] * dt) * a[b + 5];
         acc[0] = s[0];
         acc[1] = s[3];
         acc[2] = s[6];
         acc[3] = s[9];
         for (b = 0; b < nb; ++b) {
             acc[0] += inc[0][b];
-            lv[1][ALGID_MSD_M + b] = acc[0] * dt;
+            lv[1][ALGID_MSD_M + b] = acc[0];
             acc[1] += inc[1][b];
-            lv[5][ALGID_MSD_M + b] = acc[1] * dt;
+            lv[5][ALGID_MSD_M + b] = acc[1];
             acc[2] += inc[2][b];
-            lv[9][ALGID_MSD_M + b] = acc[2] * dt;
+            lv[9][ALGID_MSD_M + b] = acc[2];
             acc[3] += inc[3][b];
-            lv[13][ALGID_MSD_M + b] = acc[3] * dt;
+            lv[13][ALGID_MSD_M + b] = acc[3];
         }
         s[0] = acc[0];
         s[3] = acc[1];
         s[6] = acc[2];
         s[9] = acc[3];
         a = lv[1];
-        for (b = 0; b < ALGID_MSD_BLOCK; ++b) inc[0][b] = algid_msd_w[0] * a[b + 0] + algid_msd_w[1] * a[b + 1] + algid_msd_w[2] * a[b + 2] + algid_msd_w[3] * a[b + 3] + algid_msd_w[4] * a[b + 4] + algid_msd_w[5] * a[b + 5];
+        for (b = 0; b < ALGID_MSD_BLOCK; ++b) inc[0][b] = (algid_msd_w[0] * dt) * a[b + 0] + (algid_msd_w[1] * dt) * a[b + 1] + (algid_msd_w[2] * dt) * a[b + 2] + (algid_msd_w[3] * dt) * a[b + 3] + (algid_msd_w[4] * dt) * a[b + 4] + (algid_msd_w[5] * dt) * a[b + 5];
         a = lv[5];
-        for (b = 0; b < ALGID_MSD_BLOCK; ++b) inc[1][b] = algid_msd_w[0] * a[b + 0] + algid_msd_w[1] * a[b + 1] + algid_msd_w[2] * a[b + 2] + algid_msd_w[3] * a[b + 3] + algid_msd_w[4] * a[b + 4] + algid_msd_w[5] * a[b + 5];
+        for (b = 0; b < ALGID_MSD_BLOCK; ++b) inc[1][b] = (algid_msd_w[0] * dt) * a[b + 0] + (algid_msd_w[1] * dt) * a[b + 1] + (algid_msd_w[2] * dt) * a[b + 2] + (algid_msd_w[3] * dt) * a[b + 3] + (algid_msd_w[4] * dt) * a[b + 4] + (algid_msd_w[5] * dt) * a[b + 5];
         a = lv[9];
-        for (b = 0; b < ALGID_MSD_BLOCK; ++b) inc[2][b] = algid_msd_w[0] * a[b + 0] + algid_msd_w[1] * a[b + 1] + algid_msd_w[2] * a[b + 2] + algid_msd_w[3] * a[b + 3] + algid_msd_w[4] * a[b + 4] + algid_msd_w[5] * a[b + 5];
+        for (b = 0; b < ALGID_MSD_BLOCK; ++b) inc[2][b] = (algid_msd_w[0] * dt) * a[b + 0] + (algid_msd_w[1] * dt) * a[b + 1] + (algid_msd_w[2] * dt) * a[b + 2] + (algid_msd_w[3] * dt) * a[b + 3] + (algid_msd_w[4] * dt) * a[b + 4] + (algid_msd_w[5] * dt) * a[b + 5];
         a = lv[13];
-        for (b = 0; b < ALGID_MSD_BLOCK; ++b) inc[3][b] = algid_msd_w[0] * a[b + 0] + algid_msd_w[1] * a[b + 1] + algid_msd_w[2] * a[b + 2] + algid_msd_w[3] * a[b + 3] + algid_msd_w[4] * a[b + 4] + algid_msd_w[5] * a[b + 5];
+        for (b = 0; b < ALGID_MSD_BLOCK; ++b) inc[3][b] = (algid_msd_w[0] * dt) * a[b + 0] + (algid_msd_w[1] * dt) * a[b + 1] + (algid_msd_w[2] * dt) * a[b + 2] + (algid_msd_w[3] * dt) * a[b + 3] + (algid_msd_w[4] * dt) * a[b + 4] + (algid_msd_w[5] * dt) * a[b + 5];
         acc[0] = s[1];
         acc[1] = s[4];
         acc[2] = s[7];
         acc[3] = s[10];
         for (b = 0; b < nb; ++b) {
             acc[0] += inc[0][b];
-            lv[2][ALGID_MSD_M + b] = acc[0] * dt;
+            lv[2][ALGID_MSD_M + b] = acc[0];
             acc[1] += inc[1][b];
-            lv[6][ALGID_MSD_M + b] = acc[1] * dt;
+            lv[6][ALGID_MSD_M + b] = acc[1];
             acc[2] += inc[2][b];
-            lv[10][ALGID_MSD_M + b] = acc[2] * dt;
+            lv[10][ALGID_MSD_M + b] = acc[2];
             acc[3] += inc[3][b];
-            lv[14][ALGID_MSD_M + b] = acc[3] * dt;
+            lv[14][ALGID_MSD_M + b] = acc[3];
         }
         s[1] = acc[0];
         s[4] = acc[1];
         s[7] = acc[2];
         s[10] = acc[3];
         a = lv[2];
-        for (b = 0; b < ALGID_MSD_BLOCK; ++b) inc[0][b] = algid_msd_w[0] * a[b + 0] + algid_msd_w[1] * a[b + 1] + algid_msd_w[2] * a[b + 2] + algid_msd_w[3] * a[b + 3] + algid_msd_w[4] * a[b + 4] + algid_msd_w[5] * a[b + 5];
+        for (b = 0; b < ALGID_MSD_BLOCK; ++b) inc[0][b] = (algid_msd_w[0] * dt) * a[b + 0] + (algid_msd_w[1] * dt) * a[b + 1] + (algid_msd_w[2] * dt) * a[b + 2] + (algid_msd_w[3] * dt) * a[b + 3] + (algid_msd_w[4] * dt) * a[b + 4] + (algid_msd_w[5] * dt) * a[b + 5];
         a = lv[6];
-        for (b = 0; b < ALGID_MSD_BLOCK; ++b) inc[1][b] = algid_msd_w[0] * a[b + 0] + algid_msd_w[1] * a[b + 1] + algid_msd_w[2] * a[b + 2] + algid_msd_w[3] * a[b + 3] + algid_msd_w[4] * a[b + 4] + algid_msd_w[5] * a[b + 5];
+        for (b = 0; b < ALGID_MSD_BLOCK; ++b) inc[1][b] = (algid_msd_w[0] * dt) * a[b + 0] + (algid_msd_w[1] * dt) * a[b + 1] + (algid_msd_w[2] * dt) * a[b + 2] + (algid_msd_w[3] * dt) * a[b + 3] + (algid_msd_w[4] * dt) * a[b + 4] + (algid_msd_w[5] * dt) * a[b + 5];
         a = lv[10];
-        for (b = 0; b < ALGID_MSD_BLOCK; ++b) inc[2][b] = algid_msd_w[0] * a[b + 0] + algid_msd_w[1] * a[b + 1] + algid_msd_w[2] * a[b + 2] + algid_msd_w[3] * a[b + 3] + algid_msd_w[4] * a[b + 4] + algid_msd_w[5] * a[b + 5];
+        for (b = 0; b < ALGID_MSD_BLOCK; ++b) inc[2][b] = (algid_msd_w[0] * dt) * a[b + 0] + (algid_msd_w[1] * dt) * a[b + 1] + (algid_msd_w[2] * dt) * a[b + 2] + (algid_msd_w[3] * dt) * a[b + 3] + (algid_msd_w[4] * dt) * a[b + 4] + (algid_msd_w[5] * dt) * a[b + 5];
         a = lv[14];
-        for (b = 0; b < ALGID_MSD_BLOCK; ++b) inc[3][b] = algid_msd_w[0] * a[b + 0] + algid_msd_w[1] * a[b + 1] + algid_msd_w[2] * a[b + 2] + algid_msd_w[3] * a[b + 3] + algid_msd_w[4] * a[b + 4] + algid_msd_w[5] * a[b + 5];
+        for (b = 0; b < ALGID_MSD_BLOCK; ++b) inc[3][b] = (algid_msd_w[0] * dt) * a[b + 0] + (algid_msd_w[1] * dt) * a[b + 1] + (algid_msd_w[2] * dt) * a[b + 2] + (algid_msd_w[3] * dt) * a[b + 3] + (algid_msd_w[4] * dt) * a[b + 4] + (algid_msd_w[5] * dt) * a[b + 5];
         acc[0] = s[2];
         acc[1] = s[5];
         acc[2] = s[8];
         acc[3] = s[11];
         for (b = 0; b < nb; ++b) {
             acc[0] += inc[0][b];
-            lv[3][ALGID_MSD_M + b] = acc[0] * dt;
+            lv[3][ALGID_MSD_M + b] = acc[0];
             acc[1] += inc[1][b];
-            lv[7][ALGID_MSD_M + b] = acc[1] * dt;
+            lv[7][ALGID_MSD_M + b] = acc[1];
             acc[2] += inc[2][b];
-            lv[11][ALGID_MSD_M + b] = acc[2] * dt;
+            lv[11][ALGID_MSD_M + b] = acc[2];
             acc[3] += inc[3][b];
-            lv[15][ALGID_MSD_M + b] = acc[3] * dt;
+            lv[15][ALGID_MSD_M + b] = acc[3];
         }
         s[2] = acc[0];
         s[5] = acc[1];
@@ -405,21 +406,21 @@ static void algid_msd_blocks(algid_msd_window *w, const double *u, const double 
         }
         for (lev = 0; lev < 2; ++lev) {
             a = fl[lev][0];
-            for (b = 0; b < ALGID_MSD_BLOCK; ++b) inc[0][b] = algid_msd_w[0] * a[b + 0] + algid_msd_w[1] * a[b + 1] + algid_msd_w[2] * a[b + 2] + algid_msd_w[3] * a[b + 3] + algid_msd_w[4] * a[b + 4] + algid_msd_w[5] * a[b + 5];
+            for (b = 0; b < ALGID_MSD_BLOCK; ++b) inc[0][b] = (algid_msd_w[0] * dt) * a[b + 0] + (algid_msd_w[1] * dt) * a[b + 1] + (algid_msd_w[2] * dt) * a[b + 2] + (algid_msd_w[3] * dt) * a[b + 3] + (algid_msd_w[4] * dt) * a[b + 4] + (algid_msd_w[5] * dt) * a[b + 5];
             a = fl[lev][1];
-            for (b = 0; b < ALGID_MSD_BLOCK; ++b) inc[1][b] = algid_msd_w[0] * a[b + 0] + algid_msd_w[1] * a[b + 1] + algid_msd_w[2] * a[b + 2] + algid_msd_w[3] * a[b + 3] + algid_msd_w[4] * a[b + 4] + algid_msd_w[5] * a[b + 5];
+            for (b = 0; b < ALGID_MSD_BLOCK; ++b) inc[1][b] = (algid_msd_w[0] * dt) * a[b + 0] + (algid_msd_w[1] * dt) * a[b + 1] + (algid_msd_w[2] * dt) * a[b + 2] + (algid_msd_w[3] * dt) * a[b + 3] + (algid_msd_w[4] * dt) * a[b + 4] + (algid_msd_w[5] * dt) * a[b + 5];
             a = fl[lev][2];
-            for (b = 0; b < ALGID_MSD_BLOCK; ++b) inc[2][b] = algid_msd_w[0] * a[b + 0] + algid_msd_w[1] * a[b + 1] + algid_msd_w[2] * a[b + 2] + algid_msd_w[3] * a[b + 3] + algid_msd_w[4] * a[b + 4] + algid_msd_w[5] * a[b + 5];
+            for (b = 0; b < ALGID_MSD_BLOCK; ++b) inc[2][b] = (algid_msd_w[0] * dt) * a[b + 0] + (algid_msd_w[1] * dt) * a[b + 1] + (algid_msd_w[2] * dt) * a[b + 2] + (algid_msd_w[3] * dt) * a[b + 3] + (algid_msd_w[4] * dt) * a[b + 4] + (algid_msd_w[5] * dt) * a[b + 5];
             acc[0] = s[12 + lev * 3 + 0];
             acc[1] = s[12 + lev * 3 + 1];
             acc[2] = s[12 + lev * 3 + 2];
             for (b = 0; b < nb; ++b) {
                 acc[0] += inc[0][b];
-                fl[lev + 1][0][ALGID_MSD_M + b] = acc[0] * dt;
+                fl[lev + 1][0][ALGID_MSD_M + b] = acc[0];
                 acc[1] += inc[1][b];
-                fl[lev + 1][1][ALGID_MSD_M + b] = acc[1] * dt;
+                fl[lev + 1][1][ALGID_MSD_M + b] = acc[1];
                 acc[2] += inc[2][b];
-                fl[lev + 1][2][ALGID_MSD_M + b] = acc[2] * dt;
+                fl[lev + 1][2][ALGID_MSD_M + b] = acc[2];
             }
             s[12 + lev * 3 + 0] = acc[0];
             s[12 + lev * 3 + 1] = acc[1];
