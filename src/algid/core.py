@@ -271,9 +271,17 @@ def new_state(module, *, points, filter_order, dt, divisors=None) -> EstimatorSt
                           startup=np.zeros((n_channels, points)))
 
 
+_FLOAT64 = np.dtype(np.float64)
+_RUNNERS = {}
+
+
 def _as_channels(state, channels):
     """The chunk as a tuple of equally long float64 1-D arrays, one per channel."""
     n_channels = state.startup.shape[0]
+    if type(channels) is tuple and len(channels) == n_channels and all(
+            type(r) is np.ndarray and r.dtype == _FLOAT64 and r.ndim == 1
+            and r.shape == channels[0].shape and r.flags.c_contiguous for r in channels):
+        return channels  # already what the backends take
     try:
         rows = tuple(np.ascontiguousarray(c, dtype=np.float64) for c in channels)
     except (TypeError, ValueError):
@@ -317,7 +325,9 @@ def advance(state, channels, *, backend="numpy", out=None):
     elif not (isinstance(out, np.ndarray) and out.shape == shape and out.dtype == np.float64):
         raise InputDataError(f"out must be a float64 array of shape {shape}, got "
                              f"{getattr(out, 'shape', None)} {getattr(out, 'dtype', None)}")
-    run = require_backend(backend)
+    run = _RUNNERS.get(backend)
+    if run is None:
+        run = _RUNNERS[backend] = require_backend(backend)
     q = state.points
     done = 0
     if state.n_seen < q and m:  # the start-up: buffer samples 0 .. q - 1
@@ -332,7 +342,9 @@ def advance(state, channels, *, backend="numpy", out=None):
             run(state, integrator_layout(state.model), tuple(state.startup), first,
                 from_origin=True)
             out[:, done - 1] = first[:, -1]
-    if done < m:
+    if done == 0 and m:
+        run(state, integrator_layout(state.model), rows, out)
+    elif done < m:
         run(state, integrator_layout(state.model), tuple(r[done:] for r in rows),
             out[:, done:])
     return out, state

@@ -107,6 +107,20 @@ def advance_from_origin(state, layout, channels, out):
     state.n_seen = m
 
 
+_BLOCKS = {}
+
+
+def _level_blocks(layout):
+    """Rows per chain level, and the first integrator of every level and of the filter
+    (computed once per layout; layouts live as long as their module)."""
+    blocks = _BLOCKS.get(id(layout))
+    if blocks is None or blocks[0] is not layout:
+        sizes = [len(rows) for rows in layout.levels]
+        starts = [layout.level_start(level) for level in range(1, len(sizes) + 2)]
+        blocks = _BLOCKS[id(layout)] = (layout, sizes, starts)
+    return blocks[1], blocks[2]
+
+
 def _padded(history_rows, rows, width, m):
     """A level's buffer: the history of the integrators it drives, then ``m`` samples."""
     buffer = np.empty((rows, width + m))
@@ -120,8 +134,7 @@ def _block(state, layout, channels, out):
     weights, _ = _weights(state.points, state.dt)
     width = state.points - 1
     integrals, history = state.integrals, state.history
-    sizes = [len(rows) for rows in layout.levels]
-    starts = [layout.level_start(level) for level in range(1, len(sizes) + 2)]
+    sizes, starts = _level_blocks(layout)
     # buffers[l][:, width:] holds level l of the chains; buffers[l][:, :width] the
     # history of the integrators of level l + 1, which it drives
     buffers = []

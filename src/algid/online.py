@@ -204,6 +204,11 @@ class OnlineEstimator:
                         for _ in range(1 if reset_period is None else 2)]
         self._origins = [math.nan] * len(self._states)
         self._discard = np.empty((len(module.PARAMETERS), 0))
+        # per-stream constants of update()
+        self._channel_order = tuple(0 if name == module.INPUT else 1
+                                    for name in module.CHANNELS)
+        self._n_parameters = len(module.PARAMETERS)
+        self._mass_scaled = self.parameters[len(module.PARAMETERS):]
         self.reset()
 
     @property
@@ -341,14 +346,14 @@ class OnlineEstimator:
             half = self._half_period(dt)
         # checks done: from here on the state changes
         self._dt, self._half = dt, half
-        if dt is not None:
+        if dt is not None and dt != self._states[0].dt:
             for state in self._states:
                 state.dt = dt
         m = t.size
         module = self._module
-        signals = {module.INPUT: f, module.OUTPUT: x}
-        channels = tuple(signals[name] for name in module.CHANNELS)
-        out = np.empty((len(module.PARAMETERS), m))
+        channels = (f, x) if self._channel_order == (0, 1) else \
+            tuple((f, x)[i] for i in self._channel_order)
+        out = np.empty((self._n_parameters, m))
         if m:
             if self._n == 0:
                 self._origins[0] = float(t[0])
@@ -358,14 +363,29 @@ class OnlineEstimator:
         else:
             self._advance_anchored(t, channels, half, out)
         self._n += m
-        estimates = with_mass_scaled(module, dict(zip(module.PARAMETERS, out)), self.mass)
+        estimates = dict(zip(module.PARAMETERS, out))
+        if self.mass is not None:
+            with_mass_scaled(module, estimates, self.mass)
         return EstimationResult(t=t, estimates=estimates, model=self.model,
                                 filter_order=self.filter_order,
                                 quadrature_points=self.quadrature_points, mass=self.mass,
-                                mass_scaled=self.parameters[len(module.PARAMETERS):])
+                                mass_scaled=self._mass_scaled)
 
     def _advance_anchored(self, t, channels, half, out):
         """Estimates of a checked chunk with re-anchoring, into ``out``."""
+        k, phase = divmod(self._n, half)
+        if phase and phase + t.size <= half:  # within one half period: one segment,
+            # with nothing restarting (what anchor_plan says, without building it)
+            self._reported = reported = 0 if k == 0 or k % 2 else 1
+            for i in ((0,) if k == 0 else (0, 1)):
+                if i == reported:
+                    target = out
+                else:
+                    if self._discard.shape[1] < t.size:
+                        self._discard = np.empty((out.shape[0], max(t.size, 64)))
+                    target = self._discard[:, :t.size]
+                core.advance(self._states[i], channels, backend=self.engine, out=target)
+            return
         for segment in anchor_plan(self._n, t.size, half):
             start, stop = segment.start, segment.stop
             if segment.restart is not None:

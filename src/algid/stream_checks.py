@@ -28,12 +28,12 @@ def _fmt(value) -> str:
 
 def _check_sample(t, f, x, n, t_last, dt):
     """:func:`check_chunk` for one sample given as three numbers (faster)."""
-    where = f"in the chunk starting at stream sample {n}"
     values = (float(t), float(f), float(x))
     for name, v in zip(("t", "f", "x"), values):
         if not math.isfinite(v):
             what = "NaN" if v != v else ("inf" if v > 0 else "-inf")
-            raise InputDataError(f"signal {name!r} has {what} at row 0 {where}")
+            raise InputDataError(f"signal {name!r} has {what} at row 0 "
+                                 f"in the chunk starting at stream sample {n}")
     if t_last is not None:
         step = values[0] - t_last
         if not step > 0:
@@ -97,6 +97,8 @@ def check_chunk(t, f, x, *, n, t_last, dt, scan=None):
         Not 1-D numbers, NaN or inf, different lengths, time not increasing (within the
         chunk or from the previous one) or not uniform.
     """
+    if type(t) is float and type(f) is float and type(x) is float:  # one sample, fast
+        return _check_sample(t, f, x, n, t_last, dt)
     if scan is not None:
         checked = _scan_chunk(scan, t, f, x, t_last, dt)
         if checked is not None:
