@@ -170,7 +170,7 @@ def test_naive_algebraic_is_the_trapezoid_estimator():
     t, f, x = exact_response("sine", duration=2.0, x0=IC[0], v0=IC[1])
     for p in (0, 1):
         B, K = bl.naive_algebraic(t, f, x, filter_order=p)
-        r = algid.estimate(t, f, x, quadrature_order=2, filter_order=p)
+        r = algid.estimate(t, f, x, quadrature_points=2, filter_order=p)
         # the same arithmetic in another order: round-off, magnified by the conditioning
         # of P (det P ~ t**k at early times; it also passes near zero later)
         np.testing.assert_allclose(B[10:], r.B[10:], rtol=1e-6)

@@ -300,7 +300,7 @@ def test_other_orders_equal_batch_estimate(build, p, q):
     dt = (t[-1] - t[0]) / (t.size - 1)
     est = c.run(u, y, dt, chunk=333)
     np.testing.assert_array_equal(est, c.run(u, y, dt, chunk=1))
-    ref = _rows(algid.estimate(t, u, y, filter_order=p, quadrature_order=q, engine="numpy"),
+    ref = _rows(algid.estimate(t, u, y, filter_order=p, quadrature_points=q, engine="numpy"),
                 ["B", "K"])
     np.testing.assert_array_equal(np.isnan(est), np.isnan(ref))
     late = t >= SETTLE
