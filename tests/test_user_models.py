@@ -51,3 +51,17 @@ def test_missing_signal_and_mixed_arguments_are_refused():
 def test_bad_equation_is_a_model_error():
     with pytest.raises(ModelError):
         compile_equation("M*y'' + K*y = G*u", "M K G")
+
+
+def test_a_zero_signal_is_accepted_and_lengths_are_checked():
+    """One identically zero signal is data, not an error (here it leaves H undetermined:
+    det P is zero and every estimate is NaN, not a number that looks right); a short
+    signal is refused."""
+    module = compile_equation("y'' + B*y' + K*y = G*u + H*w", "B K G H")
+    t, u, y = _cubic_record(duration=0.1)
+    r = algid.estimate(t, signals={"u": u, "y": y, "w": np.zeros_like(t)}, model=module)
+    assert r.n_samples == t.size and np.isnan(r.H).all() and np.isnan(r.B).all()
+    with pytest.raises(InputDataError, match="'w' has 50 samples"):
+        algid.estimate(t, signals={"u": u, "y": y, "w": u[:50]}, model=module)
+    with pytest.raises(InputDataError, match="no excitation"):
+        algid.estimate(t, signals={"u": 0 * u, "y": 0 * y, "w": 0 * u}, model=module)

@@ -24,7 +24,7 @@ from algid.options import (
 from algid.quadrature import iterated_integrals, startup_samples
 from algid.registry import available_models, load_model
 from algid.result import EstimationResult
-from algid.validation import check_experiment
+from algid.validation import as_signal, check_experiment
 
 __all__ = ["estimate", "available_models", "load_model", "kernel_values",
            "DEFAULT_FILTER_ORDER", "DEFAULT_QUADRATURE_POINTS", "DEFAULT_QUADRATURE_ORDER",
@@ -249,12 +249,17 @@ def _estimate_signals(t, signals, *, model, filter_order, quadrature_points, qua
     module = load_model(model)
     filter_order = check_filter_order(filter_order)
     points = quadrature_points_option(quadrature_points, quadrature_order)
-    checked, dt = {}, None
-    for name, samples in signals.items():
-        t_checked, values, _, dt = check_experiment(t, samples, samples,
-                                                    names=("t", str(name), str(name)),
-                                                    min_samples=max(2 * points, 8))
-        checked[name] = values
+    # the time axis once (passed as its own companions: t is never identically zero,
+    # so only the checks of the time axis can fail), then every signal
+    t_checked, _, _, dt = check_experiment(t, t, t, names=("t", "t", "t"),
+                                           min_samples=max(2 * points, 8))
+    checked = {name: as_signal(samples, name=str(name)) for name, samples in signals.items()}
+    for name, values in checked.items():
+        if values.size != t_checked.size:
+            raise InputDataError(f"signal {name!r} has {values.size} samples where 't' has "
+                                 f"{t_checked.size}")
+    if not any(values.any() for values in checked.values()):
+        raise InputDataError("no excitation: every signal is identically zero")
     channels = channel_samples(module, checked, t_checked, dt)
     backend = backends.choose_engine(engine, t_checked.size, None)
     state = core.new_state(module, points=points, filter_order=filter_order, dt=dt,
