@@ -65,13 +65,15 @@ class ChannelModel:
         self.estimator_channels = self.channels
 
     def factor_texts(self) -> dict:
-        """Channel identifier -> its factor as text (``"V2**3"``, ``"1"``, ``"t"``).
+        """The channels that are not a measured signal, with their factor as text.
 
         Returns
         -------
         dict
+            Channel identifier -> factor (``"V2**3"``, ``"1"``, ``"t"``).
         """
-        return {name: str(factor) for name, factor in self.factors.items()}
+        return {name: str(factor) for name, factor in self.factors.items()
+                if name not in self.model.signals}
 
     def channel_terms(self) -> tuple:
         """The equation as ``(coefficient, channel, derivative)`` terms summing to zero.

@@ -63,10 +63,8 @@ def numpy_module_source(derivation: Derivation, *, mass_scaled=None, mass_divide
     nums, den = derivation.cramer()
     # a model of several signals or nonlinear factors names its channels; the
     # input/output models of the paper are driven by the input and the output
-    channels = tuple(getattr(model, "estimator_channels", (model.input, model.output)))
-    factor_texts = getattr(model, "factor_texts", None)
-    factors = {} if factor_texts is None else {
-        name: text for name, text in factor_texts().items() if name not in model.model.signals}
+    channels = tuple(model.estimator_channels)
+    factors = model.factor_texts()
     lines = [f'"""Algebraic estimator of the model {model.name!r}: {model.equation_text()}.', ""]
     if model.description:
         lines += [model.description[0].upper() + model.description[1:] + ".", ""]

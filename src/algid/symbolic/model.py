@@ -132,6 +132,21 @@ class LinearODEModel:
         """The measured signals the estimator is driven by: ``(output, input)``."""
         return (self.output, self.input)
 
+    @property
+    def estimator_channels(self) -> tuple:
+        """The channels in the order the generated estimator takes them: input, output."""
+        return (self.input, self.output)
+
+    def factor_texts(self) -> dict:
+        """Channels that are not a measured signal: none for this model.
+
+        Returns
+        -------
+        dict
+            Empty.
+        """
+        return {}
+
     def channel_terms(self) -> tuple:
         """The equation as ``(coefficient, channel, derivative)`` terms summing to zero.
 
