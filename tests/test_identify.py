@@ -271,3 +271,51 @@ def test_bias_compensation_leaves_a_closed_loop_alone(friction_record):
     ls = algid.identify(record, *FRICTION_EQUATION, window=0.1, method="ls")
     for p in bc.values:
         assert abs(bc.values[p] - ls.values[p]) < 0.05 * bc.stderr[p], p
+
+
+@pytest.mark.parametrize("uniform", [True, False])
+def test_noise_meat_is_the_covariance_of_the_window_equations_noise(uniform):
+    """The analytic middle of the sandwich equals ``G M M^T G^T``, with ``M`` the map
+    from output noise samples to the window equations built impulse by impulse (a cubic
+    term: first order, through the sensitivity ``3 y^2``)."""
+    from algid.grammar import parse_equation
+    from algid.identification import WINDOW_OVERLAP, _Problem
+    from algid.records import prepare_records
+    from algid.window_covariance import noise_meat
+
+    record, truth = cubic_spring(3, n=160)
+    if not uniform:  # jittered sample times: per-window trapezoid weights
+        jitter = np.random.default_rng(1).uniform(-0.1, 0.1, 160) / 80.0
+        record = dict(record, t=np.asarray(record["t"]) + jitter)
+    model = parse_equation(*CUBIC_EQUATION)
+    segments, step, _ = prepare_records(record, model.signals, time="t", min_length=16)
+    assert (step is None or segments[0].step is None) != uniform
+    problem = _Problem(model, segments, step)
+    length, a = 24, 8
+    theta_bar = np.append([truth[p] for p in model.parameters], -1.0)
+    A, b, ids = problem.rows(length, a)
+    scores = A / np.linalg.norm(A, axis=0)
+    meat = noise_meat(problem, length, a, theta_bar, scores,
+                      length // WINDOW_OVERLAP)
+
+    def equations(y_shift, s):
+        seg = segments[s]
+        saved = seg.values[model.output]
+        seg.values[model.output] = saved + y_shift
+        problem.factors = {}
+        A1, b1, ids1 = problem.rows(length, a)
+        seg.values[model.output] = saved
+        problem.factors = {}
+        return np.column_stack([A1, b1]) @ theta_bar
+
+    base = np.column_stack([A, b]) @ theta_bar
+    columns, h = [], 1e-6
+    for s, seg in enumerate(segments):
+        for n in range(len(seg)):
+            shift = np.zeros(len(seg))
+            shift[n] = h
+            columns.append((equations(shift, s) - equations(-shift, s)) / (2 * h))
+    M = np.column_stack(columns)
+    expected = scores.T @ M @ M.T @ scores
+    assert base.shape == (M.shape[0],)
+    np.testing.assert_allclose(meat, expected, rtol=1e-6, atol=1e-9 * np.abs(expected).max())

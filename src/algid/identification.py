@@ -36,11 +36,21 @@ A derivative inside a nonlinear factor (``sign(q')``) is estimated numerically: 
 the algebraic differentiator :func:`algid.differentiation.algebraic_derivative` when
 it is available, else by a local polynomial (Savitzky-Golay) derivative.
 
-Standard errors come from a HAC (heteroscedasticity and autocorrelation consistent)
-sandwich covariance over the window index: the residuals of overlapping windows are
-correlated over ``length / stride`` windows; the lag weights are flat up to that lag and
-taper linearly to zero at twice it (a flat-top kernel: Newey-West's Bartlett weights
-underestimate such a correlation).
+Standard errors come from a sandwich covariance over the window index.  Where the
+equations' misfit is that of white output noise (its variance per unit of noise weight
+at most the bound that the samples alone put on the output noise,
+``_Problem.noise_bound``), the middle of the sandwich is the covariance that this noise
+puts into the window equations: known from the kernels and the factors' sensitivities,
+including the correlation of overlapping windows
+(:func:`algid.window_covariance.noise_meat`), times the
+noise variance.  A misfit that does not vary between noise realisations (the aliasing
+of a sampled ``y**3``) then counts only through that variance, not through its own
+pattern.  Otherwise (a misfit that is not output noise: a misestimated ``sign(q')``, a
+closed loop) the residuals' own covariance is used: a HAC (heteroscedasticity and
+autocorrelation consistent) estimate, the residuals of overlapping windows being
+correlated over ``length / stride`` windows, with lag weights flat up to that lag and
+tapering linearly to zero at twice it (a flat-top kernel: Newey-West's Bartlett
+weights underestimate such a correlation).  It is conservative.
 
 Window rule (``window=None``): on a geometric grid of window lengths (ratio 1.25, from
 ``a_max + 4`` samples up to a thirtieth of the data, so that the HAC covariance sees at
@@ -63,6 +73,7 @@ from algid.expression import Signal
 from algid.grammar import parse_equation
 from algid.model import Model
 from algid.records import estimate_derivative, prepare_records
+from algid.window_covariance import hac_meat, noise_meat
 from algid.window_kernels import (
     uniform_window_integrals,
     window_integrals,
@@ -238,29 +249,6 @@ class _Problem:
         return np.concatenate(blocks)
 
 
-def _hac_meat(scores, ids, overlap):
-    """HAC sum of score outer products over window lags, within each segment.
-
-    Flat-top (trapezoid) lag weights: 1 up to ``overlap`` lags (overlapping windows
-    under white noise give residuals correlated over exactly that many windows; the
-    Bartlett weights of Newey-West would underestimate), then a linear taper to zero at
-    twice that (coloured noise).  The result is projected on the positive semi-definite
-    matrices.
-    """
-    p = scores.shape[1]
-    meat = np.zeros((p, p))
-    lags = 2 * overlap
-    for s in np.unique(ids):
-        g = scores[ids == s]
-        meat += g.T @ g
-        for lag in range(1, min(lags, len(g) - 1) + 1):
-            weight = 1.0 if lag <= overlap else 1.0 - (lag - overlap) / (lags - overlap + 1.0)
-            cross = g[lag:].T @ g[:-lag]
-            meat += weight * (cross + cross.T)
-    values, vectors = np.linalg.eigh(meat)
-    return (vectors * np.maximum(values, 0.0)) @ vectors.T
-
-
 class _Fit:
     """One estimate on one window length: parameters, covariance, diagnostics."""
 
@@ -293,22 +281,35 @@ def _solve(problem, length, multiplicities, instruments=None, method="ls"):
     separate = {}
     for a in multiplicities:
         A, b, ids = problem.rows(length, a)
+        variance = None
+        weights = A
         if instruments is not None:
-            Z = instruments[a][0]
+            Z = weights = instruments[a][0]
             theta = _solve_square(Z.T @ A, Z.T @ b)
             scores, jacobian = Z * (b - A @ theta)[:, None], Z.T @ A
         elif method == "bc":
-            theta, scores, jacobian = _bias_compensated(A, b, problem.noise_grams(length, a),
-                                                        problem.noise_bound())
+            theta, scores, jacobian, variance = _bias_compensated(
+                A, b, problem.noise_grams(length, a), problem.noise_bound())
         else:
             theta = np.linalg.lstsq(A, b, rcond=None)[0]
             scores, jacobian = A * (b - A @ theta)[:, None], A.T @ A
-        separate[a] = (theta, A, b, ids, scores, jacobian)
-    theta, A, b, ids, scores, jacobian = separate[max(multiplicities)]
+        separate[a] = (theta, A, b, ids, scores, jacobian, variance, weights)
+    top = max(multiplicities)
+    theta, A, b, ids, scores, jacobian, variance, weights = separate[top]
     r = b - A @ theta
-    stride = max(1, length // WINDOW_OVERLAP)
-    meat = _hac_meat(scores, ids, int(np.ceil(length / stride)))
     bread = np.linalg.pinv(jacobian)
+    theta_bar = np.append(theta, -1.0)
+    if variance is None:  # least squares: the misfit per unit of white-noise variance
+        noise_weight = float(np.einsum("i,wij,j->", theta_bar,
+                                       problem.noise_grams(length, top), theta_bar))
+        variance = float(r @ r) / noise_weight if noise_weight > 0 else np.inf
+        if not variance <= problem.noise_bound():
+            variance = None
+    stride = max(1, length // WINDOW_OVERLAP)
+    if variance is not None:  # the misfit is that of white output noise: its covariance
+        meat = variance * noise_meat(problem, length, top, theta_bar, weights, stride)
+    else:  # a misfit that is not output noise: the residuals' own covariance
+        meat = hac_meat(scores, ids, int(np.ceil(length / stride)))
     covariance = bread @ meat @ bread.T
     scale = np.sqrt(np.mean(A ** 2, axis=0)) / max(float(np.sqrt(np.mean(b ** 2))), 1e-300)
     return _Fit(theta, covariance, {a: v[0] for a, v in separate.items()}, scale, r,
@@ -341,6 +342,10 @@ def _bias_compensated(A, b, grams, bound=np.inf):
     Returns
     -------
     theta, scores, jacobian
+        The estimate, its estimating equations per window and their derivative.
+    variance : float or None
+        The noise variance from the eigenvalue, or None where it exceeds ``bound`` (the
+        misfit is not only output noise) or no correction was made.
     """
     from scipy.linalg import eigh
 
@@ -351,6 +356,7 @@ def _bias_compensated(A, b, grams, bound=np.inf):
     d = np.sqrt(np.diag(normal))
     d[d == 0] = 1.0
     theta_bar = None
+    capped = False
     if np.any(noise != 0) and bound > 0:
         try:
             mu, vectors = eigh(noise / d[:, None] / d[None, :],
@@ -363,15 +369,17 @@ def _bias_compensated(A, b, grams, bound=np.inf):
             variance = 1.0 / mu[-1]
         elif mu[-1] > 0 and np.isfinite(bound):
             variance = bound
+            capped = True
             theta = _solve_square(normal[:p, :p] - variance * noise[:p, :p],
                                   normal[:p, p] - variance * noise[:p, p])
             theta_bar = np.append(theta, -1.0)
     if theta_bar is None:
         theta = np.linalg.lstsq(A, b, rcond=None)[0]
-        return theta, A * (b - A @ theta)[:, None], A.T @ A
+        return theta, A * (b - A @ theta)[:, None], A.T @ A, None
     theta = theta_bar[:p]
     scores = A * (b - A @ theta)[:, None] + variance * (grams @ theta_bar)[:, :p]
-    return theta, scores, A.T @ A - variance * noise[:p, :p]
+    return (theta, scores, A.T @ A - variance * noise[:p, :p],
+            None if capped else variance)
 
 
 def _solve_square(H, g):

@@ -64,7 +64,8 @@ class IdentificationResult:
     values : dict
         Parameter name -> estimate (also readable as attributes: ``result.M``).
     covariance : numpy.ndarray
-        HAC (Newey-West) covariance of the estimates, in ``model.parameters`` order.
+        Covariance of the estimates, in ``model.parameters`` order (see
+        :mod:`algid.identification`: that of the output noise through the kernels, or HAC).
     window : float
         Window length used (s).
     n_samples : int

@@ -30,7 +30,7 @@ from algid.errors import ModelError
 from algid.generated.modulating import MAX_MULTIPLICITY, TERM_KERNELS
 
 __all__ = ["term_kernel", "uniform_window_integrals", "window_integrals",
-           "window_noise_products",
+           "window_noise_products", "window_sample_weights",
            "MAX_MULTIPLICITY"]
 
 
@@ -131,6 +131,45 @@ def window_integrals(z, t, length, multiplicity, derivative, stride=1):
     weights[:, 1:] += dt / 2
     kernel = term_kernel(multiplicity, derivative, u)
     return np.einsum("ij,ij,ij->i", weights, kernel, zw) / span ** (derivative + 1)
+
+
+def window_sample_weights(t, step, length, multiplicity, derivative, stride=1):
+    """Sample weights of the window integrals (those of :func:`window_integrals`).
+
+    The integral of window ``w`` is ``weights[w] @ z[w * stride : w * stride + length]``
+    (``weights @ ...`` on a uniform grid).
+
+    Parameters
+    ----------
+    t : array_like
+        Sample times (used when ``step`` is None).
+    step : float or None
+        Sampling step of a uniform segment.
+    length, multiplicity, derivative, stride
+        As in :func:`uniform_window_integrals`.
+
+    Returns
+    -------
+    numpy.ndarray
+        Shape ``(length,)`` on a uniform grid (the same in every window), else
+        ``(windows, length)``.
+    """
+    if step is not None:
+        span = (length - 1) * step
+        weights = np.full(length, step)
+        weights[[0, -1]] = step / 2
+        return weights * _unit_kernel(multiplicity, derivative, length) \
+            / span ** (derivative + 1)
+    t = np.asarray(t, dtype=float)
+    tw = np.lib.stride_tricks.sliding_window_view(t, length)[::stride]
+    span = tw[:, -1] - tw[:, 0]
+    dt = np.diff(tw, axis=1)
+    weights = np.zeros_like(tw)
+    weights[:, :-1] += dt / 2
+    weights[:, 1:] += dt / 2
+    u = (tw - tw[:, :1]) / span[:, None]
+    return weights * term_kernel(multiplicity, derivative, u) \
+        / span[:, None] ** (derivative + 1)
 
 
 def window_noise_products(s, t, step, length, first, second, stride=1):
