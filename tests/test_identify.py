@@ -319,3 +319,30 @@ def test_noise_meat_is_the_covariance_of_the_window_equations_noise(uniform):
     expected = scores.T @ M @ M.T @ scores
     assert base.shape == (M.shape[0],)
     np.testing.assert_allclose(meat, expected, rtol=1e-6, atol=1e-9 * np.abs(expected).max())
+
+
+def test_sign_samples_integrate_the_step_at_its_place():
+    """Trapezoid sums of a smooth weight times ``sign(v)``: with the corrected samples
+    the error at 10 samples per period of ``v`` is second order, far below the plain
+    samples' first-order error (the step counted halfway between two samples)."""
+    from algid.window_kernels import sign_samples
+
+    def weighted_integral(t, z):
+        g = np.exp(-t) * (1 + t)
+        return float(np.sum(np.diff(t) * (g[1:] * z[1:] + g[:-1] * z[:-1]) / 2))
+
+    omega, shift = 2 * np.pi, 0.0123
+    fine = np.linspace(0.0, 3.0, 3_000_001)
+    exact = weighted_integral(fine, np.sign(np.sin(omega * fine + shift)))
+    for n in (31, 61):
+        t = np.linspace(0.0, 3.0, n)
+        v = np.sin(omega * t + shift)
+        plain = abs(weighted_integral(t, np.sign(v)) - exact)
+        corrected = abs(weighted_integral(t, sign_samples(v, t)) - exact)
+        assert corrected < plain / 10, (n, plain, corrected)
+    jittered = np.sort(np.concatenate([[0.0, 3.0], np.random.default_rng(2).uniform(0, 3, 59)]))
+    v = np.sin(omega * jittered + shift)
+    assert abs(weighted_integral(jittered, sign_samples(v, jittered)) - exact) \
+        < abs(weighted_integral(jittered, np.sign(v)) - exact) / 5
+    assert np.array_equal(sign_samples(np.array([1.0, 2.0, 0.0, -1.0]), np.arange(4.0)),
+                          [1.0, 1.0, 0.0, -1.0])  # a sample at zero: no interpolated step

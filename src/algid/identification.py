@@ -69,12 +69,13 @@ from math import comb
 import numpy as np
 
 from algid.errors import InputDataError, ModelError
-from algid.expression import Signal
+from algid.expression import Call, Signal
 from algid.grammar import parse_equation
 from algid.model import Model
 from algid.records import estimate_derivative, prepare_records
 from algid.window_covariance import hac_meat, noise_meat
 from algid.window_kernels import (
+    sign_samples,
     uniform_window_integrals,
     window_integrals,
     window_noise_products,
@@ -130,9 +131,19 @@ class _Problem:
     def factor_samples(self, factor, which="measured"):
         key = (factor, which)
         if key not in self.factors:
-            self.factors[key] = [np.asarray(factor.evaluate(
-                seg.values if which == "measured" else seg.simulated, seg.t), dtype=float)
-                * np.ones(len(seg)) for seg in self.segments]
+            samples = []
+            for seg in self.segments:
+                values = seg.values if which == "measured" else seg.simulated
+                if isinstance(factor, Call) and factor.function == "sign":
+                    # a step between two samples: integrated at its place, not halfway
+                    argument = factor.args[0].evaluate(values, seg.t)
+                    z = sign_samples(np.asarray(argument, dtype=float) * np.ones(len(seg)),
+                                     seg.t)
+                else:
+                    z = np.asarray(factor.evaluate(values, seg.t), dtype=float) \
+                        * np.ones(len(seg))
+                samples.append(z)
+            self.factors[key] = samples
         return self.factors[key]
 
     def rows(self, length, multiplicity, which="measured"):
