@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["linear_offsets", "cubic_spring", "friction_loop", "drop_rows",
+__all__ = ["linear_offsets", "linear_gaps", "cubic_spring", "friction_loop", "drop_rows",
            "multisine_lines", "INPUT_SEED",
            "LINEAR_EQUATION", "CUBIC_EQUATION", "FRICTION_EQUATION"]
 
@@ -104,6 +104,12 @@ def linear_offsets(seed=0, *, n=4000, noise=0.01):
     u = _multisine(np.random.default_rng(INPUT_SEED), 0.2, 15.0, 40)
     record = _measured(t, u, y, np.random.default_rng(seed), noise, offsets)
     return record, {"B": B, "K": K, "G": G, "d": K * offsets[1] - G * offsets[0]}
+
+
+def linear_gaps(seed=0, *, n=4000, noise=0.01):
+    """:func:`linear_offsets` with 5 % of its rows missing (a random choice per seed)."""
+    record, truth = linear_offsets(seed, n=n, noise=noise)
+    return drop_rows(record, 0.05, seed=seed), truth
 
 
 def cubic_spring(seed=0, *, n=4000, noise=0.01):
