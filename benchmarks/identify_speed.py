@@ -259,6 +259,50 @@ def run(*, runs=50, oe_runs=20, silverbox=True, smoke=False, speed=True, log=pri
     return results
 
 
+def _ratios(mc, key):
+    values = mc.get(key)
+    if values is None:
+        return "—"
+    return ", ".join(f"{p} {v:.2f}" for p, v in zip(mc["parameters"], values))
+
+
+def markdown(results):
+    """The tables of a run (what ``--out`` writes), as Markdown.
+
+    Parameters
+    ----------
+    results : dict
+
+    Returns
+    -------
+    str
+    """
+    lines = []
+    if results.get("speed"):
+        lines += ["# identify against an output-error fit", "",
+                  "| record | identify | output-error fit | speed | simulation error, "
+                  "identify / output-error |", "| --- | --- | --- | --- | --- |"]
+        for row in results["speed"]:
+            lines.append(f"| {row['record']} | {row['identify_s']:.3g} s | "
+                         f"{row['output_error_s']:.3g} s | {row['speed_ratio']:.0f}x | "
+                         f"{row['identify_rmse']:.4g} / {row['output_error_rmse']:.4g} = "
+                         f"{row['error_ratio']:.3f} |")
+        lines.append("")
+    if results.get("monte_carlo"):
+        lines += ["# Monte Carlo over noise realisations", "",
+                  "| record (method) | runs | RMSE / Cramer-Rao bound | RMSE / output-error "
+                  "RMSE (runs) | spread / mean reported standard error |",
+                  "| --- | --- | --- | --- | --- |"]
+        for name, mc in results["monte_carlo"].items():
+            oe = _ratios(mc, "rmse_over_oe")
+            if "oe_runs" in mc:
+                oe += f" ({mc['oe_runs']})"
+            lines.append(f"| {name} ({mc['method']}) | {mc['runs']} | "
+                         f"{_ratios(mc, 'rmse_over_crlb')} | {oe} | "
+                         f"{_ratios(mc, 'spread_over_stderr')} |")
+    return "\n".join(lines) + "\n"
+
+
 def main(argv=None):
     parser = argparse.ArgumentParser(prog="python -m benchmarks.identify_speed",
                                      description=__doc__.splitlines()[0])

@@ -541,12 +541,16 @@ def markdown_to_nodes(text):
 
 
 class BenchmarksDirective(Directive):
-    """The tables of a results file of ``python -m benchmarks``."""
+    """The tables of a results file of ``python -m benchmarks`` (or, for a file named
+    ``identify...``, of ``python -m benchmarks.identify_speed --out``)."""
 
     required_arguments = 1
 
     def run(self):
-        from benchmarks.report import markdown
+        if "identify" in Path(self.arguments[0]).name:  # python -m benchmarks.identify_speed
+            from benchmarks.identify_speed import markdown
+        else:
+            from benchmarks.report import markdown
 
         path = ROOT / self.arguments[0]
         env = self.state.document.settings.env

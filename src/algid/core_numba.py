@@ -202,17 +202,20 @@ def _numerical_error(estimates, companion, recent, out):  # pragma: no cover - c
                 raw = np.nan
             elif rel > raw:
                 raw = rel
-        finite = math.isfinite(raw)
-        level[width + j] = raw if finite else 0.0
-        if finite:
-            best = raw
-            for k in range(j, j + width):
-                if level[k] > best:
-                    best = level[k]
-            out[j] = best
-        else:
-            out[j] = raw
+        out[j] = raw
+        level[width + j] = raw if math.isfinite(raw) else 0.0
     recent[:] = level[m:]
+    # the largest over the last width + 1 samples: maxima of 2, 4, 8, ... samples (the
+    # window is a power of two), each pass reading the previous one's values ahead
+    span = 1
+    while span <= width:
+        for k in range(width + m - span):
+            if level[k + span] > level[k]:
+                level[k] = level[k + span]
+        span *= 2
+    for j in range(m):
+        if math.isfinite(out[j]):
+            out[j] = level[j]
 
 
 def numerical_error(estimates, companion, recent, out):
