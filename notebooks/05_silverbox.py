@@ -64,7 +64,7 @@ fs = record.fs
 # ## Identification: linear and cubic models
 #
 # The window is chosen from the data (no `window=` given); the standard errors account
-# for the overlap of the windows (HAC covariance).
+# for the overlap of the windows (see `algid.identification`).
 
 # %%
 MODELS = {
