@@ -93,6 +93,13 @@ class EstimatorState:
         this one; None without.
     recent_errors : ndarray or None
         With a companion: the last raw numerical errors (:mod:`algid.numerical_error`).
+    channel_max, channel_last : list of float or None
+        With a companion: the largest absolute value of every channel since the time
+        origin, and its last value (both divided by its divisor), for the
+        identifiability checks.
+    undetermined : tuple of int
+        With a companion: the parameters (indices) that the data left undetermined at
+        the last check (:mod:`algid.numerical_error`).
     """
 
     model: ModuleType
@@ -106,6 +113,9 @@ class EstimatorState:
     startup: np.ndarray
     companion: EstimatorState | None = None
     recent_errors: np.ndarray | None = None
+    channel_max: list | None = None
+    channel_last: list | None = None
+    undetermined: tuple = ()
 
     def copy(self) -> EstimatorState:
         """An independent state that continues from the same point.
@@ -121,7 +131,11 @@ class EstimatorState:
                                    companion=None if self.companion is None
                                    else self.companion.copy(),
                                    recent_errors=None if self.recent_errors is None
-                                   else self.recent_errors.copy())
+                                   else self.recent_errors.copy(),
+                                   channel_max=None if self.channel_max is None
+                                   else list(self.channel_max),
+                                   channel_last=None if self.channel_last is None
+                                   else list(self.channel_last))
 
     def restart(self) -> None:
         """Move the time origin to the next sample (re-anchoring): forget the past."""
@@ -133,6 +147,9 @@ class EstimatorState:
             self.companion.restart()
         if self.recent_errors is not None:
             self.recent_errors.fill(0.0)
+        if self.channel_max is not None:
+            self.channel_max[:] = [0.0] * len(self.channel_max)
+        self.undetermined = ()
 
     def magnitude(self) -> float:
         """Largest absolute value held: integrals, carried and buffered samples.

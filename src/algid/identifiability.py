@@ -45,12 +45,15 @@ from algid.core import integrator_layout
 from algid.errors import InputDataError
 from algid.quadrature import cumulative_integral
 
-__all__ = ["IDENTIFIABILITY_RTOL", "check_identifiable", "undetermined"]
+__all__ = ["IDENTIFIABILITY_RTOL", "MIN_SAMPLES", "check_identifiable", "undetermined",
+           "undetermined_in_stream"]
 
 #: Relative size below which a column of ``P`` (or the known side ``Q``, or the
 #: smallest singular value of the normalised ``P``) counts as zero.
 IDENTIFIABILITY_RTOL = 1e-10
 _POINTS = 8
+#: Fewer samples than this are not judged.
+MIN_SAMPLES = _POINTS
 _BLOCK = 2**13  # the powers of a block stay in cache
 
 
@@ -126,15 +129,14 @@ def _kernels_at_end(module, channels, dt):
     return np.array(values), np.array(sizes)
 
 
-def _kernels_from_state(state, channels):
+def _kernels_from_state(state, largest, last):
     """Every kernel at the last sample as the estimator computed it (the integrals of
-    its chains, held in the state after the record), and the size it could have."""
+    its chains, held in the state after the record), and the size it could have, from
+    the largest absolute value and the last value of every channel (divided by its
+    divisor)."""
     module = state.model
     layout = integrator_layout(module)
     T = np.float64((state.n_seen - 1) * state.dt)  # powers overflow to inf
-    largest = [max(float(c.max()), -float(c.min())) / d
-               for c, d in zip(channels, state.divisors)]
-    last = [float(c[-1]) / d for c, d in zip(channels, state.divisors)]
     values, sizes = [], []
     for (signal, power, level), (lvl, row) in zip(module.KERNELS, layout.kernels):
         c = list(module.CHANNELS).index(signal)
@@ -179,11 +181,14 @@ def undetermined(module, channels, dt, *, rtol=IDENTIFIABILITY_RTOL, state=None)
         ``T**k`` leaves the floating-point range): nothing can be judged, nor
         estimated.
     """
-    if channels[0].size < _POINTS:
+    if channels[0].size < MIN_SAMPLES:
         return None
     with np.errstate(over="ignore", under="ignore", invalid="ignore"):
         if state is not None and state.n_seen == channels[0].size:
-            values, sizes = _kernels_from_state(state, channels)
+            values, sizes = _kernels_from_state(
+                state, [max(float(c.max()), -float(c.min())) / d
+                        for c, d in zip(channels, state.divisors)],
+                [float(c[-1]) / d for c, d in zip(channels, state.divisors)])
         else:
             values, sizes = _kernels_at_end(module, [np.asarray(c, dtype=float)
                                                      for c in channels], dt)
@@ -199,20 +204,37 @@ def undetermined(module, channels, dt, *, rtol=IDENTIFIABILITY_RTOL, state=None)
         raise InputDataError(
             f"the estimator's integrals overflow or underflow over a time span of "
             f"{span:.4g} s (step {dt:.4g} s): express the time in other units")
+    kind, free = _verdict(module, P, Q, size_p, size_q, rtol)
+    parameters = list(module.PARAMETERS)
+    named = " and ".join(parameters[j] for j in free)
+    if kind == "silent":
+        if len(free) > 1:
+            return (f"{named} (the terms they multiply are not excited: their columns of "
+                    f"P(t) vanish)")
+        return f"{named} (the term it multiplies is not excited: its column of P(t) vanishes)"
+    if kind == "scale":
+        return (f"the scale of {', '.join(parameters)} (the known side of the equation "
+                f"is zero: the input {module.INPUT!r} does not excite it)")
+    if kind == "dependent":
+        return (f"{named} separately (the terms they multiply are proportional over the "
+                f"record)")
+    return None
+
+
+def _verdict(module, P, Q, size_p, size_q, rtol):
+    """``(kind, parameter indices)``: ``("silent", ...)`` for columns of ``P`` below
+    ``rtol`` of their size, ``("scale", all)`` for a vanishing known side,
+    ``("dependent", ...)`` for a combination left free, ``(None, ())`` if ``P`` and ``Q``
+    determine every parameter."""
     with np.errstate(divide="ignore", invalid="ignore"):
         relative_p = np.where(size_p > 0, np.abs(P) / size_p, 0.0)
         relative_q = np.where(size_q > 0, np.abs(Q) / size_q, 0.0)
-    parameters = list(module.PARAMETERS)
-    silent = [p for j, p in enumerate(parameters) if np.max(relative_p[:, j]) < rtol]
+    n = len(module.PARAMETERS)
+    silent = tuple(j for j in range(n) if np.max(relative_p[:, j]) < rtol)
     if silent:
-        names = " and ".join(silent)
-        if len(silent) > 1:
-            return (f"{names} (the terms they multiply are not excited: their columns of "
-                    f"P(t) vanish)")
-        return f"{names} (the term it multiplies is not excited: its column of P(t) vanishes)"
+        return "silent", silent
     if np.max(relative_q) < rtol:
-        return (f"the scale of {', '.join(parameters)} (the known side of the equation "
-                f"is zero: the input {module.INPUT!r} does not excite it)")
+        return "scale", tuple(range(n))
     # rows (one more integration each: another power of T) and then columns scaled to
     # unit norm; a combination of the parameters is free when the smallest singular
     # value is at round-off.  (Not the determinant: the product of all the singular
@@ -222,10 +244,42 @@ def undetermined(module, channels, dt, *, rtol=IDENTIFIABILITY_RTOL, state=None)
     _, singular, vt = np.linalg.svd(normalised)
     if singular[-1] < rtol:
         free = np.abs(vt[-1])
-        named = [p for j, p in enumerate(parameters) if free[j] > 0.1 * free.max()]
-        return (f"{' and '.join(named)} separately (the terms they multiply are "
-                f"proportional over the record)")
-    return None
+        return "dependent", tuple(j for j in range(n) if free[j] > 0.1 * free.max())
+    return None, ()
+
+
+def undetermined_in_stream(state, rtol=IDENTIFIABILITY_RTOL):
+    """The parameters that the samples seen so far leave undetermined, from the state.
+
+    The test of :func:`undetermined`, on the kernels the estimator holds after its last
+    sample and the largest channel values since the origin (``state.channel_max``).
+
+    Parameters
+    ----------
+    state : algid.core.EstimatorState
+        After at least :data:`MIN_SAMPLES` samples, with ``channel_max`` set.
+    rtol : float, optional
+        As for :func:`undetermined`.
+
+    Returns
+    -------
+    tuple of int or None
+        Indices (in ``PARAMETERS`` order) of the undetermined parameters, empty if the
+        data determine them all; None where nothing can be judged (too few samples, or
+        integrals out of the floating-point range).
+    """
+    if state.n_seen < MIN_SAMPLES or state.channel_max is None:
+        return None
+    module = state.model
+    with np.errstate(over="ignore", under="ignore", invalid="ignore"):
+        values, sizes = _kernels_from_state(state, state.channel_max, state.channel_last)
+        map_p, map_q = _linear_maps(module)
+        P, Q = map_p @ values, map_q @ values
+        size_p, size_q = np.abs(map_p) @ sizes, np.abs(map_q) @ sizes
+    if not (np.isfinite(P).all() and np.isfinite(Q).all() and np.isfinite(size_p).all()
+            and np.isfinite(size_q).all()):
+        return None
+    return _verdict(module, P, Q, size_p, size_q, rtol)[1]
 
 
 def check_identifiable(module, channels, dt, *, rtol=IDENTIFIABILITY_RTOL, state=None):

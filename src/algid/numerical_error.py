@@ -26,6 +26,15 @@ The companion is advanced with the estimator, on the same samples, so the numeri
 error of a stream is that of the batch estimate, bit for bit; it costs about as much as
 the estimator itself.  With noise, the two filters pass the noise differently: the
 difference then also holds part of the noise's effect.
+
+Data that do not determine a parameter (a constant output leaves ``B`` free) make the
+estimate round-off divided by round-off.  When the estimator has seen 8, 16, 32, ...
+samples from its origin (:func:`next_check`), the test of :mod:`algid.identifiability`
+runs on its state (the kernels it holds, the largest channel values so far); until the
+next check, the parameters it finds undetermined are NaN and the numerical error is
+infinite.  The checks fall on the same samples however a stream is cut, and cost a few
+microseconds each.  (Batch :func:`algid.estimate` also refuses a record that does not
+determine its parameters at its end.)
 """
 
 from __future__ import annotations
@@ -33,10 +42,11 @@ from __future__ import annotations
 import numpy as np
 
 from algid import core
+from algid.identifiability import undetermined_in_stream
 from algid.quadrature import QUADRATURE_POINTS
 
 __all__ = ["companion_options", "with_companion", "advance_with_error",
-           "relative_difference", "window_maximum", "WINDOW"]
+           "relative_difference", "window_maximum", "next_check", "WINDOW", "FIRST_CHECK"]
 
 
 def companion_options(points: int, filter_order: int) -> tuple:
@@ -78,6 +88,8 @@ def with_companion(state: core.EstimatorState) -> core.EstimatorState:
     state.companion = core.new_state(state.model, points=points, filter_order=filter_order,
                                      dt=state.dt, divisors=state.divisors)
     state.recent_errors = np.zeros(WINDOW - 1)
+    state.channel_max = [0.0] * len(state.divisors)
+    state.channel_last = [0.0] * len(state.divisors)
     return state
 
 
@@ -211,20 +223,72 @@ def advance_with_error(state, channels, *, backend="numpy", out=None, error_out=
         out = np.empty((len(state.model.PARAMETERS), m))
     if error_out is None:
         error_out = np.empty(m)
-    if m <= BLOCK:  # one block (every small chunk of a stream): no slicing
-        core.advance(state, rows, backend=backend, out=out)
-        other, _ = core.advance(companion, rows, backend=backend)
-        _block_error(backend, out, other, state.recent_errors, error_out)
+    if not m:
         return out, error_out, state
-    scratch = np.empty((out.shape[0], BLOCK))
-    for start in range(0, m, BLOCK):
-        stop = min(m, start + BLOCK)
-        block = tuple(r[start:stop] for r in rows)
-        estimates, _ = core.advance(state, block, backend=backend, out=out[:, start:stop])
-        other, _ = core.advance(companion, block, backend=backend,
-                                out=scratch[:, :stop - start])
-        _block_error(backend, estimates, other, state.recent_errors, error_out[start:stop])
+    check = next_check(state.n_seen)
+    if m <= BLOCK and state.n_seen + m < check:  # one piece (every small chunk of a
+        _piece(state, rows, backend, out, error_out)  # stream): no slicing
+        return out, error_out, state
+    scratch = np.empty((out.shape[0], min(m, BLOCK)))
+    start = 0
+    while start < m:
+        stop = min(m, start + BLOCK, start + check - state.n_seen)
+        _piece(state, tuple(r[start:stop] for r in rows), backend, out[:, start:stop],
+               error_out[start:stop], scratch[:, :stop - start])
+        if state.n_seen == check:
+            verdict = undetermined_in_stream(state)
+            if verdict is not None:
+                state.undetermined = verdict
+                if verdict:  # from the checked sample on
+                    _mark_undetermined(state, out[:, stop - 1:stop],
+                                       error_out[stop - 1:stop])
+            check = next_check(state.n_seen)
+        start = stop
     return out, error_out, state
+
+
+#: Whether the samples determine the parameters is judged when the estimator has seen
+#: a power of two of samples, from this one on (:func:`next_check`); each verdict holds
+#: until the next (so that it does not depend on how a stream is cut into chunks).
+FIRST_CHECK = 8
+
+
+def next_check(n_seen):
+    """The first power of two (at least :data:`FIRST_CHECK`) above ``n_seen``.
+
+    Parameters
+    ----------
+    n_seen : int
+        Samples seen since the time origin.
+
+    Returns
+    -------
+    int
+    """
+    return max(FIRST_CHECK, 1 << int(n_seen).bit_length())
+
+
+def _piece(state, rows, backend, out, error_out, scratch=None):
+    """Estimator, companion and numerical error over a piece with no check inside."""
+    core.advance(state, rows, backend=backend, out=out)
+    other, _ = core.advance(state.companion, rows, backend=backend, out=scratch)
+    _block_error(backend, out, other, state.recent_errors, error_out)
+    largest, last, divisors = state.channel_max, state.channel_last, state.divisors
+    for c, row in enumerate(rows):  # the extent of the channels, for the checks
+        divisor = divisors.item(c)
+        newest = row.item(-1) / divisor
+        size = abs(newest) if row.size == 1 else max(row.max(), -row.min()) / divisor
+        if size > largest[c]:
+            largest[c] = size
+        last[c] = newest
+    if state.undetermined:
+        _mark_undetermined(state, out, error_out)
+
+
+def _mark_undetermined(state, out, error_out):
+    """NaN for the parameters the data leave undetermined, an infinite error."""
+    out[list(state.undetermined)] = np.nan
+    error_out[...] = np.inf
 
 
 _COMPILED = []

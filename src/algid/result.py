@@ -66,7 +66,8 @@ class EstimationResult:
     numerical_error : ndarray or None
         Estimated relative error of the estimates at every sample of ``t``, the largest
         over the parameters (:mod:`algid.numerical_error`): NaN where the estimates
-        are NaN, inf where the data do not determine them.  None if not computed.
+        are NaN, inf where the data do not determine them (those estimates are then
+        NaN).  None if not computed.
     """
 
     def __init__(self, *, t, estimates, model, filter_order, quadrature_points=None,
