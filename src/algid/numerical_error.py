@@ -28,13 +28,14 @@ the estimator itself.  With noise, the two filters pass the noise differently: t
 difference then also holds part of the noise's effect.
 
 Data that do not determine a parameter (a constant output leaves ``B`` free) make the
-estimate round-off divided by round-off.  When the estimator has seen 8, 16, 32, ...
+estimate round-off divided by round-off.  When the estimator has seen 64, 128, 256, ...
 samples from its origin (:func:`next_check`), the test of :mod:`algid.identifiability`
-runs on its state (the kernels it holds, the largest channel values so far); until the
-next check, the parameters it finds undetermined are NaN and the numerical error is
-infinite.  The checks fall on the same samples however a stream is cut, and cost a few
-microseconds each.  (Batch :func:`algid.estimate` also refuses a record that does not
-determine its parameters at its end.)
+runs on its state (the kernels it holds, the largest channel values so far), if the
+numerical error is above :data:`JUDGED_ABOVE` or an estimate is 0; until the next
+check, the parameters it finds undetermined are NaN and the numerical error is
+infinite.  The checks fall on the same samples however a stream is cut.  (Batch
+:func:`algid.estimate` also refuses a record that does not determine its parameters at
+its end.)
 """
 
 from __future__ import annotations
@@ -46,7 +47,8 @@ from algid.identifiability import undetermined_in_stream
 from algid.quadrature import QUADRATURE_POINTS
 
 __all__ = ["companion_options", "with_companion", "advance_with_error",
-           "relative_difference", "window_maximum", "next_check", "WINDOW", "FIRST_CHECK"]
+           "relative_difference", "window_maximum", "next_check", "WINDOW", "FIRST_CHECK",
+           "JUDGED_ABOVE"]
 
 
 def companion_options(points: int, filter_order: int) -> tuple:
@@ -71,13 +73,16 @@ def companion_options(points: int, filter_order: int) -> tuple:
     return other_points, filter_order - 1 if filter_order > 0 else 1
 
 
-def with_companion(state: core.EstimatorState) -> core.EstimatorState:
+def with_companion(state: core.EstimatorState, *, judge=True) -> core.EstimatorState:
     """Give a fresh state its companion (:func:`companion_options`).
 
     Parameters
     ----------
     state : EstimatorState
         From :func:`algid.core.new_state`, with no sample seen yet.
+    judge : bool, optional
+        Check at :func:`next_check` whether the samples determine the parameters
+        (default).
 
     Returns
     -------
@@ -88,8 +93,9 @@ def with_companion(state: core.EstimatorState) -> core.EstimatorState:
     state.companion = core.new_state(state.model, points=points, filter_order=filter_order,
                                      dt=state.dt, divisors=state.divisors)
     state.recent_errors = np.zeros(WINDOW - 1)
-    state.channel_max = [0.0] * len(state.divisors)
-    state.channel_last = [0.0] * len(state.divisors)
+    if judge:
+        state.channel_max = [0.0] * len(state.divisors)
+        state.channel_last = [0.0] * len(state.divisors)
     return state
 
 
@@ -236,7 +242,11 @@ def advance_with_error(state, channels, *, backend="numpy", out=None, error_out=
         _piece(state, tuple(r[start:stop] for r in rows), backend, out[:, start:stop],
                error_out[start:stop], scratch[:, :stop - start])
         if state.n_seen == check:
-            verdict = undetermined_in_stream(state)
+            # judged where the estimate is in doubt: an undetermined parameter, round-off
+            # over round-off, has an error of order one, or is 0 with its companion
+            last = out[:, stop - 1]
+            doubt = not (error_out[stop - 1] <= JUDGED_ABOVE and np.all(last != 0.0))
+            verdict = undetermined_in_stream(state) if doubt else ()
             if verdict is not None:
                 state.undetermined = verdict
                 if verdict:  # from the checked sample on
@@ -250,7 +260,12 @@ def advance_with_error(state, channels, *, backend="numpy", out=None, error_out=
 #: Whether the samples determine the parameters is judged when the estimator has seen
 #: a power of two of samples, from this one on (:func:`next_check`); each verdict holds
 #: until the next (so that it does not depend on how a stream is cut into chunks).
-FIRST_CHECK = 8
+FIRST_CHECK = 64
+#: ... where the numerical error is above this (or not finite), or an estimate is 0;
+#: otherwise the estimate is taken as determined without the test (which costs about
+#: 0.1 ms: so that noisy streams, and estimators re-anchored every few tens of samples,
+#: are not slowed down).
+JUDGED_ABOVE = 0.1
 
 
 def next_check(n_seen):
@@ -274,7 +289,7 @@ def _piece(state, rows, backend, out, error_out, scratch=None):
     other, _ = core.advance(state.companion, rows, backend=backend, out=scratch)
     _block_error(backend, out, other, state.recent_errors, error_out)
     largest, last, divisors = state.channel_max, state.channel_last, state.divisors
-    for c, row in enumerate(rows):  # the extent of the channels, for the checks
+    for c, row in enumerate(rows if largest is not None else ()):  # for the checks
         divisor = divisors.item(c)
         newest = row.item(-1) / divisor
         size = abs(newest) if row.size == 1 else max(row.max(), -row.min()) / divisor

@@ -415,10 +415,9 @@ class OnlineEstimator:
         -------
         EstimationResult
             Estimates at the given times, computed from the samples up to each of them.
-            NaN for the first ``startup_samples`` samples of the stream, where the
-            denominator is zero (no excitation yet), and for the parameters the samples
-            do not determine (with an infinite ``numerical_error``; judged at 8, 16, 32,
-            ... samples from the origin, :mod:`algid.numerical_error`).
+            NaN for the first ``startup_samples`` samples, where the denominator is zero,
+            and for parameters the samples do not determine (``numerical_error`` inf;
+            judged at 64, 128, ... samples, :mod:`algid.numerical_error`).
 
         Raises
         ------
