@@ -73,16 +73,13 @@ def companion_options(points: int, filter_order: int) -> tuple:
     return other_points, filter_order - 1 if filter_order > 0 else 1
 
 
-def with_companion(state: core.EstimatorState, *, judge=True) -> core.EstimatorState:
+def with_companion(state: core.EstimatorState) -> core.EstimatorState:
     """Give a fresh state its companion (:func:`companion_options`).
 
     Parameters
     ----------
     state : EstimatorState
         From :func:`algid.core.new_state`, with no sample seen yet.
-    judge : bool, optional
-        Check at :func:`next_check` whether the samples determine the parameters
-        (default).
 
     Returns
     -------
@@ -93,9 +90,8 @@ def with_companion(state: core.EstimatorState, *, judge=True) -> core.EstimatorS
     state.companion = core.new_state(state.model, points=points, filter_order=filter_order,
                                      dt=state.dt, divisors=state.divisors)
     state.recent_errors = np.zeros(WINDOW - 1)
-    if judge:
-        state.channel_max = [0.0] * len(state.divisors)
-        state.channel_last = [0.0] * len(state.divisors)
+    state.channel_max = [0.0] * len(state.divisors)  # for the identifiability checks
+    state.channel_last = [0.0] * len(state.divisors)
     return state
 
 
@@ -289,7 +285,7 @@ def _piece(state, rows, backend, out, error_out, scratch=None):
     other, _ = core.advance(state.companion, rows, backend=backend, out=scratch)
     _block_error(backend, out, other, state.recent_errors, error_out)
     largest, last, divisors = state.channel_max, state.channel_last, state.divisors
-    for c, row in enumerate(rows if largest is not None else ()):  # for the checks
+    for c, row in enumerate(rows):  # the channels' extent, for the checks
         divisor = divisors.item(c)
         newest = row.item(-1) / divisor
         size = abs(newest) if row.size == 1 else max(row.max(), -row.min()) / divisor

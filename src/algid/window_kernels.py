@@ -90,10 +90,7 @@ def uniform_window_integrals(z, step, length, multiplicity, derivative, stride=1
         ``0, stride, 2*stride, ...``.
     """
     z = np.asarray(z, dtype=float)
-    span = (length - 1) * step
-    weights = np.full(length, step)
-    weights[[0, -1]] = step / 2
-    g = weights * _unit_kernel(multiplicity, derivative, length) / span ** (derivative + 1)
+    g = window_sample_weights(None, step, length, multiplicity, derivative)
     if length <= 64:
         full = np.correlate(z, g, mode="valid")
     else:
@@ -119,18 +116,10 @@ def window_integrals(z, t, length, multiplicity, derivative, stride=1):
     -------
     numpy.ndarray
     """
-    z = np.asarray(z, dtype=float)
-    t = np.asarray(t, dtype=float)
-    tw = np.lib.stride_tricks.sliding_window_view(t, length)[::stride]
-    zw = np.lib.stride_tricks.sliding_window_view(z, length)[::stride]
-    span = tw[:, -1] - tw[:, 0]
-    u = (tw - tw[:, :1]) / span[:, None]
-    dt = np.diff(tw, axis=1)
-    weights = np.zeros_like(tw)
-    weights[:, :-1] += dt / 2
-    weights[:, 1:] += dt / 2
-    kernel = term_kernel(multiplicity, derivative, u)
-    return np.einsum("ij,ij,ij->i", weights, kernel, zw) / span ** (derivative + 1)
+    zw = np.lib.stride_tricks.sliding_window_view(np.asarray(z, dtype=float),
+                                                  length)[::stride]
+    g = window_sample_weights(t, None, length, multiplicity, derivative, stride)
+    return np.einsum("ij,ij->i", g, zw)
 
 
 def window_sample_weights(t, step, length, multiplicity, derivative, stride=1):
@@ -141,7 +130,7 @@ def window_sample_weights(t, step, length, multiplicity, derivative, stride=1):
 
     Parameters
     ----------
-    t : array_like
+    t : array_like or None
         Sample times (used when ``step`` is None).
     step : float or None
         Sampling step of a uniform segment.
@@ -243,25 +232,11 @@ def window_noise_products(s, t, step, length, first, second, stride=1):
     numpy.ndarray
     """
     s = np.asarray(s, dtype=float)
-    (a1, k1), (a2, k2) = first, second
-    if step is not None:
-        span = (length - 1) * step
-        weights = np.full(length, step)
-        weights[[0, -1]] = step / 2
-        g = (weights ** 2 * _unit_kernel(a1, k1, length) * _unit_kernel(a2, k2, length)
-             / span ** (k1 + k2 + 2))
-        n_win = (len(s) - length) // stride + 1
-        if np.all(s == s[0]):        # linear noise path: the same in every window
-            return np.full(n_win, s[0] * np.sum(g))
-        return np.lib.stride_tricks.sliding_window_view(s, length)[::stride] @ g
-    t = np.asarray(t, dtype=float)
-    tw = np.lib.stride_tricks.sliding_window_view(t, length)[::stride]
+    g = window_sample_weights(t, step, length, *first, stride) \
+        * window_sample_weights(t, step, length, *second, stride)
     sw = np.lib.stride_tricks.sliding_window_view(s, length)[::stride]
-    span = tw[:, -1] - tw[:, 0]
-    u = (tw - tw[:, :1]) / span[:, None]
-    dt = np.diff(tw, axis=1)
-    weights = np.zeros_like(tw)
-    weights[:, :-1] += dt / 2
-    weights[:, 1:] += dt / 2
-    g = weights ** 2 * term_kernel(a1, k1, u) * term_kernel(a2, k2, u)
-    return np.einsum("ij,ij->i", g, sw) / span ** (k1 + k2 + 2)
+    if step is None:
+        return np.einsum("ij,ij->i", g, sw)
+    if np.all(s == s[0]):  # linear noise path: the same in every window
+        return np.full(sw.shape[0], s[0] * np.sum(g))
+    return sw @ g
