@@ -346,3 +346,31 @@ def test_sign_samples_integrate_the_step_at_its_place():
         < abs(weighted_integral(jittered, np.sign(v)) - exact) / 5
     assert np.array_equal(sign_samples(np.array([1.0, 2.0, 0.0, -1.0]), np.arange(4.0)),
                           [1.0, 1.0, 0.0, -1.0])  # a sample at zero: no interpolated step
+
+
+def test_noise_covariance_only_where_the_residuals_agree_with_it(monkeypatch):
+    """A force disturbance (not output noise) leaves a misfit as small as output noise
+    would, but its own covariance is far larger than the noise model's: the residuals'
+    (HAC) covariance is kept.  On the cubic spring (output noise and the aliased cube)
+    the two agree within the factor, and the noise model's is used."""
+    from scipy.signal import lsim
+
+    from algid import identification
+
+    t = np.arange(4000) * 1e-3
+    rng = np.random.default_rng(1)
+    f = np.sin(7 * t) + 0.5 * np.sin(23 * t) + 0.3 * np.sin(51 * t)
+    x = lsim(([1.0], [1.0, 2.0, 50.0]), f + rng.normal(0, 0.1, t.size), t)[1] \
+        + rng.normal(0, 1e-5, t.size)
+    records = {"disturbed": ({"t": t, "f": f, "x": x}, ("x'' + B*x' + K*x = f", "B K")),
+               "cubic": (cubic_spring(0)[0], CUBIC_EQUATION)}
+
+    def stderr(agreement):
+        monkeypatch.setattr(identification, "AGREEMENT", agreement)
+        return {name: algid.identify(rec, *eq).stderr for name, (rec, eq) in records.items()}
+
+    default, hac, analytic = stderr(identification.AGREEMENT), stderr(0.0), stderr(np.inf)
+    for name in records:  # the two covariances differ on both records
+        assert any(abs(analytic[name][p] / hac[name][p] - 1) > 0.1 for p in hac[name])
+    assert default["disturbed"] == hac["disturbed"]   # 9 to 18 times the noise model's SE
+    assert default["cubic"] == analytic["cubic"]

@@ -92,6 +92,10 @@ MULTIPLICITIES = (8, 12)
 #: A term this small next to the known side (5 %) counts as negligible in the window rule.
 NEGLIGIBLE_TERM = 0.05
 
+#: The covariance of output noise through the kernels replaces the residuals' own (HAC)
+#: where the latter's variances are at most this many times the former's.
+AGREEMENT = 4.0
+
 #: Windows overlap: a window starts every ``length // WINDOW_OVERLAP`` samples.
 WINDOW_OVERLAP = 8
 
@@ -317,11 +321,17 @@ def _solve(problem, length, multiplicities, instruments=None, method="ls"):
         if not variance <= problem.noise_bound():
             variance = None
     stride = max(1, length // WINDOW_OVERLAP)
-    if variance is not None:  # the misfit is that of white output noise: its covariance
-        meat = variance * noise_meat(problem, length, top, theta_bar, weights, stride)
-    else:  # a misfit that is not output noise: the residuals' own covariance
-        meat = hac_meat(scores, ids, int(np.ceil(length / stride)))
-    covariance = bread @ meat @ bread.T
+    # the residuals' own covariance, and, where the misfit is no larger than white output
+    # noise could make it, that of such noise through the kernels: kept if the former
+    # is at most AGREEMENT times it for every parameter (a misfit that does not change
+    # between noise realisations inflates the former a little; a misfit that is not
+    # output noise at all, a force disturbance or noise on an input, inflates it more)
+    covariance = bread @ hac_meat(scores, ids, int(np.ceil(length / stride))) @ bread.T
+    if variance is not None:
+        analytic = bread @ (variance * noise_meat(problem, length, top, theta_bar, weights,
+                                                  stride)) @ bread.T
+        if np.all(np.diag(covariance) <= AGREEMENT * np.diag(analytic)):
+            covariance = analytic
     scale = np.sqrt(np.mean(A ** 2, axis=0)) / max(float(np.sqrt(np.mean(b ** 2))), 1e-300)
     return _Fit(theta, covariance, {a: v[0] for a, v in separate.items()}, scale, r,
                 len(ids))
