@@ -36,21 +36,22 @@ A derivative inside a nonlinear factor (``sign(q')``) is estimated numerically: 
 the algebraic differentiator :func:`algid.differentiation.algebraic_derivative` when
 it is available, else by a local polynomial (Savitzky-Golay) derivative.
 
-Standard errors come from a sandwich covariance over the window index.  Where the
-equations' misfit is that of white output noise (its variance per unit of noise weight
-at most the bound that the samples alone put on the output noise,
-``_Problem.noise_bound``), the middle of the sandwich is the covariance that this noise
-puts into the window equations: known from the kernels and the factors' sensitivities,
+Standard errors come from a sandwich over the window index.  Its middle is the
+residuals' own covariance, a HAC (heteroscedasticity and autocorrelation consistent)
+estimate: the residuals of overlapping windows are correlated over ``length / stride``
+windows, and the lag weights are flat up to that lag and taper linearly to zero at twice
+it (a flat-top kernel: Newey-West's Bartlett weights underestimate such a correlation).
+Where the misfit is no larger than white output noise could make it (its variance per
+unit of noise weight at most the bound that the samples alone put on the output noise,
+``_Problem.noise_bound``), the covariance that such noise puts into the window
+equations is also computed: known from the kernels and the factors' sensitivities,
 including the correlation of overlapping windows
-(:func:`algid.window_covariance.noise_meat`), times the
-noise variance.  A misfit that does not vary between noise realisations (the aliasing
-of a sampled ``y**3``) then counts only through that variance, not through its own
-pattern.  Otherwise (a misfit that is not output noise: a misestimated ``sign(q')``, a
-closed loop) the residuals' own covariance is used: a HAC (heteroscedasticity and
-autocorrelation consistent) estimate, the residuals of overlapping windows being
-correlated over ``length / stride`` windows, with lag weights flat up to that lag and
-tapering linearly to zero at twice it (a flat-top kernel: Newey-West's Bartlett
-weights underestimate such a correlation).  It is conservative.
+(:func:`algid.window_covariance.noise_meat`), times the noise variance.  It replaces the
+HAC one where the HAC variances are at most :data:`AGREEMENT` times its own for every
+parameter.  A misfit that does not change between noise realisations (the aliasing of a
+sampled ``y**3``) inflates the HAC estimate a little, and then counts only through the
+noise variance; a misfit that is not output noise at all (a force disturbance, noise on
+an input, a misestimated ``sign(q')``) inflates it more, and the HAC estimate is kept.
 
 Window rule (``window=None``): on a geometric grid of window lengths (ratio 1.25, from
 ``a_max + 4`` samples up to a thirtieth of the data, so that the HAC covariance sees at
@@ -81,7 +82,8 @@ from algid.window_kernels import (
     window_noise_products,
 )
 
-__all__ = ["identify", "METHODS", "MULTIPLICITIES", "window_criterion", "window_grid"]
+__all__ = ["identify", "METHODS", "MULTIPLICITIES", "AGREEMENT", "window_criterion",
+           "window_grid"]
 
 #: Solvers: bias-compensated least squares (default), least squares, instrumental variables.
 METHODS = ("ls", "bc", "iv")
