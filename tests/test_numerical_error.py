@@ -164,6 +164,14 @@ def test_undetermined_parameters_are_nan_with_an_infinite_error_in_a_stream(engi
     assert np.isinf(r.numerical_error[63:]).all()
 
 
+def test_the_late_twin_does_not_replace_an_undetermined_estimate():
+    t = np.arange(600) * 1e-3
+    f, x = np.ones_like(t), np.full_like(t, 0.02)
+    r = algid.OnlineEstimator(dt=1e-3, late_origin=True).update(t, f, x)
+    assert np.isnan(r.B[63:]).all() and np.isinf(r.numerical_error[63:]).all()
+    np.testing.assert_allclose(r.K[63:], 50.0, rtol=1e-8)
+
+
 def test_a_stream_that_becomes_excited_is_judged_again():
     """Constant until sample 3000, then a sine: B is NaN until the first check after
     the excitation (at 4096 samples: from the next sample on), then estimated."""

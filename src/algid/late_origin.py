@@ -91,7 +91,10 @@ def advance_best(state, twin, channels, *, backend="numpy", out=None, error_out=
         n = stop - start
         advance_with_error(twin, tuple(r[start:stop] for r in rows), backend=backend,
                            out=late[:, :n], error_out=late_error[:n])
-        better = np.flatnonzero(MARGIN * late_error[:n] < error[skip + start:skip + stop])
+        ours = error[skip + start:skip + stop]
+        # (not where the data were found not to determine a parameter: NaN, inf error)
+        judged = np.isinf(ours) & np.isnan(estimates[:, skip + start:skip + stop]).any(axis=0)
+        better = np.flatnonzero((MARGIN * late_error[:n] < ours) & ~judged)
         if better.size:
             estimates[:, skip + start + better] = late[:, better]
             error[skip + start + better] = late_error[better]
