@@ -82,6 +82,12 @@ def _linear_maps(module):
     return np.stack(columns_p, axis=-1), np.stack(columns_q, axis=-1)
 
 
+def _entries(module, values, sizes):
+    """``P``, ``Q`` from the kernels' values, and the sizes their terms could have."""
+    map_p, map_q = _linear_maps(module)
+    return map_p @ values, map_q @ values, np.abs(map_p) @ sizes, np.abs(map_q) @ sizes
+
+
 def _kernels_at_end(module, channels, dt):
     """Every kernel of ``module.KERNELS`` at the last sample, and the size it could
     have (``max|s| * T**(p + l) * p! / (p + l)!``)."""
@@ -192,9 +198,7 @@ def undetermined(module, channels, dt, *, rtol=IDENTIFIABILITY_RTOL, state=None)
         else:
             values, sizes = _kernels_at_end(module, [np.asarray(c, dtype=float)
                                                      for c in channels], dt)
-        map_p, map_q = _linear_maps(module)
-        P, Q = map_p @ values, map_q @ values
-        size_p, size_q = np.abs(map_p) @ sizes, np.abs(map_q) @ sizes
+        P, Q, size_p, size_q = _entries(module, values, sizes)
     span = (channels[0].size - 1) * dt
     with np.errstate(over="ignore", under="ignore"):
         powers = np.float64(span) ** np.array([p + lv for _, p, lv in module.KERNELS])
@@ -273,9 +277,7 @@ def undetermined_in_stream(state, rtol=IDENTIFIABILITY_RTOL):
     module = state.model
     with np.errstate(over="ignore", under="ignore", invalid="ignore"):
         values, sizes = _kernels_from_state(state, state.channel_max, state.channel_last)
-        map_p, map_q = _linear_maps(module)
-        P, Q = map_p @ values, map_q @ values
-        size_p, size_q = np.abs(map_p) @ sizes, np.abs(map_q) @ sizes
+        P, Q, size_p, size_q = _entries(module, values, sizes)
     if not (np.isfinite(P).all() and np.isfinite(Q).all() and np.isfinite(size_p).all()
             and np.isfinite(size_q).all()):
         return None
