@@ -184,11 +184,25 @@ def test_a_stream_that_becomes_excited_is_judged_again():
     assert abs(r.B[-1] / 2.0 - 1) < 1e-6
 
 
+def test_a_stream_excited_late_is_judged_again_within_check_every_samples():
+    """Constant for 10 s at 1 kHz, then a sine: B is NaN until the first multiple of
+    4096 samples after the excitation (12288), not until the next power of two (16384)."""
+    t = np.arange(14000) * 1e-3
+    f = np.where(t < 10.0, 1.0, 1.0 + np.sin(5 * (t - 10.0)))
+    x = algid.simulate(f, duration=t[-1], initial_state=(1 / 3, 0.0)).x
+    r = algid.OnlineEstimator(dt=1e-3).update(t, f, x)
+    assert np.isnan(r.B[8192:12288]).all() and np.isinf(r.numerical_error[8192:12288]).all()
+    assert np.isfinite(r.B[12288:]).all() and np.isfinite(r.numerical_error[12288:]).all()
+    assert abs(r.B[-1] / 2.0 - 1) < 1e-6
+
+
 def test_next_check():
-    from algid.numerical_error import FIRST_CHECK, next_check
-    assert FIRST_CHECK == 64
-    assert [next_check(n) for n in (0, 7, 63, 64, 65, 127, 128, 1000, 1024)] == \
-        [64, 64, 64, 128, 128, 128, 256, 1024, 2048]
+    from algid.numerical_error import CHECK_EVERY, FIRST_CHECK, next_check
+    assert (FIRST_CHECK, CHECK_EVERY) == (64, 4096)
+    assert [next_check(n) for n in (0, 7, 63, 64, 65, 127, 128, 1000, 1024, 4095)] == \
+        [64, 64, 64, 128, 128, 128, 256, 1024, 2048, 4096]
+    assert [next_check(n) for n in (4096, 4097, 8191, 8192, 10**6)] == \
+        [8192, 8192, 8192, 12288, 1003520]
 
 
 def test_companion_options():

@@ -28,8 +28,8 @@ the estimator itself.  With noise, the two filters pass the noise differently: t
 difference then also holds part of the noise's effect.
 
 Data that do not determine a parameter (a constant output leaves ``B`` free) make the
-estimate round-off divided by round-off.  When the estimator has seen 64, 128, 256, ...
-samples from its origin (:func:`next_check`), the test of :mod:`algid.identifiability`
+estimate round-off divided by round-off.  When the estimator has seen 64, 128, 256, ...,
+4096 samples from its origin, and every 4096 samples after that (:func:`next_check`), the test of :mod:`algid.identifiability`
 runs on its state (the kernels it holds, the largest channel values so far), if the
 numerical error is above :data:`JUDGED_ABOVE` or an estimate is 0; until the next
 check, the parameters it finds undetermined are NaN and the numerical error is
@@ -48,7 +48,7 @@ from algid.quadrature import QUADRATURE_POINTS
 
 __all__ = ["companion_options", "with_companion", "advance_with_error",
            "relative_difference", "window_maximum", "next_check", "WINDOW", "FIRST_CHECK",
-           "JUDGED_ABOVE"]
+           "CHECK_EVERY", "JUDGED_ABOVE"]
 
 
 def companion_options(points: int, filter_order: int) -> tuple:
@@ -254,9 +254,14 @@ def advance_with_error(state, channels, *, backend="numpy", out=None, error_out=
 
 
 #: Whether the samples determine the parameters is judged when the estimator has seen
-#: a power of two of samples, from this one on (:func:`next_check`); each verdict holds
-#: until the next (so that it does not depend on how a stream is cut into chunks).
+#: a power of two of samples, from this one on (:func:`next_check`) up to
+#: :data:`CHECK_EVERY`, then every :data:`CHECK_EVERY` samples; each verdict holds until
+#: the next (so that it does not depend on how a stream is cut into chunks).
 FIRST_CHECK = 64
+#: The longest interval between two checks: a stream that becomes excited late is
+#: judged again within this many samples (doubling intervals alone would wait as long
+#: as the stream is old).
+CHECK_EVERY = 4096
 #: ... where the numerical error is above this (or not finite), or an estimate is 0;
 #: otherwise the estimate is taken as determined without the test (which costs about
 #: 0.1 ms: so that noisy streams, and estimators re-anchored every few tens of samples,
@@ -265,7 +270,10 @@ JUDGED_ABOVE = 0.1
 
 
 def next_check(n_seen):
-    """The first power of two (at least :data:`FIRST_CHECK`) above ``n_seen``.
+    """The first sample count above ``n_seen`` at which the identifiability is checked.
+
+    Powers of two from :data:`FIRST_CHECK` to :data:`CHECK_EVERY`, then the multiples
+    of :data:`CHECK_EVERY`.
 
     Parameters
     ----------
@@ -276,7 +284,10 @@ def next_check(n_seen):
     -------
     int
     """
-    return max(FIRST_CHECK, 1 << int(n_seen).bit_length())
+    n_seen = int(n_seen)
+    if n_seen >= CHECK_EVERY:
+        return (n_seen // CHECK_EVERY + 1) * CHECK_EVERY
+    return max(FIRST_CHECK, 1 << n_seen.bit_length())
 
 
 def _piece(state, rows, backend, out, error_out, scratch=None):
