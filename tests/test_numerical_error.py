@@ -297,11 +297,7 @@ def test_population_quick_run_is_honest(capsys):
     assert "numerical_error bounds the error" in capsys.readouterr().out
 
 
-@pytest.mark.skipif(len(ENGINES) < 2, reason="needs numba")
-def test_compiled_numerical_error_equals_numpy():
-    from algid.core_numba import numerical_error
-    from algid.numerical_error import WINDOW, window_maximum
-
+def _error_cases():
     rng = np.random.default_rng(5)
     est = rng.normal(size=(3, 300))
     comp = est * (1 + 1e-6 * rng.normal(size=est.shape))
@@ -311,6 +307,41 @@ def test_compiled_numerical_error_equals_numpy():
     est[2, 60], comp[2, 60] = 0.0, 1e-9  # a zero estimate: inf
     comp[0, 70] = np.nan  # the companion undefined: inf
     comp[2, 80] = est[2, 80]  # equal: 0 for that parameter
+    est[0, 90], comp[0, 90] = 1e-300, -1e300  # overflows to inf
+    est[1, 100] = np.inf  # an infinite estimate: NaN
+    comp[2, 110] = -np.inf
+    est[1, 120], comp[1, 120] = -0.0, 0.0
+    return est, comp
+
+
+def test_scalar_numerical_error_equals_the_arrays():
+    """Chunks of a few samples on the NumPy backend take a float path: same numbers."""
+    from algid.numerical_error import SCALAR_SAMPLES, WINDOW, _block_error, window_maximum
+
+    est, comp = _error_cases()
+    expected = np.empty(est.shape[1])
+    window_maximum(relative_difference(est, comp), np.zeros(WINDOW - 1), expected)
+    assert np.isinf(expected[[60, 70, 90]]).all() and np.isnan(expected[100])
+    recent, got, at = np.zeros(WINDOW - 1), [], 0
+    sizes = [1, 2, 3] * 50
+    assert max(sizes) <= SCALAR_SAMPLES and sum(sizes) == est.shape[1]
+    for n in sizes:
+        out = np.empty(n)
+        _block_error("numpy", est[:, at:at + n], comp[:, at:at + n], recent, out)
+        got.append(out)
+        at += n
+    np.testing.assert_array_equal(np.concatenate(got), expected)
+    none = np.empty(1)
+    _block_error("numpy", np.empty((0, 1)), np.empty((0, 1)), np.zeros(WINDOW - 1), none)
+    assert np.isnan(none[0])
+
+
+@pytest.mark.skipif(len(ENGINES) < 2, reason="needs numba")
+def test_compiled_numerical_error_equals_numpy():
+    from algid.core_numba import numerical_error
+    from algid.numerical_error import WINDOW, window_maximum
+
+    est, comp = _error_cases()
     expected = np.empty(300)
     window_maximum(relative_difference(est, comp), np.zeros(WINDOW - 1), expected)
     for cuts in ([300], [7, 293], [100, 100, 100]):

@@ -40,6 +40,8 @@ its end.)
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from algid import core
@@ -152,7 +154,7 @@ def relative_difference(estimates, companion, out=None):
     if estimates.shape[0] == 0:
         out.fill(np.nan)
         return out
-    with np.errstate(divide="ignore", invalid="ignore"):
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         rel = np.subtract(estimates, companion)
         np.abs(rel, out=rel)
         rel /= np.abs(estimates)
@@ -314,15 +316,50 @@ def _mark_undetermined(state, out, error_out):
 
 
 _COMPILED = []
+#: Chunks of at most this many samples take the scalar path of the NumPy backend
+#: (:func:`_sample_errors`: the same numbers, without the arrays' per-call cost).
+SCALAR_SAMPLES = 3
+
+
+def _sample_errors(estimates, other, recent, out):
+    """:func:`relative_difference` then :func:`window_maximum`, one sample at a time in
+    floats: the same numbers (IEEE division, ``abs`` and ``max`` round alike)."""
+    rows = estimates.tolist()
+    others = other.tolist()
+    held = recent.tolist()
+    for j in range(len(out)):
+        raw = 0.0 if rows else math.nan
+        for row, companion in zip(rows, others):
+            a, b = row[j], companion[j]
+            if a == 0.0:  # 0 / 0 where they are equal, else inf (the NumPy path's rule)
+                rel = 0.0 if b == 0.0 else math.inf
+            elif not math.isfinite(a):
+                rel = math.nan
+            else:
+                rel = abs(a - b) / abs(a)
+                if rel != rel:  # the companion is NaN: the data do not determine it
+                    rel = math.inf
+            if rel != rel or raw != raw:
+                raw = math.nan
+            elif rel > raw:
+                raw = rel
+        finite = math.isfinite(raw)
+        largest = max(held) if held else 0.0
+        value = raw if finite else 0.0
+        out[j] = max(largest, value) if finite else raw
+        held = held[1:] + [value] if held else held
+    recent[:] = held
 
 
 def _block_error(backend, estimates, other, recent, out):
-    """The numerical error of a block into ``out`` (compiled with numba, the same
-    numbers)."""
+    """The numerical error of a block into ``out`` (compiled with numba, or in floats
+    for a few samples: the same numbers)."""
     if backend == "numba":
         if not _COMPILED:
             from algid.core_numba import numerical_error
             _COMPILED.append(numerical_error)
         _COMPILED[0](estimates, other, recent, out)
+    elif out.size <= SCALAR_SAMPLES:
+        _sample_errors(estimates, other, recent, out)
     else:
         window_maximum(relative_difference(estimates, other), recent, out)
