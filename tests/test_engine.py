@@ -107,13 +107,13 @@ def test_auto_engine_chooses_by_size(data, monkeypatch):
     _numba()
     t, f, x = data
     calls = []
-    original = core.advance
+    original = core.advance_rows  # every call of the core goes through it
 
-    def spy(state, channels, *, backend="numpy", out=None):
+    def spy(state, rows, out, backend="numpy"):
         calls.append(backend)
-        return original(state, channels, backend=backend, out=out)
+        return original(state, rows, out, backend)
 
-    monkeypatch.setattr(core, "advance", spy)
+    monkeypatch.setattr(core, "advance_rows", spy)
     estimate(t, f, x, numerical_error=False)  # the estimator alone: one call
     assert calls == ["numpy"]  # 1501 samples: NumPy
     monkeypatch.setattr(backends, "AUTO_ENGINE_MIN_SAMPLES", t.size)

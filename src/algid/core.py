@@ -60,7 +60,7 @@ from algid.errors import InputDataError
 from algid.options import check_filter_order, check_quadrature_points
 
 __all__ = ["EstimatorState", "IntegratorLayout", "integrator_layout", "layout_of", "new_state",
-           "advance"]
+           "advance", "advance_rows"]
 
 
 @dataclasses.dataclass
@@ -371,19 +371,47 @@ def advance(state, channels, *, backend="numpy", out=None):
                 and out.dtype == np.float64):
             raise InputDataError(f"out must be a float64 array of shape {shape}, got "
                                  f"{getattr(out, 'shape', None)} {getattr(out, 'dtype', None)}")
+    return advance_rows(state, rows, out, backend), state
+
+
+def advance_rows(state, rows, out, backend="numpy"):
+    """:func:`advance` on a chunk that is known to be well formed (no checks).
+
+    For callers that advance several states on the same checked chunk (an estimator
+    and its companion, :mod:`algid.numerical_error`).
+
+    Parameters
+    ----------
+    state : EstimatorState
+        Updated in place.
+    rows : tuple of ndarray
+        One C-contiguous float64 1-D array per channel, all of one length ``m``, in the
+        model's ``CHANNELS`` order.
+    out : ndarray, shape (n_parameters, m)
+        Float64 array the estimates are written into.
+    backend : {"numpy", "numba"}, optional
+        Default ``"numpy"``.
+
+    Returns
+    -------
+    ndarray
+        ``out``.
+    """
     run = _RUNNERS.get(backend)
     if run is None:
         run = _RUNNERS[backend] = require_backend(backend)
+    m = rows[0].size
     if not m:
-        return out, state
+        return out
+    model = state.model
     q = state.points
     seen = state.n_seen
     if seen >= q:  # the stream is under way: the common case
         run(state, integrator_layout(model), rows, out)
-        return out, state
+        return out
     if seen == 0 and m >= q:  # the chunk starts at the origin: integrate it at once
         run(state, integrator_layout(model), rows, out, from_origin=True)
-        return out, state
+        return out
     # the start-up: buffer samples 0 .. q - 1
     done = min(q - seen, m)
     for c, row in enumerate(rows):
@@ -391,9 +419,9 @@ def advance(state, channels, *, backend="numpy", out=None):
     out[:, :done] = np.nan
     state.n_seen = seen + done
     if state.n_seen == q:  # sample q - 1 arrived: integrate from the origin
-        first = np.empty((shape[0], q))
+        first = np.empty((out.shape[0], q))
         run(state, integrator_layout(model), tuple(state.startup), first, from_origin=True)
         out[:, done - 1] = first[:, -1]
     if done < m:
         run(state, integrator_layout(model), tuple(r[done:] for r in rows), out[:, done:])
-    return out, state
+    return out

@@ -29,11 +29,11 @@ difference then also holds part of the noise's effect.
 
 Data that do not determine a parameter (a constant output leaves ``B`` free) make the
 estimate round-off divided by round-off.  When the estimator has seen 64, 128, 256, ...,
-4096 samples from its origin, and every 4096 samples after that (:func:`next_check`), the test of :mod:`algid.identifiability`
-runs on its state (the kernels it holds, the largest channel values so far), if the
-numerical error is above :data:`JUDGED_ABOVE` or an estimate is 0; until the next
-check, the parameters it finds undetermined are NaN and the numerical error is
-infinite.  The checks fall on the same samples however a stream is cut.  (Batch
+4096 samples from its origin, and every 4096 samples after that (:func:`next_check`),
+the test of :mod:`algid.identifiability` runs on its state (the kernels it holds, the
+largest channel values so far), if the numerical error is above :data:`JUDGED_ABOVE`
+or an estimate is 0; until the next check, the parameters it finds undetermined are
+NaN and the numerical error is infinite.  The checks fall on the same samples however a stream is cut.  (Batch
 :func:`algid.estimate` also refuses a record that does not determine its parameters at
 its end.)
 """
@@ -45,6 +45,7 @@ import math
 import numpy as np
 
 from algid import core
+from algid.errors import InputDataError
 from algid.identifiability import undetermined_in_stream
 from algid.quadrature import QUADRATURE_POINTS
 
@@ -223,10 +224,17 @@ def advance_with_error(state, channels, *, backend="numpy", out=None, error_out=
         core.advance(state, channels, backend=backend, out=out)  # raises InputDataError
         rows = tuple(np.asarray(c, dtype=np.float64) for c in channels)
     m = rows[0].size
+    shape = (len(state.model.PARAMETERS), m)
     if out is None:
-        out = np.empty((len(state.model.PARAMETERS), m))
+        out = np.empty(shape)
     if error_out is None:
         error_out = np.empty(m)
+    for name, array, expected in (("out", out, shape), ("error_out", error_out, (m,))):
+        if not (isinstance(array, np.ndarray) and array.shape == expected
+                and array.dtype == np.float64):
+            raise InputDataError(f"{name} must be a float64 array of shape {expected}, "
+                                 f"got {getattr(array, 'shape', None)} "
+                                 f"{getattr(array, 'dtype', None)}")
     if not m:
         return out, error_out, state
     check = next_check(state.n_seen)
@@ -294,8 +302,9 @@ def next_check(n_seen):
 
 def _piece(state, rows, backend, out, error_out, scratch=None):
     """Estimator, companion and numerical error over a piece with no check inside."""
-    core.advance(state, rows, backend=backend, out=out)
-    other, _ = core.advance(state.companion, rows, backend=backend, out=scratch)
+    core.advance_rows(state, rows, out, backend)  # rows and out checked by the caller
+    other = core.advance_rows(state.companion, rows,
+                              np.empty(out.shape) if scratch is None else scratch, backend)
     _block_error(backend, out, other, state.recent_errors, error_out)
     largest, last, divisors = state.channel_max, state.channel_last, state.divisors
     for c, row in enumerate(rows):  # the channels' extent, for the checks
