@@ -33,9 +33,9 @@ estimate round-off divided by round-off.  When the estimator has seen 64, 128, 2
 the test of :mod:`algid.identifiability` runs on its state (the kernels it holds, the
 largest channel values so far), if the numerical error is above :data:`JUDGED_ABOVE`
 or an estimate is 0; until the next check, the parameters it finds undetermined are
-NaN and the numerical error is infinite.  The checks fall on the same samples however a stream is cut.  (Batch
-:func:`algid.estimate` also refuses a record that does not determine its parameters at
-its end.)
+NaN and the numerical error is infinite.  The checks fall on the same samples however
+a stream is cut.  (Batch :func:`algid.estimate` also refuses a record that does not
+determine its parameters at its end.)
 """
 
 from __future__ import annotations
