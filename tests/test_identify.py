@@ -351,8 +351,9 @@ def test_sign_samples_integrate_the_step_at_its_place():
 def test_noise_covariance_only_where_the_residuals_agree_with_it(monkeypatch):
     """A force disturbance (not output noise) leaves a misfit as small as output noise
     would, but its own covariance is far larger than the noise model's: the residuals'
-    (HAC) covariance is kept.  On the cubic spring (output noise and the aliased cube)
-    the two agree within the factor, and the noise model's is used."""
+    (HAC) covariance is kept.  On a strongly driven cubic spring (output noise and the
+    aliased cube: ``K3 y^2`` up to 1.7 ``K``) the two agree within the factor, and the
+    noise model's is used."""
     from scipy.signal import lsim
 
     from algid import identification
@@ -363,7 +364,7 @@ def test_noise_covariance_only_where_the_residuals_agree_with_it(monkeypatch):
     x = lsim(([1.0], [1.0, 2.0, 50.0]), f + rng.normal(0, 0.1, t.size), t)[1] \
         + rng.normal(0, 1e-5, t.size)
     records = {"disturbed": ({"t": t, "f": f, "x": x}, ("x'' + B*x' + K*x = f", "B K")),
-               "cubic": (cubic_spring(0)[0], CUBIC_EQUATION)}
+               "cubic": (cubic_spring(0, input_scale=1.0)[0], CUBIC_EQUATION)}
 
     def stderr(agreement):
         monkeypatch.setattr(identification, "AGREEMENT", agreement)
