@@ -614,12 +614,10 @@ def identify(data, equation, parameters=None, *, time=None, rate=None, output=No
                                        method="bc" if method == "iv" else method)
     fit = _solve(problem, length, multiplicities, method="bc" if method == "iv" else method)
     problem.sign_jumps = crossing_jumps(model, dict(zip(model.parameters, fit.theta)))
-    if problem.sign_jumps:   # again, with the crossings of sign(q') placed by the model
+    if problem.sign_jumps:   # again, crossings of sign(q') placed by the model (same
+        # window: re-chosen, it varied with the noise and so did its quadrature bias)
         problem.factors = {k: v for k, v in problem.factors.items()
                            if k[0] not in problem.sign_jumps}
-        if window is None:
-            length, scores = choose_window(problem, multiplicities,
-                                           method="bc" if method == "iv" else method)
         fit = _solve(problem, length, multiplicities, method="bc" if method == "iv" else method)
     if method == "iv":
         for _ in range(iterations):
