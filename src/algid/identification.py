@@ -34,7 +34,10 @@ Solvers (``method``):
 
 A derivative inside a nonlinear factor (``sign(q')``) is estimated numerically: by
 the algebraic differentiator :func:`algid.differentiation.algebraic_derivative` when
-it is available, else by a local polynomial (Savitzky-Golay) derivative.
+it is available, else by a local polynomial (Savitzky-Golay) derivative.  Its zeros
+come late where ``q''`` jumps (a Coulomb term), so for a model of second order in ``q``
+the crossings are then placed by local fits of ``q`` with the jump that the first
+estimate gives (:mod:`algid.sign_crossings`) and the equations solved again.
 
 Standard errors come from a sandwich over the window index.  Its middle is the
 residuals' own covariance, a HAC (heteroscedasticity and autocorrelation consistent)
@@ -617,7 +620,7 @@ def identify(data, equation, parameters=None, *, time=None, rate=None, output=No
     if problem.sign_jumps:   # again, crossings of sign(q') placed by the model (same
         # window: re-chosen, it varied with the noise and so did its quadrature bias)
         problem.factors = {k: v for k, v in problem.factors.items()
-                           if k[0] not in problem.sign_jumps}
+                           if not (isinstance(k, tuple) and k[0] in problem.sign_jumps)}
         fit = _solve(problem, length, multiplicities, method="bc" if method == "iv" else method)
     if method == "iv":
         for _ in range(iterations):
