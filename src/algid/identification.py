@@ -34,7 +34,10 @@ Solvers (``method``):
 
 A derivative inside a nonlinear factor (``sign(q')``) is estimated numerically: by
 the algebraic differentiator :func:`algid.differentiation.algebraic_derivative` when
-it is available, else by a local polynomial (Savitzky-Golay) derivative.
+it is available, else by a local polynomial (Savitzky-Golay) derivative.  Its zeros
+come late where ``q''`` jumps (a Coulomb term), so for a model of second order in ``q``
+the crossings are then placed by local fits of ``q`` with the jump that the first
+estimate gives (:mod:`algid.sign_crossings`) and the equations solved again.
 
 Standard errors come from a sandwich over the window index.  Its middle is the
 residuals' own covariance, a HAC (heteroscedasticity and autocorrelation consistent)
@@ -74,6 +77,7 @@ from algid.expression import Call, Signal
 from algid.grammar import parse_equation
 from algid.model import Model
 from algid.records import estimate_derivative, prepare_records
+from algid.sign_crossings import crossing_jumps, refine_crossings
 from algid.window_covariance import hac_meat, noise_meat
 from algid.window_kernels import (
     sign_samples,
@@ -133,6 +137,7 @@ class _Problem:
         self.step = step
         self.parameters = model.parameters
         self.factors = {}
+        self.sign_jumps = {}   # sign factor -> jump of q'' (refined crossings)
 
     def factor_samples(self, factor, which="measured"):
         key = (factor, which)
@@ -142,9 +147,13 @@ class _Problem:
                 values = seg.values if which == "measured" else seg.simulated
                 if isinstance(factor, Call) and factor.function == "sign":
                     # a step between two samples: integrated at its place, not halfway
-                    argument = factor.args[0].evaluate(values, seg.t)
-                    z = sign_samples(np.asarray(argument, dtype=float) * np.ones(len(seg)),
-                                     seg.t)
+                    argument = np.asarray(factor.args[0].evaluate(values, seg.t),
+                                          dtype=float) * np.ones(len(seg))
+                    crossings = None
+                    if which == "measured" and factor in self.sign_jumps:
+                        crossings = refine_crossings(values[self.model.output], seg.t,
+                                                     argument, self.sign_jumps[factor])
+                    z = sign_samples(argument, seg.t, crossings)
                 else:
                     z = np.asarray(factor.evaluate(values, seg.t), dtype=float) \
                         * np.ones(len(seg))
@@ -607,6 +616,12 @@ def identify(data, equation, parameters=None, *, time=None, rate=None, output=No
         length, scores = choose_window(problem, multiplicities,
                                        method="bc" if method == "iv" else method)
     fit = _solve(problem, length, multiplicities, method="bc" if method == "iv" else method)
+    problem.sign_jumps = crossing_jumps(model, dict(zip(model.parameters, fit.theta)))
+    if problem.sign_jumps:   # again, crossings of sign(q') placed by the model (same
+        # window: re-chosen, it varied with the noise and so did its quadrature bias)
+        problem.factors = {k: v for k, v in problem.factors.items()
+                           if not (isinstance(k, tuple) and k[0] in problem.sign_jumps)}
+        fit = _solve(problem, length, multiplicities, method="bc" if method == "iv" else method)
     if method == "iv":
         for _ in range(iterations):
             if not _simulated_values(problem, fit.theta, model):

@@ -161,7 +161,7 @@ def window_sample_weights(t, step, length, multiplicity, derivative, stride=1):
         / span[:, None] ** (derivative + 1)
 
 
-def sign_samples(values, t):
+def sign_samples(values, t, crossings=None):
     """Samples of ``sign(v)`` whose trapezoid sums integrate it exactly to first order.
 
     Where ``v`` changes sign between two samples, the sign steps inside the interval,
@@ -180,6 +180,12 @@ def sign_samples(values, t):
         Samples of ``v``.
     t : array_like
         Their (increasing) times.
+    crossings : array_like, optional
+        The times of the steps, one per change of sign of ``values`` and in the same
+        order (e.g. from :func:`algid.sign_crossings.refine_crossings`); a step may lie
+        in another interval than the change of sign of the samples, and the samples
+        between the two take the sign the step gives them.  By default, the linearly
+        interpolated zeros of ``v``.
 
     Returns
     -------
@@ -193,10 +199,26 @@ def sign_samples(values, t):
         return z
     t = np.asarray(t, dtype=float)
     h = np.diff(t)
+    if crossings is None:
+        phi = v[crossing] / (v[crossing] - v[crossing + 1])
+    else:
+        crossings = np.asarray(crossings, dtype=float)
+        if crossings.shape != crossing.shape:
+            raise ValueError(f"{crossings.size} crossing times for {crossing.size} "
+                             "changes of sign")
+        # the interval holding each step; the samples between it and the change of
+        # sign of v take the sign before (a later step) or after (an earlier one)
+        moved = np.clip(np.searchsorted(t, crossings, side="right") - 1, 0, v.size - 2)
+        for k, m in zip(crossing, moved):
+            if m > k:
+                z[k + 1:m + 1] = z[k]
+            elif m < k:
+                z[m + 1:k + 1] = z[k + 1]
+        crossing = moved
+        phi = np.clip((crossings - t[crossing]) / h[crossing], 0.0, 1.0)
     weight = np.empty(v.size)  # trapezoid weight of every sample
     weight[1:-1] = (h[:-1] + h[1:]) / 2
     weight[0], weight[-1] = h[0] / 2, h[-1] / 2
-    phi = v[crossing] / (v[crossing] - v[crossing + 1])
     defect = h[crossing] * (z[crossing + 1] - z[crossing]) * (0.5 - phi)
     delta = defect / (weight[crossing] + weight[crossing + 1])
     np.add.at(z, crossing, delta)
