@@ -172,12 +172,12 @@ def test_the_late_twin_does_not_replace_an_undetermined_estimate():
     np.testing.assert_allclose(r.K[63:], 50.0, rtol=1e-8)
 
 
-@pytest.mark.parametrize("quiet, undetermined_until", [(3.0, 4096), (10.0, 12288)])
+@pytest.mark.parametrize("quiet, undetermined_until", [(3.0, 4096), (140.0, 196608)])
 def test_a_stream_that_becomes_excited_is_judged_again(quiet, undetermined_until):
     """Constant for ``quiet`` seconds at 1 kHz, then a sine: B is NaN until the first
     check after the excitation (from the next sample on), then estimated.  Checks fall
-    on the powers of two up to 4096, then every 4096 samples: after 10 s the stream is
-    judged again at 12288 samples, not at the next power of two (16384)."""
+    on the powers of two up to 65536, then every 65536 samples: after 140 s the stream
+    is judged again at 196608 samples, not at the next power of two (262144)."""
     t = np.arange(undetermined_until + 1700) * 1e-3
     f = np.where(t < quiet, 1.0, 1.0 + np.sin(5 * (t - quiet)))
     x = algid.simulate(f, duration=t[-1], initial_state=(1 / 3, 0.0)).x
@@ -191,11 +191,11 @@ def test_a_stream_that_becomes_excited_is_judged_again(quiet, undetermined_until
 
 def test_next_check():
     from algid.numerical_error import CHECK_EVERY, FIRST_CHECK, next_check
-    assert (FIRST_CHECK, CHECK_EVERY) == (64, 4096)
-    assert [next_check(n) for n in (0, 7, 63, 64, 65, 127, 128, 1000, 1024, 4095)] == \
-        [64, 64, 64, 128, 128, 128, 256, 1024, 2048, 4096]
-    assert [next_check(n) for n in (4096, 4097, 8191, 8192, 10**6)] == \
-        [8192, 8192, 8192, 12288, 1003520]
+    assert (FIRST_CHECK, CHECK_EVERY) == (64, 65536)
+    assert [next_check(n) for n in (0, 7, 63, 64, 65, 127, 128, 1000, 1024, 65535)] == \
+        [64, 64, 64, 128, 128, 128, 256, 1024, 2048, 65536]
+    assert [next_check(n) for n in (65536, 65537, 131071, 131072, 196608, 10**6)] == \
+        [131072, 131072, 131072, 196608, 262144, 1048576]
 
 
 def test_companion_options():
