@@ -60,7 +60,7 @@ from algid.errors import InputDataError
 from algid.options import check_filter_order, check_quadrature_points
 
 __all__ = ["EstimatorState", "IntegratorLayout", "integrator_layout", "layout_of", "new_state",
-           "advance", "advance_rows"]
+           "advance", "advance_rows", "output_array"]
 
 
 @dataclasses.dataclass
@@ -363,15 +363,39 @@ def advance(state, channels, *, backend="numpy", out=None):
     rows = _as_channels(state, channels)
     m = rows[0].size
     model = state.model
-    shape = (len(model.PARAMETERS), m)
+    out = output_array(out, (len(model.PARAMETERS), m))
+    return advance_rows(state, rows, out, backend), state
+
+
+def output_array(out, shape, name="out"):
+    """``out`` checked to be a float64 array of ``shape``, or a new one if it is None.
+
+    Parameters
+    ----------
+    out : ndarray or None
+        The array given by the caller.
+    shape : tuple of int
+        The shape it must have.
+    name : str, optional
+        Its name in the message.
+
+    Returns
+    -------
+    ndarray
+
+    Raises
+    ------
+    InputDataError
+        ``out`` is not a float64 array of that shape.
+    """
     if out is None:
-        out = np.empty(shape)
-    elif not (type(out) is np.ndarray and out.shape == shape and out.dtype is _FLOAT64):
+        return np.empty(shape)
+    if not (type(out) is np.ndarray and out.shape == shape and out.dtype is _FLOAT64):
         if not (isinstance(out, np.ndarray) and out.shape == shape
                 and out.dtype == np.float64):
-            raise InputDataError(f"out must be a float64 array of shape {shape}, got "
+            raise InputDataError(f"{name} must be a float64 array of shape {shape}, got "
                                  f"{getattr(out, 'shape', None)} {getattr(out, 'dtype', None)}")
-    return advance_rows(state, rows, out, backend), state
+    return out
 
 
 def advance_rows(state, rows, out, backend="numpy"):

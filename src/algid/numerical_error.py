@@ -45,7 +45,6 @@ import math
 import numpy as np
 
 from algid import core
-from algid.errors import InputDataError
 from algid.identifiability import undetermined_in_stream
 from algid.quadrature import QUADRATURE_POINTS
 
@@ -224,17 +223,8 @@ def advance_with_error(state, channels, *, backend="numpy", out=None, error_out=
         core.advance(state, channels, backend=backend, out=out)  # raises InputDataError
         rows = tuple(np.asarray(c, dtype=np.float64) for c in channels)
     m = rows[0].size
-    shape = (len(state.model.PARAMETERS), m)
-    if out is None:
-        out = np.empty(shape)
-    if error_out is None:
-        error_out = np.empty(m)
-    for name, array, expected in (("out", out, shape), ("error_out", error_out, (m,))):
-        if not (isinstance(array, np.ndarray) and array.shape == expected
-                and array.dtype == np.float64):
-            raise InputDataError(f"{name} must be a float64 array of shape {expected}, "
-                                 f"got {getattr(array, 'shape', None)} "
-                                 f"{getattr(array, 'dtype', None)}")
+    out = core.output_array(out, (len(state.model.PARAMETERS), m))
+    error_out = core.output_array(error_out, (m,), "error_out")
     if not m:
         return out, error_out, state
     check = next_check(state.n_seen)
