@@ -41,6 +41,7 @@ import numpy as np
 
 from algid.differentiation import DEFAULT_WINDOW_STEPS
 from algid.expression import Call, Power, Product, Signal, Sum
+from algid.window_kernels import sign_changes
 
 __all__ = ["refine_crossings", "crossing_jumps", "FIT_HALF_WIDTH", "SEARCH_SPAN"]
 
@@ -189,8 +190,8 @@ def refine_crossings(position, t, velocity, jump, half_width=FIT_HALF_WIDTH):
     t = np.asarray(t, dtype=float)
     v = np.asarray(velocity, dtype=float)
     z = np.sign(v)
-    index = np.flatnonzero(z[:-1] * z[1:] < 0)
-    times = t[index] + v[index] / (v[index] - v[index + 1]) * (t[index + 1] - t[index])
+    index, fraction = sign_changes(v)
+    times = t[index] + fraction * (t[index + 1] - t[index])
     if index.size == 0:
         return times
     gaps = np.diff(index)

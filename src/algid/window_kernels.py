@@ -30,8 +30,8 @@ from algid.errors import ModelError
 from algid.generated.modulating import MAX_MULTIPLICITY, TERM_KERNELS
 
 __all__ = ["term_kernel", "uniform_window_integrals", "window_integrals",
-           "window_noise_products", "window_sample_weights", "sign_samples",
-           "MAX_MULTIPLICITY"]
+           "window_noise_products", "window_sample_weights", "sign_changes",
+           "sign_samples", "MAX_MULTIPLICITY"]
 
 
 def term_kernel(multiplicity: int, derivative: int, u):
@@ -161,6 +161,28 @@ def window_sample_weights(t, step, length, multiplicity, derivative, stride=1):
         / span[:, None] ** (derivative + 1)
 
 
+def sign_changes(values):
+    """Where samples change sign, and where linear interpolation puts the zero.
+
+    Parameters
+    ----------
+    values : array_like
+        Samples of ``v``.
+
+    Returns
+    -------
+    index : numpy.ndarray of int
+        Every ``i`` with ``v[i]`` and ``v[i + 1]`` of opposite signs (a zero sample is no
+        change of sign).
+    fraction : numpy.ndarray
+        ``v[i] / (v[i] - v[i + 1])``: the zero's place within the interval, in ``(0, 1)``.
+    """
+    v = np.asarray(values, dtype=float)
+    z = np.sign(v)
+    index = np.flatnonzero(z[:-1] * z[1:] < 0)
+    return index, v[index] / (v[index] - v[index + 1])
+
+
 def sign_samples(values, t, crossings=None):
     """Samples of ``sign(v)`` whose trapezoid sums integrate it exactly to first order.
 
@@ -194,14 +216,12 @@ def sign_samples(values, t, crossings=None):
     """
     v = np.asarray(values, dtype=float)
     z = np.sign(v)
-    crossing = np.flatnonzero(z[:-1] * z[1:] < 0)
-    if crossing.size == 0 or v.size < 2:
+    crossing, phi = sign_changes(v)
+    if crossing.size == 0:
         return z
     t = np.asarray(t, dtype=float)
     h = np.diff(t)
-    if crossings is None:
-        phi = v[crossing] / (v[crossing] - v[crossing + 1])
-    else:
+    if crossings is not None:
         crossings = np.asarray(crossings, dtype=float)
         if crossings.shape != crossing.shape:
             raise ValueError(f"{crossings.size} crossing times for {crossing.size} "
