@@ -256,9 +256,9 @@ ax.legend(fontsize="small");
 #
 # `OnlineEstimator` is the toolkit's streaming form of `algid.estimate`.  It steps the
 # `"chains"` realisation (listed in the generated model module) with the same causal
-# 6-point rule as the batch estimator, keeps per integrator only its running sum and the
-# last five samples of its integrand, and takes samples in chunks of any size.  Feed it
-# one sample at a time, with the default settings (6-point rule, filter $1/s^2$):
+# 8-point rule as the batch estimator, keeps per integrator only its running sum and the
+# last seven samples of its integrand, and takes samples in chunks of any size.  Feed it
+# one sample at a time, with the default settings (8-point rule, filter $1/s^2$):
 
 # %%
 batch = algid.estimate(sim.t, sim.f, sim.x)
@@ -283,10 +283,11 @@ RESULTS["online_chunk1_identical"] = bool(identical)
 RESULTS["online_chunk1_max_rel_diff"] = max_online_diff
 
 # %% [markdown]
-# The first `startup_samples` estimates are undefined (NaN) in both: the 6-point rule
-# integrates its first intervals with the polynomial through samples 0 to 5, so it can
-# only report once sample 5 has arrived.  From then on every call returns the estimate
-# of the sample it was given, with no delay.
+# The first `startup_samples` (five) estimates are undefined (NaN) in both.  The 8-point
+# rule integrates its first intervals with the polynomial through samples 0 to 7, so
+# its own estimates start at sample 7; samples 5 and 6 get those of the rules of 6 and
+# 7 points, the polynomials through all the samples so far.  From sample 5 on every
+# call returns the estimate of the sample it was given, with no delay.
 #
 # The cut of the stream into chunks does not matter either.  Chunks of random sizes
 # (from 1 to 300 samples, seeded):
@@ -319,7 +320,7 @@ for name, values, color in (("B", B_online, "C0"), ("K", K_online, "C3")):
     ax_est.axhline(TRUE[name], color="k", lw=0.8, ls=":", label=f"true {name} = {TRUE[name]:g}")
 ax_est.set_ylim(0, 5)
 ax_est.set_ylabel("estimate")
-ax_est.set_title("OnlineEstimator (6-point rule, $1/s^2$) against algid.estimate")
+ax_est.set_title("OnlineEstimator (8-point rule, $1/s^2$) against algid.estimate")
 ax_est.legend(ncol=3, fontsize="small")
 ax_est.grid(alpha=0.3)
 

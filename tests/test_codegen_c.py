@@ -19,6 +19,7 @@ from conftest import ROOT, assert_one_line_error
 
 import algid
 from algid.cli import main as cli_main
+from algid.core import first_estimate
 from algid.errors import ModelError
 from algid.symbolic import LinearODEModel, derive
 from algid.symbolic.codegen import numpy_module_source
@@ -231,7 +232,7 @@ def test_header_declares_the_api_and_the_options():
     ({"name": "a-b"}, "not a C identifier"),
     ({"filter_order": -1}, "filter order"),
     ({"filter_order": 1.5}, "filter order"),
-    ({"quadrature_order": 9}, "quadrature order"),
+    ({"quadrature_order": 10}, "quadrature order"),
     ({"quadrature_order": True}, "quadrature order"),
 ])
 def test_bad_options_are_model_errors(options, message):
@@ -261,11 +262,15 @@ def test_equals_batch_estimate_in_any_chunking(build, user_registered, model, ki
         np.testing.assert_array_equal(other, runs[0])
     ref = _rows(algid.estimate(t, u, y, model=model, engine="numpy"), list(true))
     est = runs[0]
-    q = DEFAULT_QUADRATURE_ORDER
-    assert np.isnan(est[:q - 1]).all() and np.isfinite(est[q - 1:]).all()
+    first = first_estimate(DEFAULT_QUADRATURE_ORDER)  # sample 5: the early rules
+    assert first == 5 and DEFAULT_QUADRATURE_ORDER == 8
+    assert np.isnan(est[:first]).all() and np.isfinite(est[first:]).all()
     np.testing.assert_array_equal(np.isnan(est), np.isnan(ref))
     late = t >= SETTLE
     assert _max_rel(est[late], ref[late]) <= RTOL
+    # the early estimates, by the rules of 6 and 7 points, are the batch's too
+    early = slice(first, DEFAULT_QUADRATURE_ORDER)
+    assert _max_rel(est[early], ref[early]) <= RTOL
     # and the estimates are the true parameters
     assert _max_rel(est[-1], np.array(list(true.values()))) < 1e-9
 
@@ -393,10 +398,11 @@ def test_init_refuses_bad_step_and_period(build):
     assert c.init(None, 1e-3, 0.0) == bad_state
     for dt in (0.0, -1e-3, float("nan"), float("inf")):
         assert c.init(state, dt, 0.0) == bad_dt
-    # half a period must hold at least q = 6 samples: round(T / 0.002) >= 6 at 1 kHz
-    for period in (-1.0, float("nan"), float("inf"), 0.0105, 1e300):
+    # half a period must hold at least q = 8 samples: round(T / 0.002) >= 8 at 1 kHz
+    assert DEFAULT_QUADRATURE_ORDER == 8
+    for period in (-1.0, float("nan"), float("inf"), 0.0145, 1e300):
         assert c.init(state, 1e-3, period) == bad_period
-    assert c.init(state, 1e-3, 0.011) == ok  # 5.5 rounds to 6, as in Python
+    assert c.init(state, 1e-3, 0.015) == ok  # 7.5 rounds to 8, as in Python
     assert c.init(state, 1e-3, 0.0) == ok
     out = np.empty((1, 2))
     dptr = ctypes.POINTER(ctypes.c_double)
@@ -443,7 +449,7 @@ def test_cli_codegen_builtin_and_user_model(tmp_path, capsys):
     ([], "give a MODEL"),
     (["msd", "--equation", "x'' = f"], "--equation and --parameters go together"),
     (["msd", "--equation", "x'' + a*x = f", "--parameters", "a"], "not both"),
-    (["msd", "--quadrature-order", "9"], "quadrature order"),
+    (["msd", "--quadrature-order", "10"], "quadrature order"),
     (["msd", "--filter-order", "12"], "filter order"),
     (["msd", "--name", "bad-name"], "not a C identifier"),
 ])

@@ -234,6 +234,31 @@ def test_startup_with_chunks_smaller_than_q(data, q):
                                   whole[:, q - 1:q])
 
 
+@pytest.mark.parametrize("q", [7, 8])
+def test_rules_of_more_points_report_as_early_as_six(data, q):
+    """With more than 6 points, samples 5 .. q-2 are estimated by the rules of 6, 7, ...
+    points over the samples so far (the same numbers as those rules' first estimates),
+    in any chunking and on both backends; from sample q-1 on by the rule's own start-up."""
+    t, f, x = data
+    dt = t[1] - t[0]
+    assert core.first_estimate(q) == 5 and core.first_estimate(4) == 3
+    for backend in ("numpy",) + (("numba",) if backends.numba_available() else ()):
+        whole, _ = core.advance(_state("msd", q, 2, dt), (f[:60], x[:60]), backend=backend)
+        assert np.isnan(whole[:, :5]).all() and np.isfinite(whole[:, 5:]).all()
+        for n in range(5, q - 1):
+            fewer, _ = core.advance(_state("msd", n + 1, 2, dt), (f[:60], x[:60]),
+                                    backend=backend)
+            np.testing.assert_array_equal(whole[:, n], fewer[:, n])
+        # from sample q - 1 on it is not the 6-point estimator: its start-up is its own
+        six, _ = core.advance(_state("msd", 6, 2, dt), (f[:60], x[:60]), backend=backend)
+        assert (whole[:, q - 1:] != six[:, q - 1:]).any(axis=0).all()
+        for sizes in ([1] * 60, [4, 1, 1, 1, 53], [6, 54], [5, 0, 2, 53]):
+            state = _state("msd", q, 2, dt)
+            np.testing.assert_array_equal(_run_chunked(state, f[:60], x[:60], sizes, backend),
+                                          whole)
+            assert state.n_seen == 60
+
+
 def test_copy_and_restart(data):
     t, f, x = data
     dt = t[1] - t[0]
@@ -248,7 +273,8 @@ def test_copy_and_restart(data):
     np.testing.assert_array_equal(core.advance(state, (f[:300], x[:300]))[0], head)
     # re-anchoring: a state started at sample 700 is the batch estimator on x[700:]
     late, _ = core.advance(_state("msd_mass", 6, 2, dt), (f[700:], x[700:]))
-    batch = estimate(t[700:], f[700:], x[700:], model="msd_mass", engine="numpy")
+    batch = estimate(t[700:], f[700:], x[700:], model="msd_mass", engine="numpy",
+                     quadrature_points=6)
     _assert_same(late[2], batch.k, 1e-10)
 
 
@@ -271,7 +297,7 @@ def test_out_argument_and_bad_shapes(data):
     with pytest.raises(InputDataError, match="dt"):
         _state("msd", 6, 2, 0.0)
     with pytest.raises(InputDataError, match="quadrature_points"):
-        _state("msd", 9, 2, dt)
+        _state("msd", 10, 2, dt)
     with pytest.raises(InputDataError, match="divisors"):
         _state("msd", 6, 2, dt, divisors=(1.0, -2.0))
     with pytest.raises(InputDataError, match="backend"):

@@ -61,7 +61,7 @@ def test_iterated_integrals_of_constant():
 
 def test_rejects_bad_points_and_short_signal():
     with pytest.raises(ValueError, match="quadrature points"):
-        cumulative_integral(np.ones(10), 0.1, points=9)
+        cumulative_integral(np.ones(10), 0.1, points=10)
     with pytest.raises(ValueError, match="too few"):
         cumulative_integral(np.ones(3), 0.1, points=6)
 

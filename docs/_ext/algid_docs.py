@@ -141,6 +141,11 @@ def write_api_pages(app):
     for stale in api.glob("*.rst"):
         if stale.stem not in toc and stale.name != "index.rst":
             stale.unlink()
+    documented = {f"{m}.{name}" for m, names in table.items() for name in names
+                  if home_of(m, name, table) == m}
+    for stale in (api / "generated").glob("*.rst"):  # pages of names gone or moved
+        if stale.stem not in documented:
+            stale.unlink()
     app.config.algid_aliases = aliases
     return aliases
 

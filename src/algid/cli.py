@@ -17,7 +17,7 @@ import math
 import sys
 
 from .errors import AlgidError, InputDataError, ModelError
-from .options import MAX_FILTER_ORDER
+from .options import DEFAULT_QUADRATURE_POINTS, MAX_FILTER_ORDER
 
 __all__ = ["main", "build_parser"]
 
@@ -241,8 +241,10 @@ def build_parser() -> argparse.ArgumentParser:
     gen.add_argument("--out", required=True, metavar="DIR", help="folder to write into")
     gen.add_argument("--filter-order", type=_nonnegative_int, default=2, metavar="P",
                      help="order p of the invariant filter 1/s**p (default: 2)")
-    gen.add_argument("--quadrature-order", type=_nonnegative_int, default=6, metavar="Q",
-                     help="points of the quadrature rule, 2-8 (default: 6)")
+    gen.add_argument("--quadrature-order", type=_nonnegative_int,
+                     default=DEFAULT_QUADRATURE_POINTS, metavar="Q",
+                     help="points of the quadrature rule, 2-9 (default: "
+                          f"{DEFAULT_QUADRATURE_POINTS})")
     gen.add_argument("--equation", default=None, metavar="TEXT",
                      help="your own model instead of MODEL, as for `algid derive`")
     gen.add_argument("--parameters", default=None, metavar="NAMES",

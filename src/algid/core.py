@@ -29,13 +29,21 @@ Per integrator its integral and its last ``points - 1`` integrand samples
 (:class:`EstimatorState`; integrator order given by :func:`integrator_layout`), the
 number of samples since the origin and, before the first ``points`` samples have
 arrived, those samples (the start-up: the rule integrates the first ``points - 2``
-intervals with the polynomial through samples ``0 .. points - 1``, so nothing is
-computed before sample ``points - 1``; the estimates of samples ``0 .. points - 2`` are
-NaN).  The start-up is decided here, once, for every backend: when sample
-``points - 1`` arrives, the backend integrates the buffered samples from the origin
-with the start-up rule, then continues with the regular one (a chunk that starts at
-the origin and holds at least ``points`` samples is integrated from the origin in one
-call, with the same numbers).
+intervals with the polynomial through samples ``0 .. points - 1``, so its integrals
+are known from sample ``points - 1`` on).  The start-up is decided here, once, for
+every backend: when sample ``points - 1`` arrives, the backend integrates the buffered
+samples from the origin with the start-up rule, then continues with the regular one (a
+chunk that starts at the origin and holds at least ``points`` samples is integrated
+from the origin in one call, with the same numbers).
+
+A rule of more than :data:`EARLY_POINTS` points does not make the first estimate wait
+for its start-up: the estimate at a sample ``n`` from ``EARLY_POINTS - 1`` to
+``points - 2`` is that of the rule of ``n + 1`` points, integrated from the origin over
+the buffered samples, i.e. the integrals of the polynomial through every sample so far
+(:func:`first_estimate`).  So the first estimate comes at the same sample for 6, 7 and
+8 points, and from sample ``points - 1`` on the integrals are those of the rule's own
+start-up (the more accurate start: the start-up's error stays in the integrals for the
+whole record).  The estimates of samples ``0 .. first_estimate(points) - 1`` are NaN.
 
 Backends
 --------
@@ -60,7 +68,32 @@ from algid.errors import InputDataError
 from algid.options import check_filter_order, check_quadrature_points
 
 __all__ = ["EstimatorState", "IntegratorLayout", "integrator_layout", "layout_of", "new_state",
-           "advance", "advance_rows", "output_array"]
+           "advance", "advance_rows", "output_array", "first_estimate", "EARLY_POINTS"]
+
+#: Rules of more points than this report their first estimates as early as this one,
+#: from the rules of as many points as samples have arrived (:func:`first_estimate`).
+EARLY_POINTS = 6
+
+
+def first_estimate(points: int) -> int:
+    """The first sample after the origin that has an estimate.
+
+    A rule of ``q <= EARLY_POINTS`` points has its first estimate at sample ``q - 1``,
+    once its start-up is complete.  A rule of more points reports samples
+    ``EARLY_POINTS - 1 .. q - 2`` with the rules of ``n + 1`` points (the polynomial
+    through all the samples so far), then its own from sample ``q - 1`` on.
+
+    Parameters
+    ----------
+    points : int
+        Points of the quadrature rule.
+
+    Returns
+    -------
+    int
+        ``min(points, EARLY_POINTS) - 1``: the estimates of the samples before it are NaN.
+    """
+    return min(int(points), EARLY_POINTS) - 1
 
 
 @dataclasses.dataclass
@@ -355,8 +388,9 @@ def advance(state, channels, *, backend="numpy", out=None):
     Returns
     -------
     estimates : ndarray, shape (n_parameters, m)
-        Row ``i`` estimates ``PARAMETERS[i]``; NaN for the first ``points - 1`` samples
-        after the origin and where the denominator is zero or not finite.
+        Row ``i`` estimates ``PARAMETERS[i]``; NaN for the first
+        ``first_estimate(points)`` samples after the origin and where the denominator
+        is zero or not finite.
     state : EstimatorState
         The same object, advanced past the chunk.
     """
@@ -435,6 +469,7 @@ def advance_rows(state, rows, out, backend="numpy"):
         return out
     if seen == 0 and m >= q:  # the chunk starts at the origin: integrate it at once
         run(state, integrator_layout(model), rows, out, from_origin=True)
+        _early_estimates(state, rows, out, 0, run)
         return out
     # the start-up: buffer samples 0 .. q - 1
     done = min(q - seen, m)
@@ -442,6 +477,7 @@ def advance_rows(state, rows, out, backend="numpy"):
         state.startup[c, seen:seen + done] = row[:done]
     out[:, :done] = np.nan
     state.n_seen = seen + done
+    _early_estimates(state, tuple(state.startup[:, :seen + done]), out[:, :done], seen, run)
     if state.n_seen == q:  # sample q - 1 arrived: integrate from the origin
         first = np.empty((out.shape[0], q))
         run(state, integrator_layout(model), tuple(state.startup), first, from_origin=True)
@@ -449,3 +485,17 @@ def advance_rows(state, rows, out, backend="numpy"):
     if done < m:
         run(state, integrator_layout(model), tuple(r[done:] for r in rows), out[:, done:])
     return out
+
+
+def _early_estimates(state, samples, out, offset, run):
+    """Estimates of the samples ``first_estimate(q) .. q - 2`` that ``samples`` (the
+    first samples from the origin) reach, by the rules of fewer points, into ``out``
+    (whose column ``j`` is sample ``offset + j``)."""
+    stop = min(samples[0].size, state.points - 1)
+    for n in range(max(first_estimate(state.points), offset), stop):
+        early = new_state(state.model, points=n + 1, filter_order=state.filter_order,
+                          dt=state.dt, divisors=state.divisors)
+        column = np.empty((out.shape[0], n + 1))
+        run(early, integrator_layout(state.model), tuple(s[:n + 1] for s in samples), column,
+            from_origin=True)
+        out[:, n - offset] = column[:, -1]

@@ -22,7 +22,7 @@ __all__ = ["crlb_study", "format_study"]
 
 def crlb_study(n_runs=200, horizons=(1, 2.5, 5), inputs=("step", "sine"), noise_std=0.01,
                seed=0, filter_order=2, *, B=2.0, K=3.0, initial_state=(0.0, 0.0),
-               rate=1000.0, refined=True, iterations=10, quadrature_order=6, lowpass=None):
+               rate=1000.0, refined=True, iterations=10, quadrature_order=None, lowpass=None):
     """RMSE of the algebraic and refined estimates against the Cramér–Rao bound.
 
     Parameters
@@ -51,7 +51,8 @@ def crlb_study(n_runs=200, horizons=(1, 2.5, 5), inputs=("step", "sine"), noise_
     iterations : int, optional
         Largest number of Gauss–Newton iterations of the refinement.
     quadrature_order : int, optional
-        Quadrature rule of both estimators.
+        Quadrature rule of both estimators and of the bound's input interpolation.
+        Default :data:`algid.options.DEFAULT_QUADRATURE_POINTS`.
     lowpass : optional
         Extra LTI filter of the algebraic estimator (``lowpass`` of
         :func:`algid.estimate`).
@@ -68,9 +69,12 @@ def crlb_study(n_runs=200, horizons=(1, 2.5, 5), inputs=("step", "sine"), noise_
     from algid.cramer_rao import crlb
     from algid.errors import InputDataError
     from algid.estimator import estimate
+    from algid.options import DEFAULT_QUADRATURE_POINTS
     from algid.refinement import refine
     from algid.simulation import simulate
 
+    if quadrature_order is None:
+        quadrature_order = DEFAULT_QUADRATURE_POINTS
     horizons = tuple(float(T) for T in horizons)
     duration = max(horizons)
     lengths = [int(round(T * rate)) + 1 for T in horizons]

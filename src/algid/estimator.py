@@ -299,12 +299,15 @@ def _rescaled(module, signals):
     return {name: values * scale for name, values in signals.items()}
 
 
-def _with_lowpass(state, channels, lowpass):
+def _with_lowpass(state, channels, lowpass, points=None):
     """Estimates with the extra filter ``lowpass`` applied after ``1/s**p`` to the
     numerators and the denominator alike.  It needs them over the whole record: the
     kernels, the algebra and ``1/s**p`` are formed here from the same integrators
-    (:mod:`algid.quadrature`) as in the core, then filtered and divided."""
-    module, points, dt = state.model, state.points, state.dt
+    (:mod:`algid.quadrature`) as in the core, then filtered and divided; the first
+    estimates come from rules of fewer points, as in the core
+    (:func:`algid.core.first_estimate`)."""
+    module, dt = state.model, state.dt
+    points = state.points if points is None else points
     scaled = [c / d for c, d in zip(channels, state.divisors)]
     tau = np.arange(scaled[0].size) * dt
     kern = kernel_values(module, dict(zip(module.CHANNELS, scaled)), tau, dt, points=points)
@@ -319,7 +322,12 @@ def _with_lowpass(state, channels, lowpass):
     undefined = ~np.isfinite(denominator) | (denominator == 0)
     undefined[:startup_samples(points)] = True
     with np.errstate(divide="ignore", invalid="ignore"):
-        return [np.where(undefined, np.nan, num / denominator) for num in lanes[:-1]]
+        values = [np.where(undefined, np.nan, num / denominator) for num in lanes[:-1]]
+    for n in range(core.first_estimate(points), min(startup_samples(points), tau.size)):
+        early = _with_lowpass(state, [c[:n + 1] for c in channels], lowpass, points=n + 1)
+        for row, first in zip(values, early):
+            row[n] = first[n]
+    return values
 
 
 def _estimate_signals(t, signals, *, model, filter_order, quadrature_points, quadrature_order,

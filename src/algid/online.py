@@ -327,10 +327,10 @@ class OnlineEstimator:
     def startup_samples(self) -> int:
         """Samples ``0 .. startup_samples - 1`` of the stream get NaN estimates.
 
-        The start-up of the quadrature rule, after the warm-up of the differentiator of
-        a model with a derivative inside a factor.
+        The start-up of the estimator (:func:`algid.core.first_estimate`), after the
+        warm-up of the differentiator of a model with a derivative inside a factor.
         """
-        return self.quadrature_points - 1 + self._channel_stream.warmup
+        return core.first_estimate(self.quadrature_points) + self._channel_stream.warmup
 
     @property
     def derivative_delay(self) -> float:

@@ -20,7 +20,7 @@ __all__ = ["DEFAULT_FILTER_ORDER", "DEFAULT_QUADRATURE_POINTS", "MAX_FILTER_ORDE
 #: Default order ``p`` of the invariant filter ``1/s**p``.
 DEFAULT_FILTER_ORDER = 2
 #: Default number of points of the cumulative quadrature rule.
-DEFAULT_QUADRATURE_POINTS = 6
+DEFAULT_QUADRATURE_POINTS = 8
 #: Largest order ``p`` of the invariant filter ``1/s**p`` accepted.  Each order adds
 #: ``n_parameters + 1`` integrators to the state (memory and work grow linearly with
 #: ``p``) and multiplies the filtered denominator by about ``t**p / p!``, which pushes

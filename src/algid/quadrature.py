@@ -31,7 +31,7 @@ __all__ = ["cumulative_integral", "iterated_integrals", "startup_samples", "rule
            "QUADRATURE_ORDERS"]
 
 #: Numbers of points of the rule that are offered.
-QUADRATURE_POINTS = (2, 3, 4, 5, 6, 7, 8)
+QUADRATURE_POINTS = (2, 3, 4, 5, 6, 7, 8, 9)
 #: Deprecated spelling of :data:`QUADRATURE_POINTS`.
 QUADRATURE_ORDERS = QUADRATURE_POINTS
 

@@ -52,6 +52,10 @@ def _increments(src, dst, nb, weights):
         w0, w1, w2, w3, w4, w5, w6, w7, = weights
         for b in range(nb):
             dst[b] = ((((((src[b] * w0 + src[b + 1] * w1) + src[b + 2] * w2) + src[b + 3] * w3) + src[b + 4] * w4) + src[b + 5] * w5) + src[b + 6] * w6) + src[b + 7] * w7
+    elif points == 9:
+        w0, w1, w2, w3, w4, w5, w6, w7, w8, = weights
+        for b in range(nb):
+            dst[b] = (((((((src[b] * w0 + src[b + 1] * w1) + src[b + 2] * w2) + src[b + 3] * w3) + src[b + 4] * w4) + src[b + 5] * w5) + src[b + 6] * w6) + src[b + 7] * w7) + src[b + 8] * w8
 
 
 @numba.njit(cache=CACHE, nogil=True)

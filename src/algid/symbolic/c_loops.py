@@ -127,13 +127,18 @@ def level0(w, c, tau, u, y):
     factor = "*".join([tau] * power)
     return f"({factor}) * {value}" if power > 1 else f"{tau} * {value}"
 
-def startup_functions(w):
+def startup_functions(w, early=None):
     """``<pre>_start_level`` and ``<pre>_start``: samples ``0`` to ``q - 1`` after an origin.
 
     Parameters
     ----------
     w : object
         The writer of :mod:`algid.symbolic.codegen_c` (its attributes, see above).
+    early : int, optional
+        Instead, the functions of the rule of ``early < q`` points (suffix ``early``,
+        tables ``<pre>_w<early>``, ``<pre>_ws<early>``) and ``<pre>_early<early>``, the
+        estimate of sample ``early - 1`` from a copy of the window
+        (:func:`algid.core.first_estimate`).
 
     Returns
     -------
@@ -141,11 +146,14 @@ def startup_functions(w):
         Lines of C.
     """
     pre, P, q = w.pre, w.PRE, w.q
+    tag = ""
+    if early is not None:
+        q, tag = early, str(early)
     m = q - 1
     lines = [
         "/* Integrate the q samples a[0 .. q-1] of an integrand with the start-up rule;",
         "   set integrator k to its state after sample q-1; out[j]: the integral. */",
-        f"static void {pre}_start_level({pre}_window *w, int k, const double *a, double dt,",
+        f"static void {pre}_start_level{tag}({pre}_window *w, int k, const double *a, double dt,",
         f"{' ' * (len(pre) + 18)}double *out)",
         "{",
         f"    double inc[{q - 1}];",
@@ -154,11 +162,11 @@ def startup_functions(w):
     ]
     if q > 2:
         lines += [f"    for (j = 0; j < {q - 2}; ++j) {{",
-                  f"        double acc = ({pre}_ws[j][0] * dt) * a[0];",
-                  f"        for (i = 1; i < {q}; ++i) acc += ({pre}_ws[j][i] * dt) * a[i];",
+                  f"        double acc = ({pre}_ws{tag}[j][0] * dt) * a[0];",
+                  f"        for (i = 1; i < {q}; ++i) acc += ({pre}_ws{tag}[j][i] * dt) * a[i];",
                   "        inc[j] = acc;", "    }"]
-    lines += [f"    inc[{q - 2}] = ({pre}_w[0] * dt) * a[0];",
-              f"    for (i = 1; i < {q}; ++i) inc[{q - 2}] += ({pre}_w[i] * dt) * a[i];",
+    lines += [f"    inc[{q - 2}] = ({pre}_w{tag}[0] * dt) * a[0];",
+              f"    for (i = 1; i < {q}; ++i) inc[{q - 2}] += ({pre}_w{tag}[i] * dt) * a[i];",
               "    out[0] = 0.0;",
               f"    for (j = 1; j < {q}; ++j) {{",
               "        s += inc[j - 1];", "        out[j] = s;", "    }",
@@ -167,7 +175,7 @@ def startup_functions(w):
               "}", "",
               "/* Samples 0 .. q-1 after the origin, once sample q-1 has arrived: the",
               "   estimate of sample q-1 into theta (the others are NaN). */",
-              f"static void {pre}_start({pre}_window *w, double dt, double *theta)",
+              f"static void {pre}_start{tag}({pre}_window *w, double dt, double *theta)",
               "{",
               f"    double lv[{w.levels}][{q}];  /* every level of every chain */",
               f"    double lanes[{w.p + 1}][{w.lanes}][{q}];",
@@ -187,7 +195,7 @@ def startup_functions(w):
                      f"{level0(w, c, 'tau', 'w->start_u[j]', 'w->start_y[j]')};")
     lines.append("    }")
     for k, (c, lev) in enumerate(w.chain_ints):
-        lines.append(f"    {pre}_start_level(w, {k}, lv[{base[c] + lev - 1}], dt, "
+        lines.append(f"    {pre}_start_level{tag}(w, {k}, lv[{base[c] + lev - 1}], dt, "
                      f"lv[{base[c] + lev}]);")
     lines.append(f"    for (j = 0; j < {q}; ++j) {{")
     chain_of = {(s, pw): c for c, (s, pw, _) in enumerate(w.chains)}
@@ -201,11 +209,18 @@ def startup_functions(w):
         n_chain = len(w.chain_ints)
         lines += [f"    for (lev = 0; lev < {w.p}; ++lev) {{",
                   f"        for (r = 0; r < {w.lanes}; ++r) {{",
-                  f"            {pre}_start_level(w, {n_chain} + lev * {w.lanes} + r, "
+                  f"            {pre}_start_level{tag}(w, {n_chain} + lev * {w.lanes} + r, "
                   "lanes[lev][r], dt, lanes[lev + 1][r]);",
                   "        }", "    }"]
     lines += [f"    for (r = 0; r < {w.lanes}; ++r) row[r] = lanes[{w.p}][r][{q - 1}];",
               f"    {pre}_divide(row, theta);", "}", ""]
+    if early is not None:
+        lines += [f"/* The estimate of sample {q - 1} by the {q}-point rule, before the "
+                  "start-up of the",
+                  "   estimator's own rule (the window itself is left as it is). */",
+                  f"static void {pre}_early{q}(const {pre}_window *w, double dt, double *theta)",
+                  "{", f"    {pre}_window scratch = *w;",
+                  f"    {pre}_start{q}(&scratch, dt, theta);", "}", ""]
     del P
     return lines
 

@@ -50,7 +50,10 @@ from pathlib import Path
 
 import sympy as sp
 
+from algid.core import EARLY_POINTS, first_estimate
 from algid.errors import ModelError
+from algid.options import DEFAULT_QUADRATURE_POINTS
+from algid.quadrature import QUADRATURE_POINTS
 from algid.symbolic import c_loops
 from algid.symbolic.derivation import Derivation
 
@@ -61,9 +64,10 @@ __all__ = ["c_sources", "write_c_sources", "quadrature_weights", "C_HEADER",
 #: estimator).
 DEFAULT_FILTER_ORDER = 2
 #: Points of the quadrature rule by default (as the Python estimator).
-DEFAULT_QUADRATURE_ORDER = 6
-#: Points of the quadrature rules that can be generated.
-QUADRATURE_ORDERS = (2, 3, 4, 5, 6, 7, 8)
+DEFAULT_QUADRATURE_ORDER = DEFAULT_QUADRATURE_POINTS
+#: Points of the quadrature rules that can be generated: those of the Python estimator
+#: (:data:`algid.quadrature.QUADRATURE_POINTS`).
+QUADRATURE_ORDERS = tuple(range(min(QUADRATURE_POINTS), max(QUADRATURE_POINTS) + 1))
 #: Samples per block of the generated loop, unless ``ALGID_<NAME>_BLOCK`` is defined
 #: when compiling (the numbers do not depend on it; the stack does).
 BLOCK = 64
@@ -146,7 +150,9 @@ def c_sources(derivation: Derivation, *, name=None, filter_order=DEFAULT_FILTER_
     filter_order : int, optional
         ``p`` of the invariant filter ``1/s**p``.  Default 2.
     quadrature_order : int, optional
-        Points of the cumulative quadrature rule.  Default 6.
+        Points of the cumulative quadrature rule.  Default 8, as the Python estimator;
+        as there, a rule of more than 6 points reports the samples before its start-up
+        with the rules of fewer points (:func:`algid.core.first_estimate`).
 
     Returns
     -------
@@ -209,6 +215,8 @@ class _Writer:
         self.Q = derivation.Q.xreplace(ksyms)
         self.numerators, self.denominator = derivation.cramer()
         self.regular, self.startup = quadrature_weights(q)
+        # rules of fewer points that report the samples before the start-up
+        self.early_points = tuple(range(EARLY_POINTS, q))
         self.n_par = len(self.params)
         self.lanes = self.n_par + 1  # numerators, then the denominator
         # integrators: every level >= 1 of every chain, then the filter levels
@@ -257,8 +265,9 @@ class _Writer:
             f"#define {P}_FILTER_ORDER {self.p}",
             "/* Points of the Adams-Moulton cumulative quadrature rule (fixed when generated). */",
             f"#define {P}_QUADRATURE_ORDER {self.q}",
-            f"/* Samples 0 .. {self.q - 2} after every time origin have NaN estimates. */",
-            f"#define {P}_STARTUP_SAMPLES {self.q - 1}",
+            f"/* Samples 0 .. {first_estimate(self.q) - 1} after every time origin have NaN "
+            "estimates. */",
+            f"#define {P}_STARTUP_SAMPLES {first_estimate(self.q)}",
             f"/* Size of the state in doubles: a buffer `double state[{P}_STATE_DOUBLES]`",
             f"   is large enough and suitably aligned ({pre}_state_size() bytes). */",
             f"#define {P}_STATE_DOUBLES {self.state_doubles}",
@@ -309,6 +318,8 @@ class _Writer:
         out += c_loops.algebra_function(self)
         out += self._finish()
         out += c_loops.startup_functions(self)
+        for early in self.early_points:
+            out += c_loops.startup_functions(self, early)
         out += c_loops.integrator_step_function(self)
         out += c_loops.sample_loop_function(self)
         out += c_loops.block_loop_function(self)
@@ -338,6 +349,16 @@ class _Writer:
                       "0 .. q-1. */",
                       f"static const double {pre}_ws[{q - 2}][{q}] = {{"]
             for row in self.startup:
+                lines.append("    {" + ", ".join(_literal(w) for w in row) + "},")
+            lines.append("};")
+        for early in self.early_points:
+            regular, startup = quadrature_weights(early)
+            lines += [f"/* The {early}-point rule and its start-up, for the estimate of sample "
+                      f"{early - 1}. */",
+                      f"static const double {pre}_w{early}[{early}] = {{"]
+            lines += [f"    {_literal(w)}," for w in regular]
+            lines += ["};", f"static const double {pre}_ws{early}[{early - 2}][{early}] = {{"]
+            for row in startup:
                 lines.append("    {" + ", ".join(_literal(w) for w in row) + "},")
             lines.append("};")
         lines.append("")
@@ -415,6 +436,9 @@ class _Writer:
             "        w->n += 1.0;",
             f"        if (j == {q - 1}) {{",
             f"            {pre}_start(w, dt, theta + i * {n_par});",
+            *[line for early in self.early_points for line in (
+                f"        }} else if (j == {early - 1}) {{",
+                f"            {pre}_early{early}(w, dt, theta + i * {n_par});")],
             "        } else {",
             f"            for (r = 0; r < {n_par}; ++r) theta[i * {n_par} + (size_t)r] = NAN;",
             "        }",

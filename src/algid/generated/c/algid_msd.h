@@ -19,15 +19,15 @@ extern "C" {
 /* Order p of the invariant filter 1/s**p (fixed when generated). */
 #define ALGID_MSD_FILTER_ORDER 2
 /* Points of the Adams-Moulton cumulative quadrature rule (fixed when generated). */
-#define ALGID_MSD_QUADRATURE_ORDER 6
+#define ALGID_MSD_QUADRATURE_ORDER 8
 /* Samples 0 .. 4 after every time origin have NaN estimates. */
 #define ALGID_MSD_STARTUP_SAMPLES 5
 /* Size of the state in doubles: a buffer `double state[ALGID_MSD_STATE_DOUBLES]`
    is large enough and suitably aligned (algid_msd_state_size() bytes). */
-#define ALGID_MSD_STATE_DOUBLES 246
+#define ALGID_MSD_STATE_DOUBLES 326
 /* Stack: update works on blocks of ALGID_MSD_BLOCK samples (default 64:
    about 15 kB of stack); define ALGID_MSD_BLOCK when compiling the .c for a
-   smaller stack (ALGID_MSD_BLOCK=4: about 2 kB), with the same numbers. */
+   smaller stack (ALGID_MSD_BLOCK=4: about 3 kB), with the same numbers. */
 
 /* Return values of init. */
 #define ALGID_MSD_OK 0

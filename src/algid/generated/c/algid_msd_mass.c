@@ -10,17 +10,37 @@
 
 #include <math.h>
 
-#define ALGID_MSD_MASS_M 5  /* integrand samples kept per integrator */
+#define ALGID_MSD_MASS_M 7  /* integrand samples kept per integrator */
 #define ALGID_MSD_MASS_NI 24  /* integrators: chains, then filter */
 #ifndef ALGID_MSD_MASS_BLOCK  /* samples per block of the loop: the stack holds
                              about 33 arrays of M + BLOCK doubles */
 #define ALGID_MSD_MASS_BLOCK 64
 #endif
 
-/* 6-point Adams-Moulton rule (weights times dt): the integral over
+/* 8-point Adams-Moulton rule (weights times dt): the integral over
    [t[n-1], t[n]] from the samples n-q+1 .. n; each weight is multiplied
    by dt first, as in algid.quadrature.integrator_weights. */
-static const double algid_msd_mass_w[6] = {
+static const double algid_msd_mass_w[8] = {
+    0.01136739417989418,
+    -0.09384093915343915,
+    0.3430803571428571,
+    -0.7320353835978836,
+    1.0179646164021163,
+    -1.0069196428571427,
+    1.1561590608465608,
+    0.30422453703703706,
+};
+/* Start-up: row j-1 integrates over [t[j-1], t[j]] from samples 0 .. q-1. */
+static const double algid_msd_mass_ws[6][8] = {
+    {0.30422453703703706, 1.1561590608465608, -1.0069196428571427, 1.0179646164021163, -0.7320353835978836, 0.3430803571428571, -0.09384093915343915, 0.01136739417989418},
+    {-0.01136739417989418, 0.3951636904761905, 0.8378720238095239, -0.3703455687830688, 0.2222470238095238, -0.09546130952380952, 0.024793320105820107, -0.0029017857142857144},
+    {0.0029017857142857144, -0.034581679894179894, 0.4764136904761905, 0.6753720238095238, -0.1672205687830688, 0.05974702380952381, -0.014211309523809524, 0.0015790343915343915},
+    {-0.0015790343915343915, 0.015534060846560846, -0.07879464285714285, 0.5648396164021164, 0.5648396164021164, -0.07879464285714285, 0.015534060846560846, -0.0015790343915343915},
+    {0.0015790343915343915, -0.014211309523809524, 0.05974702380952381, -0.1672205687830688, 0.6753720238095238, 0.4764136904761905, -0.034581679894179894, 0.0029017857142857144},
+    {-0.0029017857142857144, 0.024793320105820107, -0.09546130952380952, 0.2222470238095238, -0.3703455687830688, 0.8378720238095239, 0.3951636904761905, -0.01136739417989418},
+};
+/* The 6-point rule and its start-up, for the estimate of sample 5. */
+static const double algid_msd_mass_w6[6] = {
     0.01875,
     -0.12013888888888889,
     0.3347222222222222,
@@ -28,12 +48,28 @@ static const double algid_msd_mass_w[6] = {
     0.9909722222222223,
     0.3298611111111111,
 };
-/* Start-up: row j-1 integrates over [t[j-1], t[j]] from samples 0 .. q-1. */
-static const double algid_msd_mass_ws[4][6] = {
+static const double algid_msd_mass_ws6[4][6] = {
     {0.3298611111111111, 0.9909722222222223, -0.5541666666666667, 0.3347222222222222, -0.12013888888888889, 0.01875},
     {-0.01875, 0.4423611111111111, 0.7097222222222223, -0.17916666666666667, 0.05347222222222222, -0.007638888888888889},
     {0.007638888888888889, -0.06458333333333334, 0.5569444444444445, 0.5569444444444445, -0.06458333333333334, 0.007638888888888889},
     {-0.007638888888888889, 0.05347222222222222, -0.17916666666666667, 0.7097222222222223, 0.4423611111111111, -0.01875},
+};
+/* The 7-point rule and its start-up, for the estimate of sample 6. */
+static const double algid_msd_mass_w7[7] = {
+    -0.014269179894179895,
+    0.10436507936507937,
+    -0.3341765873015873,
+    0.6201058201058202,
+    -0.7682043650793651,
+    1.0765873015873015,
+    0.31559193121693124,
+};
+static const double algid_msd_mass_ws7[5][7] = {
+    {0.31559193121693124, 1.0765873015873015, -0.7682043650793651, 0.6201058201058202, -0.3341765873015873, 0.10436507936507937, -0.014269179894179895},
+    {-0.014269179894179895, 0.4154761904761905, 0.7769345238095238, -0.2687830687830688, 0.12068452380952381, -0.034523809523809526, 0.004480820105820106},
+    {0.004480820105820106, -0.04563492063492063, 0.5095734126984127, 0.6201058201058202, -0.11195436507936508, 0.026587301587301587, -0.003158068783068783},
+    {-0.003158068783068783, 0.026587301587301587, -0.11195436507936508, 0.6201058201058202, 0.5095734126984127, -0.04563492063492063, 0.004480820105820106},
+    {0.004480820105820106, -0.034523809523809526, 0.12068452380952381, -0.2687830687830688, 0.7769345238095238, 0.4154761904761905, -0.014269179894179895},
 };
 
 /* One estimator with its time origin at its last restart.  Integrator k keeps
@@ -45,8 +81,8 @@ typedef struct {
     double n;  /* samples since the origin (an integer; exact below 2**53) */
     double sum[ALGID_MSD_MASS_NI];
     double hist[ALGID_MSD_MASS_NI][ALGID_MSD_MASS_M];
-    double start_u[6];  /* samples 0 .. q-1, until the start-up */
-    double start_y[6];
+    double start_u[8];  /* samples 0 .. q-1, until the start-up */
+    double start_y[8];
 } algid_msd_mass_window;
 
 typedef struct {
@@ -118,35 +154,35 @@ static void algid_msd_mass_divide(const double *lanes, double *theta)
 static void algid_msd_mass_start_level(algid_msd_mass_window *w, int k, const double *a, double dt,
                                 double *out)
 {
-    double inc[5];
+    double inc[7];
     double s = 0.0;
     int i, j;
-    for (j = 0; j < 4; ++j) {
+    for (j = 0; j < 6; ++j) {
         double acc = (algid_msd_mass_ws[j][0] * dt) * a[0];
-        for (i = 1; i < 6; ++i) acc += (algid_msd_mass_ws[j][i] * dt) * a[i];
+        for (i = 1; i < 8; ++i) acc += (algid_msd_mass_ws[j][i] * dt) * a[i];
         inc[j] = acc;
     }
-    inc[4] = (algid_msd_mass_w[0] * dt) * a[0];
-    for (i = 1; i < 6; ++i) inc[4] += (algid_msd_mass_w[i] * dt) * a[i];
+    inc[6] = (algid_msd_mass_w[0] * dt) * a[0];
+    for (i = 1; i < 8; ++i) inc[6] += (algid_msd_mass_w[i] * dt) * a[i];
     out[0] = 0.0;
-    for (j = 1; j < 6; ++j) {
+    for (j = 1; j < 8; ++j) {
         s += inc[j - 1];
         out[j] = s;
     }
     w->sum[k] = s;
-    for (i = 0; i < 5; ++i) w->hist[k][i] = a[i + 1];
+    for (i = 0; i < 7; ++i) w->hist[k][i] = a[i + 1];
 }
 
 /* Samples 0 .. q-1 after the origin, once sample q-1 has arrived: the
    estimate of sample q-1 into theta (the others are NaN). */
 static void algid_msd_mass_start(algid_msd_mass_window *w, double dt, double *theta)
 {
-    double lv[20][6];  /* every level of every chain */
-    double lanes[3][4][6];
+    double lv[20][8];  /* every level of every chain */
+    double lanes[3][4][8];
     double kv[15], row[4];
     int j, r;
     int lev;
-    for (j = 0; j < 6; ++j) {
+    for (j = 0; j < 8; ++j) {
         const double tau = (double)j * dt;
         lv[0][j] = (tau*tau) * w->start_u[j];
         lv[5][j] = w->start_y[j];
@@ -169,7 +205,7 @@ static void algid_msd_mass_start(algid_msd_mass_window *w, double dt, double *th
     algid_msd_mass_start_level(w, 13, lv[16], dt, lv[17]);
     algid_msd_mass_start_level(w, 14, lv[17], dt, lv[18]);
     algid_msd_mass_start_level(w, 15, lv[18], dt, lv[19]);
-    for (j = 0; j < 6; ++j) {
+    for (j = 0; j < 8; ++j) {
         kv[0] = lv[2][j];
         kv[1] = lv[3][j];
         kv[2] = lv[4][j];
@@ -193,20 +229,206 @@ static void algid_msd_mass_start(algid_msd_mass_window *w, double dt, double *th
             algid_msd_mass_start_level(w, 16 + lev * 4 + r, lanes[lev][r], dt, lanes[lev + 1][r]);
         }
     }
+    for (r = 0; r < 4; ++r) row[r] = lanes[2][r][7];
+    algid_msd_mass_divide(row, theta);
+}
+
+/* Integrate the q samples a[0 .. q-1] of an integrand with the start-up rule;
+   set integrator k to its state after sample q-1; out[j]: the integral. */
+static void algid_msd_mass_start_level6(algid_msd_mass_window *w, int k, const double *a, double dt,
+                                double *out)
+{
+    double inc[5];
+    double s = 0.0;
+    int i, j;
+    for (j = 0; j < 4; ++j) {
+        double acc = (algid_msd_mass_ws6[j][0] * dt) * a[0];
+        for (i = 1; i < 6; ++i) acc += (algid_msd_mass_ws6[j][i] * dt) * a[i];
+        inc[j] = acc;
+    }
+    inc[4] = (algid_msd_mass_w6[0] * dt) * a[0];
+    for (i = 1; i < 6; ++i) inc[4] += (algid_msd_mass_w6[i] * dt) * a[i];
+    out[0] = 0.0;
+    for (j = 1; j < 6; ++j) {
+        s += inc[j - 1];
+        out[j] = s;
+    }
+    w->sum[k] = s;
+    for (i = 0; i < 5; ++i) w->hist[k][i] = a[i + 1];
+}
+
+/* Samples 0 .. q-1 after the origin, once sample q-1 has arrived: the
+   estimate of sample q-1 into theta (the others are NaN). */
+static void algid_msd_mass_start6(algid_msd_mass_window *w, double dt, double *theta)
+{
+    double lv[20][6];  /* every level of every chain */
+    double lanes[3][4][6];
+    double kv[15], row[4];
+    int j, r;
+    int lev;
+    for (j = 0; j < 6; ++j) {
+        const double tau = (double)j * dt;
+        lv[0][j] = (tau*tau) * w->start_u[j];
+        lv[5][j] = w->start_y[j];
+        lv[10][j] = tau * w->start_y[j];
+        lv[15][j] = (tau*tau) * w->start_y[j];
+    }
+    algid_msd_mass_start_level6(w, 0, lv[0], dt, lv[1]);
+    algid_msd_mass_start_level6(w, 1, lv[1], dt, lv[2]);
+    algid_msd_mass_start_level6(w, 2, lv[2], dt, lv[3]);
+    algid_msd_mass_start_level6(w, 3, lv[3], dt, lv[4]);
+    algid_msd_mass_start_level6(w, 4, lv[5], dt, lv[6]);
+    algid_msd_mass_start_level6(w, 5, lv[6], dt, lv[7]);
+    algid_msd_mass_start_level6(w, 6, lv[7], dt, lv[8]);
+    algid_msd_mass_start_level6(w, 7, lv[8], dt, lv[9]);
+    algid_msd_mass_start_level6(w, 8, lv[10], dt, lv[11]);
+    algid_msd_mass_start_level6(w, 9, lv[11], dt, lv[12]);
+    algid_msd_mass_start_level6(w, 10, lv[12], dt, lv[13]);
+    algid_msd_mass_start_level6(w, 11, lv[13], dt, lv[14]);
+    algid_msd_mass_start_level6(w, 12, lv[15], dt, lv[16]);
+    algid_msd_mass_start_level6(w, 13, lv[16], dt, lv[17]);
+    algid_msd_mass_start_level6(w, 14, lv[17], dt, lv[18]);
+    algid_msd_mass_start_level6(w, 15, lv[18], dt, lv[19]);
+    for (j = 0; j < 6; ++j) {
+        kv[0] = lv[2][j];
+        kv[1] = lv[3][j];
+        kv[2] = lv[4][j];
+        kv[3] = lv[7][j];
+        kv[4] = lv[8][j];
+        kv[5] = lv[9][j];
+        kv[6] = lv[11][j];
+        kv[7] = lv[12][j];
+        kv[8] = lv[13][j];
+        kv[9] = lv[14][j];
+        kv[10] = lv[15][j];
+        kv[11] = lv[16][j];
+        kv[12] = lv[17][j];
+        kv[13] = lv[18][j];
+        kv[14] = lv[19][j];
+        algid_msd_mass_algebra(kv, row);
+        for (r = 0; r < 4; ++r) lanes[0][r][j] = row[r];
+    }
+    for (lev = 0; lev < 2; ++lev) {
+        for (r = 0; r < 4; ++r) {
+            algid_msd_mass_start_level6(w, 16 + lev * 4 + r, lanes[lev][r], dt, lanes[lev + 1][r]);
+        }
+    }
     for (r = 0; r < 4; ++r) row[r] = lanes[2][r][5];
     algid_msd_mass_divide(row, theta);
+}
+
+/* The estimate of sample 5 by the 6-point rule, before the start-up of the
+   estimator's own rule (the window itself is left as it is). */
+static void algid_msd_mass_early6(const algid_msd_mass_window *w, double dt, double *theta)
+{
+    algid_msd_mass_window scratch = *w;
+    algid_msd_mass_start6(&scratch, dt, theta);
+}
+
+/* Integrate the q samples a[0 .. q-1] of an integrand with the start-up rule;
+   set integrator k to its state after sample q-1; out[j]: the integral. */
+static void algid_msd_mass_start_level7(algid_msd_mass_window *w, int k, const double *a, double dt,
+                                double *out)
+{
+    double inc[6];
+    double s = 0.0;
+    int i, j;
+    for (j = 0; j < 5; ++j) {
+        double acc = (algid_msd_mass_ws7[j][0] * dt) * a[0];
+        for (i = 1; i < 7; ++i) acc += (algid_msd_mass_ws7[j][i] * dt) * a[i];
+        inc[j] = acc;
+    }
+    inc[5] = (algid_msd_mass_w7[0] * dt) * a[0];
+    for (i = 1; i < 7; ++i) inc[5] += (algid_msd_mass_w7[i] * dt) * a[i];
+    out[0] = 0.0;
+    for (j = 1; j < 7; ++j) {
+        s += inc[j - 1];
+        out[j] = s;
+    }
+    w->sum[k] = s;
+    for (i = 0; i < 6; ++i) w->hist[k][i] = a[i + 1];
+}
+
+/* Samples 0 .. q-1 after the origin, once sample q-1 has arrived: the
+   estimate of sample q-1 into theta (the others are NaN). */
+static void algid_msd_mass_start7(algid_msd_mass_window *w, double dt, double *theta)
+{
+    double lv[20][7];  /* every level of every chain */
+    double lanes[3][4][7];
+    double kv[15], row[4];
+    int j, r;
+    int lev;
+    for (j = 0; j < 7; ++j) {
+        const double tau = (double)j * dt;
+        lv[0][j] = (tau*tau) * w->start_u[j];
+        lv[5][j] = w->start_y[j];
+        lv[10][j] = tau * w->start_y[j];
+        lv[15][j] = (tau*tau) * w->start_y[j];
+    }
+    algid_msd_mass_start_level7(w, 0, lv[0], dt, lv[1]);
+    algid_msd_mass_start_level7(w, 1, lv[1], dt, lv[2]);
+    algid_msd_mass_start_level7(w, 2, lv[2], dt, lv[3]);
+    algid_msd_mass_start_level7(w, 3, lv[3], dt, lv[4]);
+    algid_msd_mass_start_level7(w, 4, lv[5], dt, lv[6]);
+    algid_msd_mass_start_level7(w, 5, lv[6], dt, lv[7]);
+    algid_msd_mass_start_level7(w, 6, lv[7], dt, lv[8]);
+    algid_msd_mass_start_level7(w, 7, lv[8], dt, lv[9]);
+    algid_msd_mass_start_level7(w, 8, lv[10], dt, lv[11]);
+    algid_msd_mass_start_level7(w, 9, lv[11], dt, lv[12]);
+    algid_msd_mass_start_level7(w, 10, lv[12], dt, lv[13]);
+    algid_msd_mass_start_level7(w, 11, lv[13], dt, lv[14]);
+    algid_msd_mass_start_level7(w, 12, lv[15], dt, lv[16]);
+    algid_msd_mass_start_level7(w, 13, lv[16], dt, lv[17]);
+    algid_msd_mass_start_level7(w, 14, lv[17], dt, lv[18]);
+    algid_msd_mass_start_level7(w, 15, lv[18], dt, lv[19]);
+    for (j = 0; j < 7; ++j) {
+        kv[0] = lv[2][j];
+        kv[1] = lv[3][j];
+        kv[2] = lv[4][j];
+        kv[3] = lv[7][j];
+        kv[4] = lv[8][j];
+        kv[5] = lv[9][j];
+        kv[6] = lv[11][j];
+        kv[7] = lv[12][j];
+        kv[8] = lv[13][j];
+        kv[9] = lv[14][j];
+        kv[10] = lv[15][j];
+        kv[11] = lv[16][j];
+        kv[12] = lv[17][j];
+        kv[13] = lv[18][j];
+        kv[14] = lv[19][j];
+        algid_msd_mass_algebra(kv, row);
+        for (r = 0; r < 4; ++r) lanes[0][r][j] = row[r];
+    }
+    for (lev = 0; lev < 2; ++lev) {
+        for (r = 0; r < 4; ++r) {
+            algid_msd_mass_start_level7(w, 16 + lev * 4 + r, lanes[lev][r], dt, lanes[lev + 1][r]);
+        }
+    }
+    for (r = 0; r < 4; ++r) row[r] = lanes[2][r][6];
+    algid_msd_mass_divide(row, theta);
+}
+
+/* The estimate of sample 6 by the 7-point rule, before the start-up of the
+   estimator's own rule (the window itself is left as it is). */
+static void algid_msd_mass_early7(const algid_msd_mass_window *w, double dt, double *theta)
+{
+    algid_msd_mass_window scratch = *w;
+    algid_msd_mass_start7(&scratch, dt, theta);
 }
 
 /* One step of an integrator: v is its integrand at this sample; returns the
    integral.  The increment is summed left to right, as NumPy does. */
 static double algid_msd_mass_integrate(double *sum, double *hist, double v, double dt)
 {
-    const double inc = (algid_msd_mass_w[0] * dt) * hist[0] + (algid_msd_mass_w[1] * dt) * hist[1] + (algid_msd_mass_w[2] * dt) * hist[2] + (algid_msd_mass_w[3] * dt) * hist[3] + (algid_msd_mass_w[4] * dt) * hist[4] + (algid_msd_mass_w[5] * dt) * v;
+    const double inc = (algid_msd_mass_w[0] * dt) * hist[0] + (algid_msd_mass_w[1] * dt) * hist[1] + (algid_msd_mass_w[2] * dt) * hist[2] + (algid_msd_mass_w[3] * dt) * hist[3] + (algid_msd_mass_w[4] * dt) * hist[4] + (algid_msd_mass_w[5] * dt) * hist[5] + (algid_msd_mass_w[6] * dt) * hist[6] + (algid_msd_mass_w[7] * dt) * v;
     hist[0] = hist[1];
     hist[1] = hist[2];
     hist[2] = hist[3];
     hist[3] = hist[4];
-    hist[4] = v;
+    hist[4] = hist[5];
+    hist[5] = hist[6];
+    hist[6] = v;
     *sum += inc;
     return *sum;
 }
@@ -340,13 +562,13 @@ static void algid_msd_mass_blocks(algid_msd_mass_window *w, const double *u, con
             lv[15][ALGID_MSD_MASS_M + b] = (tau*tau) * y[start + b];
         }
         a = lv[0];
-        for (b = 0; b < ALGID_MSD_MASS_BLOCK; ++b) inc[0][b] = (algid_msd_mass_w[0] * dt) * a[b + 0] + (algid_msd_mass_w[1] * dt) * a[b + 1] + (algid_msd_mass_w[2] * dt) * a[b + 2] + (algid_msd_mass_w[3] * dt) * a[b + 3] + (algid_msd_mass_w[4] * dt) * a[b + 4] + (algid_msd_mass_w[5] * dt) * a[b + 5];
+        for (b = 0; b < ALGID_MSD_MASS_BLOCK; ++b) inc[0][b] = (algid_msd_mass_w[0] * dt) * a[b + 0] + (algid_msd_mass_w[1] * dt) * a[b + 1] + (algid_msd_mass_w[2] * dt) * a[b + 2] + (algid_msd_mass_w[3] * dt) * a[b + 3] + (algid_msd_mass_w[4] * dt) * a[b + 4] + (algid_msd_mass_w[5] * dt) * a[b + 5] + (algid_msd_mass_w[6] * dt) * a[b + 6] + (algid_msd_mass_w[7] * dt) * a[b + 7];
         a = lv[5];
-        for (b = 0; b < ALGID_MSD_MASS_BLOCK; ++b) inc[1][b] = (algid_msd_mass_w[0] * dt) * a[b + 0] + (algid_msd_mass_w[1] * dt) * a[b + 1] + (algid_msd_mass_w[2] * dt) * a[b + 2] + (algid_msd_mass_w[3] * dt) * a[b + 3] + (algid_msd_mass_w[4] * dt) * a[b + 4] + (algid_msd_mass_w[5] * dt) * a[b + 5];
+        for (b = 0; b < ALGID_MSD_MASS_BLOCK; ++b) inc[1][b] = (algid_msd_mass_w[0] * dt) * a[b + 0] + (algid_msd_mass_w[1] * dt) * a[b + 1] + (algid_msd_mass_w[2] * dt) * a[b + 2] + (algid_msd_mass_w[3] * dt) * a[b + 3] + (algid_msd_mass_w[4] * dt) * a[b + 4] + (algid_msd_mass_w[5] * dt) * a[b + 5] + (algid_msd_mass_w[6] * dt) * a[b + 6] + (algid_msd_mass_w[7] * dt) * a[b + 7];
         a = lv[10];
-        for (b = 0; b < ALGID_MSD_MASS_BLOCK; ++b) inc[2][b] = (algid_msd_mass_w[0] * dt) * a[b + 0] + (algid_msd_mass_w[1] * dt) * a[b + 1] + (algid_msd_mass_w[2] * dt) * a[b + 2] + (algid_msd_mass_w[3] * dt) * a[b + 3] + (algid_msd_mass_w[4] * dt) * a[b + 4] + (algid_msd_mass_w[5] * dt) * a[b + 5];
+        for (b = 0; b < ALGID_MSD_MASS_BLOCK; ++b) inc[2][b] = (algid_msd_mass_w[0] * dt) * a[b + 0] + (algid_msd_mass_w[1] * dt) * a[b + 1] + (algid_msd_mass_w[2] * dt) * a[b + 2] + (algid_msd_mass_w[3] * dt) * a[b + 3] + (algid_msd_mass_w[4] * dt) * a[b + 4] + (algid_msd_mass_w[5] * dt) * a[b + 5] + (algid_msd_mass_w[6] * dt) * a[b + 6] + (algid_msd_mass_w[7] * dt) * a[b + 7];
         a = lv[15];
-        for (b = 0; b < ALGID_MSD_MASS_BLOCK; ++b) inc[3][b] = (algid_msd_mass_w[0] * dt) * a[b + 0] + (algid_msd_mass_w[1] * dt) * a[b + 1] + (algid_msd_mass_w[2] * dt) * a[b + 2] + (algid_msd_mass_w[3] * dt) * a[b + 3] + (algid_msd_mass_w[4] * dt) * a[b + 4] + (algid_msd_mass_w[5] * dt) * a[b + 5];
+        for (b = 0; b < ALGID_MSD_MASS_BLOCK; ++b) inc[3][b] = (algid_msd_mass_w[0] * dt) * a[b + 0] + (algid_msd_mass_w[1] * dt) * a[b + 1] + (algid_msd_mass_w[2] * dt) * a[b + 2] + (algid_msd_mass_w[3] * dt) * a[b + 3] + (algid_msd_mass_w[4] * dt) * a[b + 4] + (algid_msd_mass_w[5] * dt) * a[b + 5] + (algid_msd_mass_w[6] * dt) * a[b + 6] + (algid_msd_mass_w[7] * dt) * a[b + 7];
         acc[0] = s[0];
         acc[1] = s[4];
         acc[2] = s[8];
@@ -366,13 +588,13 @@ static void algid_msd_mass_blocks(algid_msd_mass_window *w, const double *u, con
         s[8] = acc[2];
         s[12] = acc[3];
         a = lv[1];
-        for (b = 0; b < ALGID_MSD_MASS_BLOCK; ++b) inc[0][b] = (algid_msd_mass_w[0] * dt) * a[b + 0] + (algid_msd_mass_w[1] * dt) * a[b + 1] + (algid_msd_mass_w[2] * dt) * a[b + 2] + (algid_msd_mass_w[3] * dt) * a[b + 3] + (algid_msd_mass_w[4] * dt) * a[b + 4] + (algid_msd_mass_w[5] * dt) * a[b + 5];
+        for (b = 0; b < ALGID_MSD_MASS_BLOCK; ++b) inc[0][b] = (algid_msd_mass_w[0] * dt) * a[b + 0] + (algid_msd_mass_w[1] * dt) * a[b + 1] + (algid_msd_mass_w[2] * dt) * a[b + 2] + (algid_msd_mass_w[3] * dt) * a[b + 3] + (algid_msd_mass_w[4] * dt) * a[b + 4] + (algid_msd_mass_w[5] * dt) * a[b + 5] + (algid_msd_mass_w[6] * dt) * a[b + 6] + (algid_msd_mass_w[7] * dt) * a[b + 7];
         a = lv[6];
-        for (b = 0; b < ALGID_MSD_MASS_BLOCK; ++b) inc[1][b] = (algid_msd_mass_w[0] * dt) * a[b + 0] + (algid_msd_mass_w[1] * dt) * a[b + 1] + (algid_msd_mass_w[2] * dt) * a[b + 2] + (algid_msd_mass_w[3] * dt) * a[b + 3] + (algid_msd_mass_w[4] * dt) * a[b + 4] + (algid_msd_mass_w[5] * dt) * a[b + 5];
+        for (b = 0; b < ALGID_MSD_MASS_BLOCK; ++b) inc[1][b] = (algid_msd_mass_w[0] * dt) * a[b + 0] + (algid_msd_mass_w[1] * dt) * a[b + 1] + (algid_msd_mass_w[2] * dt) * a[b + 2] + (algid_msd_mass_w[3] * dt) * a[b + 3] + (algid_msd_mass_w[4] * dt) * a[b + 4] + (algid_msd_mass_w[5] * dt) * a[b + 5] + (algid_msd_mass_w[6] * dt) * a[b + 6] + (algid_msd_mass_w[7] * dt) * a[b + 7];
         a = lv[11];
-        for (b = 0; b < ALGID_MSD_MASS_BLOCK; ++b) inc[2][b] = (algid_msd_mass_w[0] * dt) * a[b + 0] + (algid_msd_mass_w[1] * dt) * a[b + 1] + (algid_msd_mass_w[2] * dt) * a[b + 2] + (algid_msd_mass_w[3] * dt) * a[b + 3] + (algid_msd_mass_w[4] * dt) * a[b + 4] + (algid_msd_mass_w[5] * dt) * a[b + 5];
+        for (b = 0; b < ALGID_MSD_MASS_BLOCK; ++b) inc[2][b] = (algid_msd_mass_w[0] * dt) * a[b + 0] + (algid_msd_mass_w[1] * dt) * a[b + 1] + (algid_msd_mass_w[2] * dt) * a[b + 2] + (algid_msd_mass_w[3] * dt) * a[b + 3] + (algid_msd_mass_w[4] * dt) * a[b + 4] + (algid_msd_mass_w[5] * dt) * a[b + 5] + (algid_msd_mass_w[6] * dt) * a[b + 6] + (algid_msd_mass_w[7] * dt) * a[b + 7];
         a = lv[16];
-        for (b = 0; b < ALGID_MSD_MASS_BLOCK; ++b) inc[3][b] = (algid_msd_mass_w[0] * dt) * a[b + 0] + (algid_msd_mass_w[1] * dt) * a[b + 1] + (algid_msd_mass_w[2] * dt) * a[b + 2] + (algid_msd_mass_w[3] * dt) * a[b + 3] + (algid_msd_mass_w[4] * dt) * a[b + 4] + (algid_msd_mass_w[5] * dt) * a[b + 5];
+        for (b = 0; b < ALGID_MSD_MASS_BLOCK; ++b) inc[3][b] = (algid_msd_mass_w[0] * dt) * a[b + 0] + (algid_msd_mass_w[1] * dt) * a[b + 1] + (algid_msd_mass_w[2] * dt) * a[b + 2] + (algid_msd_mass_w[3] * dt) * a[b + 3] + (algid_msd_mass_w[4] * dt) * a[b + 4] + (algid_msd_mass_w[5] * dt) * a[b + 5] + (algid_msd_mass_w[6] * dt) * a[b + 6] + (algid_msd_mass_w[7] * dt) * a[b + 7];
         acc[0] = s[1];
         acc[1] = s[5];
         acc[2] = s[9];
@@ -392,13 +614,13 @@ static void algid_msd_mass_blocks(algid_msd_mass_window *w, const double *u, con
         s[9] = acc[2];
         s[13] = acc[3];
         a = lv[2];
-        for (b = 0; b < ALGID_MSD_MASS_BLOCK; ++b) inc[0][b] = (algid_msd_mass_w[0] * dt) * a[b + 0] + (algid_msd_mass_w[1] * dt) * a[b + 1] + (algid_msd_mass_w[2] * dt) * a[b + 2] + (algid_msd_mass_w[3] * dt) * a[b + 3] + (algid_msd_mass_w[4] * dt) * a[b + 4] + (algid_msd_mass_w[5] * dt) * a[b + 5];
+        for (b = 0; b < ALGID_MSD_MASS_BLOCK; ++b) inc[0][b] = (algid_msd_mass_w[0] * dt) * a[b + 0] + (algid_msd_mass_w[1] * dt) * a[b + 1] + (algid_msd_mass_w[2] * dt) * a[b + 2] + (algid_msd_mass_w[3] * dt) * a[b + 3] + (algid_msd_mass_w[4] * dt) * a[b + 4] + (algid_msd_mass_w[5] * dt) * a[b + 5] + (algid_msd_mass_w[6] * dt) * a[b + 6] + (algid_msd_mass_w[7] * dt) * a[b + 7];
         a = lv[7];
-        for (b = 0; b < ALGID_MSD_MASS_BLOCK; ++b) inc[1][b] = (algid_msd_mass_w[0] * dt) * a[b + 0] + (algid_msd_mass_w[1] * dt) * a[b + 1] + (algid_msd_mass_w[2] * dt) * a[b + 2] + (algid_msd_mass_w[3] * dt) * a[b + 3] + (algid_msd_mass_w[4] * dt) * a[b + 4] + (algid_msd_mass_w[5] * dt) * a[b + 5];
+        for (b = 0; b < ALGID_MSD_MASS_BLOCK; ++b) inc[1][b] = (algid_msd_mass_w[0] * dt) * a[b + 0] + (algid_msd_mass_w[1] * dt) * a[b + 1] + (algid_msd_mass_w[2] * dt) * a[b + 2] + (algid_msd_mass_w[3] * dt) * a[b + 3] + (algid_msd_mass_w[4] * dt) * a[b + 4] + (algid_msd_mass_w[5] * dt) * a[b + 5] + (algid_msd_mass_w[6] * dt) * a[b + 6] + (algid_msd_mass_w[7] * dt) * a[b + 7];
         a = lv[12];
-        for (b = 0; b < ALGID_MSD_MASS_BLOCK; ++b) inc[2][b] = (algid_msd_mass_w[0] * dt) * a[b + 0] + (algid_msd_mass_w[1] * dt) * a[b + 1] + (algid_msd_mass_w[2] * dt) * a[b + 2] + (algid_msd_mass_w[3] * dt) * a[b + 3] + (algid_msd_mass_w[4] * dt) * a[b + 4] + (algid_msd_mass_w[5] * dt) * a[b + 5];
+        for (b = 0; b < ALGID_MSD_MASS_BLOCK; ++b) inc[2][b] = (algid_msd_mass_w[0] * dt) * a[b + 0] + (algid_msd_mass_w[1] * dt) * a[b + 1] + (algid_msd_mass_w[2] * dt) * a[b + 2] + (algid_msd_mass_w[3] * dt) * a[b + 3] + (algid_msd_mass_w[4] * dt) * a[b + 4] + (algid_msd_mass_w[5] * dt) * a[b + 5] + (algid_msd_mass_w[6] * dt) * a[b + 6] + (algid_msd_mass_w[7] * dt) * a[b + 7];
         a = lv[17];
-        for (b = 0; b < ALGID_MSD_MASS_BLOCK; ++b) inc[3][b] = (algid_msd_mass_w[0] * dt) * a[b + 0] + (algid_msd_mass_w[1] * dt) * a[b + 1] + (algid_msd_mass_w[2] * dt) * a[b + 2] + (algid_msd_mass_w[3] * dt) * a[b + 3] + (algid_msd_mass_w[4] * dt) * a[b + 4] + (algid_msd_mass_w[5] * dt) * a[b + 5];
+        for (b = 0; b < ALGID_MSD_MASS_BLOCK; ++b) inc[3][b] = (algid_msd_mass_w[0] * dt) * a[b + 0] + (algid_msd_mass_w[1] * dt) * a[b + 1] + (algid_msd_mass_w[2] * dt) * a[b + 2] + (algid_msd_mass_w[3] * dt) * a[b + 3] + (algid_msd_mass_w[4] * dt) * a[b + 4] + (algid_msd_mass_w[5] * dt) * a[b + 5] + (algid_msd_mass_w[6] * dt) * a[b + 6] + (algid_msd_mass_w[7] * dt) * a[b + 7];
         acc[0] = s[2];
         acc[1] = s[6];
         acc[2] = s[10];
@@ -418,13 +640,13 @@ static void algid_msd_mass_blocks(algid_msd_mass_window *w, const double *u, con
         s[10] = acc[2];
         s[14] = acc[3];
         a = lv[3];
-        for (b = 0; b < ALGID_MSD_MASS_BLOCK; ++b) inc[0][b] = (algid_msd_mass_w[0] * dt) * a[b + 0] + (algid_msd_mass_w[1] * dt) * a[b + 1] + (algid_msd_mass_w[2] * dt) * a[b + 2] + (algid_msd_mass_w[3] * dt) * a[b + 3] + (algid_msd_mass_w[4] * dt) * a[b + 4] + (algid_msd_mass_w[5] * dt) * a[b + 5];
+        for (b = 0; b < ALGID_MSD_MASS_BLOCK; ++b) inc[0][b] = (algid_msd_mass_w[0] * dt) * a[b + 0] + (algid_msd_mass_w[1] * dt) * a[b + 1] + (algid_msd_mass_w[2] * dt) * a[b + 2] + (algid_msd_mass_w[3] * dt) * a[b + 3] + (algid_msd_mass_w[4] * dt) * a[b + 4] + (algid_msd_mass_w[5] * dt) * a[b + 5] + (algid_msd_mass_w[6] * dt) * a[b + 6] + (algid_msd_mass_w[7] * dt) * a[b + 7];
         a = lv[8];
-        for (b = 0; b < ALGID_MSD_MASS_BLOCK; ++b) inc[1][b] = (algid_msd_mass_w[0] * dt) * a[b + 0] + (algid_msd_mass_w[1] * dt) * a[b + 1] + (algid_msd_mass_w[2] * dt) * a[b + 2] + (algid_msd_mass_w[3] * dt) * a[b + 3] + (algid_msd_mass_w[4] * dt) * a[b + 4] + (algid_msd_mass_w[5] * dt) * a[b + 5];
+        for (b = 0; b < ALGID_MSD_MASS_BLOCK; ++b) inc[1][b] = (algid_msd_mass_w[0] * dt) * a[b + 0] + (algid_msd_mass_w[1] * dt) * a[b + 1] + (algid_msd_mass_w[2] * dt) * a[b + 2] + (algid_msd_mass_w[3] * dt) * a[b + 3] + (algid_msd_mass_w[4] * dt) * a[b + 4] + (algid_msd_mass_w[5] * dt) * a[b + 5] + (algid_msd_mass_w[6] * dt) * a[b + 6] + (algid_msd_mass_w[7] * dt) * a[b + 7];
         a = lv[13];
-        for (b = 0; b < ALGID_MSD_MASS_BLOCK; ++b) inc[2][b] = (algid_msd_mass_w[0] * dt) * a[b + 0] + (algid_msd_mass_w[1] * dt) * a[b + 1] + (algid_msd_mass_w[2] * dt) * a[b + 2] + (algid_msd_mass_w[3] * dt) * a[b + 3] + (algid_msd_mass_w[4] * dt) * a[b + 4] + (algid_msd_mass_w[5] * dt) * a[b + 5];
+        for (b = 0; b < ALGID_MSD_MASS_BLOCK; ++b) inc[2][b] = (algid_msd_mass_w[0] * dt) * a[b + 0] + (algid_msd_mass_w[1] * dt) * a[b + 1] + (algid_msd_mass_w[2] * dt) * a[b + 2] + (algid_msd_mass_w[3] * dt) * a[b + 3] + (algid_msd_mass_w[4] * dt) * a[b + 4] + (algid_msd_mass_w[5] * dt) * a[b + 5] + (algid_msd_mass_w[6] * dt) * a[b + 6] + (algid_msd_mass_w[7] * dt) * a[b + 7];
         a = lv[18];
-        for (b = 0; b < ALGID_MSD_MASS_BLOCK; ++b) inc[3][b] = (algid_msd_mass_w[0] * dt) * a[b + 0] + (algid_msd_mass_w[1] * dt) * a[b + 1] + (algid_msd_mass_w[2] * dt) * a[b + 2] + (algid_msd_mass_w[3] * dt) * a[b + 3] + (algid_msd_mass_w[4] * dt) * a[b + 4] + (algid_msd_mass_w[5] * dt) * a[b + 5];
+        for (b = 0; b < ALGID_MSD_MASS_BLOCK; ++b) inc[3][b] = (algid_msd_mass_w[0] * dt) * a[b + 0] + (algid_msd_mass_w[1] * dt) * a[b + 1] + (algid_msd_mass_w[2] * dt) * a[b + 2] + (algid_msd_mass_w[3] * dt) * a[b + 3] + (algid_msd_mass_w[4] * dt) * a[b + 4] + (algid_msd_mass_w[5] * dt) * a[b + 5] + (algid_msd_mass_w[6] * dt) * a[b + 6] + (algid_msd_mass_w[7] * dt) * a[b + 7];
         acc[0] = s[3];
         acc[1] = s[7];
         acc[2] = s[11];
@@ -478,13 +700,13 @@ static void algid_msd_mass_blocks(algid_msd_mass_window *w, const double *u, con
         }
         for (lev = 0; lev < 2; ++lev) {
             a = fl[lev][0];
-            for (b = 0; b < ALGID_MSD_MASS_BLOCK; ++b) inc[0][b] = (algid_msd_mass_w[0] * dt) * a[b + 0] + (algid_msd_mass_w[1] * dt) * a[b + 1] + (algid_msd_mass_w[2] * dt) * a[b + 2] + (algid_msd_mass_w[3] * dt) * a[b + 3] + (algid_msd_mass_w[4] * dt) * a[b + 4] + (algid_msd_mass_w[5] * dt) * a[b + 5];
+            for (b = 0; b < ALGID_MSD_MASS_BLOCK; ++b) inc[0][b] = (algid_msd_mass_w[0] * dt) * a[b + 0] + (algid_msd_mass_w[1] * dt) * a[b + 1] + (algid_msd_mass_w[2] * dt) * a[b + 2] + (algid_msd_mass_w[3] * dt) * a[b + 3] + (algid_msd_mass_w[4] * dt) * a[b + 4] + (algid_msd_mass_w[5] * dt) * a[b + 5] + (algid_msd_mass_w[6] * dt) * a[b + 6] + (algid_msd_mass_w[7] * dt) * a[b + 7];
             a = fl[lev][1];
-            for (b = 0; b < ALGID_MSD_MASS_BLOCK; ++b) inc[1][b] = (algid_msd_mass_w[0] * dt) * a[b + 0] + (algid_msd_mass_w[1] * dt) * a[b + 1] + (algid_msd_mass_w[2] * dt) * a[b + 2] + (algid_msd_mass_w[3] * dt) * a[b + 3] + (algid_msd_mass_w[4] * dt) * a[b + 4] + (algid_msd_mass_w[5] * dt) * a[b + 5];
+            for (b = 0; b < ALGID_MSD_MASS_BLOCK; ++b) inc[1][b] = (algid_msd_mass_w[0] * dt) * a[b + 0] + (algid_msd_mass_w[1] * dt) * a[b + 1] + (algid_msd_mass_w[2] * dt) * a[b + 2] + (algid_msd_mass_w[3] * dt) * a[b + 3] + (algid_msd_mass_w[4] * dt) * a[b + 4] + (algid_msd_mass_w[5] * dt) * a[b + 5] + (algid_msd_mass_w[6] * dt) * a[b + 6] + (algid_msd_mass_w[7] * dt) * a[b + 7];
             a = fl[lev][2];
-            for (b = 0; b < ALGID_MSD_MASS_BLOCK; ++b) inc[2][b] = (algid_msd_mass_w[0] * dt) * a[b + 0] + (algid_msd_mass_w[1] * dt) * a[b + 1] + (algid_msd_mass_w[2] * dt) * a[b + 2] + (algid_msd_mass_w[3] * dt) * a[b + 3] + (algid_msd_mass_w[4] * dt) * a[b + 4] + (algid_msd_mass_w[5] * dt) * a[b + 5];
+            for (b = 0; b < ALGID_MSD_MASS_BLOCK; ++b) inc[2][b] = (algid_msd_mass_w[0] * dt) * a[b + 0] + (algid_msd_mass_w[1] * dt) * a[b + 1] + (algid_msd_mass_w[2] * dt) * a[b + 2] + (algid_msd_mass_w[3] * dt) * a[b + 3] + (algid_msd_mass_w[4] * dt) * a[b + 4] + (algid_msd_mass_w[5] * dt) * a[b + 5] + (algid_msd_mass_w[6] * dt) * a[b + 6] + (algid_msd_mass_w[7] * dt) * a[b + 7];
             a = fl[lev][3];
-            for (b = 0; b < ALGID_MSD_MASS_BLOCK; ++b) inc[3][b] = (algid_msd_mass_w[0] * dt) * a[b + 0] + (algid_msd_mass_w[1] * dt) * a[b + 1] + (algid_msd_mass_w[2] * dt) * a[b + 2] + (algid_msd_mass_w[3] * dt) * a[b + 3] + (algid_msd_mass_w[4] * dt) * a[b + 4] + (algid_msd_mass_w[5] * dt) * a[b + 5];
+            for (b = 0; b < ALGID_MSD_MASS_BLOCK; ++b) inc[3][b] = (algid_msd_mass_w[0] * dt) * a[b + 0] + (algid_msd_mass_w[1] * dt) * a[b + 1] + (algid_msd_mass_w[2] * dt) * a[b + 2] + (algid_msd_mass_w[3] * dt) * a[b + 3] + (algid_msd_mass_w[4] * dt) * a[b + 4] + (algid_msd_mass_w[5] * dt) * a[b + 5] + (algid_msd_mass_w[6] * dt) * a[b + 6] + (algid_msd_mass_w[7] * dt) * a[b + 7];
             acc[0] = s[16 + lev * 4 + 0];
             acc[1] = s[16 + lev * 4 + 1];
             acc[2] = s[16 + lev * 4 + 2];
@@ -551,7 +773,7 @@ static void algid_msd_mass_restart(algid_msd_mass_window *w)
         w->sum[k] = 0.0;
         for (i = 0; i < ALGID_MSD_MASS_M; ++i) w->hist[k][i] = 0.0;
     }
-    for (i = 0; i < 6; ++i) w->start_u[i] = w->start_y[i] = 0.0;
+    for (i = 0; i < 8; ++i) w->start_u[i] = w->start_y[i] = 0.0;
 }
 
 /* n samples through one estimator: start-up buffer first, then the loop. */
@@ -559,14 +781,18 @@ static void algid_msd_mass_feed(algid_msd_mass_window *w, const double *u, const
                            double dt, double *theta)
 {
     size_t i = 0;
-    while (i < n && w->n < 6.0) {
+    while (i < n && w->n < 8.0) {
         const int j = (int)w->n;
         int r;
         w->start_u[j] = u[i];
         w->start_y[j] = y[i];
         w->n += 1.0;
-        if (j == 5) {
+        if (j == 7) {
             algid_msd_mass_start(w, dt, theta + i * 3);
+        } else if (j == 5) {
+            algid_msd_mass_early6(w, dt, theta + i * 3);
+        } else if (j == 6) {
+            algid_msd_mass_early7(w, dt, theta + i * 3);
         } else {
             for (r = 0; r < 3; ++r) theta[i * 3 + (size_t)r] = NAN;
         }
@@ -609,7 +835,7 @@ int algid_msd_mass_init(void *state, double dt, double reset_period)
         if (frac > 0.5 || (frac == 0.5 && fmod(half, 2.0) != 0.0)) {
             half += 1.0;
         }
-        if (half < 6.0) {
+        if (half < 8.0) {
             return ALGID_MSD_MASS_BAD_RESET_PERIOD;
         }
     }

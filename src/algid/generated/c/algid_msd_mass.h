@@ -19,12 +19,12 @@ extern "C" {
 /* Order p of the invariant filter 1/s**p (fixed when generated). */
 #define ALGID_MSD_MASS_FILTER_ORDER 2
 /* Points of the Adams-Moulton cumulative quadrature rule (fixed when generated). */
-#define ALGID_MSD_MASS_QUADRATURE_ORDER 6
+#define ALGID_MSD_MASS_QUADRATURE_ORDER 8
 /* Samples 0 .. 4 after every time origin have NaN estimates. */
 #define ALGID_MSD_MASS_STARTUP_SAMPLES 5
 /* Size of the state in doubles: a buffer `double state[ALGID_MSD_MASS_STATE_DOUBLES]`
    is large enough and suitably aligned (algid_msd_mass_state_size() bytes). */
-#define ALGID_MSD_MASS_STATE_DOUBLES 318
+#define ALGID_MSD_MASS_STATE_DOUBLES 422
 /* Stack: update works on blocks of ALGID_MSD_MASS_BLOCK samples (default 64:
    about 19 kB of stack); define ALGID_MSD_MASS_BLOCK when compiling the .c for a
    smaller stack (ALGID_MSD_MASS_BLOCK=4: about 3 kB), with the same numbers. */
