@@ -85,8 +85,9 @@ from algid.validation import positive_number
 __all__ = ["OnlineEstimator", "run_stream", "TRACKING_RESET_PERIOD"]
 
 #: Reset period [s] suggested for following changes of the parameters in noise-free
-#: or nearly noise-free data at about 1 kHz with the default options (filter order 2,
-#: 6-point rule).  Measured on the paper's system (B = 2, K = 3) and after changes to
+#: or nearly noise-free data at about 1 kHz with the default options (filter order 2;
+#: measured with the 6-point rule, the default of earlier releases, whose first
+#: estimates the 8-point default shares).  Measured on the paper's system (B = 2, K = 3) and after changes to
 #: K = 5 or B = 1, for step and sine inputs: an estimator restarted in mid-stream comes
 #: within 0.1 % 5-7 ms after its origin (13 ms for a sine from rest; within 1e-6 after
 #: 5-20 ms, 68 ms for a step response that has settled), inside the half period of

@@ -6,7 +6,8 @@ numerical integrals enormously.  The plain trapezoid (2 points) needs about half
 at 1 kHz to bring the paper's system within 0.1 %; the Adams-Moulton rules below reach
 the same accuracy within a few samples.
 
-Rule of ``q`` points (``points=q``, the default 6): the integral over
+Rule of ``q`` points (``points=q``; 6 by default in these functions, while the
+estimators default to 8, see :func:`algid.core.first_estimate`): the integral over
 ``[t[n-1], t[n]]`` is that of the polynomial interpolating ``y[n-q+1], ..., y[n]``, so it
 uses the current and past samples only (causal).  For the first ``q - 2`` intervals
 there are not enough past samples; they use the polynomial through ``y[0], ...,
