@@ -1,7 +1,7 @@
 """Speed of the embedded C estimator (``python -m benchmarks.c_speed [--smoke|--quick]``).
 
 The C pair of model ``msd`` checked in under ``src/algid/generated/c`` (default options:
-filter ``1/s**2``, 6-point rule) is compiled with the system C compiler, ``-O2
+filter ``1/s**2``, 8-point rule) is compiled with the system C compiler, ``-O2
 -std=c99`` (portable: SSE2 on x86-64) and ``-O2 -std=c99 -march=native`` (the host's
 vector instructions, as numba compiles for the host), into shared libraries loaded with
 :mod:`ctypes`, together with a small C driver that feeds a record to
@@ -258,7 +258,10 @@ def target(data):
 
 def markdown(data):
     """The section as Markdown (heading, table, figures)."""
-    head = "### 6. Embedded C estimator (msd, p = 2, q = 6)"
+    from algid.symbolic.codegen_c import DEFAULT_FILTER_ORDER, DEFAULT_QUADRATURE_ORDER
+
+    head = (f"### 6. Embedded C estimator (msd, p = {DEFAULT_FILTER_ORDER}, "
+            f"q = {DEFAULT_QUADRATURE_ORDER})")
     if "not_available" in data:
         return f"{head}\n\nnot available: {data['not_available']}"
     lines = [f"{head}, {data['n_samples']} samples, best of {data['repeats']}, "

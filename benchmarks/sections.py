@@ -21,6 +21,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 import algid
+from algid.options import DEFAULT_QUADRATURE_POINTS
 from algid.result import convergence_time
 from algid.simulation import simulate
 from benchmarks import baselines as bl
@@ -182,7 +183,8 @@ def optional_features():
 #: Methods of the accuracy section: key -> (label, kind), kind "online" (an estimate at
 #: every sample) or "batch" (one estimate from the whole record).
 ACCURACY_METHODS = {
-    "algid": ("algid default (6-point rule, filter 1/s^2)", "online"),
+    "algid": (f"algid default ({DEFAULT_QUADRATURE_POINTS}-point rule, filter 1/s^2)",
+              "online"),
     "algid_p0": ("algid, filter_order=0", "online"),
     "algid_trap_p0": ("algid trapezoid (quadrature_points=2), p=0", "online"),
     "algid_trap_p1": ("algid trapezoid (quadrature_points=2), p=1", "online"),

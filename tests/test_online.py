@@ -235,6 +235,28 @@ def test_reanchored_estimates_are_batch_estimates_from_the_anchor_origin(engine)
     assert sorted(est.anchor_origins) == [t[650], t[700]]
 
 
+def test_restarted_estimators_skip_the_early_rules_they_do_not_report(engine, monkeypatch):
+    """A re-anchored estimator is reported only half a period after its restart, so it
+    skips the early estimates of samples 5 .. q-2 (integrations by the rules of 6 and 7
+    points): the reported estimates and errors are those computed with them."""
+    from algid import core
+
+    t, f, x = _record(duration=0.3)
+    est = OnlineEstimator(rate=EXACT_RATE, reset_period=0.0488, engine=engine)
+    got = est.update(t, f, x)
+    assert est.quadrature_points == 8
+    assert [s.early for s in est._states] == [False, False]  # both restarted since
+    restart = core.EstimatorState.restart
+    monkeypatch.setattr(core.EstimatorState, "restart",
+                        lambda self, early=True: restart(self, True))
+    every = OnlineEstimator(rate=EXACT_RATE, reset_period=0.0488, engine=engine)
+    ref = every.update(t, f, x)
+    assert [s.early for s in every._states] == [True, True]
+    np.testing.assert_array_equal(got.B, ref.B)
+    np.testing.assert_array_equal(got.numerical_error, ref.numerical_error)
+    assert np.isfinite(got.B[5:]).all()  # the stream's own first samples keep them
+
+
 @pytest.mark.parametrize("mass", [None, 2.0])
 def test_reanchored_engines_agree_in_any_chunking(mass):
     """The compiled engine re-anchors at the same samples as the NumPy one: the same

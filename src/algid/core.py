@@ -133,6 +133,11 @@ class EstimatorState:
     undetermined : tuple of int
         With a companion: the parameters (indices) that the data left undetermined at
         the last check (:mod:`algid.numerical_error`).
+    early : bool
+        Whether samples ``first_estimate(points) .. points - 2`` get the estimates of
+        the rules of fewer points (:func:`first_estimate`); False for an estimator whose
+        first samples nobody reads (a re-anchored one, before it is reported), which
+        then skips their integrations and leaves them NaN.
     """
 
     model: ModuleType
@@ -149,6 +154,7 @@ class EstimatorState:
     channel_max: list | None = None
     channel_last: list | None = None
     undetermined: tuple = ()
+    early: bool = True
 
     def copy(self) -> EstimatorState:
         """An independent state that continues from the same point.
@@ -170,14 +176,21 @@ class EstimatorState:
                                    channel_last=None if self.channel_last is None
                                    else list(self.channel_last))
 
-    def restart(self) -> None:
-        """Move the time origin to the next sample (re-anchoring): forget the past."""
+    def restart(self, early: bool = True) -> None:
+        """Move the time origin to the next sample (re-anchoring): forget the past.
+
+        Parameters
+        ----------
+        early : bool, optional
+            The new value of :attr:`early`, for this state and its companion.
+        """
+        self.early = early
         self.n_seen = 0
         self.integrals.fill(0.0)
         self.history.fill(0.0)
         self.startup.fill(0.0)
         if self.companion is not None:
-            self.companion.restart()
+            self.companion.restart(early)
         if self.recent_errors is not None:
             self.recent_errors.fill(0.0)
         if self.channel_max is not None:
@@ -469,7 +482,8 @@ def advance_rows(state, rows, out, backend="numpy"):
         return out
     if seen == 0 and m >= q:  # the chunk starts at the origin: integrate it at once
         run(state, integrator_layout(model), rows, out, from_origin=True)
-        _early_estimates(state, rows, out, 0, run)
+        if state.early:
+            _early_estimates(state, rows, out, 0, run)
         return out
     # the start-up: buffer samples 0 .. q - 1
     done = min(q - seen, m)
@@ -477,7 +491,9 @@ def advance_rows(state, rows, out, backend="numpy"):
         state.startup[c, seen:seen + done] = row[:done]
     out[:, :done] = np.nan
     state.n_seen = seen + done
-    _early_estimates(state, tuple(state.startup[:, :seen + done]), out[:, :done], seen, run)
+    if state.early:
+        _early_estimates(state, tuple(state.startup[:, :seen + done]), out[:, :done], seen,
+                         run)
     if state.n_seen == q:  # sample q - 1 arrived: integrate from the origin
         first = np.empty((out.shape[0], q))
         run(state, integrator_layout(model), tuple(state.startup), first, from_origin=True)

@@ -562,7 +562,8 @@ class OnlineEstimator:
                     if begin is not None:
                         self._advance_run(i, channels, begin, segment.start, target,
                                           target_error)
-                    self._states[i].restart()
+                    # its first samples are not reported: no early estimates for them
+                    self._states[i].restart(early=self._n + segment.start == 0)
                     self._origins[i] = float(t[segment.start])
                     begin = segment.start
                 elif begin is None:
