@@ -36,6 +36,7 @@ import numpy as np
 
 import algid
 from algid import core
+from algid.options import DEFAULT_QUADRATURE_POINTS
 from algid.registry import load_model
 from benchmarks.baselines import naive_algebraic
 from benchmarks.measure import peak_memory
@@ -110,7 +111,7 @@ def main(argv=None):
     parser.add_argument("--sizes", type=float, nargs="+", default=[1e6, 1e7])
     parser.add_argument("--model", default="msd")
     parser.add_argument("--filter-order", type=int, default=2)
-    parser.add_argument("--quadrature-points", type=int, default=6)
+    parser.add_argument("--quadrature-points", type=int, default=DEFAULT_QUADRATURE_POINTS)
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--skip-numpy-above", type=float, default=2e7)
     parser.add_argument("--no-compile", action="store_true", help="skip the compile timing")
