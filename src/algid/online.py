@@ -86,8 +86,7 @@ __all__ = ["OnlineEstimator", "run_stream", "TRACKING_RESET_PERIOD"]
 
 #: Reset period [s] suggested for following changes of the parameters in noise-free
 #: or nearly noise-free data at about 1 kHz with the default options (filter order 2;
-#: measured with the 6-point rule, the default of earlier releases, whose first
-#: estimates the 8-point default shares).  Measured on the paper's system (B = 2, K = 3) and after changes to
+#: measured with the 6-point rule, whose first estimates the 8-point one shares).  Measured on the paper's system (B = 2, K = 3) and after changes to
 #: K = 5 or B = 1, for step and sine inputs: an estimator restarted in mid-stream comes
 #: within 0.1 % 5-7 ms after its origin (13 ms for a sine from rest; within 1e-6 after
 #: 5-20 ms, 68 ms for a step response that has settled), inside the half period of
@@ -562,8 +561,7 @@ class OnlineEstimator:
                     if begin is not None:
                         self._advance_run(i, channels, begin, segment.start, target,
                                           target_error)
-                    # its first samples are not reported: no early estimates for them
-                    self._states[i].restart(early=self._n + segment.start == 0)
+                    self._states[i].restart(early=self._n + segment.start == 0)  # unreported
                     self._origins[i] = float(t[segment.start])
                     begin = segment.start
                 elif begin is None:
