@@ -7,8 +7,8 @@ and ``PRE`` the prefixes ``algid_<name>`` / ``ALGID_<NAME>``, ``p`` the filter o
 
 - :func:`algebra_function`, :func:`algebra_statements`: ``P``, ``Q`` and Cramer's rule,
   printed by SymPy's C printer;
-- :func:`startup_functions`: samples ``0 .. q - 1`` after an origin, with the start-up
-  rule of :mod:`algid.quadrature`;
+- :func:`startup_functions`: the first samples after an origin, with the start-up
+  rules of :mod:`algid.quadrature`;
 - :func:`integrator_step_function`, :func:`sample_loop_function`: one sample at a time
   (short chunks);
 - :func:`block_loop_function`: blocks of samples, each level's increments in a loop
@@ -127,60 +127,62 @@ def level0(w, c, tau, u, y):
     factor = "*".join([tau] * power)
     return f"({factor}) * {value}" if power > 1 else f"{tau} * {value}"
 
-def startup_functions(w, early=None):
-    """``<pre>_start_level`` and ``<pre>_start``: samples ``0`` to ``q - 1`` after an origin.
+def startup_functions(w):
+    """The first samples after an origin, by a start-up rule given as data.
+
+    ``<pre>_start_level``, ``<pre>_start`` and ``<pre>_early``, for a ``<pre>_rule``.
+    ``<pre>_start`` integrates samples ``0 .. n - 1`` with the rule of ``n <= q``
+    points and reports sample ``n - 1``: the estimator's own rule once sample
+    ``q - 1`` has arrived, and the rules of fewer points for the samples before it
+    (:func:`algid.core.first_estimate`), through ``<pre>_early``, which works on a copy
+    of the window.  One function for every rule, with the operations of the Python
+    backends in the same order.
 
     Parameters
     ----------
     w : object
         The writer of :mod:`algid.symbolic.codegen_c` (its attributes, see above).
-    early : int, optional
-        Instead, the functions of the rule of ``early < q`` points (suffix ``early``,
-        tables ``<pre>_w<early>``, ``<pre>_ws<early>``) and ``<pre>_early<early>``, the
-        estimate of sample ``early - 1`` from a copy of the window
-        (:func:`algid.core.first_estimate`).
 
     Returns
     -------
     list of str
         Lines of C.
     """
-    pre, P, q = w.pre, w.PRE, w.q
-    tag = ""
-    if early is not None:
-        q, tag = early, str(early)
-    m = q - 1
+    pre, q = w.pre, w.q
     lines = [
-        "/* Integrate the q samples a[0 .. q-1] of an integrand with the start-up rule;",
-        "   set integrator k to its state after sample q-1; out[j]: the integral. */",
-        f"static void {pre}_start_level{tag}({pre}_window *w, int k, const double *a, double dt,",
-        f"{' ' * (len(pre) + 18)}double *out)",
+        "/* Integrate the n samples a[0 .. n-1] of an integrand with the start-up rule",
+        "   of n points; set integrator k to its state after sample n-1; out[j]: the",
+        "   integral. */",
+        f"static void {pre}_start_level({pre}_window *w, int k, const double *a, double dt,",
+        f"{' ' * (len(pre) + 18)}double *out, const {pre}_rule *rule)",
         "{",
         f"    double inc[{q - 1}];",
         "    double s = 0.0;",
+        "    const int n = rule->n;",
         "    int i, j;",
-    ]
-    if q > 2:
-        lines += [f"    for (j = 0; j < {q - 2}; ++j) {{",
-                  f"        double acc = ({pre}_ws{tag}[j][0] * dt) * a[0];",
-                  f"        for (i = 1; i < {q}; ++i) acc += ({pre}_ws{tag}[j][i] * dt) * a[i];",
-                  "        inc[j] = acc;", "    }"]
-    lines += [f"    inc[{q - 2}] = ({pre}_w{tag}[0] * dt) * a[0];",
-              f"    for (i = 1; i < {q}; ++i) inc[{q - 2}] += ({pre}_w{tag}[i] * dt) * a[i];",
-              "    out[0] = 0.0;",
-              f"    for (j = 1; j < {q}; ++j) {{",
-              "        s += inc[j - 1];", "        out[j] = s;", "    }",
-              "    w->sum[k] = s;",
-              f"    for (i = 0; i < {m}; ++i) w->hist[k][i] = a[i + 1];",
-              "}", "",
-              "/* Samples 0 .. q-1 after the origin, once sample q-1 has arrived: the",
-              "   estimate of sample q-1 into theta (the others are NaN). */",
-              f"static void {pre}_start{tag}({pre}_window *w, double dt, double *theta)",
-              "{",
-              f"    double lv[{w.levels}][{q}];  /* every level of every chain */",
-              f"    double lanes[{w.p + 1}][{w.lanes}][{q}];",
-              f"    double kv[{len(w.kernels)}], row[{w.lanes}];",
-              "    int j, r;"]
+        "    for (j = 0; j < n - 2; ++j) {",
+        "        double acc = (rule->ws[j * n] * dt) * a[0];",
+        "        for (i = 1; i < n; ++i) acc += (rule->ws[j * n + i] * dt) * a[i];",
+        "        inc[j] = acc;",
+        "    }",
+        "    inc[n - 2] = (rule->w[0] * dt) * a[0];",
+        "    for (i = 1; i < n; ++i) inc[n - 2] += (rule->w[i] * dt) * a[i];",
+        "    out[0] = 0.0;",
+        "    for (j = 1; j < n; ++j) {",
+        "        s += inc[j - 1];", "        out[j] = s;", "    }",
+        "    w->sum[k] = s;",
+        "    for (i = 0; i < n - 1; ++i) w->hist[k][i] = a[i + 1];",
+        "}", "",
+        "/* Samples 0 .. n-1 after the origin by the rule of n points: the estimate of",
+        "   sample n-1 into theta. */",
+        f"static void {pre}_start({pre}_window *w, double dt, double *theta, "
+        f"const {pre}_rule *rule)",
+        "{",
+        f"    double lv[{w.levels}][{q}] = {{{{0.0}}}};  /* every level of every chain */",
+        f"    double lanes[{w.p + 1}][{w.lanes}][{q}] = {{{{{{0.0}}}}}};",
+        f"    double kv[{len(w.kernels)}], row[{w.lanes}];",
+        "    const int n = rule->n;",
+        "    int j, r;"]
     if w.p:
         lines.append("    int lev;")
     base = {}
@@ -188,16 +190,16 @@ def startup_functions(w, early=None):
     for c, (_, _, d) in enumerate(w.chains):
         base[c] = offset
         offset += d + 1
-    lines.append(f"    for (j = 0; j < {q}; ++j) {{")
+    lines.append("    for (j = 0; j < n; ++j) {")
     lines.append("        const double tau = (double)j * dt;")
     for c in range(len(w.chains)):
         lines.append(f"        lv[{base[c]}][j] = "
                      f"{level0(w, c, 'tau', 'w->start_u[j]', 'w->start_y[j]')};")
     lines.append("    }")
     for k, (c, lev) in enumerate(w.chain_ints):
-        lines.append(f"    {pre}_start_level{tag}(w, {k}, lv[{base[c] + lev - 1}], dt, "
-                     f"lv[{base[c] + lev}]);")
-    lines.append(f"    for (j = 0; j < {q}; ++j) {{")
+        lines.append(f"    {pre}_start_level(w, {k}, lv[{base[c] + lev - 1}], dt, "
+                     f"lv[{base[c] + lev}], rule);")
+    lines.append("    for (j = 0; j < n; ++j) {")
     chain_of = {(s, pw): c for c, (s, pw, _) in enumerate(w.chains)}
     for idx, k in enumerate(w.kernels):
         c = chain_of[(k.signal, k.power)]
@@ -209,20 +211,20 @@ def startup_functions(w, early=None):
         n_chain = len(w.chain_ints)
         lines += [f"    for (lev = 0; lev < {w.p}; ++lev) {{",
                   f"        for (r = 0; r < {w.lanes}; ++r) {{",
-                  f"            {pre}_start_level{tag}(w, {n_chain} + lev * {w.lanes} + r, "
-                  "lanes[lev][r], dt, lanes[lev + 1][r]);",
+                  f"            {pre}_start_level(w, {n_chain} + lev * {w.lanes} + r, "
+                  "lanes[lev][r], dt, lanes[lev + 1][r], rule);",
                   "        }", "    }"]
-    lines += [f"    for (r = 0; r < {w.lanes}; ++r) row[r] = lanes[{w.p}][r][{q - 1}];",
+    lines += [f"    for (r = 0; r < {w.lanes}; ++r) row[r] = lanes[{w.p}][r][n - 1];",
               f"    {pre}_divide(row, theta);", "}", ""]
-    if early is not None:
-        lines += [f"/* The estimate of sample {q - 1} by the {q}-point rule, before the "
-                  "start-up of the",
-                  "   estimator's own rule (the window itself is left as it is). */",
-                  f"static void {pre}_early{q}(const {pre}_window *w, double dt, double *theta)",
+    if w.early_points:
+        lines += ["/* The estimate of sample n-1 by the rule of n < q points, before the",
+                  "   start-up of the estimator's own rule (the window is left as it is). */",
+                  f"static void {pre}_early(const {pre}_window *w, double dt, double *theta,",
+                  f"{' ' * (len(pre) + 13)}const {pre}_rule *rule)",
                   "{", f"    {pre}_window scratch = *w;",
-                  f"    {pre}_start{q}(&scratch, dt, theta);", "}", ""]
-    del P
+                  f"    {pre}_start(&scratch, dt, theta, rule);", "}", ""]
     return lines
+
 
 def integrator_step_function(w):
     """``<pre>_integrate``: one sample through one integrator (the per-sample loop).

@@ -318,8 +318,6 @@ class _Writer:
         out += c_loops.algebra_function(self)
         out += self._finish()
         out += c_loops.startup_functions(self)
-        for early in self.early_points:
-            out += c_loops.startup_functions(self, early)
         out += c_loops.integrator_step_function(self)
         out += c_loops.sample_loop_function(self)
         out += c_loops.block_loop_function(self)
@@ -361,7 +359,19 @@ class _Writer:
             for row in startup:
                 lines.append("    {" + ", ".join(_literal(w) for w in row) + "},")
             lines.append("};")
-        lines.append("")
+        rules = [(e, f"{pre}_w{e}", f"&{pre}_ws{e}[0][0]") for e in self.early_points]
+        rules.append((q, f"{pre}_w", f"&{pre}_ws[0][0]" if q > 2 else "NULL"))
+        lines += ["/* A rule of n points for the start-up: its weights w (n) and its start-up "
+                  "rows",
+                  "   ws (n - 2 rows of n, row-major). */",
+                  "typedef struct {", "    int n;", "    const double *w;",
+                  "    const double *ws;", f"}} {pre}_rule;",
+                  "/* The rules of fewer points for the samples before the start-up (if any), "
+                  "then",
+                  "   the estimator's own. */",
+                  f"static const {pre}_rule {pre}_rules[{len(rules)}] = {{"]
+        lines += [f"    {{{n}, {w}, {ws}}}," for n, w, ws in rules]
+        lines += ["};", ""]
         return lines
 
     def _struct(self):
@@ -435,10 +445,11 @@ class _Writer:
             "        w->start_y[j] = y[i];",
             "        w->n += 1.0;",
             f"        if (j == {q - 1}) {{",
-            f"            {pre}_start(w, dt, theta + i * {n_par});",
-            *[line for early in self.early_points for line in (
+            f"            {pre}_start(w, dt, theta + i * {n_par}, "
+            f"&{pre}_rules[{len(self.early_points)}]);",
+            *[line for e, early in enumerate(self.early_points) for line in (
                 f"        }} else if (j == {early - 1}) {{",
-                f"            {pre}_early{early}(w, dt, theta + i * {n_par});")],
+                f"            {pre}_early(w, dt, theta + i * {n_par}, &{pre}_rules[{e}]);")],
             "        } else {",
             f"            for (r = 0; r < {n_par}; ++r) theta[i * {n_par} + (size_t)r] = NAN;",
             "        }",

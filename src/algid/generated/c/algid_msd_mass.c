@@ -71,6 +71,20 @@ static const double algid_msd_mass_ws7[5][7] = {
     {-0.003158068783068783, 0.026587301587301587, -0.11195436507936508, 0.6201058201058202, 0.5095734126984127, -0.04563492063492063, 0.004480820105820106},
     {0.004480820105820106, -0.034523809523809526, 0.12068452380952381, -0.2687830687830688, 0.7769345238095238, 0.4154761904761905, -0.014269179894179895},
 };
+/* A rule of n points for the start-up: its weights w (n) and its start-up rows
+   ws (n - 2 rows of n, row-major). */
+typedef struct {
+    int n;
+    const double *w;
+    const double *ws;
+} algid_msd_mass_rule;
+/* The rules of fewer points for the samples before the start-up (if any), then
+   the estimator's own. */
+static const algid_msd_mass_rule algid_msd_mass_rules[3] = {
+    {6, algid_msd_mass_w6, &algid_msd_mass_ws6[0][0]},
+    {7, algid_msd_mass_w7, &algid_msd_mass_ws7[0][0]},
+    {8, algid_msd_mass_w, &algid_msd_mass_ws[0][0]},
+};
 
 /* One estimator with its time origin at its last restart.  Integrator k keeps
    its integral (the running sum of its increments, weights times dt) and the last
@@ -149,63 +163,66 @@ static void algid_msd_mass_divide(const double *lanes, double *theta)
     }
 }
 
-/* Integrate the q samples a[0 .. q-1] of an integrand with the start-up rule;
-   set integrator k to its state after sample q-1; out[j]: the integral. */
+/* Integrate the n samples a[0 .. n-1] of an integrand with the start-up rule
+   of n points; set integrator k to its state after sample n-1; out[j]: the
+   integral. */
 static void algid_msd_mass_start_level(algid_msd_mass_window *w, int k, const double *a, double dt,
-                                double *out)
+                                double *out, const algid_msd_mass_rule *rule)
 {
     double inc[7];
     double s = 0.0;
+    const int n = rule->n;
     int i, j;
-    for (j = 0; j < 6; ++j) {
-        double acc = (algid_msd_mass_ws[j][0] * dt) * a[0];
-        for (i = 1; i < 8; ++i) acc += (algid_msd_mass_ws[j][i] * dt) * a[i];
+    for (j = 0; j < n - 2; ++j) {
+        double acc = (rule->ws[j * n] * dt) * a[0];
+        for (i = 1; i < n; ++i) acc += (rule->ws[j * n + i] * dt) * a[i];
         inc[j] = acc;
     }
-    inc[6] = (algid_msd_mass_w[0] * dt) * a[0];
-    for (i = 1; i < 8; ++i) inc[6] += (algid_msd_mass_w[i] * dt) * a[i];
+    inc[n - 2] = (rule->w[0] * dt) * a[0];
+    for (i = 1; i < n; ++i) inc[n - 2] += (rule->w[i] * dt) * a[i];
     out[0] = 0.0;
-    for (j = 1; j < 8; ++j) {
+    for (j = 1; j < n; ++j) {
         s += inc[j - 1];
         out[j] = s;
     }
     w->sum[k] = s;
-    for (i = 0; i < 7; ++i) w->hist[k][i] = a[i + 1];
+    for (i = 0; i < n - 1; ++i) w->hist[k][i] = a[i + 1];
 }
 
-/* Samples 0 .. q-1 after the origin, once sample q-1 has arrived: the
-   estimate of sample q-1 into theta (the others are NaN). */
-static void algid_msd_mass_start(algid_msd_mass_window *w, double dt, double *theta)
+/* Samples 0 .. n-1 after the origin by the rule of n points: the estimate of
+   sample n-1 into theta. */
+static void algid_msd_mass_start(algid_msd_mass_window *w, double dt, double *theta, const algid_msd_mass_rule *rule)
 {
-    double lv[20][8];  /* every level of every chain */
-    double lanes[3][4][8];
+    double lv[20][8] = {{0.0}};  /* every level of every chain */
+    double lanes[3][4][8] = {{{0.0}}};
     double kv[15], row[4];
+    const int n = rule->n;
     int j, r;
     int lev;
-    for (j = 0; j < 8; ++j) {
+    for (j = 0; j < n; ++j) {
         const double tau = (double)j * dt;
         lv[0][j] = (tau*tau) * w->start_u[j];
         lv[5][j] = w->start_y[j];
         lv[10][j] = tau * w->start_y[j];
         lv[15][j] = (tau*tau) * w->start_y[j];
     }
-    algid_msd_mass_start_level(w, 0, lv[0], dt, lv[1]);
-    algid_msd_mass_start_level(w, 1, lv[1], dt, lv[2]);
-    algid_msd_mass_start_level(w, 2, lv[2], dt, lv[3]);
-    algid_msd_mass_start_level(w, 3, lv[3], dt, lv[4]);
-    algid_msd_mass_start_level(w, 4, lv[5], dt, lv[6]);
-    algid_msd_mass_start_level(w, 5, lv[6], dt, lv[7]);
-    algid_msd_mass_start_level(w, 6, lv[7], dt, lv[8]);
-    algid_msd_mass_start_level(w, 7, lv[8], dt, lv[9]);
-    algid_msd_mass_start_level(w, 8, lv[10], dt, lv[11]);
-    algid_msd_mass_start_level(w, 9, lv[11], dt, lv[12]);
-    algid_msd_mass_start_level(w, 10, lv[12], dt, lv[13]);
-    algid_msd_mass_start_level(w, 11, lv[13], dt, lv[14]);
-    algid_msd_mass_start_level(w, 12, lv[15], dt, lv[16]);
-    algid_msd_mass_start_level(w, 13, lv[16], dt, lv[17]);
-    algid_msd_mass_start_level(w, 14, lv[17], dt, lv[18]);
-    algid_msd_mass_start_level(w, 15, lv[18], dt, lv[19]);
-    for (j = 0; j < 8; ++j) {
+    algid_msd_mass_start_level(w, 0, lv[0], dt, lv[1], rule);
+    algid_msd_mass_start_level(w, 1, lv[1], dt, lv[2], rule);
+    algid_msd_mass_start_level(w, 2, lv[2], dt, lv[3], rule);
+    algid_msd_mass_start_level(w, 3, lv[3], dt, lv[4], rule);
+    algid_msd_mass_start_level(w, 4, lv[5], dt, lv[6], rule);
+    algid_msd_mass_start_level(w, 5, lv[6], dt, lv[7], rule);
+    algid_msd_mass_start_level(w, 6, lv[7], dt, lv[8], rule);
+    algid_msd_mass_start_level(w, 7, lv[8], dt, lv[9], rule);
+    algid_msd_mass_start_level(w, 8, lv[10], dt, lv[11], rule);
+    algid_msd_mass_start_level(w, 9, lv[11], dt, lv[12], rule);
+    algid_msd_mass_start_level(w, 10, lv[12], dt, lv[13], rule);
+    algid_msd_mass_start_level(w, 11, lv[13], dt, lv[14], rule);
+    algid_msd_mass_start_level(w, 12, lv[15], dt, lv[16], rule);
+    algid_msd_mass_start_level(w, 13, lv[16], dt, lv[17], rule);
+    algid_msd_mass_start_level(w, 14, lv[17], dt, lv[18], rule);
+    algid_msd_mass_start_level(w, 15, lv[18], dt, lv[19], rule);
+    for (j = 0; j < n; ++j) {
         kv[0] = lv[2][j];
         kv[1] = lv[3][j];
         kv[2] = lv[4][j];
@@ -226,195 +243,20 @@ static void algid_msd_mass_start(algid_msd_mass_window *w, double dt, double *th
     }
     for (lev = 0; lev < 2; ++lev) {
         for (r = 0; r < 4; ++r) {
-            algid_msd_mass_start_level(w, 16 + lev * 4 + r, lanes[lev][r], dt, lanes[lev + 1][r]);
+            algid_msd_mass_start_level(w, 16 + lev * 4 + r, lanes[lev][r], dt, lanes[lev + 1][r], rule);
         }
     }
-    for (r = 0; r < 4; ++r) row[r] = lanes[2][r][7];
+    for (r = 0; r < 4; ++r) row[r] = lanes[2][r][n - 1];
     algid_msd_mass_divide(row, theta);
 }
 
-/* Integrate the q samples a[0 .. q-1] of an integrand with the start-up rule;
-   set integrator k to its state after sample q-1; out[j]: the integral. */
-static void algid_msd_mass_start_level6(algid_msd_mass_window *w, int k, const double *a, double dt,
-                                double *out)
-{
-    double inc[5];
-    double s = 0.0;
-    int i, j;
-    for (j = 0; j < 4; ++j) {
-        double acc = (algid_msd_mass_ws6[j][0] * dt) * a[0];
-        for (i = 1; i < 6; ++i) acc += (algid_msd_mass_ws6[j][i] * dt) * a[i];
-        inc[j] = acc;
-    }
-    inc[4] = (algid_msd_mass_w6[0] * dt) * a[0];
-    for (i = 1; i < 6; ++i) inc[4] += (algid_msd_mass_w6[i] * dt) * a[i];
-    out[0] = 0.0;
-    for (j = 1; j < 6; ++j) {
-        s += inc[j - 1];
-        out[j] = s;
-    }
-    w->sum[k] = s;
-    for (i = 0; i < 5; ++i) w->hist[k][i] = a[i + 1];
-}
-
-/* Samples 0 .. q-1 after the origin, once sample q-1 has arrived: the
-   estimate of sample q-1 into theta (the others are NaN). */
-static void algid_msd_mass_start6(algid_msd_mass_window *w, double dt, double *theta)
-{
-    double lv[20][6];  /* every level of every chain */
-    double lanes[3][4][6];
-    double kv[15], row[4];
-    int j, r;
-    int lev;
-    for (j = 0; j < 6; ++j) {
-        const double tau = (double)j * dt;
-        lv[0][j] = (tau*tau) * w->start_u[j];
-        lv[5][j] = w->start_y[j];
-        lv[10][j] = tau * w->start_y[j];
-        lv[15][j] = (tau*tau) * w->start_y[j];
-    }
-    algid_msd_mass_start_level6(w, 0, lv[0], dt, lv[1]);
-    algid_msd_mass_start_level6(w, 1, lv[1], dt, lv[2]);
-    algid_msd_mass_start_level6(w, 2, lv[2], dt, lv[3]);
-    algid_msd_mass_start_level6(w, 3, lv[3], dt, lv[4]);
-    algid_msd_mass_start_level6(w, 4, lv[5], dt, lv[6]);
-    algid_msd_mass_start_level6(w, 5, lv[6], dt, lv[7]);
-    algid_msd_mass_start_level6(w, 6, lv[7], dt, lv[8]);
-    algid_msd_mass_start_level6(w, 7, lv[8], dt, lv[9]);
-    algid_msd_mass_start_level6(w, 8, lv[10], dt, lv[11]);
-    algid_msd_mass_start_level6(w, 9, lv[11], dt, lv[12]);
-    algid_msd_mass_start_level6(w, 10, lv[12], dt, lv[13]);
-    algid_msd_mass_start_level6(w, 11, lv[13], dt, lv[14]);
-    algid_msd_mass_start_level6(w, 12, lv[15], dt, lv[16]);
-    algid_msd_mass_start_level6(w, 13, lv[16], dt, lv[17]);
-    algid_msd_mass_start_level6(w, 14, lv[17], dt, lv[18]);
-    algid_msd_mass_start_level6(w, 15, lv[18], dt, lv[19]);
-    for (j = 0; j < 6; ++j) {
-        kv[0] = lv[2][j];
-        kv[1] = lv[3][j];
-        kv[2] = lv[4][j];
-        kv[3] = lv[7][j];
-        kv[4] = lv[8][j];
-        kv[5] = lv[9][j];
-        kv[6] = lv[11][j];
-        kv[7] = lv[12][j];
-        kv[8] = lv[13][j];
-        kv[9] = lv[14][j];
-        kv[10] = lv[15][j];
-        kv[11] = lv[16][j];
-        kv[12] = lv[17][j];
-        kv[13] = lv[18][j];
-        kv[14] = lv[19][j];
-        algid_msd_mass_algebra(kv, row);
-        for (r = 0; r < 4; ++r) lanes[0][r][j] = row[r];
-    }
-    for (lev = 0; lev < 2; ++lev) {
-        for (r = 0; r < 4; ++r) {
-            algid_msd_mass_start_level6(w, 16 + lev * 4 + r, lanes[lev][r], dt, lanes[lev + 1][r]);
-        }
-    }
-    for (r = 0; r < 4; ++r) row[r] = lanes[2][r][5];
-    algid_msd_mass_divide(row, theta);
-}
-
-/* The estimate of sample 5 by the 6-point rule, before the start-up of the
-   estimator's own rule (the window itself is left as it is). */
-static void algid_msd_mass_early6(const algid_msd_mass_window *w, double dt, double *theta)
+/* The estimate of sample n-1 by the rule of n < q points, before the
+   start-up of the estimator's own rule (the window is left as it is). */
+static void algid_msd_mass_early(const algid_msd_mass_window *w, double dt, double *theta,
+                           const algid_msd_mass_rule *rule)
 {
     algid_msd_mass_window scratch = *w;
-    algid_msd_mass_start6(&scratch, dt, theta);
-}
-
-/* Integrate the q samples a[0 .. q-1] of an integrand with the start-up rule;
-   set integrator k to its state after sample q-1; out[j]: the integral. */
-static void algid_msd_mass_start_level7(algid_msd_mass_window *w, int k, const double *a, double dt,
-                                double *out)
-{
-    double inc[6];
-    double s = 0.0;
-    int i, j;
-    for (j = 0; j < 5; ++j) {
-        double acc = (algid_msd_mass_ws7[j][0] * dt) * a[0];
-        for (i = 1; i < 7; ++i) acc += (algid_msd_mass_ws7[j][i] * dt) * a[i];
-        inc[j] = acc;
-    }
-    inc[5] = (algid_msd_mass_w7[0] * dt) * a[0];
-    for (i = 1; i < 7; ++i) inc[5] += (algid_msd_mass_w7[i] * dt) * a[i];
-    out[0] = 0.0;
-    for (j = 1; j < 7; ++j) {
-        s += inc[j - 1];
-        out[j] = s;
-    }
-    w->sum[k] = s;
-    for (i = 0; i < 6; ++i) w->hist[k][i] = a[i + 1];
-}
-
-/* Samples 0 .. q-1 after the origin, once sample q-1 has arrived: the
-   estimate of sample q-1 into theta (the others are NaN). */
-static void algid_msd_mass_start7(algid_msd_mass_window *w, double dt, double *theta)
-{
-    double lv[20][7];  /* every level of every chain */
-    double lanes[3][4][7];
-    double kv[15], row[4];
-    int j, r;
-    int lev;
-    for (j = 0; j < 7; ++j) {
-        const double tau = (double)j * dt;
-        lv[0][j] = (tau*tau) * w->start_u[j];
-        lv[5][j] = w->start_y[j];
-        lv[10][j] = tau * w->start_y[j];
-        lv[15][j] = (tau*tau) * w->start_y[j];
-    }
-    algid_msd_mass_start_level7(w, 0, lv[0], dt, lv[1]);
-    algid_msd_mass_start_level7(w, 1, lv[1], dt, lv[2]);
-    algid_msd_mass_start_level7(w, 2, lv[2], dt, lv[3]);
-    algid_msd_mass_start_level7(w, 3, lv[3], dt, lv[4]);
-    algid_msd_mass_start_level7(w, 4, lv[5], dt, lv[6]);
-    algid_msd_mass_start_level7(w, 5, lv[6], dt, lv[7]);
-    algid_msd_mass_start_level7(w, 6, lv[7], dt, lv[8]);
-    algid_msd_mass_start_level7(w, 7, lv[8], dt, lv[9]);
-    algid_msd_mass_start_level7(w, 8, lv[10], dt, lv[11]);
-    algid_msd_mass_start_level7(w, 9, lv[11], dt, lv[12]);
-    algid_msd_mass_start_level7(w, 10, lv[12], dt, lv[13]);
-    algid_msd_mass_start_level7(w, 11, lv[13], dt, lv[14]);
-    algid_msd_mass_start_level7(w, 12, lv[15], dt, lv[16]);
-    algid_msd_mass_start_level7(w, 13, lv[16], dt, lv[17]);
-    algid_msd_mass_start_level7(w, 14, lv[17], dt, lv[18]);
-    algid_msd_mass_start_level7(w, 15, lv[18], dt, lv[19]);
-    for (j = 0; j < 7; ++j) {
-        kv[0] = lv[2][j];
-        kv[1] = lv[3][j];
-        kv[2] = lv[4][j];
-        kv[3] = lv[7][j];
-        kv[4] = lv[8][j];
-        kv[5] = lv[9][j];
-        kv[6] = lv[11][j];
-        kv[7] = lv[12][j];
-        kv[8] = lv[13][j];
-        kv[9] = lv[14][j];
-        kv[10] = lv[15][j];
-        kv[11] = lv[16][j];
-        kv[12] = lv[17][j];
-        kv[13] = lv[18][j];
-        kv[14] = lv[19][j];
-        algid_msd_mass_algebra(kv, row);
-        for (r = 0; r < 4; ++r) lanes[0][r][j] = row[r];
-    }
-    for (lev = 0; lev < 2; ++lev) {
-        for (r = 0; r < 4; ++r) {
-            algid_msd_mass_start_level7(w, 16 + lev * 4 + r, lanes[lev][r], dt, lanes[lev + 1][r]);
-        }
-    }
-    for (r = 0; r < 4; ++r) row[r] = lanes[2][r][6];
-    algid_msd_mass_divide(row, theta);
-}
-
-/* The estimate of sample 6 by the 7-point rule, before the start-up of the
-   estimator's own rule (the window itself is left as it is). */
-static void algid_msd_mass_early7(const algid_msd_mass_window *w, double dt, double *theta)
-{
-    algid_msd_mass_window scratch = *w;
-    algid_msd_mass_start7(&scratch, dt, theta);
+    algid_msd_mass_start(&scratch, dt, theta, rule);
 }
 
 /* One step of an integrator: v is its integrand at this sample; returns the
@@ -788,11 +630,11 @@ static void algid_msd_mass_feed(algid_msd_mass_window *w, const double *u, const
         w->start_y[j] = y[i];
         w->n += 1.0;
         if (j == 7) {
-            algid_msd_mass_start(w, dt, theta + i * 3);
+            algid_msd_mass_start(w, dt, theta + i * 3, &algid_msd_mass_rules[2]);
         } else if (j == 5) {
-            algid_msd_mass_early6(w, dt, theta + i * 3);
+            algid_msd_mass_early(w, dt, theta + i * 3, &algid_msd_mass_rules[0]);
         } else if (j == 6) {
-            algid_msd_mass_early7(w, dt, theta + i * 3);
+            algid_msd_mass_early(w, dt, theta + i * 3, &algid_msd_mass_rules[1]);
         } else {
             for (r = 0; r < 3; ++r) theta[i * 3 + (size_t)r] = NAN;
         }
