@@ -257,6 +257,12 @@ def test_legitimate_short_or_lightly_excited_records_are_accepted():
             assert short.t.size == 20
             final = algid.estimate(short.t, short.f, short.x, model=model).final()
             assert_close(final, truth, 1e-4)
+    # the shortest record is 12 samples, for the 8-point default as for 6 points (both
+    # report from sample 5); 11 are refused
+    step = algid.simulate("step", duration=0.011)
+    assert_close(algid.estimate(step.t, step.f, step.x).final(), TRUE, 1e-5)
+    with pytest.raises(InputDataError, match="at least 12"):
+        algid.estimate(step.t[:11], step.f[:11], step.x[:11])
     settled = algid.simulate("step", duration=200.0)
     assert_close(algid.estimate(settled.t, settled.f, settled.x).final(), TRUE, 1e-6)
     # the moments (lowpass path) and the estimator's own integrals agree

@@ -233,7 +233,7 @@ def estimate(t, f=None, x=None, *, model="msd", filter_order=DEFAULT_FILTER_ORDE
     lowpass_filter = None if lowpass is None else as_lowpass(lowpass)
     backends.choose_engine(engine, 0, lowpass_filter)  # refuse a bad option before the data
     mass = known_mass(module, mass)
-    min_samples = max(2 * points, 8)
+    min_samples = _min_samples(points)
     try:
         n = len(t)
     except TypeError:
@@ -266,6 +266,12 @@ def estimate(t, f=None, x=None, *, model="msd", filter_order=DEFAULT_FILTER_ORDE
                             filter_order=filter_order, quadrature_points=points, mass=mass,
                             mass_scaled=tuple(estimates)[len(module.PARAMETERS):],
                             numerical_error=error)
+
+
+def _min_samples(points):
+    """The shortest record: twice the samples up to the first estimate, at least 8 (12
+    for the rules of 6 to 9 points, which report from the same sample)."""
+    return max(2 * (core.first_estimate(points) + 1), 8)
 
 
 def _check_late_origin(late_origin, numerical_error, lowpass):
@@ -348,7 +354,7 @@ def _estimate_signals(t, signals, *, model, filter_order, quadrature_points, qua
     # the time axis once (passed as its own companions: t is never identically zero,
     # so only the checks of the time axis can fail), then every signal
     t_checked, _, _, dt = check_experiment(t, t, t, names=("t", "t", "t"),
-                                           min_samples=max(2 * points, 8))
+                                           min_samples=_min_samples(points))
     checked = {name: as_signal(samples, name=str(name)) for name, samples in signals.items()}
     for name, values in checked.items():
         if values.size != t_checked.size:
@@ -362,7 +368,7 @@ def _estimate_signals(t, signals, *, model, filter_order, quadrature_points, qua
     channels = stream.update(_rescaled(module, checked), t_checked)
     # causal derivatives: the time origin is the first sample that has one
     start = stream.warmup
-    if t_checked.size - start < max(2 * points, 8):
+    if t_checked.size - start < _min_samples(points):
         raise InputDataError(f"too few samples: {t_checked.size}, of which the first {start} "
                              "have no causal derivative estimate")
     backend = backends.choose_engine(engine, t_checked.size - start, None)
