@@ -84,16 +84,16 @@ from algid.validation import positive_number
 
 __all__ = ["OnlineEstimator", "run_stream", "TRACKING_RESET_PERIOD"]
 
-#: Reset period [s] suggested for following changes of the parameters in noise-free
-#: or nearly noise-free data at about 1 kHz with the default options (filter order 2;
-#: measured with the 6-point rule, whose first estimates the 8-point one shares).  Measured on the paper's system (B = 2, K = 3) and after changes to
-#: K = 5 or B = 1, for step and sine inputs: an estimator restarted in mid-stream comes
-#: within 0.1 % 5-7 ms after its origin (13 ms for a sine from rest; within 1e-6 after
-#: 5-20 ms, 68 ms for a step response that has settled), inside the half period of
-#: 25 ms before it is reported, and the estimates are within 0.1 % of the new values
-#: once the reported estimator's origin is after the change: 25-48 ms after it (at most
-#: one period).  Short periods do not average measurement noise: with noise of 1e-4 m
-#: on ``x`` they are useless at this period, and periods of seconds are needed.
+#: Reset period [s] suggested for following changes of the parameters in noise-free or
+#: nearly noise-free data at about 1 kHz with filter order 2 (measured with the 6-point
+#: rule, whose first estimates the 8-point default shares), on the paper's system
+#: (B = 2, K = 3) and after changes to K = 5 or B = 1, step and sine inputs: an estimator
+#: restarted in mid-stream comes within 0.1 % 5-7 ms after its origin (13 ms for a sine
+#: from rest; within 1e-6 after 5-20 ms, 68 ms for a settled step response), inside the
+#: half period of 25 ms before it is reported, and the estimates are within 0.1 % of the
+#: new values once the reported estimator's origin is after the change: 25-48 ms after
+#: it (at most one period).  Short periods do not average measurement noise: with noise
+#: of 1e-4 m on ``x`` they are useless here, and periods of seconds are needed.
 TRACKING_RESET_PERIOD = 0.05
 
 

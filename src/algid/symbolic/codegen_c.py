@@ -119,6 +119,22 @@ def _literal(value) -> str:
     return text if ("." in text or "e" in text or "n" in text) else text + ".0"
 
 
+def _weight_tables(w_name, ws_name, regular, startup, comment, head=False):
+    """C arrays of a rule's regular weights ``w_name[q]`` and start-up rows
+    ``ws_name[q - 2][q]`` (none for ``q = 2``); ``comment`` before the start-up rows, or
+    before both with ``head``."""
+    q = len(regular)
+    lines = [comment] if head else []
+    lines.append(f"static const double {w_name}[{q}] = {{")
+    lines += [f"    {_literal(w)}," for w in regular]
+    lines.append("};")
+    if q > 2:
+        lines += ([] if head else [comment]) + [f"static const double {ws_name}[{q - 2}][{q}] = {{"]
+        lines += ["    {" + ", ".join(_literal(w) for w in row) + "}," for row in startup]
+        lines.append("};")
+    return lines
+
+
 def _check(derivation, name, filter_order, quadrature_order):
     if not isinstance(derivation, Derivation):
         raise ModelError(f"expected a Derivation, got {type(derivation).__name__}")
@@ -338,27 +354,15 @@ class _Writer:
                  "",
                  f"/* {q}-point Adams-Moulton rule (weights times dt): the integral over",
                  "   [t[n-1], t[n]] from the samples n-q+1 .. n; each weight is multiplied",
-                 "   by dt first, as in algid.quadrature.integrator_weights. */",
-                 f"static const double {pre}_w[{q}] = {{"]
-        lines += [f"    {_literal(w)}," for w in self.regular]
-        lines.append("};")
-        if q > 2:
-            lines += ["/* Start-up: row j-1 integrates over [t[j-1], t[j]] from samples "
-                      "0 .. q-1. */",
-                      f"static const double {pre}_ws[{q - 2}][{q}] = {{"]
-            for row in self.startup:
-                lines.append("    {" + ", ".join(_literal(w) for w in row) + "},")
-            lines.append("};")
+                 "   by dt first, as in algid.quadrature.integrator_weights. */"]
+        lines += _weight_tables(f"{pre}_w", f"{pre}_ws", self.regular, self.startup,
+                                "/* Start-up: row j-1 integrates over [t[j-1], t[j]] from "
+                                "samples 0 .. q-1. */")
         for early in self.early_points:
-            regular, startup = quadrature_weights(early)
-            lines += [f"/* The {early}-point rule and its start-up, for the estimate of sample "
-                      f"{early - 1}. */",
-                      f"static const double {pre}_w{early}[{early}] = {{"]
-            lines += [f"    {_literal(w)}," for w in regular]
-            lines += ["};", f"static const double {pre}_ws{early}[{early - 2}][{early}] = {{"]
-            for row in startup:
-                lines.append("    {" + ", ".join(_literal(w) for w in row) + "},")
-            lines.append("};")
+            lines += _weight_tables(f"{pre}_w{early}", f"{pre}_ws{early}",
+                                    *quadrature_weights(early),
+                                    f"/* The {early}-point rule and its start-up, for the "
+                                    f"estimate of sample {early - 1}. */", head=True)
         rules = [(e, f"{pre}_w{e}", f"&{pre}_ws{e}[0][0]") for e in self.early_points]
         rules.append((q, f"{pre}_w", f"&{pre}_ws[0][0]" if q > 2 else "NULL"))
         lines += ["/* A rule of n points for the start-up: its weights w (n) and its start-up "
