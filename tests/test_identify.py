@@ -262,15 +262,21 @@ def test_noise_products_are_the_covariance_of_window_integrals():
         assert np.allclose(constant, 2.0 * np.einsum("nw,nw->w", g1, g2), rtol=1e-10)
 
 
-def test_bias_compensation_leaves_a_closed_loop_alone(friction_record):
-    """In the friction loop the equations' misfit is not output noise (a sampled
-    sign(q')): the noise bound caps the compensation, and the estimate stays that of
-    least squares to well within its standard error."""
+def test_bias_compensation_in_a_closed_loop(friction_record):
+    """In the friction loop the force reads the position through the controller; the
+    equations' misfit is the output noise (the crossings of sign(q') placed by the
+    model's motion), small at 1 um: bias compensation moves the estimate by a small
+    fraction of its standard error, and on the noise-free record not at all."""
     record, _ = friction_record
     bc = algid.identify(record, *FRICTION_EQUATION, window=0.1)
     ls = algid.identify(record, *FRICTION_EQUATION, window=0.1, method="ls")
     for p in bc.values:
-        assert abs(bc.values[p] - ls.values[p]) < 0.05 * bc.stderr[p], p
+        assert abs(bc.values[p] - ls.values[p]) < 0.2 * bc.stderr[p], p
+    clean, _ = friction_loop(noise=0.0)
+    bc = algid.identify(clean, *FRICTION_EQUATION, window=0.1)
+    ls = algid.identify(clean, *FRICTION_EQUATION, window=0.1, method="ls")
+    for p in bc.values:
+        assert abs(bc.values[p] / ls.values[p] - 1) < 1e-9, p
 
 
 @pytest.mark.parametrize("uniform", [True, False])

@@ -77,9 +77,10 @@ from algid.expression import Call, Signal
 from algid.grammar import parse_equation
 from algid.model import Model
 from algid.records import estimate_derivative, prepare_records
-from algid.sign_crossings import crossing_jumps, refine_crossings
+from algid.sign_crossings import crossing_jumps, crossing_motion, refine_crossings
 from algid.window_covariance import hac_meat, noise_meat
 from algid.window_kernels import (
+    sign_changes,
     sign_samples,
     uniform_window_integrals,
     window_integrals,
@@ -138,6 +139,10 @@ class _Problem:
         self.parameters = model.parameters
         self.factors = {}
         self.sign_jumps = {}   # sign factor -> jump of q'' (refined crossings)
+        self.first_values = {}  # parameter -> first estimate (the crossings' local fits)
+        # (sign factor, segment) -> refined crossings: (time, step of the sign, first
+        # sample of the fit, derivative of the time with respect to those samples)
+        self.crossings = {}
 
     def factor_samples(self, factor, which="measured"):
         key = (factor, which)
@@ -151,8 +156,18 @@ class _Problem:
                                           dtype=float) * np.ones(len(seg))
                     crossings = None
                     if which == "measured" and factor in self.sign_jumps:
-                        crossings = refine_crossings(values[self.model.output], seg.t,
-                                                     argument, self.sign_jumps[factor])
+                        motion = crossing_motion(self.model, self.first_values, values,
+                                                 seg.t)
+                        forcing, damping = motion if motion else (None, 0.0)
+                        crossings, moves = refine_crossings(
+                            values[self.model.output], seg.t, argument,
+                            self.sign_jumps[factor], forcing=forcing, damping=damping,
+                            sensitivity=True)
+                        index = sign_changes(argument)[0]
+                        steps = np.sign(argument[index + 1]) - np.sign(argument[index])
+                        self.crossings[(factor, len(samples))] = [
+                            (tc, step, *move) for tc, step, move
+                            in zip(crossings, steps, moves) if move is not None]
                     z = sign_samples(argument, seg.t, crossings)
                 else:
                     z = np.asarray(factor.evaluate(values, seg.t), dtype=float) \
@@ -616,7 +631,8 @@ def identify(data, equation, parameters=None, *, time=None, rate=None, output=No
         length, scores = choose_window(problem, multiplicities,
                                        method="bc" if method == "iv" else method)
     fit = _solve(problem, length, multiplicities, method="bc" if method == "iv" else method)
-    problem.sign_jumps = crossing_jumps(model, dict(zip(model.parameters, fit.theta)))
+    problem.first_values = dict(zip(model.parameters, fit.theta))
+    problem.sign_jumps = crossing_jumps(model, problem.first_values)
     if problem.sign_jumps:   # again, crossings of sign(q') placed by the model (same
         # window: re-chosen, it varied with the noise and so did its quadrature bias)
         problem.factors = {k: v for k, v in problem.factors.items()

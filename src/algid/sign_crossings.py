@@ -43,7 +43,7 @@ from algid.differentiation import DEFAULT_WINDOW_STEPS
 from algid.expression import Call, Power, Product, Signal, Sum
 from algid.window_kernels import sign_changes
 
-__all__ = ["refine_crossings", "crossing_jumps", "FIT_HALF_WIDTH", "SEARCH_SPAN"]
+__all__ = ["refine_crossings", "crossing_jumps", "crossing_motion", "FIT_HALF_WIDTH", "SEARCH_SPAN"]
 
 #: Samples on each side of a crossing that the local fit of the position uses (on the
 #: friction loop, 15 scatter the crossings 1.6 times as much, 25 shift them twice as far
@@ -124,6 +124,57 @@ def crossing_jumps(model, values):
     return {factor: jump} if np.isfinite(jump) else {}
 
 
+def crossing_motion(model, values, signals, t):
+    """The model's acceleration of its output, without the ``q'`` and ``sign(q')`` terms.
+
+    For a model accepted by :func:`crossing_jumps`, written ``L q'' + a q' + S sign(q')
+    + sum_k w_k z_k = 0`` (every other term without a derivative), this gives the
+    samples of ``-sum_k w_k z_k / L`` and ``a / L``: near a crossing the output then
+    moves as ``q'' = forcing - (a / L) q' - (S / L) sign(q')``, whatever drives it (a
+    feedback loop acts through the measured force).
+
+    Parameters
+    ----------
+    model : Model
+        The model.
+    values : mapping
+        Parameter name -> value (a first estimate).
+    signals : mapping
+        Signal name (or ``(name, k)`` for a derivative estimate) -> samples.
+    t : array_like
+        Sample times.
+
+    Returns
+    -------
+    tuple of (numpy.ndarray, float) or None
+        ``(forcing, damping)``; None when the model is not of that form.
+    """
+    jumps = crossing_jumps(model, values)
+    if not jumps:
+        return None
+    (factor, _), = jumps.items()
+    plain = Signal(model.output)
+
+    def weight(term):
+        return term.coefficient * (1.0 if term.parameter is None
+                                   else float(values[term.parameter]))
+
+    leading = damping = 0.0
+    forcing = np.zeros(len(t))
+    for term in model.terms:
+        if term.factor == plain and term.derivative in (1, 2):
+            if term.derivative == 2:
+                leading += weight(term)
+            else:
+                damping += weight(term)
+        elif term.derivative != 0:
+            return None
+        elif term.factor != factor:
+            forcing -= weight(term) * np.asarray(term.factor.evaluate(signals, t),
+                                                 dtype=float)
+    return forcing / leading, damping / leading
+
+
 def _residuals(position, t, times, jump, scale):
     """Residual sums of squares of the kinked stationary-point fit at every time in
     ``times`` (the samples ``position`` at ``t``, offsets in units of ``scale``)."""
@@ -134,18 +185,21 @@ def _residuals(position, t, times, jump, scale):
     right = np.einsum("gik,gi->gk", basis, target)
     coef = np.linalg.solve(normal, right[..., None])[..., 0]
     residual = target - np.einsum("gik,gk->gi", basis, coef)
-    return np.einsum("gi,gi->g", residual, residual), coef
+    return np.einsum("gi,gi->g", residual, residual), coef, residual
 
 
-def _refine_one(position, t, guess, jump, upwards, scale):
-    """Refined crossing time near ``guess``, or None where the fit cannot place it."""
+def _refine_one(residuals, guess, upwards, scale):
+    """Refined crossing time near ``guess``, or None where the fit cannot place it.
+
+    ``residuals(times)`` gives the residual sums of squares of the local fit at every
+    candidate time, the acceleration just before each and the residuals themselves."""
     coarse = guess + np.arange(-SEARCH_SPAN, SEARCH_SPAN + _COARSE / 2, _COARSE) * scale
-    rss, _ = _residuals(position, t, coarse, jump, scale)
+    rss = residuals(coarse)[0]
     m = int(np.argmin(rss))
     if m == 0 or m == len(coarse) - 1:
         return None   # the best time is at the edge of the search: no clear minimum
     times = coarse[m] + np.linspace(-_COARSE, _COARSE, _FINE) * scale
-    rss, _ = _residuals(position, t, times, jump, scale)
+    rss = residuals(times)[0]
     m = min(max(int(np.argmin(rss)), 1), _FINE - 2)
     below, at, above = rss[m - 1:m + 2]
     curvature = below - 2.0 * at + above
@@ -153,16 +207,78 @@ def _refine_one(position, t, guess, jump, upwards, scale):
         return None
     spacing = times[1] - times[0]
     best = times[m] + np.clip(0.5 * (below - above) / curvature, -1.0, 1.0) * spacing
-    _, coef = _residuals(position, t, np.array([best]), jump, scale)
+    before = residuals(np.array([best]))[1]
     # the acceleration just before the crossing must point the way the velocity crosses
     # (after it, near sticking, it may be about zero or even point back a little)
-    before = 2.0 * coef[0, 1] / scale ** 2
-    if not (before > 0 if upwards else before < 0):
+    if not (before[0] > 0 if upwards else before[0] < 0):
         return None
     return float(best)
 
 
-def refine_crossings(position, t, velocity, jump, half_width=FIT_HALF_WIDTH):
+def _hermite(t, values, slopes, times):
+    """Cubic Hermite interpolation of samples with known derivatives at ``times``."""
+    i = np.clip(np.searchsorted(t, times, side="right") - 1, 0, len(t) - 2)
+    h = t[i + 1] - t[i]
+    x = (times - t[i]) / h
+    h00, h10 = (1 + 2 * x) * (1 - x) ** 2, x * (1 - x) ** 2
+    h01, h11 = x ** 2 * (3 - 2 * x), x ** 2 * (x - 1)
+    return (h00 * values[i] + h10 * h * slopes[i] + h01 * values[i + 1]
+            + h11 * h * slopes[i + 1])
+
+
+def _cumulative(values, slopes, t):
+    """Running integral from ``t[0]`` of samples with known derivatives (the trapezoid
+    rule with its end correction: exact for cubics)."""
+    h = np.diff(t)
+    steps = h / 2 * (values[1:] + values[:-1]) - h ** 2 / 12 * (slopes[1:] - slopes[:-1])
+    return np.concatenate([[0.0], np.cumsum(steps)])
+
+
+def _motion_residuals(position, t, jump, forcing, damping):
+    """Residual function of the fit by the model's own motion (see the module notes)."""
+    g1 = _cumulative(forcing, np.gradient(forcing, t), t)
+    g2 = _cumulative(g1, forcing, t)
+    q1 = _cumulative(position, np.gradient(position, t), t)
+
+    def residuals(times):
+        s = t[None, :] - times[:, None]
+        g1c = _hermite(t, g1, forcing, times)[:, None]
+        g2c = _hermite(t, g2, g1, times)[:, None]
+        q1c = _hermite(t, q1, position, times)[:, None]
+        target = (position[None, :] - (g2[None, :] - g2c - g1c * s)
+                  + damping * (q1[None, :] - q1c) - 0.25 * jump * np.sign(s) * s ** 2)
+        basis = 1.0 + damping * s
+        c0 = np.einsum("gi,gi->g", basis, target) / np.einsum("gi,gi->g", basis, basis)
+        residual = target - c0[:, None] * basis
+        before = np.interp(times, t, forcing) - 0.5 * jump
+        return np.einsum("gi,gi->g", residual, residual), before, residual
+
+    return residuals
+
+
+def _polynomial_residuals(position, t, jump, scale):
+    """Residual function of the kinked stationary-point polynomial fit."""
+    def residuals(times):
+        rss, coef, residual = _residuals(position, t, times, jump, scale)
+        return rss, 2.0 * coef[:, 1] / scale ** 2, residual
+    return residuals
+
+
+def _time_sensitivity(residuals, best, scale):
+    """Derivative of the refined time with respect to each fitted sample.
+
+    The time minimises the residual sum of squares ``R(tc, q)``, so ``dR/dtc = 0`` and
+    ``dtc/dq = -(d2R/dtc dq) / (d2R/dtc2)``, with ``dR/dq = 2 r`` (the residuals): exact
+    for the polynomial fit; the motion fit's other terms that read the position (its
+    ``q'`` term: a few per cent on the friction loop) are left out."""
+    delta = 0.01 * scale
+    rss, _, r = residuals(best + np.array([-delta, 0.0, delta]))
+    curvature = (rss[0] - 2.0 * rss[1] + rss[2]) / delta ** 2
+    return -(r[2] - r[0]) / (delta * curvature)
+
+
+def refine_crossings(position, t, velocity, jump, half_width=FIT_HALF_WIDTH, *,
+                     forcing=None, damping=0.0, sensitivity=False):
     """Times at which the velocity changes sign, refined by fits of the position.
 
     Parameters
@@ -178,22 +294,38 @@ def refine_crossings(position, t, velocity, jump, half_width=FIT_HALF_WIDTH):
         at a downwards one.
     half_width : int
         Samples on each side of a crossing used by its fit.
+    forcing : array_like, optional
+        The model's acceleration without its ``q'`` and ``sign(q')`` terms, at the
+        same times (:func:`crossing_motion`).  When given, each crossing is fitted by
+        the model's own motion through it; otherwise by the kinked polynomial.
+    damping : float
+        Coefficient of ``q'`` in the model's acceleration, with the sign that slows it
+        (``Fv / M`` for ``M*q'' + Fv*q' + ...``); used with ``forcing``.
+    sensitivity : bool
+        Also return, per crossing, how its time moves with the position samples.
 
     Returns
     -------
-    numpy.ndarray
+    times : numpy.ndarray
         One time per change of sign of ``velocity`` (in order): the refined time, or
         where a crossing cannot be refined, the zero of ``velocity`` interpolated
         linearly between its two samples.
+    sensitivities : list
+        With ``sensitivity=True``: per crossing, ``(first, weights)``, the derivative
+        of its time with respect to the samples ``first, first + 1, ...`` of
+        ``position`` (to first order in their noise), or None where it was not refined.
     """
     q = np.asarray(position, dtype=float)
     t = np.asarray(t, dtype=float)
     v = np.asarray(velocity, dtype=float)
+    if forcing is not None:
+        forcing = np.asarray(forcing, dtype=float) * np.ones(len(t))
     z = np.sign(v)
     index, fraction = sign_changes(v)
     times = t[index] + fraction * (t[index + 1] - t[index])
+    sensitivities = [None] * index.size
     if index.size == 0:
-        return times
+        return (times, sensitivities) if sensitivity else times
     gaps = np.diff(index)
     isolated = np.ones(index.size, dtype=bool)
     isolated[1:] &= gaps > 2 * half_width
@@ -203,9 +335,17 @@ def refine_crossings(position, t, velocity, jump, half_width=FIT_HALF_WIDTH):
         window = slice(index[j] - half_width + 1, index[j] + half_width + 1)
         tw = t[window]
         upwards = z[index[j] + 1] > 0
-        refined = _refine_one(q[window] - q[index[j]], tw, times[j],
-                              jump if upwards else -jump, upwards,
-                              float(np.median(np.diff(tw))))
+        signed = jump if upwards else -jump
+        scale = float(np.median(np.diff(tw)))
+        if forcing is None:
+            residuals = _polynomial_residuals(q[window] - q[index[j]], tw, signed, scale)
+        else:
+            residuals = _motion_residuals(q[window] - q[index[j]], tw, signed,
+                                          forcing[window], damping)
+        refined = _refine_one(residuals, times[j], upwards, scale)
         if refined is not None:
             times[j] = refined
-    return times
+            if sensitivity:
+                sensitivities[j] = (window.start,
+                                    _time_sensitivity(residuals, refined, scale))
+    return (times, sensitivities) if sensitivity else times

@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from algid.window_kernels import window_sample_weights
+from algid.window_kernels import term_kernel, window_sample_weights
 
 __all__ = ["noise_meat", "hac_meat"]
 
@@ -26,19 +26,25 @@ def noise_meat(problem, length, multiplicity, theta_bar, scores, stride):
     """Covariance of ``sum_w scores_w e_w`` for white output noise of unit variance.
 
     ``e_w`` is the noise that enters window ``w``'s equation ``[A | b]_w @ theta_bar``:
-    to first order, the sum over the window's samples of the noise times the factor's
-    sensitivity to the output times the term kernel's sample weight, over the terms.
-    Overlapping windows share samples, so ``cov(e_w, e_v)`` is the sum over their
-    common samples of the product of their noise weights, and the result is
-    ``sum_{w, v} cov(e_w, e_v) scores_w scores_v^T``.
+    to first order, the sum over the samples of the noise times its weight in the
+    window, ``e_w = sum_n W[w, n] noise_n``.  A sample's weight is its factor's
+    sensitivity to the output times the term kernel's sample weight, over the terms;
+    and where the steps of a ``sign(q')`` sit at crossings refined from the position
+    (:mod:`algid.sign_crossings`), the samples of each crossing's fit also move the
+    step, by the derivative of its time with respect to them, which moves the window
+    integral by minus the step times the kernel at the crossing.  Then ``sum_w scores_w
+    e_w = sum_n G_n noise_n`` with ``G_n = sum_w scores_w W[w, n]``, and the result is
+    ``sum_n G_n G_n^T`` (overlapping windows share samples: their correlation is in it).
 
     Parameters
     ----------
     problem : object
         The windowed problem of :func:`algid.identify`: its ``segments`` (each with
-        ``t``, ``step`` and a length), ``parameters``, ``model.terms`` and
+        ``t``, ``step`` and a length), ``parameters``, ``model.terms``,
         ``sensitivity(factor)`` (per segment, the derivative of the factor with
-        respect to the output samples, or None where it does not read them).
+        respect to the output samples, or None where it does not read them) and
+        ``crossings`` (``(factor, segment)`` -> ``(time, step, first, weights)`` per
+        refined crossing).
     length, multiplicity : int
         Samples per window and kernel multiplicity.
     theta_bar : ndarray, shape (p + 1,)
@@ -64,25 +70,32 @@ def noise_meat(problem, length, multiplicity, theta_bar, scores, stride):
         g = scores[first:first + n_win]
         first += n_win
         weights = np.zeros((n_win, length))  # noise weight of every sample of every window
+        through = np.zeros((len(seg), scores.shape[1]))   # G_n
         for term in problem.model.terms:
-            sensitivity = problem.sensitivity(term.factor)
-            if sensitivity is None:
-                continue
             if term.parameter is None:  # the known side: b -= coefficient * integral
                 factor = -theta_bar[p] * term.coefficient
             else:
                 factor = theta_bar[index[term.parameter]] * term.coefficient
             kernel = window_sample_weights(seg.t, seg.step, length, multiplicity,
                                            term.derivative, stride)
+            for time, step, start, moves in problem.crossings.get((term.factor, s), ()):
+                t0 = seg.t[0:n_win * stride:stride]
+                span = seg.t[length - 1:length - 1 + n_win * stride:stride] - t0
+                inside = (t0 < time) & (time < t0 + span)
+                u = (time - t0[inside]) / span[inside]
+                shift = -step * term_kernel(multiplicity, term.derivative, u) \
+                    / span[inside] ** (term.derivative + 1)
+                through[start:start + len(moves)] += np.outer(
+                    moves, factor * (shift @ g[inside]))
+            sensitivity = problem.sensitivity(term.factor)
+            if sensitivity is None:
+                continue
             windows = np.lib.stride_tricks.sliding_window_view(sensitivity[s],
                                                                length)[::stride]
             weights += factor * windows * kernel
-        for lag in range(min(n_win, -(-length // stride))):  # windows that overlap
-            shift = lag * stride
-            c = np.einsum("ij,ij->i", weights[:n_win - lag, shift:],
-                          weights[lag:, :length - shift])
-            cross = (g[:n_win - lag] * c[:, None]).T @ g[lag:]
-            meat += cross if lag == 0 else cross + cross.T
+        for m in range(length):   # G_n: every window's score times its weight of sample n
+            through[m:m + (n_win - 1) * stride + 1:stride] += g * weights[:, m:m + 1]
+        meat += through.T @ through
     return meat
 
 
