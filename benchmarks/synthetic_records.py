@@ -1,7 +1,8 @@
 """Synthetic records with known truth for :func:`algid.identify`.
 
 Each generator computes the true continuous-time response to an analytic input (a
-multisine): exactly for the linear plant, by RK4 at 16 steps per sample otherwise; noise
+multisine): exactly for the linear plant and the friction loop (piece by piece between
+the zeros of its velocity), by RK4 at 16 steps per sample for the cubic spring; noise
 is added to the measured output.  Used by ``tests/test_identify.py`` and the identify benchmark.
 
 - :func:`linear_offsets`: ``y'' + B y' + K y = G u`` at 8 samples per period of its
@@ -17,6 +18,7 @@ from __future__ import annotations
 import numpy as np
 
 __all__ = ["linear_offsets", "linear_gaps", "cubic_spring", "friction_loop", "drop_rows",
+           "FrictionLoop",
            "multisine_lines", "INPUT_SEED",
            "LINEAR_EQUATION", "CUBIC_EQUATION", "FRICTION_EQUATION"]
 
@@ -146,32 +148,33 @@ def friction_loop(seed=0, *, n=6000, rate=1000.0, noise=1e-6):
     loop following a multisine reference; ``noise`` is the standard deviation of the
     position noise (m).
 
-    Exact (:class:`_FrictionLoop`): between two zeros of the velocity the loop is linear,
+    Exact (:class:`FrictionLoop`): between two zeros of the velocity the loop is linear,
     its response the multisine's through the loop plus a decaying transient; each zero
     is found to round-off, and there the friction flips or, where the net force is
     within the Coulomb force, the mass sticks until it is not.  (RK4 at 16 steps per
     sample put the flip up to a third of a step away from the zero: the crossings
     moved by about 2 us, M by 4e-6.)"""
-    M, Fv, Fc, off = 2.0, 5.0, 1.0, -0.2
-    kp, kv = 4000.0, 120.0
-    lines = multisine_lines(np.random.default_rng(777), 0.3, 3.0, 6, 0.02)
+    loop = FrictionLoop()
     t = np.arange(n) / rate
-    q, v, r = _FrictionLoop(M, Fv, Fc, off, kp, kv, lines).sample(t)
-    F = kp * (r - q) - kv * v
+    q, v, r = loop.sample(t)
+    F = loop.kp * (r - q) - loop.kv * v
     rng = np.random.default_rng(seed)
     return ({"t": t, "q": q + noise * rng.standard_normal(n), "F": F},
-            {"M": M, "Fv": Fv, "Fc": Fc, "off": off})
+            {"M": loop.M, "Fv": loop.Fv, "Fc": loop.Fc, "off": loop.off})
 
 
-class _FrictionLoop:
+class FrictionLoop:
     """``M q'' + Fv q' + Fc sign(q') + off = kp (r - q) - kv q'`` solved piece by piece.
 
     With the friction's sign ``m`` fixed the loop is ``M q'' + (kv + Fv) q' + kp q =
     kp r - off - m Fc``: the multisine lines of ``r`` through the loop's frequency
-    response, a constant, and a transient from the state where the piece starts."""
+    response, a constant, and a transient from the state where the piece starts.
+    After :meth:`sample`, ``events`` holds the times where a piece ended: the velocity
+    back at zero, or the mass leaving rest."""
 
-    def __init__(self, M, Fv, Fc, off, kp, kv, lines):
-        self.M, self.Fc, self.off, self.kp = M, Fc, off, kp
+    def __init__(self, M=2.0, Fv=5.0, Fc=1.0, off=-0.2, kp=4000.0, kv=120.0):
+        self.M, self.Fv, self.Fc, self.off, self.kp, self.kv = M, Fv, Fc, off, kp, kv
+        lines = multisine_lines(np.random.default_rng(777), 0.3, 3.0, 6, 0.02)
         freqs, self.phases, self.amp = lines
         self.omega = 2 * np.pi * freqs
         self.gain = kp / (M * (1j * self.omega) ** 2 + (kv + Fv) * 1j * self.omega + kp)
@@ -208,12 +211,15 @@ class _FrictionLoop:
         from scipy.optimize import brentq
 
         q, v = np.empty(len(t)), np.empty(len(t))
+        self.events = []
         start, state = float(t[0]), (float(self.reference(t[0])[0]), 0.0)
         grid = np.diff(t).min() / 8
-        done = 0
+        done, released = 0, False
         while done < len(t):
             net = float(self._net(start, state[0])[0])
-            mode = 0 if abs(net) <= self.Fc else np.sign(net)
+            # leaving rest, the net force is the Coulomb force itself (to round-off)
+            mode = np.sign(net) if released or abs(net) > self.Fc else 0
+            released = mode == 0
             if mode == 0:   # stuck until the net force exceeds the Coulomb force
                 def excess(x):
                     return abs(float(self._net(x, state[0])[0])) - self.Fc
@@ -227,8 +233,11 @@ class _FrictionLoop:
                           else -mode * self._state(probe, start, state, mode)[1])
                 hit = np.flatnonzero(values > 0)
                 if hit.size:
-                    lo = probe[hit[0] - 1] if hit[0] > 0 else start + 1e-12
-                    end = brentq(excess, lo, probe[hit[0]], xtol=1e-15, rtol=1e-15)
+                    hi = probe[hit[0]]
+                    lo = probe[hit[0] - 1] if hit[0] > 0 else start + grid / 2
+                    while hit[0] == 0 and excess(lo) > 0 and lo - start > 1e-13:
+                        hi, lo = lo, start + (lo - start) / 2   # a piece shorter than
+                    end = brentq(excess, lo, hi, xtol=1e-15, rtol=1e-15)  # the grid
                 probe = probe + 256 * grid
             stop = len(t) if end is None else int(np.searchsorted(t, end, side="right"))
             if mode == 0:
@@ -237,6 +246,7 @@ class _FrictionLoop:
                 q[done:stop], v[done:stop] = self._state(t[done:stop], start, state, mode)
             done = stop
             if end is not None:
+                self.events.append(end)
                 position = state[0] if mode == 0 else \
                     float(self._state(end, start, state, mode)[0][0])
                 start, state = end, (position, 0.0)

@@ -36,8 +36,10 @@ A derivative inside a nonlinear factor (``sign(q')``) is estimated numerically: 
 the algebraic differentiator :func:`algid.differentiation.algebraic_derivative` when
 it is available, else by a local polynomial (Savitzky-Golay) derivative.  Its zeros
 come late where ``q''`` jumps (a Coulomb term), so for a model of second order in ``q``
-the crossings are then placed by local fits of ``q`` with the jump that the first
-estimate gives (:mod:`algid.sign_crossings`) and the equations solved again.
+the crossings are then placed by fits of ``q`` with the motion the model gives it there
+(:mod:`algid.sign_crossings`), the equations solved again, twice (:data:`CROSSING_PASSES`:
+each pass with the parameters of the one before), with the steps of ``sign(q')``
+integrated exactly (:func:`algid.window_kernels.step_window_integrals`).
 
 Standard errors come from a sandwich over the window index.  Its middle is the
 residuals' own covariance, a HAC (heteroscedasticity and autocorrelation consistent)
@@ -72,16 +74,16 @@ from math import comb
 
 import numpy as np
 
+from algid.bias_compensation import bias_compensated, solve_equilibrated
 from algid.errors import InputDataError, ModelError
 from algid.expression import Call, Signal
 from algid.grammar import parse_equation
 from algid.model import Model
 from algid.records import estimate_derivative, prepare_records
-from algid.sign_crossings import crossing_jumps, crossing_motion, refine_crossings
+from algid.sign_crossings import crossing_jumps, crossing_motion, sign_factor
 from algid.window_covariance import hac_meat, noise_meat
 from algid.window_kernels import (
-    sign_changes,
-    sign_samples,
+    step_window_integrals,
     uniform_window_integrals,
     window_integrals,
     window_noise_products,
@@ -102,6 +104,10 @@ NEGLIGIBLE_TERM = 0.05
 #: The covariance of output noise through the kernels replaces the residuals' own (HAC)
 #: where the latter's variances are at most this many times the former's.
 AGREEMENT = 4.0
+
+#: Solves with the crossings of ``sign(q')`` placed by the model's motion (the second
+#: with the first's parameters: noise-free friction loop, M 1.3e-6 -> 5.8e-7).
+CROSSING_PASSES = 2
 
 #: Windows overlap: a window starts every ``length // WINDOW_OVERLAP`` samples.
 WINDOW_OVERLAP = 8
@@ -143,6 +149,8 @@ class _Problem:
         # (sign factor, segment) -> refined crossings: (time, step of the sign, first
         # sample of the fit, derivative of the time with respect to those samples)
         self.crossings = {}
+        # (sign factor, which, segment) -> (first value, times and sizes of its steps)
+        self.steps = {}
 
     def factor_samples(self, factor, which="measured"):
         key = (factor, which)
@@ -151,24 +159,16 @@ class _Problem:
             for seg in self.segments:
                 values = seg.values if which == "measured" else seg.simulated
                 if isinstance(factor, Call) and factor.function == "sign":
-                    # a step between two samples: integrated at its place, not halfway
-                    argument = np.asarray(factor.args[0].evaluate(values, seg.t),
-                                          dtype=float) * np.ones(len(seg))
-                    crossings = None
-                    if which == "measured" and factor in self.sign_jumps:
-                        motion = crossing_motion(self.model, self.first_values, values,
-                                                 seg.t)
-                        forcing, damping = motion if motion else (None, 0.0)
-                        crossings, moves = refine_crossings(
-                            values[self.model.output], seg.t, argument,
-                            self.sign_jumps[factor], forcing=forcing, damping=damping,
-                            sensitivity=True)
-                        index = sign_changes(argument)[0]
-                        steps = np.sign(argument[index + 1]) - np.sign(argument[index])
-                        self.crossings[(factor, len(samples))] = [
-                            (tc, step, *move) for tc, step, move
-                            in zip(crossings, steps, moves) if move is not None]
-                    z = sign_samples(argument, seg.t, crossings)
+                    refine = which == "measured" and factor in self.sign_jumps
+                    motion = crossing_motion(self.model, self.first_values, values,
+                                             seg.t) if refine else None
+                    z, steps, crossings = sign_factor(
+                        factor.args[0].evaluate(values, seg.t), seg.t,
+                        position=values[self.model.output] if refine else None,
+                        jump=self.sign_jumps.get(factor), motion=motion)
+                    self.steps[(factor, which, len(samples))] = steps
+                    if refine:
+                        self.crossings[(factor, len(samples))] = crossings
                 else:
                     z = np.asarray(factor.evaluate(values, seg.t), dtype=float) \
                         * np.ones(len(seg))
@@ -189,7 +189,11 @@ class _Problem:
             b = np.zeros(n_win)
             for term in self.model.terms:
                 z = self.factor_samples(term.factor, which)[s]
-                if seg.step is not None:
+                steps = self.steps.get((term.factor, which, s))
+                if steps is not None:
+                    w = step_window_integrals(seg.t, *steps, length, multiplicity,
+                                              term.derivative, stride)
+                elif seg.step is not None:
                     w = uniform_window_integrals(z, seg.step, length, multiplicity,
                                                  term.derivative, stride)
                 else:
@@ -326,10 +330,10 @@ def _solve(problem, length, multiplicities, instruments=None, method="ls"):
         weights = A
         if instruments is not None:
             Z = weights = instruments[a][0]
-            theta = _solve_square(Z.T @ A, Z.T @ b)
+            theta = solve_equilibrated(Z.T @ A, Z.T @ b)
             scores, jacobian = Z * (b - A @ theta)[:, None], Z.T @ A
         elif method == "bc":
-            theta, scores, jacobian, variance = _bias_compensated(
+            theta, scores, jacobian, variance = bias_compensated(
                 A, b, problem.noise_grams(length, a), problem.noise_bound())
         else:
             theta = np.linalg.lstsq(A, b, rcond=None)[0]
@@ -361,79 +365,6 @@ def _solve(problem, length, multiplicities, instruments=None, method="ls"):
     scale = np.sqrt(np.mean(A ** 2, axis=0)) / max(float(np.sqrt(np.mean(b ** 2))), 1e-300)
     return _Fit(theta, covariance, {a: v[0] for a, v in separate.items()}, scale, r,
                 len(ids))
-
-
-def _bias_compensated(A, b, grams, bound=np.inf):
-    """Least squares with the output-noise bias removed (Koopmans' estimator).
-
-    With ``Phi = [A | b]`` and ``theta_bar = (theta, -1)``, the noise-free rows satisfy
-    ``Phi_0 theta_bar = 0``, and white output noise of variance ``sigma^2`` adds
-    ``sigma^2 Q`` to the expectation of ``Phi^T Phi``, where ``Q`` is the sum of the
-    per-window noise covariances ``grams`` (known from the kernels).  Hence
-    ``(Phi^T Phi - sigma^2 Q) theta_bar = 0``: ``theta_bar`` is the generalised
-    eigenvector of the pencil ``(Phi^T Phi, Q)`` of smallest eigenvalue, and that
-    eigenvalue estimates ``sigma^2``.
-
-    The eigenvalue counts every misfit of the equations as output noise (quadrature
-    error, a misestimated ``sign(q')``, input noise); it is therefore capped by
-    ``bound``, an upper bound on the output noise variance from the data alone
-    (:meth:`_Problem.noise_bound`), and with the cap the correction is that of
-    ``sigma^2 = bound`` (bias-compensated least squares with a known variance).  When
-    the output noise is negligible, the result is plain least squares.
-
-    The estimating equations per window are ``A_j r_j + sigma^2 (G_j theta_bar)_A``
-    (summing to zero), whose derivative is ``-(A^T A - sigma^2 Q_AA)``: the sandwich
-    covariance uses them (``sigma^2`` held fixed: its own error moves the correction by
-    a few per cent of it).
-
-    Returns
-    -------
-    theta, scores, jacobian
-        The estimate, its estimating equations per window and their derivative.
-    variance : float or None
-        The noise variance from the eigenvalue, or None where it exceeds ``bound`` (the
-        misfit is not only output noise) or no correction was made.
-    """
-    from scipy.linalg import eigh
-
-    p = A.shape[1]
-    phi = np.column_stack([A, b])
-    normal = phi.T @ phi
-    noise = grams.sum(axis=0)
-    d = np.sqrt(np.diag(normal))
-    d[d == 0] = 1.0
-    theta_bar = None
-    capped = False
-    if np.any(noise != 0) and bound > 0:
-        try:
-            mu, vectors = eigh(noise / d[:, None] / d[None, :],
-                               normal / d[:, None] / d[None, :])
-        except np.linalg.LinAlgError:     # exact equations (no noise): least squares
-            mu, vectors = np.zeros(1), np.zeros((p + 1, 1))
-        v = vectors[:, -1] / d
-        if mu[-1] > 0 and abs(v[-1]) * d[-1] > 1e-8 and 1.0 / mu[-1] <= bound:
-            theta_bar = -v / v[-1]
-            variance = 1.0 / mu[-1]
-        elif mu[-1] > 0 and np.isfinite(bound):
-            variance = bound
-            capped = True
-            theta = _solve_square(normal[:p, :p] - variance * noise[:p, :p],
-                                  normal[:p, p] - variance * noise[:p, p])
-            theta_bar = np.append(theta, -1.0)
-    if theta_bar is None:
-        theta = np.linalg.lstsq(A, b, rcond=None)[0]
-        return theta, A * (b - A @ theta)[:, None], A.T @ A, None
-    theta = theta_bar[:p]
-    scores = A * (b - A @ theta)[:, None] + variance * (grams @ theta_bar)[:, :p]
-    return (theta, scores, A.T @ A - variance * noise[:p, :p],
-            None if capped else variance)
-
-
-def _solve_square(H, g):
-    # equilibrate: regressors of very different magnitudes (y'' vs an offset)
-    d = np.sqrt(np.abs(np.diag(H)))
-    d[d == 0] = 1.0
-    return np.linalg.solve(H / d[:, None] / d[None, :], g / d) / d
 
 
 def _add_derivatives(model, segments, estimator):
@@ -631,10 +562,12 @@ def identify(data, equation, parameters=None, *, time=None, rate=None, output=No
         length, scores = choose_window(problem, multiplicities,
                                        method="bc" if method == "iv" else method)
     fit = _solve(problem, length, multiplicities, method="bc" if method == "iv" else method)
-    problem.first_values = dict(zip(model.parameters, fit.theta))
-    problem.sign_jumps = crossing_jumps(model, problem.first_values)
-    if problem.sign_jumps:   # again, crossings of sign(q') placed by the model (same
-        # window: re-chosen, it varied with the noise and so did its quadrature bias)
+    for _ in range(CROSSING_PASSES):  # again, crossings of sign(q') placed by the model
+        # (same window: re-chosen, it varied with the noise and so did its quadrature bias)
+        problem.first_values = dict(zip(model.parameters, fit.theta))
+        problem.sign_jumps = crossing_jumps(model, problem.first_values)
+        if not problem.sign_jumps:
+            break
         problem.factors = {k: v for k, v in problem.factors.items()
                            if not (isinstance(k, tuple) and k[0] in problem.sign_jumps)}
         fit = _solve(problem, length, multiplicities, method="bc" if method == "iv" else method)

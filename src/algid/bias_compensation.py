@@ -1,0 +1,107 @@
+"""Least squares with the bias that white output noise causes removed (Koopmans'
+estimator), for the window equations of :func:`algid.identify`."""
+
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = ["bias_compensated", "solve_equilibrated"]
+
+
+def bias_compensated(A, b, grams, bound=np.inf):
+    """Least squares with the output-noise bias removed (Koopmans' estimator).
+
+    With ``Phi = [A | b]`` and ``theta_bar = (theta, -1)``, the noise-free rows satisfy
+    ``Phi_0 theta_bar = 0``, and white output noise of variance ``sigma^2`` adds
+    ``sigma^2 Q`` to the expectation of ``Phi^T Phi``, where ``Q`` is the sum of the
+    per-window noise covariances ``grams`` (known from the kernels).  Hence
+    ``(Phi^T Phi - sigma^2 Q) theta_bar = 0``: ``theta_bar`` is the generalised
+    eigenvector of the pencil ``(Phi^T Phi, Q)`` of smallest eigenvalue, and that
+    eigenvalue estimates ``sigma^2``.
+
+    The eigenvalue counts every misfit of the equations as output noise (quadrature
+    error, a misestimated ``sign(q')``, input noise); it is therefore capped by
+    ``bound``, an upper bound on the output noise variance from the data alone (the
+    one :func:`algid.identify` takes from the samples' differences), and with the cap
+    the correction is that of ``sigma^2 = bound`` (bias-compensated least squares with
+    a known variance).  When the output noise is negligible, the result is plain least
+    squares.
+
+    The estimating equations per window are ``A_j r_j + sigma^2 (G_j theta_bar)_A``
+    (summing to zero), whose derivative is ``-(A^T A - sigma^2 Q_AA)``: the sandwich
+    covariance uses them (``sigma^2`` held fixed: its own error moves the correction by
+    a few per cent of it).
+
+    Parameters
+    ----------
+    A : numpy.ndarray, shape (windows, p)
+        Regressors of the window equations.
+    b : numpy.ndarray, shape (windows,)
+        Their known side.
+    grams : numpy.ndarray, shape (windows, p + 1, p + 1)
+        Per window, the covariance that white output noise of unit variance puts into
+        ``[A | b]``.
+    bound : float
+        Upper bound on the output noise variance.
+
+    Returns
+    -------
+    theta, scores, jacobian
+        The estimate, its estimating equations per window and their derivative.
+    variance : float or None
+        The noise variance from the eigenvalue, or None where it exceeds ``bound`` (the
+        misfit is not only output noise) or no correction was made.
+    """
+    from scipy.linalg import eigh
+
+    p = A.shape[1]
+    phi = np.column_stack([A, b])
+    normal = phi.T @ phi
+    noise = grams.sum(axis=0)
+    d = np.sqrt(np.diag(normal))
+    d[d == 0] = 1.0
+    theta_bar = None
+    capped = False
+    if np.any(noise != 0) and bound > 0:
+        try:
+            mu, vectors = eigh(noise / d[:, None] / d[None, :],
+                               normal / d[:, None] / d[None, :])
+        except np.linalg.LinAlgError:     # exact equations (no noise): least squares
+            mu, vectors = np.zeros(1), np.zeros((p + 1, 1))
+        v = vectors[:, -1] / d
+        if mu[-1] > 0 and abs(v[-1]) * d[-1] > 1e-8 and 1.0 / mu[-1] <= bound:
+            theta_bar = -v / v[-1]
+            variance = 1.0 / mu[-1]
+        elif mu[-1] > 0 and np.isfinite(bound):
+            variance = bound
+            capped = True
+            theta = solve_equilibrated(normal[:p, :p] - variance * noise[:p, :p],
+                                  normal[:p, p] - variance * noise[:p, p])
+            theta_bar = np.append(theta, -1.0)
+    if theta_bar is None:
+        theta = np.linalg.lstsq(A, b, rcond=None)[0]
+        return theta, A * (b - A @ theta)[:, None], A.T @ A, None
+    theta = theta_bar[:p]
+    scores = A * (b - A @ theta)[:, None] + variance * (grams @ theta_bar)[:, :p]
+    return (theta, scores, A.T @ A - variance * noise[:p, :p],
+            None if capped else variance)
+
+
+def solve_equilibrated(H, g):
+    """Solve ``H x = g`` scaled by the square roots of ``|diag(H)|``.
+
+    The scaling equilibrates regressors of very different magnitudes (``y''`` next to
+    an offset).
+
+    Parameters
+    ----------
+    H : numpy.ndarray, shape (p, p)
+    g : numpy.ndarray, shape (p,)
+
+    Returns
+    -------
+    numpy.ndarray, shape (p,)
+    """
+    d = np.sqrt(np.abs(np.diag(H)))
+    d[d == 0] = 1.0
+    return np.linalg.solve(H / d[:, None] / d[None, :], g / d) / d
