@@ -89,8 +89,8 @@ from algid.window_kernels import (
     window_noise_products,
 )
 
-__all__ = ["identify", "METHODS", "MULTIPLICITIES", "AGREEMENT", "window_criterion",
-           "window_grid"]
+__all__ = ["identify", "METHODS", "MULTIPLICITIES", "AGREEMENT", "CROSSING_PASSES",
+           "window_criterion", "window_grid"]
 
 #: Solvers: bias-compensated least squares (default), least squares, instrumental variables.
 METHODS = ("ls", "bc", "iv")
