@@ -95,6 +95,12 @@ def _sign_calls(expr):
     return []
 
 
+def _weight(term, values):
+    """A term's coefficient times its parameter's value (1 for a known term)."""
+    return term.coefficient * (1.0 if term.parameter is None
+                               else float(values[term.parameter]))
+
+
 def crossing_jumps(model, values):
     """Jump of the output's second derivative where ``sign(output')`` steps up.
 
@@ -133,13 +139,9 @@ def crossing_jumps(model, values):
     if max(orders, default=0) != 2:
         return {}
 
-    def weight(term):
-        return term.coefficient * (1.0 if term.parameter is None
-                                   else float(values[term.parameter]))
-
-    leading = sum(weight(term) for term in model.terms
+    leading = sum(_weight(term, values) for term in model.terms
                   if term.factor == plain and term.derivative == 2)
-    coulomb = sum(weight(term) for term, _ in discontinuous)
+    coulomb = sum(_weight(term, values) for term, _ in discontinuous)
     jump = -2.0 * coulomb / leading if leading != 0 else np.nan
     return {factor: jump} if np.isfinite(jump) else {}
 
@@ -156,9 +158,9 @@ def crossing_motion(model, values, signals, t):
     Parameters
     ----------
     model : Model
-        The model.
+        The model, of the form :func:`crossing_jumps` accepts.
     values : mapping
-        Parameter name -> value (a first estimate).
+        Parameter name -> value (the previous estimate).
     signals : mapping
         Signal name (or ``(name, k)`` for a derivative estimate) -> samples.
     t : array_like
@@ -175,23 +177,19 @@ def crossing_motion(model, values, signals, t):
     (factor, _), = jumps.items()
     plain = Signal(model.output)
 
-    def weight(term):
-        return term.coefficient * (1.0 if term.parameter is None
-                                   else float(values[term.parameter]))
-
     leading = damping = 0.0
     forcing = np.zeros(len(t))
     for term in model.terms:
         if term.factor == plain and term.derivative in (1, 2):
             if term.derivative == 2:
-                leading += weight(term)
+                leading += _weight(term, values)
             else:
-                damping += weight(term)
+                damping += _weight(term, values)
         elif term.derivative != 0:
             return None
         elif term.factor != factor:
-            forcing -= weight(term) * np.asarray(term.factor.evaluate(signals, t),
-                                                 dtype=float)
+            samples = np.asarray(term.factor.evaluate(signals, t), dtype=float)
+            forcing -= _weight(term, values) * samples
     return forcing / leading, damping / leading
 
 
