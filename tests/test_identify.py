@@ -384,3 +384,56 @@ def test_noise_covariance_only_where_the_residuals_agree_with_it(monkeypatch):
         assert any(abs(analytic[name][p] / hac[name][p] - 1) > 0.1 for p in hac[name])
     assert default["disturbed"] == hac["disturbed"]   # 9 to 18 times the noise model's SE
     assert default["cubic"] == analytic["cubic"]
+
+
+def test_noise_meat_counts_the_noise_of_the_refined_crossings():
+    """With the crossings of sign(q') refined from the position, the analytic middle of
+    the sandwich is ``sum_n G_n G_n^T`` with ``G_n`` built window by window: the
+    direct weights of sample n, plus, for the samples of a crossing's fit, the score of
+    every window holding the crossing times the move of its integral."""
+    from algid import identification
+    from algid.window_covariance import noise_meat
+    from algid.window_kernels import term_kernel, window_sample_weights
+
+    captured = {}
+    solve = identification._solve
+
+    def capture(problem, length, multiplicities, *args, **kwargs):
+        fit = solve(problem, length, multiplicities, *args, **kwargs)
+        captured.update(problem=problem, length=length, theta=fit.theta)
+        return fit
+
+    record, _ = friction_loop(0, n=1500)
+    identification._solve = capture
+    try:
+        algid.identify(record, *FRICTION_EQUATION, window=0.1)
+    finally:
+        identification._solve = solve
+    problem, length = captured["problem"], captured["length"]
+    a, stride = 12, max(1, length // identification.WINDOW_OVERLAP)
+    A, _, _ = problem.rows(length, a)
+    theta_bar = np.append(captured["theta"], -1.0)
+    index = {p: i for i, p in enumerate(problem.parameters)}
+    seg = problem.segments[0]
+    G = np.zeros((len(seg), A.shape[1]))
+    crossings = 0
+    for term in problem.model.terms:
+        factor = term.coefficient * (theta_bar[index[term.parameter]]
+                                     if term.parameter else 1.0)
+        for time, step, start, moves in problem.crossings.get((term.factor, 0), ()):
+            crossings += 1
+            for w in range(len(A)):
+                t0, t1 = seg.t[w * stride], seg.t[w * stride + length - 1]
+                if t0 < time < t1:
+                    move = -step * term_kernel(a, term.derivative, (time - t0) / (t1 - t0))
+                    G[start:start + len(moves)] += np.outer(moves, factor * move
+                                                            / (t1 - t0) * A[w])
+        sensitivity = problem.sensitivity(term.factor)
+        if sensitivity is not None:
+            kernel = window_sample_weights(seg.t, seg.step, length, a, term.derivative)
+            for w in range(len(A)):
+                span = slice(w * stride, w * stride + length)
+                G[span] += np.outer(factor * sensitivity[0][span] * kernel, A[w])
+    assert crossings >= 3
+    meat = noise_meat(problem, length, a, theta_bar, A, stride)
+    np.testing.assert_allclose(meat, G.T @ G, rtol=1e-10, atol=1e-12 * np.abs(meat).max())

@@ -34,7 +34,9 @@ def noise_meat(problem, length, multiplicity, theta_bar, scores, stride):
     step, by the derivative of its time with respect to them, which moves the window
     integral by minus the step times the kernel at the crossing.  Then ``sum_w scores_w
     e_w = sum_n G_n noise_n`` with ``G_n = sum_w scores_w W[w, n]``, and the result is
-    ``sum_n G_n G_n^T`` (overlapping windows share samples: their correlation is in it).
+    ``sum_n G_n G_n^T``: for the direct weights, a sum over the lags of windows that
+    share samples (their correlation is in it), plus the terms of the samples whose
+    noise also moves a crossing.
 
     Parameters
     ----------
@@ -70,14 +72,12 @@ def noise_meat(problem, length, multiplicity, theta_bar, scores, stride):
         g = scores[first:first + n_win]
         first += n_win
         weights = np.zeros((n_win, length))  # noise weight of every sample of every window
-        through = np.zeros((len(seg), scores.shape[1]))   # G_n
+        moved = np.zeros((len(seg), scores.shape[1]))   # G_n through the crossings
         for term in problem.model.terms:
             if term.parameter is None:  # the known side: b -= coefficient * integral
                 factor = -theta_bar[p] * term.coefficient
             else:
                 factor = theta_bar[index[term.parameter]] * term.coefficient
-            kernel = window_sample_weights(seg.t, seg.step, length, multiplicity,
-                                           term.derivative, stride)
             for time, step, start, moves in problem.crossings.get((term.factor, s), ()):
                 t0 = seg.t[0:n_win * stride:stride]
                 span = seg.t[length - 1:length - 1 + n_win * stride:stride] - t0
@@ -85,17 +85,32 @@ def noise_meat(problem, length, multiplicity, theta_bar, scores, stride):
                 u = (time - t0[inside]) / span[inside]
                 shift = -step * term_kernel(multiplicity, term.derivative, u) \
                     / span[inside] ** (term.derivative + 1)
-                through[start:start + len(moves)] += np.outer(
-                    moves, factor * (shift @ g[inside]))
+                moved[start:start + len(moves)] += np.outer(moves,
+                                                            factor * (shift @ g[inside]))
             sensitivity = problem.sensitivity(term.factor)
             if sensitivity is None:
                 continue
+            kernel = window_sample_weights(seg.t, seg.step, length, multiplicity,
+                                           term.derivative, stride)
             windows = np.lib.stride_tricks.sliding_window_view(sensitivity[s],
                                                                length)[::stride]
             weights += factor * windows * kernel
-        for m in range(length):   # G_n: every window's score times its weight of sample n
-            through[m:m + (n_win - 1) * stride + 1:stride] += g * weights[:, m:m + 1]
-        meat += through.T @ through
+        # sum_n G_n G_n^T of the direct weights: windows that share samples, lag by lag
+        for lag in range(min(n_win, -(-length // stride))):
+            shift = lag * stride
+            c = np.einsum("ij,ij->i", weights[:n_win - lag, shift:],
+                          weights[lag:, :length - shift])
+            cross = (g[:n_win - lag] * c[:, None]).T @ g[lag:]
+            meat += cross if lag == 0 else cross + cross.T
+        rows = np.flatnonzero(np.any(moved != 0, axis=1))
+        if rows.size:   # and the terms of the samples that move crossings
+            direct = np.zeros((rows.size, scores.shape[1]))
+            for m in range(length):   # window w holds sample n at m = n - w * stride
+                w, fits = np.divmod(rows - m, stride)
+                use = (fits == 0) & (w >= 0) & (w < n_win)
+                direct[use] += g[w[use]] * weights[w[use], m][:, None]
+            x = moved[rows]
+            meat += direct.T @ x + x.T @ direct + x.T @ x
     return meat
 
 
