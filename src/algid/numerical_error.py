@@ -312,10 +312,14 @@ def _sample_step(state, backend):
             run(companion, layout, rows, out)
         error = _sample_errors
 
+    span = [0, 0]  # from span[0] to span[1] - 1 samples seen, one more needs no check
+
     def step(rows, out, error_out):
         seen = state.n_seen
-        if seen < ready or seen + 1 >= next_check(seen):
-            return False
+        if not span[0] <= seen < span[1]:
+            if seen < ready or seen + 1 >= next_check(seen):
+                return False
+            span[:] = seen, next_check(seen) - 1
         own(rows, out)
         its(rows, other)
         error(out, other, recent, error_out)
