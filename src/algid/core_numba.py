@@ -160,8 +160,9 @@ def _fixed(state):
 
 
 def bound_step(state):
-    """:func:`advance` of ``state`` with its arrays bound, for chunks continuing the
-    stream: ``step(channels, out)``, fewer Python operations per call (a stream fed one
+    """:func:`advance` of ``state`` with its arrays bound, for a chunk continuing a stream.
+
+    ``step(channels, out)`` does fewer Python operations per call (for a stream fed one
     sample at a time).
 
     Parameters
