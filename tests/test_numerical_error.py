@@ -125,6 +125,40 @@ def test_stream_gives_the_batch_numerical_error_bit_for_bit(engine, reset_period
         np.testing.assert_array_equal(whole.update(t, f, x).numerical_error, error)
 
 
+@pytest.mark.parametrize("engine", ENGINES)
+@pytest.mark.parametrize("reset_period", [None, 0.05])
+@pytest.mark.parametrize("constant", [False, True], ids=["excited", "undetermined"])
+def test_one_sample_at_a_time_gives_the_whole_chunk_bit_for_bit(engine, reset_period,
+                                                                  constant):
+    """The one-sample path (algid.numerical_error.advance_rows_with_error) gives the
+    estimates, numerical errors and state of one chunk, across the start-up, the
+    identifiability checks at 64 and 128 samples and the restarts of re-anchoring."""
+    t = np.arange(300) * 1e-3
+    f = np.ones_like(t) if constant else np.sin(7.0 * t) + 0.3 * np.cos(23.0 * t)
+    x = np.full_like(t, 0.5) if constant else 0.2 * np.sin(7.0 * t - 0.4) + 0.1 * t
+    whole = algid.OnlineEstimator(dt=1e-3, engine=engine, reset_period=reset_period)
+    ref = whole.update(t, f, x)
+    for kind in ("floats", "arrays"):
+        est = algid.OnlineEstimator(dt=1e-3, engine=engine, reset_period=reset_period)
+        pieces = [est.update(float(t[i]), float(f[i]), float(x[i])) if kind == "floats"
+                  else est.update(t[i:i + 1], f[i:i + 1], x[i:i + 1])
+                  for i in range(t.size)]
+        for name in ref.parameters:
+            np.testing.assert_array_equal(
+                np.concatenate([r.estimates[name] for r in pieces]), ref.estimates[name])
+        np.testing.assert_array_equal(np.concatenate([r.numerical_error for r in pieces]),
+                                      ref.numerical_error)
+        for mine, theirs in zip(est._states, whole._states):
+            assert mine.n_seen == theirs.n_seen and mine.undetermined == theirs.undetermined
+            assert mine.channel_max == theirs.channel_max
+            assert mine.channel_last == theirs.channel_last
+            np.testing.assert_array_equal(mine.recent_errors, theirs.recent_errors)
+            np.testing.assert_array_equal(mine.integrals, theirs.integrals)
+            np.testing.assert_array_equal(mine.companion.history, theirs.companion.history)
+    if constant and reset_period is None:  # judged at 64 samples: the path marks it too
+        assert np.isnan(ref.B[63:]).all() and np.isinf(ref.numerical_error[63:]).all()
+
+
 @pytest.mark.parametrize("name", list(CASES))
 def test_nan_before_the_first_estimate_and_honest_from_it(name):
     """The companion reports as early as the estimator (both from sample 5, by the

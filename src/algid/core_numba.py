@@ -31,7 +31,7 @@ from algid.generated import MODULES, NUMBA_MODULES
 from algid.quadrature import integrator_weights
 from algid.registry import module_from_source
 
-__all__ = ["advance", "compiled_loop", "numerical_error", "user_cache_dir"]
+__all__ = ["advance", "bound_step", "compiled_loop", "numerical_error", "user_cache_dir"]
 
 
 def user_cache_dir():
@@ -149,6 +149,44 @@ def _weights(points, dt):
     return integrator_weights(points, dt)
 
 
+def _fixed(state):
+    """The loop and the weights of ``state`` (kept with it while its step and model
+    stay)."""
+    fixed = state.__dict__.get("_numba_fixed")
+    if fixed is None or fixed[0] != state.dt or fixed[1] is not state.model:
+        fixed = state._numba_fixed = (state.dt, state.model, _loop_of(state.model),
+                                      *_weights(state.points, state.dt))
+    return fixed
+
+
+def bound_step(state):
+    """:func:`advance` of ``state`` with its arrays bound, for a chunk continuing a stream.
+
+    ``step(channels, out)`` does fewer Python operations per call (for a stream fed one
+    sample at a time).
+
+    Parameters
+    ----------
+    state : EstimatorState
+        Past its start-up.  The step holds its arrays and its ``dt``: make a new one if
+        ``state.dt`` changes.
+
+    Returns
+    -------
+    callable
+        ``step(channels, out)``: as ``advance(state, layout, channels, out)``.
+    """
+    _, _, loop, weights, startup = _fixed(state)
+    integrals, history, dt, divisors = state.integrals, state.history, state.dt, state.divisors
+    filter_order = state.filter_order
+
+    def step(channels, out):
+        loop(*channels, out, integrals, history, state.n_seen, dt, divisors, weights, startup,
+             filter_order, False)
+        state.n_seen += channels[0].size
+    return step
+
+
 def advance(state, layout, channels, out, *, from_origin=False):
     """Estimates of a chunk into ``out``, in one compiled pass.
 
@@ -170,11 +208,7 @@ def advance(state, layout, channels, out, *, from_origin=False):
     from_origin : bool, optional
         The chunk starts at the time origin (the state holds no sample yet).
     """
-    fixed = state.__dict__.get("_numba_fixed")
-    if fixed is None or fixed[0] != state.dt or fixed[1] is not state.model:
-        fixed = state._numba_fixed = (state.dt, state.model, _loop_of(state.model),
-                                      *_weights(state.points, state.dt))
-    _, _, loop, weights, startup = fixed
+    _, _, loop, weights, startup = _fixed(state)
     if from_origin:
         state.n_seen = 0
     loop(*channels, out, state.integrals, state.history, state.n_seen, state.dt,

@@ -297,24 +297,37 @@ def _sample_plan(layout, filter_order):
     return chain_drivers, kernel_values, filter_drivers
 
 
+def _sample_fixed(state, layout):
+    """What :func:`_sample_steps` takes from ``state`` and its layout, kept with the
+    state while its step and arrays stay: the step, the weights, the plan, the
+    divisors, and the working array with its views and those of the history."""
+    _, _, carried_weights, w_last = _weights(state.points, state.dt)
+    history = state.history
+    # products[:, 0] = 0, then the carried samples times their weights: the running
+    # sums along a row are correlate's sums over the carried samples
+    products = np.zeros((history.shape[0], history.shape[1] + 1))
+    return (state.dt, state.integrals, history, carried_weights, w_last,
+            *_sample_plan(layout, state.filter_order), _algebra_on_floats(state.model),
+            tuple((channel, power) for channel, power, _ in layout.chains),
+            state.divisors.tolist(), products, products[:, 1:], products[:, -1],
+            history[:, :-1], history[:, 1:], history[:, -1])
+
+
 def _sample_steps(state, layout, channels, out):
     """Estimates of a few samples, one at a time, into ``out`` (the state is past the
     start-up): the arithmetic of :func:`_block`, in the same order."""
     model = state.model
-    _, _, carried_weights, w_last = _weights(state.points, state.dt)
     integrals, history = state.integrals, state.history
-    chain_drivers, kernel_values, filter_drivers = _sample_plan(layout, state.filter_order)
-    on_floats = _algebra_on_floats(model)
+    fixed = state.__dict__.get("_numpy_sample")
+    if fixed is None or fixed[0] != state.dt or fixed[1] is not integrals \
+            or fixed[2] is not history:
+        fixed = state._numpy_sample = _sample_fixed(state, layout)
+    (dt, _, _, carried_weights, w_last, chain_drivers, kernel_values, filter_drivers,
+     on_floats, chains, divisors, products, weighted, last, older, newer,
+     newest_column) = fixed
     n_chain = len(chain_drivers)
     n_parameters = layout.n_lanes - 1
-    divisors = state.divisors.tolist()
     columns = [row.tolist() for row in channels]
-    dt = state.dt
-    # products[:, 0] = 0, then the carried samples times their weights: the running
-    # sums along a row are correlate's sums over the carried samples
-    products = np.zeros((history.shape[0], history.shape[1] + 1))
-    weighted, last = products[:, 1:], products[:, -1]
-    older, newer, newest_column = history[:, :-1], history[:, 1:], history[:, -1]
     for j in range(len(columns[0])):
         np.multiply(history, carried_weights, out=weighted)
         np.add.accumulate(products, axis=1, out=products)
@@ -324,7 +337,7 @@ def _sample_steps(state, layout, channels, out):
         signals = [column[j] if d == 1.0 else column[j] / d
                    for column, d in zip(columns, divisors)]
         values = []
-        for channel, power, _ in layout.chains:
+        for channel, power in chains:
             if power == 0:
                 values.append(signals[channel])
             else:

@@ -45,10 +45,11 @@ import math
 import numpy as np
 
 from algid import core
+from algid.backends import require_backend
 from algid.identifiability import undetermined_in_stream
 from algid.quadrature import QUADRATURE_POINTS
 
-__all__ = ["companion_options", "with_companion", "advance_with_error",
+__all__ = ["companion_options", "with_companion", "advance_with_error", "advance_rows_with_error",
            "relative_difference", "window_maximum", "next_check", "WINDOW", "FIRST_CHECK",
            "CHECK_EVERY", "JUDGED_ABOVE"]
 
@@ -251,6 +252,86 @@ def advance_with_error(state, channels, *, backend="numpy", out=None, error_out=
             check = next_check(state.n_seen)
         start = stop
     return out, error_out, state
+
+
+def advance_rows_with_error(state, rows, out, error_out, backend="numpy"):
+    """:func:`advance_with_error` on a chunk known to be well formed (no checks).
+
+    For a stream, whose chunks are checked before (:class:`algid.OnlineEstimator`): a
+    chunk of one sample past the start-up, with no identifiability check due, takes a
+    shorter path (fewer Python operations; the same numbers).
+
+    Parameters
+    ----------
+    state : EstimatorState
+        With its companion (:func:`with_companion`); both advance in place.
+    rows : tuple of ndarray
+        One C-contiguous float64 1-D array per channel, all of one length ``m``, in the
+        model's ``CHANNELS`` order.
+    out : ndarray, shape (n_parameters, m)
+        Float64 array the estimates are written into.
+    error_out : ndarray, shape (m,)
+        Float64 array the numerical error is written into.
+    backend : {"numpy", "numba"}, optional
+        Default ``"numpy"``.
+
+    Returns
+    -------
+    out, error_out : ndarray
+        The arrays given.
+    """
+    if error_out.shape[0] == 1:
+        step = state.__dict__.get("_sample_step")
+        if step is None or step[0] != state.dt or step[1] != backend:
+            step = state._sample_step = (state.dt, backend, _sample_step(state, backend))
+        if step[2](rows, out, error_out):
+            return out, error_out
+    advance_with_error(state, rows, backend=backend, out=out, error_out=error_out)
+    return out, error_out
+
+
+def _sample_step(state, backend):
+    """``step(rows, out, error_out)``: :func:`_piece` of one sample, with the arrays
+    bound; False (and nothing done) in the start-up or where a check is due."""
+    companion = state.companion
+    companion.dt = state.dt
+    ready = max(state.points, companion.points)
+    other = np.empty((len(state.model.PARAMETERS), 1))
+    recent, largest, last = state.recent_errors, state.channel_max, state.channel_last
+    divisors = state.divisors.tolist()
+    if backend == "numba":
+        from algid.core_numba import bound_step, numerical_error
+        own, its, error = bound_step(state), bound_step(companion), numerical_error
+    else:
+        run, layout = require_backend(backend), core.integrator_layout(state.model)
+
+        def own(rows, out):
+            run(state, layout, rows, out)
+
+        def its(rows, out):
+            run(companion, layout, rows, out)
+        error = _sample_errors
+
+    span = [0, 0]  # from span[0] to span[1] - 1 samples seen, one more needs no check
+
+    def step(rows, out, error_out):
+        seen = state.n_seen
+        if not span[0] <= seen < span[1]:
+            if seen < ready or seen + 1 >= next_check(seen):
+                return False
+            span[:] = seen, next_check(seen) - 1
+        own(rows, out)
+        its(rows, other)
+        error(out, other, recent, error_out)
+        for c, row in enumerate(rows):  # the channels' extent, as _piece
+            newest = row.item(0) / divisors[c]
+            if abs(newest) > largest[c]:
+                largest[c] = abs(newest)
+            last[c] = newest
+        if state.undetermined:
+            _mark_undetermined(state, out, error_out)
+        return True
+    return step
 
 
 #: Whether the samples determine the parameters is judged when the estimator has seen

@@ -70,7 +70,7 @@ from algid import core
 from algid.backends import choose_engine
 from algid.errors import InputDataError
 from algid.late_origin import advance_best, late_twin
-from algid.numerical_error import advance_with_error, with_companion
+from algid.numerical_error import advance_rows_with_error, with_companion
 from algid.options import (DEFAULT_FILTER_ORDER, channel_divisors, check_filter_order,
                            known_mass, quadrature_points_option, with_mass_scaled)
 from algid.reanchoring import anchor_plan
@@ -523,34 +523,30 @@ class OnlineEstimator:
             advance_best(self._states[0], self._twin, channels, backend=self.engine,
                          out=out, error_out=error)
         elif half is None:  # no re-anchoring, or only the first sample so far
-            advance_with_error(self._states[0], channels, backend=self.engine, out=out,
-                               error_out=error)
+            advance_rows_with_error(self._states[0], channels, out, error, self.engine)
         else:
             self._advance_anchored(t, channels, half, out, error)
 
     def _advance_anchored(self, t, channels, half, out, error):
         """Estimates of a checked chunk with re-anchoring, into ``out`` (their numerical
         error into ``error``)."""
+        if self._discard_error.size < t.size:  # the unreported estimates go there
+            self._discard = np.empty((out.shape[0], max(t.size, 64)))
+            self._discard_error = np.empty(self._discard.shape[1])
         k, phase = divmod(self._n, half)
         if phase and phase + t.size <= half:  # within one half period: one segment,
             # with nothing restarting (what anchor_plan says, without building it)
             self._reported = reported = 0 if k == 0 or k % 2 else 1
             for i in ((0,) if k == 0 else (0, 1)):
                 if i == reported:
-                    advance_with_error(self._states[i], channels, backend=self.engine,
-                                       out=out, error_out=error)
+                    advance_rows_with_error(self._states[i], channels, out, error, self.engine)
                 else:
-                    if self._discard.shape[1] < t.size:
-                        self._discard = np.empty((out.shape[0], max(t.size, 64)))
-                    advance_with_error(self._states[i], channels, backend=self.engine,
-                                       out=self._discard[:, :t.size])
+                    advance_rows_with_error(self._states[i], channels, self._discard[:, :t.size],
+                                            self._discard_error[:t.size], self.engine)
             return
         # every estimator runs from one restart to its next in one call (estimator 0
         # straight into out, estimator 1 aside); then the segments it reports are copied
         plan = anchor_plan(self._n, t.size, half)
-        if self._discard_error.size < t.size:
-            self._discard = np.empty((out.shape[0], max(t.size, 64)))
-            self._discard_error = np.empty(self._discard.shape[1])
         for i, (target, target_error) in enumerate(((out, error),
                                                     (self._discard, self._discard_error))):
             begin = None
@@ -578,9 +574,8 @@ class OnlineEstimator:
 
     def _advance_run(self, i, channels, start, stop, target, target_error):
         """Advance estimator ``i`` over samples ``start .. stop - 1`` of the chunk."""
-        advance_with_error(self._states[i], tuple(c[start:stop] for c in channels),
-                           backend=self.engine, out=target[:, start:stop],
-                           error_out=target_error[start:stop])
+        advance_rows_with_error(self._states[i], tuple(c[start:stop] for c in channels),
+                                target[:, start:stop], target_error[start:stop], self.engine)
 
 
 # --------------------------------------------------------------------------------------

@@ -19,7 +19,7 @@ from functools import cache
 import numpy as np
 
 from algid.errors import InputDataError
-from algid.validation import as_signal, rounding_quantum, step_tolerance
+from algid.validation import UNIFORM_RTOL, as_signal, rounding_quantum, step_tolerance
 
 __all__ = ["check_signals_call", "check_chunk", "check_signals_chunk", "compiled_scan"]
 
@@ -46,8 +46,10 @@ def _check_sample(t, f, x, n, t_last, dt):
                                  f"{_fmt(t)} after {_fmt(t_last)}")
         if dt is None:
             dt = step
-        elif abs(step - dt) > step_tolerance(max(abs(t), abs(t_last)), dt) and \
+        elif abs(step - dt) > UNIFORM_RTOL * dt and \
+                abs(step - dt) > step_tolerance(max(abs(t), abs(t_last)), dt) and \
                 _beyond_rounding(np.array([t_last, t]), dt, abs(step - dt)):
+            # (the tolerance is at least UNIFORM_RTOL * dt: the common case needs no more)
             raise InputDataError(f"time 't' is not uniformly sampled at stream sample {n}: "
                                  f"step {_fmt(step)} where {_fmt(dt)} is expected")
     samples = np.array((t, f, x))  # one allocation; the three rows are views of it
@@ -124,6 +126,10 @@ def check_chunk(t, f, x, *, n, t_last, dt, scan=None):
     """
     if type(t) is float and type(f) is float and type(x) is float:  # one sample, fast
         return _check_sample(t, f, x, n, t_last, dt)
+    if type(t) is np.ndarray and type(f) is np.ndarray and type(x) is np.ndarray and \
+            t.shape == f.shape == x.shape == (1,) and \
+            t.dtype is _FLOAT64 and f.dtype is _FLOAT64 and x.dtype is _FLOAT64:
+        return _check_sample(t.item(0), f.item(0), x.item(0), n, t_last, dt)
     if scan is not None:
         checked = _scan_chunk(scan, t, f, x, t_last, dt)
         if checked is not None:
