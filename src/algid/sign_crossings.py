@@ -355,17 +355,19 @@ def refine_crossings(position, t, velocity, jump, half_width=FIT_HALF_WIDTH, *,
         upwards = z[index[j] + 1] > 0
         signed = jump if upwards else -jump
         scale = float(np.median(np.diff(tw)))
-        residuals = _polynomial_residuals(q[window] - q[index[j]], tw, signed, scale)
+        refined = None
         if forcing is not None:
-            motion = _motion_residuals(q[window] - q[index[j]], tw, signed,
-                                       forcing[window], damping)
-            refined = _refine_one(motion, times[j], upwards, scale)
+            residuals = _motion_residuals(q[window] - q[index[j]], tw, signed,
+                                          forcing[window], damping)
+            refined = _refine_one(residuals, times[j], upwards, scale)
             # where the forcing cannot overcome the Coulomb term, the model has the mass
             # stick at the crossing: a motion the fit by the model's does not describe
-            if refined is not None and \
+            if refined is not None and not \
                     abs(np.interp(refined, t, forcing)) > abs(jump) / 2:
-                residuals = motion
-        refined = _refine_one(residuals, times[j], upwards, scale)
+                refined = None
+        if refined is None:
+            residuals = _polynomial_residuals(q[window] - q[index[j]], tw, signed, scale)
+            refined = _refine_one(residuals, times[j], upwards, scale)
         if refined is not None:
             times[j] = refined
             if sensitivity:

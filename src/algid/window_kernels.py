@@ -208,12 +208,16 @@ def step_window_integrals(t, level, times, steps, length, multiplicity, derivati
     whole = chebyshev.chebval(1.0, primitive)
     before = np.concatenate([[0.0], np.cumsum(steps)])
     total = (level + before[np.searchsorted(times, t0, side="right")]) * whole
-    for time, step in zip(times, steps):
-        lo, hi = np.searchsorted(t0 + span, time, side="right"), \
-            np.searchsorted(t0, time, side="left")
-        if hi > lo:
-            u = (time - t0[lo:hi]) / span[lo:hi]
-            total[lo:hi] += step * (whole - chebyshev.chebval(2.0 * u - 1.0, primitive))
+    # the windows holding each step: from the first that ends after it to the last that
+    # starts before it
+    lo = np.searchsorted(t0 + span, times, side="right")
+    counts = np.maximum(np.searchsorted(t0, times, side="left") - lo, 0)
+    step_of = np.repeat(np.arange(len(times)), counts)
+    window = np.repeat(lo, counts) + np.arange(counts.sum()) \
+        - np.repeat(np.cumsum(counts) - counts, counts)
+    u = (times[step_of] - t0[window]) / span[window]
+    inside = steps[step_of] * (whole - chebyshev.chebval(2.0 * u - 1.0, primitive))
+    total += np.bincount(window, weights=inside, minlength=n_win)
     return total / span ** derivative
 
 
