@@ -73,14 +73,14 @@ def noise_meat(problem, length, multiplicity, theta_bar, scores, stride):
         first += n_win
         weights = np.zeros((n_win, length))  # noise weight of every sample of every window
         moved = np.zeros((len(seg), scores.shape[1]))   # G_n through the crossings
+        t0 = seg.t[0:n_win * stride:stride]
+        span = seg.t[length - 1:length - 1 + n_win * stride:stride] - t0
         for term in problem.model.terms:
             if term.parameter is None:  # the known side: b -= coefficient * integral
                 factor = -theta_bar[p] * term.coefficient
             else:
                 factor = theta_bar[index[term.parameter]] * term.coefficient
             for time, step, start, moves in problem.crossings.get((term.factor, s), ()):
-                t0 = seg.t[0:n_win * stride:stride]
-                span = seg.t[length - 1:length - 1 + n_win * stride:stride] - t0
                 inside = (t0 < time) & (time < t0 + span)
                 u = (time - t0[inside]) / span[inside]
                 shift = -step * term_kernel(multiplicity, term.derivative, u) \
