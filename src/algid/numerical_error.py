@@ -297,8 +297,7 @@ def _sample_step(state, backend):
     companion.dt = state.dt
     ready = max(state.points, companion.points)
     other = np.empty((len(state.model.PARAMETERS), 1))
-    recent, largest, last = state.recent_errors, state.channel_max, state.channel_last
-    divisors = state.divisors.tolist()
+    recent = state.recent_errors
     if backend == "numba":
         from algid.core_numba import bound_step, numerical_error
         own, its, error = bound_step(state), bound_step(companion), numerical_error
@@ -323,11 +322,7 @@ def _sample_step(state, backend):
         own(rows, out)
         its(rows, other)
         error(out, other, recent, error_out)
-        for c, row in enumerate(rows):  # the channels' extent, as _piece
-            newest = row.item(0) / divisors[c]
-            if abs(newest) > largest[c]:
-                largest[c] = abs(newest)
-            last[c] = newest
+        _track_channels(state, rows)
         if state.undetermined:
             _mark_undetermined(state, out, error_out)
         return True
@@ -379,16 +374,21 @@ def _piece(state, rows, backend, out, error_out, scratch=None):
     other = core.advance_rows(state.companion, rows,
                               np.empty(out.shape) if scratch is None else scratch, backend)
     _block_error(backend, out, other, state.recent_errors, error_out)
+    _track_channels(state, rows)
+    if state.undetermined:
+        _mark_undetermined(state, out, error_out)
+
+
+def _track_channels(state, rows):
+    """The channels' extent (largest absolute value, newest), for the checks."""
     largest, last, divisors = state.channel_max, state.channel_last, state.divisors
-    for c, row in enumerate(rows):  # the channels' extent, for the checks
+    for c, row in enumerate(rows):
         divisor = divisors.item(c)
         newest = row.item(-1) / divisor
         size = abs(newest) if row.size == 1 else max(row.max(), -row.min()) / divisor
         if size > largest[c]:
             largest[c] = size
         last[c] = newest
-    if state.undetermined:
-        _mark_undetermined(state, out, error_out)
 
 
 def _mark_undetermined(state, out, error_out):
