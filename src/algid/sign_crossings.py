@@ -57,6 +57,7 @@ gives how each moves with the position samples (first order), which
 from __future__ import annotations
 
 import numpy as np
+from scipy.interpolate import CubicHermiteSpline
 
 from algid.differentiation import DEFAULT_WINDOW_STEPS
 from algid.expression import Call, Power, Product, Signal, Sum
@@ -233,38 +234,25 @@ def _refine_one(residuals, guess, upwards, scale):
     return float(best)
 
 
-def _hermite(t, values, slopes, times):
-    """Cubic Hermite interpolation of samples with known derivatives at ``times``."""
-    i = np.clip(np.searchsorted(t, times, side="right") - 1, 0, len(t) - 2)
-    h = t[i + 1] - t[i]
-    x = (times - t[i]) / h
-    h00, h10 = (1 + 2 * x) * (1 - x) ** 2, x * (1 - x) ** 2
-    h01, h11 = x ** 2 * (3 - 2 * x), x ** 2 * (x - 1)
-    return (h00 * values[i] + h10 * h * slopes[i] + h01 * values[i + 1]
-            + h11 * h * slopes[i + 1])
-
-
-def _cumulative(values, slopes, t):
-    """Running integral from ``t[0]`` of samples with known derivatives (the trapezoid
-    rule with its end correction: exact for cubics)."""
-    h = np.diff(t)
-    steps = h / 2 * (values[1:] + values[:-1]) - h ** 2 / 12 * (slopes[1:] - slopes[:-1])
-    return np.concatenate([[0.0], np.cumsum(steps)])
-
-
 def _motion_residuals(position, t, jump, forcing, damping):
-    """Residual function of the fit by the model's own motion (see the module notes)."""
-    g1 = _cumulative(forcing, np.gradient(forcing, t), t)
-    g2 = _cumulative(g1, forcing, t)
-    q1 = _cumulative(position, np.gradient(position, t), t)
+    """Residual function of the fit by the model's own motion (see the module notes).
+
+    The running integrals are those of cubic Hermite interpolants (with the samples'
+    ``numpy.gradient`` as slopes for the forcing and the position; the trapezoid rule
+    with its end correction), and are interpolated at ``tc`` the same way."""
+    forced = CubicHermiteSpline(t, forcing, np.gradient(forcing, t)).antiderivative()(t)
+    once = CubicHermiteSpline(t, forced, forcing)           # int g
+    twice = once.antiderivative()(t)
+    twice_at = CubicHermiteSpline(t, twice, forced)        # int int g
+    moved = CubicHermiteSpline(t, position, np.gradient(position, t)).antiderivative()(t)
+    moved_at = CubicHermiteSpline(t, moved, position)      # int q
 
     def residuals(times):
         s = t[None, :] - times[:, None]
-        g1c = _hermite(t, g1, forcing, times)[:, None]
-        g2c = _hermite(t, g2, g1, times)[:, None]
-        q1c = _hermite(t, q1, position, times)[:, None]
-        target = (position[None, :] - (g2[None, :] - g2c - g1c * s)
-                  + damping * (q1[None, :] - q1c) - 0.25 * jump * np.sign(s) * s ** 2)
+        target = (position[None, :]
+                  - (twice[None, :] - twice_at(times)[:, None] - once(times)[:, None] * s)
+                  + damping * (moved[None, :] - moved_at(times)[:, None])
+                  - 0.25 * jump * np.sign(s) * s ** 2)
         basis = 1.0 + damping * s
         c0 = np.einsum("gi,gi->g", basis, target) / np.einsum("gi,gi->g", basis, basis)
         residual = target - c0[:, None] * basis
