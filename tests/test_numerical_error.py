@@ -150,8 +150,8 @@ def test_one_sample_at_a_time_gives_the_whole_chunk_bit_for_bit(engine, reset_pe
                                       ref.numerical_error)
         for mine, theirs in zip(est._states, whole._states):
             assert mine.n_seen == theirs.n_seen and mine.undetermined == theirs.undetermined
-            assert mine.channel_max == theirs.channel_max
-            assert mine.channel_last == theirs.channel_last
+            assert np.array_equal(mine.channel_max, theirs.channel_max)
+            assert np.array_equal(mine.channel_last, theirs.channel_last)
             np.testing.assert_array_equal(mine.recent_errors, theirs.recent_errors)
             np.testing.assert_array_equal(mine.integrals, theirs.integrals)
             np.testing.assert_array_equal(mine.companion.history, theirs.companion.history)

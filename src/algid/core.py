@@ -126,7 +126,7 @@ class EstimatorState:
         this one; None without.
     recent_errors : ndarray or None
         With a companion: the last raw numerical errors (:mod:`algid.numerical_error`).
-    channel_max, channel_last : list of float or None
+    channel_max, channel_last : ndarray or None
         With a companion: the largest absolute value of every channel since the time
         origin, and its last value (both divided by its divisor), for the
         identifiability checks.
@@ -151,8 +151,8 @@ class EstimatorState:
     startup: np.ndarray
     companion: EstimatorState | None = None
     recent_errors: np.ndarray | None = None
-    channel_max: list | None = None
-    channel_last: list | None = None
+    channel_max: np.ndarray | None = None
+    channel_last: np.ndarray | None = None
     undetermined: tuple = ()
     early: bool = True
 
@@ -172,9 +172,9 @@ class EstimatorState:
                                    recent_errors=None if self.recent_errors is None
                                    else self.recent_errors.copy(),
                                    channel_max=None if self.channel_max is None
-                                   else list(self.channel_max),
+                                   else self.channel_max.copy(),
                                    channel_last=None if self.channel_last is None
-                                   else list(self.channel_last))
+                                   else self.channel_last.copy())
 
     def restart(self, early: bool = True) -> None:
         """Move the time origin to the next sample (re-anchoring): forget the past.
@@ -194,7 +194,7 @@ class EstimatorState:
         if self.recent_errors is not None:
             self.recent_errors.fill(0.0)
         if self.channel_max is not None:
-            self.channel_max[:] = [0.0] * len(self.channel_max)
+            self.channel_max.fill(0.0)
         self.undetermined = ()
 
     def magnitude(self) -> float:

@@ -19,19 +19,18 @@ from __future__ import annotations
 import hashlib
 import importlib
 import importlib.util
-import math
 import os
 import sys
 from functools import cache, lru_cache
 
-import numba  # ImportError here: the backend is not available
 import numpy as np
 
 from algid.generated import MODULES, NUMBA_MODULES
+from algid.numerical_error_numba import block_error  # ImportError: no numba
 from algid.quadrature import integrator_weights
 from algid.registry import module_from_source
 
-__all__ = ["advance", "bound_step", "compiled_loop", "numerical_error", "user_cache_dir"]
+__all__ = ["advance", "bound_sample_pair", "compiled_loop", "numerical_error", "user_cache_dir"]
 
 
 def user_cache_dir():
@@ -92,7 +91,7 @@ def _module_from_file(name, path):
 
 
 def _cached_loop(module, directory):
-    """The loop of a model compiled in memory, loaded from files in ``directory`` so
+    """The loops of a model compiled in memory, loaded from files in ``directory`` so
     that numba caches its machine code; None if its texts are not as generated."""
     source = getattr(module, "GENERATED_SOURCE", None)
     loop_source = module.NUMBA_SOURCE
@@ -109,22 +108,23 @@ def _cached_loop(module, directory):
     _write_once(os.path.join(directory, loop_name + ".py"), loop_source)
     if algebra not in sys.modules:
         _module_from_file(algebra, os.path.join(directory, algebra + ".py"))
-    return _module_from_file(loop_name, os.path.join(directory, loop_name + ".py")).advance
+    return _module_from_file(loop_name, os.path.join(directory, loop_name + ".py"))
 
 
 @cache
-def _loop_of(module):
+def _loops_of(module):
+    """The module of the compiled loops of a generated module."""
     if MODULES.get(module.MODEL) == module.__name__:
-        return importlib.import_module(NUMBA_MODULES[module.MODEL]).advance
+        return importlib.import_module(NUMBA_MODULES[module.MODEL])
     directory = user_cache_dir()
     if directory is not None:
         try:
-            loop = _cached_loop(module, directory)
+            loops = _cached_loop(module, directory)
         except OSError:  # the directory went away or is full: compile in memory
-            loop = None
-        if loop is not None:
-            return loop
-    return module_from_source(module.NUMBA_SOURCE, module.__name__ + "_numba").advance
+            loops = None
+        if loops is not None:
+            return loops
+    return module_from_source(module.NUMBA_SOURCE, module.__name__ + "_numba")
 
 
 def compiled_loop(module):
@@ -141,7 +141,7 @@ def compiled_loop(module):
     callable
         The numba-compiled loop (cached per module).
     """
-    return _loop_of(module)
+    return _loops_of(module).advance
 
 
 @lru_cache(maxsize=64)
@@ -154,36 +154,48 @@ def _fixed(state):
     stay)."""
     fixed = state.__dict__.get("_numba_fixed")
     if fixed is None or fixed[0] != state.dt or fixed[1] is not state.model:
-        fixed = state._numba_fixed = (state.dt, state.model, _loop_of(state.model),
+        fixed = state._numba_fixed = (state.dt, state.model, _loops_of(state.model).advance,
                                       *_weights(state.points, state.dt))
     return fixed
 
 
-def bound_step(state):
-    """:func:`advance` of ``state`` with its arrays bound, for a chunk continuing a stream.
+def bound_sample_pair(state):
+    """One sample of ``state`` and its companion, with the numerical error, as one
+    compiled call (the generated ``advance_sample_pair``), their arrays bound.
 
-    ``step(channels, out)`` does fewer Python operations per call (for a stream fed one
-    sample at a time).
+    For a stream fed one sample at a time: the same numbers as :func:`advance` of the
+    estimator and of its companion followed by :func:`numerical_error`, with the
+    channels' extent tracked (:mod:`algid.numerical_error`).
 
     Parameters
     ----------
     state : EstimatorState
-        Past its start-up.  The step holds its arrays and its ``dt``: make a new one if
-        ``state.dt`` changes.
+        Past its start-up, with its companion
+        (:func:`algid.numerical_error.with_companion`).  The step holds their arrays and
+        ``dt``: make a new one if ``state.dt`` changes.
 
     Returns
     -------
     callable
-        ``step(channels, out)``: as ``advance(state, layout, channels, out)``.
+        ``step(values, out, error_out)``: ``values`` the sample of every channel as
+        floats, in the model's ``CHANNELS`` order; ``out`` a float64 array of shape
+        ``(n_parameters, 1)`` and ``error_out`` one of shape ``(1,)`` receive the
+        estimates and their numerical error.
     """
-    _, _, loop, weights, startup = _fixed(state)
-    integrals, history, dt, divisors = state.integrals, state.history, state.dt, state.divisors
-    filter_order = state.filter_order
+    companion = state.companion
+    pair = _loops_of(state.model).advance_sample_pair
+    own, its = _fixed(state), _fixed(companion)
+    other = np.empty((len(state.model.PARAMETERS), 1))
+    bound = (state.integrals, state.history, own[3], state.filter_order, other,
+             companion.integrals, companion.history, its[3], companion.filter_order,
+             state.recent_errors)
+    extent = (state.channel_max, state.channel_last)
+    dt, divisors = state.dt, state.divisors
 
-    def step(channels, out):
-        loop(*channels, out, integrals, history, state.n_seen, dt, divisors, weights, startup,
-             filter_order, False)
-        state.n_seen += channels[0].size
+    def step(values, out, error_out):
+        pair(*values, state.n_seen, dt, divisors, out, *bound, error_out, *extent)
+        state.n_seen += 1
+        companion.n_seen += 1
     return step
 
 
@@ -218,40 +230,6 @@ def advance(state, layout, channels, out, *, from_origin=False):
     state.n_seen += channels[0].size
 
 
-@numba.njit(cache=True, nogil=True, error_model="numpy")  # x / 0: inf or NaN, no exception
-def _numerical_error(estimates, companion, recent, out):  # pragma: no cover - compiled
-    n_parameters, m = estimates.shape
-    width = recent.shape[0]
-    level = np.empty(width + m)
-    level[:width] = recent
-    for j in range(m):
-        raw = 0.0 if n_parameters else np.nan
-        for i in range(n_parameters):
-            a = estimates[i, j]
-            b = companion[i, j]
-            rel = abs(a - b) / abs(a)
-            if rel != rel and math.isfinite(a):
-                rel = 0.0 if a == b else np.inf
-            if rel != rel or raw != raw:
-                raw = np.nan
-            elif rel > raw:
-                raw = rel
-        out[j] = raw
-        level[width + j] = raw if math.isfinite(raw) else 0.0
-    recent[:] = level[m:]
-    # the largest over the last width + 1 samples: maxima of 2, 4, 8, ... samples (the
-    # window is a power of two), each pass reading the previous one's values ahead
-    span = 1
-    while span <= width:
-        for k in range(width + m - span):
-            if level[k + span] > level[k]:
-                level[k] = level[k + span]
-        span *= 2
-    for j in range(m):
-        if math.isfinite(out[j]):
-            out[j] = level[j]
-
-
 def numerical_error(estimates, companion, recent, out):
     """The numerical error of a block, compiled (see :mod:`algid.numerical_error`).
 
@@ -267,4 +245,4 @@ def numerical_error(estimates, companion, recent, out):
     out : ndarray, shape (m,)
         Receives the numerical error.
     """
-    _numerical_error(estimates, companion, recent, out)
+    block_error(estimates, companion, recent, out)

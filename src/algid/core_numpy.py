@@ -27,7 +27,7 @@ import numpy as np
 
 from algid.quadrature import integrator_weights
 
-__all__ = ["advance", "sample_step_is_exact", "BLOCK", "SMALL_CHUNK"]
+__all__ = ["advance", "advance_sample", "sample_step_is_exact", "BLOCK", "SMALL_CHUNK"]
 
 #: Samples per block of the NumPy backend.
 BLOCK = 32768
@@ -313,9 +313,35 @@ def _sample_fixed(state, layout):
             history[:, :-1], history[:, 1:], history[:, -1])
 
 
+def advance_sample(state, layout, values, out):
+    """Estimates of one sample given as numbers, into ``out``; the chunk continues the
+    stream, past the start-up.
+
+    The per-sample step, without making arrays of the sample: the numbers of
+    :func:`advance` where :func:`sample_step_is_exact` (call :func:`advance` where not).
+
+    Parameters
+    ----------
+    state : EstimatorState
+        Past its start-up; advanced in place.
+    layout : IntegratorLayout
+        Layout of the state's model (:func:`algid.core.integrator_layout`).
+    values : sequence of float
+        The sample of every channel, in the model's ``CHANNELS`` order.
+    out : ndarray, shape (n_parameters, 1)
+        Float64 array the estimates are written into.
+    """
+    _sample_columns(state, layout, [[value] for value in values], out)
+
+
 def _sample_steps(state, layout, channels, out):
     """Estimates of a few samples, one at a time, into ``out`` (the state is past the
     start-up): the arithmetic of :func:`_block`, in the same order."""
+    _sample_columns(state, layout, [row.tolist() for row in channels], out)
+
+
+def _sample_columns(state, layout, columns, out):
+    """:func:`_sample_steps` of the channels given as lists of floats."""
     model = state.model
     integrals, history = state.integrals, state.history
     fixed = state.__dict__.get("_numpy_sample")
@@ -327,7 +353,6 @@ def _sample_steps(state, layout, channels, out):
      newest_column) = fixed
     n_chain = len(chain_drivers)
     n_parameters = layout.n_lanes - 1
-    columns = [row.tolist() for row in channels]
     for j in range(len(columns[0])):
         np.multiply(history, carried_weights, out=weighted)
         np.add.accumulate(products, axis=1, out=products)

@@ -46,10 +46,13 @@ import numpy as np
 
 from algid import core
 from algid.backends import require_backend
+from algid.core_numpy import advance_sample as numpy_sample
+from algid.core_numpy import sample_step_is_exact
 from algid.identifiability import undetermined_in_stream
 from algid.quadrature import QUADRATURE_POINTS
 
 __all__ = ["companion_options", "with_companion", "advance_with_error", "advance_rows_with_error",
+           "sample_stepper",
            "relative_difference", "window_maximum", "next_check", "WINDOW", "FIRST_CHECK",
            "CHECK_EVERY", "JUDGED_ABOVE"]
 
@@ -93,8 +96,8 @@ def with_companion(state: core.EstimatorState) -> core.EstimatorState:
     state.companion = core.new_state(state.model, points=points, filter_order=filter_order,
                                      dt=state.dt, divisors=state.divisors)
     state.recent_errors = np.zeros(WINDOW - 1)
-    state.channel_max = [0.0] * len(state.divisors)  # for the identifiability checks
-    state.channel_last = [0.0] * len(state.divisors)
+    state.channel_max = np.zeros(len(state.divisors))  # for the identifiability checks
+    state.channel_last = np.zeros(len(state.divisors))
     return state
 
 
@@ -293,36 +296,65 @@ def advance_rows_with_error(state, rows, out, error_out, backend="numpy"):
 def _sample_step(state, backend):
     """``step(rows, out, error_out)``: :func:`_piece` of one sample, with the arrays
     bound; False (and nothing done) in the start-up or where a check is due."""
+    values = sample_stepper(state, backend)
+
+    def step(rows, out, error_out):
+        return values(tuple(row.item(0) for row in rows), out, error_out)
+    return step
+
+
+def sample_stepper(state, backend="numpy"):
+    """One sample of a stream, given as numbers: the estimator, its companion and the
+    numerical error (:func:`advance_with_error` of one sample), with their arrays bound.
+
+    Parameters
+    ----------
+    state : EstimatorState
+        With its companion (:func:`with_companion`).  The step holds its ``dt``: make a
+        new one if ``state.dt`` changes.
+    backend : {"numpy", "numba"}, optional
+        Default ``"numpy"``.  On ``"numba"`` the sample is one compiled call
+        (:func:`algid.core_numba.bound_sample_pair`).
+
+    Returns
+    -------
+    callable
+        ``step(values, out, error_out) -> bool``: ``values`` the sample of every
+        channel as floats (checked, in the model's ``CHANNELS`` order), ``out`` a
+        float64 array of shape ``(n_parameters, 1)``, ``error_out`` one of shape
+        ``(1,)``.  It returns False, and does nothing, in the start-up or where an
+        identifiability check is due (:func:`next_check`): take
+        :func:`advance_with_error` there.
+    """
     companion = state.companion
     companion.dt = state.dt
     ready = max(state.points, companion.points)
-    other = np.empty((len(state.model.PARAMETERS), 1))
-    recent = state.recent_errors
     if backend == "numba":
-        from algid.core_numba import bound_step, numerical_error
-        own, its, error = bound_step(state), bound_step(companion), numerical_error
+        from algid.core_numba import bound_sample_pair
+        advance = bound_sample_pair(state)
     else:
-        run, layout = require_backend(backend), core.integrator_layout(state.model)
+        require_backend(backend)  # the backend is known
+        if not sample_step_is_exact():
+            return lambda values, out, error_out: False
+        layout = core.integrator_layout(state.model)
+        other = np.empty((len(state.model.PARAMETERS), 1))
+        recent = state.recent_errors
 
-        def own(rows, out):
-            run(state, layout, rows, out)
-
-        def its(rows, out):
-            run(companion, layout, rows, out)
-        error = _sample_errors
+        def advance(values, out, error_out):
+            numpy_sample(state, layout, values, out)
+            numpy_sample(companion, layout, values, other)
+            _sample_errors(out, other, recent, error_out)
+            _track_values(state, values)
 
     span = [0, 0]  # from span[0] to span[1] - 1 samples seen, one more needs no check
 
-    def step(rows, out, error_out):
+    def step(values, out, error_out):
         seen = state.n_seen
         if not span[0] <= seen < span[1]:
             if seen < ready or seen + 1 >= next_check(seen):
                 return False
             span[:] = seen, next_check(seen) - 1
-        own(rows, out)
-        its(rows, other)
-        error(out, other, recent, error_out)
-        _track_channels(state, rows)
+        advance(values, out, error_out)
         if state.undetermined:
             _mark_undetermined(state, out, error_out)
         return True
@@ -388,6 +420,16 @@ def _track_channels(state, rows):
         size = abs(newest) if row.size == 1 else max(row.max(), -row.min()) / divisor
         if size > largest[c]:
             largest[c] = size
+        last[c] = newest
+
+
+def _track_values(state, values):
+    """:func:`_track_channels` of one sample given as numbers."""
+    largest, last, divisors = state.channel_max, state.channel_last, state.divisors
+    for c, value in enumerate(values):
+        newest = value / divisors.item(c)
+        if abs(newest) > largest[c]:
+            largest[c] = abs(newest)
         last[c] = newest
 
 

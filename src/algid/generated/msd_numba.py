@@ -12,6 +12,7 @@ import numba
 import numpy as np
 
 from algid.generated.msd import cramer, regressors_packed
+from algid.numerical_error_numba import sample_error
 
 CACHE = True
 BLOCK = 256
@@ -72,6 +73,92 @@ def _startup_increments(src, dst, startup):
 
 
 @numba.njit(cache=CACHE, nogil=True)
+def _integrate_sample(integrals, history, k, value, weights):
+    """Integrator k past one more integrand sample: its increment summed oldest
+    sample first (as _increments), its running integral (returned); the sample
+    joins its history."""
+    W = weights.shape[0] - 1
+    acc = history[k, 0] * weights[0]
+    for i in range(1, W):
+        acc = acc + history[k, i] * weights[i]
+    total = integrals[k] + (acc + value * weights[W])
+    for i in range(W - 1):
+        history[k, i] = history[k, i + 1]
+    history[k, W - 1] = value
+    integrals[k] = total
+    return total
+
+
+@numba.njit(cache=CACHE, nogil=True)
+def advance_sample(channel_0, channel_1, out, integrals, history, n0, dt, divisors,
+                   weights, filter_order):
+    """advance over one sample continuing the stream, the channels given as
+    numbers: the same operations in the same order, on the state's arrays
+    (no working array)."""
+    tau = n0 * dt
+    v0 = channel_0
+    if divisors[0] != 1.0:
+        v0 = v0 / divisors[0]
+    v1 = channel_1
+    if divisors[1] != 1.0:
+        v1 = v1 / divisors[1]
+    y0_0 = (tau * tau) * v0
+    y1_0 = v1
+    y2_0 = tau * v1
+    y3_0 = (tau * tau) * v1
+    y0_1 = _integrate_sample(integrals, history, 0, y0_0, weights)
+    y1_1 = _integrate_sample(integrals, history, 1, y1_0, weights)
+    y2_1 = _integrate_sample(integrals, history, 2, y2_0, weights)
+    y3_1 = _integrate_sample(integrals, history, 3, y3_0, weights)
+    y0_2 = _integrate_sample(integrals, history, 4, y0_1, weights)
+    y1_2 = _integrate_sample(integrals, history, 5, y1_1, weights)
+    y2_2 = _integrate_sample(integrals, history, 6, y2_1, weights)
+    y3_2 = _integrate_sample(integrals, history, 7, y3_1, weights)
+    y0_3 = _integrate_sample(integrals, history, 8, y0_2, weights)
+    y1_3 = _integrate_sample(integrals, history, 9, y1_2, weights)
+    y2_3 = _integrate_sample(integrals, history, 10, y2_2, weights)
+    y3_3 = _integrate_sample(integrals, history, 11, y3_2, weights)
+    P, Q = _regressors_packed((y0_2, y0_3, y1_2, y1_3, y2_1, y2_2, y2_3, y3_0, y3_1, y3_2, y3_3,))
+    nums, den = _cramer(P, Q)
+    f0 = nums[0]
+    f1 = nums[1]
+    f2 = den
+    for lev in range(filter_order):
+        f0 = _integrate_sample(integrals, history, 12 + lev * 3 + 0, f0, weights)
+        f1 = _integrate_sample(integrals, history, 12 + lev * 3 + 1, f1, weights)
+        f2 = _integrate_sample(integrals, history, 12 + lev * 3 + 2, f2, weights)
+    if f2 == 0.0 or not math.isfinite(f2):
+        out[0, 0] = np.nan
+        out[1, 0] = np.nan
+    else:
+        out[0, 0] = f0 / f2
+        out[1, 0] = f1 / f2
+
+
+@numba.njit(cache=CACHE, nogil=True)
+def advance_sample_pair(channel_0, channel_1, n0, dt, divisors, out, integrals, history,
+                        weights, filter_order, other, other_integrals,
+                        other_history, other_weights, other_filter_order, recent,
+                        error_out, channel_max, channel_last):
+    """One sample continuing the stream: the estimator (into out), its companion
+    (other_*, into other), the numerical error (error_out; recent updated) and
+    the channels' extent (channel_max, channel_last), in one call."""
+    advance_sample(channel_0, channel_1, out, integrals, history, n0, dt, divisors, weights,
+                   filter_order)
+    advance_sample(channel_0, channel_1, other, other_integrals, other_history, n0, dt,
+                   divisors, other_weights, other_filter_order)
+    sample_error(out, other, recent, error_out)
+    v0 = channel_0 / divisors[0]
+    if abs(v0) > channel_max[0]:
+        channel_max[0] = abs(v0)
+    channel_last[0] = v0
+    v1 = channel_1 / divisors[1]
+    if abs(v1) > channel_max[1]:
+        channel_max[1] = abs(v1)
+    channel_last[1] = v1
+
+
+@numba.njit(cache=CACHE, nogil=True)
 def advance(channel_0, channel_1, out, integrals, history, n0, dt, divisors,
             weights, startup, filter_order, from_origin):
     """Advance the state (integrals, history) over the chunk; estimates into out.
@@ -81,6 +168,10 @@ def advance(channel_0, channel_1, out, integrals, history, n0, dt, divisors,
     """
     W = weights.shape[0] - 1
     size = channel_0.shape[0]
+    if size == 1 and not from_origin:
+        advance_sample(channel_0[0], channel_1[0], out, integrals, history, n0, dt,
+                       divisors, weights, filter_order)
+        return
     # y<c>_<l>[:W]: the last W values of level l of chain c before the block;
     # y<c>_<l>[W + b]: its value at sample b of the block; all are views into one
     # scratch array (one allocation per call)

@@ -9,6 +9,12 @@ module's own ``regressors_packed`` and ``cramer``, compiled.  It works on blocks
 first (loops the compiler vectorises), then the running integrals (one dependency
 chain per integrator, interleaved across integrators).
 
+A chunk of one sample (a stream fed a sample at a time) takes ``advance_sample``: the
+same operations in the same order on the state's own arrays, with no working array.
+``advance_sample_pair`` advances an estimator and its companion over one sample and
+computes the numerical error (:func:`algid.numerical_error_numba.sample_error`), in one
+compiled call.
+
 The text depends only on the model: ``python -m derivation`` writes it for every
 built-in model beside its NumPy module; a user model gets it in memory
 (:func:`algid.symbolic.codegen.compile_model`).
@@ -58,6 +64,96 @@ def _startup_source():
             "        dst[j] = acc"]
 
 
+def _integrate_sample_source():
+    """Lines of ``_integrate_sample``: one integrator past one more sample."""
+    return ["@numba.njit(cache=CACHE, nogil=True)",
+            "def _integrate_sample(integrals, history, k, value, weights):",
+            '    """Integrator k past one more integrand sample: its increment summed oldest',
+            "    sample first (as _increments), its running integral (returned); the sample",
+            '    joins its history."""',
+            "    W = weights.shape[0] - 1",
+            "    acc = history[k, 0] * weights[0]",
+            "    for i in range(1, W):",
+            "        acc = acc + history[k, i] * weights[i]",
+            "    total = integrals[k] + (acc + value * weights[W])",
+            "    for i in range(W - 1):",
+            "        history[k, i] = history[k, i + 1]",
+            "    history[k, W - 1] = value",
+            "    integrals[k] = total",
+            "    return total"]
+
+
+def _level_zero(a, layout, indent, index):
+    """Lines of level 0 of the chains: ``tau**power * channel / divisor`` into y<c>_0."""
+    for c, (channel, power, _) in enumerate(layout.chains):
+        factor = "tau"
+        for _ in range(power - 1):
+            factor = f"({factor} * tau)"
+        rhs = f"v{channel}" if power == 0 else f"{factor} * v{channel}"
+        a(f"{indent}y{c}_0{index} = {rhs}")
+
+
+def _sample_source(layout, channels, n_par):
+    """Lines of ``advance_sample`` and ``advance_sample_pair``."""
+    lanes = layout.n_lanes
+    names = ", ".join(channels)
+    src = ["@numba.njit(cache=CACHE, nogil=True)",
+           f"def advance_sample({names}, out, integrals, history, n0, dt, divisors,",
+           "                   weights, filter_order):",
+           '    """advance over one sample continuing the stream, the channels given as',
+           "    numbers: the same operations in the same order, on the state's arrays",
+           '    (no working array)."""',
+           "    tau = n0 * dt"]
+    a = src.append
+    for i, name in enumerate(channels):
+        a(f"    v{i} = {name}")
+        a(f"    if divisors[{i}] != 1.0:")
+        a(f"        v{i} = v{i} / divisors[{i}]")
+    _level_zero(a, layout, "    ", "")
+    k = 0
+    for level, rows in enumerate(layout.levels, start=1):
+        for c in rows:
+            a(f"    y{c}_{level} = _integrate_sample(integrals, history, {k}, y{c}_{level - 1},"
+              " weights)")
+            k += 1
+    kernels = ", ".join(f"y{row}_{level}" for level, row in layout.kernels)
+    a(f"    P, Q = _regressors_packed(({kernels},))")
+    a("    nums, den = _cramer(P, Q)")
+    lane_values = [f"nums[{r}]" for r in range(n_par)] + ["den"]
+    for r, value in enumerate(lane_values):
+        a(f"    f{r} = {value}")
+    a("    for lev in range(filter_order):")
+    for r in range(lanes):
+        a(f"        f{r} = _integrate_sample(integrals, history, {k} + lev * {lanes} + {r},"
+          f" f{r}, weights)")
+    a(f"    if f{n_par} == 0.0 or not math.isfinite(f{n_par}):")
+    for r in range(n_par):
+        a(f"        out[{r}, 0] = np.nan")
+    a("    else:")
+    for r in range(n_par):
+        a(f"        out[{r}, 0] = f{r} / f{n_par}")
+    src += ["", "",
+            "@numba.njit(cache=CACHE, nogil=True)",
+            f"def advance_sample_pair({names}, n0, dt, divisors, out, integrals, history,",
+            "                        weights, filter_order, other, other_integrals,",
+            "                        other_history, other_weights, other_filter_order, recent,",
+            "                        error_out, channel_max, channel_last):",
+            '    """One sample continuing the stream: the estimator (into out), its companion',
+            "    (other_*, into other), the numerical error (error_out; recent updated) and",
+            "    the channels' extent (channel_max, channel_last), in one call.\"\"\"",
+            f"    advance_sample({names}, out, integrals, history, n0, dt, divisors, weights,",
+            "                   filter_order)",
+            f"    advance_sample({names}, other, other_integrals, other_history, n0, dt,",
+            "                   divisors, other_weights, other_filter_order)",
+            "    sample_error(out, other, recent, error_out)"]
+    for i, name in enumerate(channels):
+        a(f"    v{i} = {name} / divisors[{i}]")
+        a(f"    if abs(v{i}) > channel_max[{i}]:")
+        a(f"        channel_max[{i}] = abs(v{i})")
+        a(f"    channel_last[{i}] = v{i}")
+    return src
+
+
 def numba_module_source(module, *, header, cache=True) -> str:
     """Source of the compiled loop of a generated NumPy module.
 
@@ -84,11 +180,13 @@ def numba_module_source(module, *, header, cache=True) -> str:
     src = [f'"""Compiled estimation loop of the model {module.MODEL!r} (numba).', "",
            f"Channels: {', '.join(f'{c} = {n!r}' for c, n in zip(channels, module.CHANNELS))}.",
            "", header, '"""', "", "import math", "", "import numba", "import numpy as np", "",
-           f"from {module.__name__} import cramer, regressors_packed", "",
+           f"from {module.__name__} import cramer, regressors_packed",
+           "from algid.numerical_error_numba import sample_error", "",
            f"CACHE = {bool(cache)!r}", f"BLOCK = {BLOCK}", "",
            "_regressors_packed = numba.njit(cache=CACHE, nogil=True)(regressors_packed)",
            "_cramer = numba.njit(cache=CACHE, nogil=True)(cramer)", "", "",
            *_increments_source(), "", "", *_startup_source(), "", "",
+           *_integrate_sample_source(), "", "", *_sample_source(layout, channels, n_par), "", "",
            "@numba.njit(cache=CACHE, nogil=True)",
            f"def advance({', '.join(channels)}, out, integrals, history, n0, dt, divisors,",
            "            weights, startup, filter_order, from_origin):",
@@ -100,6 +198,11 @@ def numba_module_source(module, *, header, cache=True) -> str:
     a = src.append
     a("    W = weights.shape[0] - 1")
     a(f"    size = {channels[0]}.shape[0]")
+    a("    if size == 1 and not from_origin:")
+    a(f"        advance_sample({', '.join(c + '[0]' for c in channels)}, out, integrals, history,"
+      " n0, dt,")
+    a("                       divisors, weights, filter_order)")
+    a("        return")
     a("    # y<c>_<l>[:W]: the last W values of level l of chain c before the block;")
     a("    # y<c>_<l>[W + b]: its value at sample b of the block; all are views into one")
     a("    # scratch array (one allocation per call)")
@@ -145,12 +248,7 @@ def numba_module_source(module, *, header, cache=True) -> str:
         a(f"            v{i} = {name}[start + b]")
         a(f"            if d{i} != 1.0:")
         a(f"                v{i} = v{i} / d{i}")
-    for c, (channel, power, _) in enumerate(layout.chains):
-        factor = "tau"
-        for _ in range(power - 1):
-            factor = f"({factor} * tau)"
-        rhs = f"v{channel}" if power == 0 else f"{factor} * v{channel}"
-        a(f"            y{c}_0[W + b] = {rhs}")
+    _level_zero(a, layout, "            ", "[W + b]")
 
     def fir(buffer, target):
         a(f"        _increments({buffer}, {target}, nb, weights)")

@@ -1,0 +1,97 @@
+"""The numerical error (:mod:`algid.numerical_error`), compiled; needs numba.
+
+:func:`block_error` serves the compiled backend (:mod:`algid.core_numba`);
+:func:`sample_error` the one-sample step of the generated loops
+(``advance_sample_pair`` in ``algid/generated/<model>_numba.py``), which call it
+within their own compiled code.  Both give the numbers of
+:func:`algid.numerical_error.relative_difference` followed by
+:func:`algid.numerical_error.window_maximum`.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba
+import numpy as np
+
+__all__ = ["block_error", "sample_error"]
+
+
+@numba.njit(cache=True, nogil=True, error_model="numpy")  # x / 0: inf or NaN, no exception
+def _raw_error(estimates, companion, j):  # pragma: no cover - compiled
+    """The largest relative difference over the parameters at sample ``j``."""
+    n_parameters = estimates.shape[0]
+    raw = 0.0 if n_parameters else np.nan
+    for i in range(n_parameters):
+        a = estimates[i, j]
+        b = companion[i, j]
+        rel = abs(a - b) / abs(a)
+        if rel != rel and math.isfinite(a):
+            rel = 0.0 if a == b else np.inf
+        if rel != rel or raw != raw:
+            raw = np.nan
+        elif rel > raw:
+            raw = rel
+    return raw
+
+
+@numba.njit(cache=True, nogil=True, error_model="numpy")
+def block_error(estimates, companion, recent, out):  # pragma: no cover - compiled
+    """The numerical error of a block.
+
+    Parameters
+    ----------
+    estimates, companion : ndarray, shape (n_parameters, m)
+        The estimates and the companion's.
+    recent : ndarray, shape (WINDOW - 1,)
+        The finite raw values before the block; updated in place.
+    out : ndarray, shape (m,)
+        Receives the numerical error.
+    """
+    m = estimates.shape[1]
+    width = recent.shape[0]
+    level = np.empty(width + m)
+    level[:width] = recent
+    for j in range(m):
+        raw = _raw_error(estimates, companion, j)
+        out[j] = raw
+        level[width + j] = raw if math.isfinite(raw) else 0.0
+    recent[:] = level[m:]
+    # the largest over the last width + 1 samples: maxima of 2, 4, 8, ... samples (the
+    # window is a power of two), each pass reading the previous one's values ahead
+    span = 1
+    while span <= width:
+        for k in range(width + m - span):
+            if level[k + span] > level[k]:
+                level[k] = level[k + span]
+        span *= 2
+    for j in range(m):
+        if math.isfinite(out[j]):
+            out[j] = level[j]
+
+
+@numba.njit(cache=True, nogil=True, error_model="numpy")
+def sample_error(estimates, companion, recent, out):  # pragma: no cover - compiled
+    """:func:`block_error` of one sample, without a working array.
+
+    Parameters
+    ----------
+    estimates, companion : ndarray, shape (n_parameters, 1)
+    recent : ndarray, shape (WINDOW - 1,)
+        Updated in place.
+    out : ndarray, shape (1,)
+    """
+    raw = _raw_error(estimates, companion, 0)
+    finite = math.isfinite(raw)
+    value = raw if finite else 0.0
+    largest = value
+    width = recent.shape[0]
+    for i in range(width):
+        if recent[i] > largest:
+            largest = recent[i]
+    if width:
+        for i in range(width - 1):
+            recent[i] = recent[i + 1]
+        recent[width - 1] = value
+    out[0] = largest if finite else raw
