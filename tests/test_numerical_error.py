@@ -9,7 +9,8 @@ from conftest import ROOT
 
 import algid
 from algid import backends, cli
-from algid.numerical_error import companion_options, relative_difference
+from algid.numerical_error import companion_options, relative_difference, with_companion
+from algid.registry import load_model
 
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
@@ -359,12 +360,12 @@ def test_scalar_numerical_error_equals_the_arrays():
     assert max(sizes) <= SCALAR_SAMPLES and sum(sizes) == est.shape[1]
     for n in sizes:
         out = np.empty(n)
-        _block_error("numpy", est[:, at:at + n], comp[:, at:at + n], recent, out)
+        _block_error(est[:, at:at + n], comp[:, at:at + n], recent, out)
         got.append(out)
         at += n
     np.testing.assert_array_equal(np.concatenate(got), expected)
     none = np.empty(1)
-    _block_error("numpy", np.empty((0, 1)), np.empty((0, 1)), np.zeros(WINDOW - 1), none)
+    _block_error(np.empty((0, 1)), np.empty((0, 1)), np.zeros(WINDOW - 1), none)
     assert np.isnan(none[0])
 
 
@@ -384,6 +385,32 @@ def test_compiled_numerical_error_equals_numpy():
             got.append(out)
             at += n
         np.testing.assert_array_equal(np.concatenate(got), expected)
+    # one sample at a time, as the one-sample step of the generated loops computes it
+    from algid.numerical_error_numba import sample_error
+    recent, got = np.zeros(WINDOW - 1), np.empty(300)
+    for j in range(300):
+        sample_error(est[:, j:j + 1], comp[:, j:j + 1], recent, got[j:j + 1])
+    np.testing.assert_array_equal(got, expected)
+
+
+@pytest.mark.skipif(len(ENGINES) < 2, reason="needs numba")
+def test_compiled_channel_extent_equals_numpy():
+    from algid.numerical_error import _track_channels
+    from algid.numerical_error_numba import track_extent
+
+    rng = np.random.default_rng(5)
+    state = with_companion(algid.core.new_state(load_model("msd"), points=8, filter_order=2,
+                                                dt=1e-3, divisors=np.array([3.0, 1.0])))
+    compiled = state.copy()
+    for size in (1, 5, 300, 2):
+        rows = tuple(rng.standard_normal(size) * 10.0 ** rng.integers(-3, 3)
+                     for _ in range(2))
+        _track_channels(state, rows)
+        for c, row in enumerate(rows):
+            track_extent(row, compiled.divisors.item(c), c, compiled.channel_max,
+                         compiled.channel_last)
+        np.testing.assert_array_equal(compiled.channel_max, state.channel_max)
+        np.testing.assert_array_equal(compiled.channel_last, state.channel_last)
 
 
 @pytest.mark.skipif(len(ENGINES) < 2, reason="needs numba")

@@ -160,12 +160,12 @@ def _fixed(state):
 
 
 def bound_sample_pair(state):
-    """One sample of ``state`` and its companion, with the numerical error, as one
-    compiled call (the generated ``advance_sample_pair``), their arrays bound.
+    """One sample of a state and its companion, with the numerical error, in one call.
 
-    For a stream fed one sample at a time: the same numbers as :func:`advance` of the
-    estimator and of its companion followed by :func:`numerical_error`, with the
-    channels' extent tracked (:mod:`algid.numerical_error`).
+    The generated ``advance_sample_pair``, with their arrays bound, for a stream fed one
+    sample at a time: the same numbers as :func:`advance` of the estimator and of its
+    companion followed by :func:`numerical_error`, with the channels' extent tracked
+    (:mod:`algid.numerical_error`).
 
     Parameters
     ----------

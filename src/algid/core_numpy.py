@@ -314,11 +314,11 @@ def _sample_fixed(state, layout):
 
 
 def advance_sample(state, layout, values, out):
-    """Estimates of one sample given as numbers, into ``out``; the chunk continues the
-    stream, past the start-up.
+    """Estimates of one sample given as numbers, into ``out``.
 
-    The per-sample step, without making arrays of the sample: the numbers of
-    :func:`advance` where :func:`sample_step_is_exact` (call :func:`advance` where not).
+    The sample continues the stream, past the start-up.  The per-sample step, without
+    making arrays of the sample: the numbers of :func:`advance` where
+    :func:`sample_step_is_exact` (call :func:`advance` where not).
 
     Parameters
     ----------

@@ -41,6 +41,7 @@ determine its parameters at its end.)
 from __future__ import annotations
 
 import math
+from functools import cache
 
 import numpy as np
 
@@ -286,26 +287,19 @@ def advance_rows_with_error(state, rows, out, error_out, backend="numpy"):
     if error_out.shape[0] == 1:
         step = state.__dict__.get("_sample_step")
         if step is None or step[0] != state.dt or step[1] != backend:
-            step = state._sample_step = (state.dt, backend, _sample_step(state, backend))
-        if step[2](rows, out, error_out):
+            step = state._sample_step = (state.dt, backend, sample_stepper(state, backend))
+        ready, advance = step[2]
+        if ready():
+            advance(tuple(row.item(0) for row in rows), out, error_out)
             return out, error_out
     advance_with_error(state, rows, backend=backend, out=out, error_out=error_out)
     return out, error_out
 
 
-def _sample_step(state, backend):
-    """``step(rows, out, error_out)``: :func:`_piece` of one sample, with the arrays
-    bound; False (and nothing done) in the start-up or where a check is due."""
-    values = sample_stepper(state, backend)
-
-    def step(rows, out, error_out):
-        return values(tuple(row.item(0) for row in rows), out, error_out)
-    return step
-
-
 def sample_stepper(state, backend="numpy"):
-    """One sample of a stream, given as numbers: the estimator, its companion and the
-    numerical error (:func:`advance_with_error` of one sample), with their arrays bound.
+    """One sample of a stream given as numbers: estimator, companion, numerical error.
+
+    :func:`advance_with_error` of one sample, with the arrays bound.
 
     Parameters
     ----------
@@ -318,29 +312,32 @@ def sample_stepper(state, backend="numpy"):
 
     Returns
     -------
-    callable
-        ``step(values, out, error_out) -> bool``: ``values`` the sample of every
-        channel as floats (checked, in the model's ``CHANNELS`` order), ``out`` a
-        float64 array of shape ``(n_parameters, 1)``, ``error_out`` one of shape
-        ``(1,)``.  It returns False, and does nothing, in the start-up or where an
-        identifiability check is due (:func:`next_check`): take
+    ready : callable
+        ``ready() -> bool``: whether the next sample can take ``advance``: False in the
+        start-up, where an identifiability check is due (:func:`next_check`), and with
+        NumPy where its per-sample step is not exact here
+        (:func:`algid.core_numpy.sample_step_is_exact`); take
         :func:`advance_with_error` there.
+    advance : callable
+        ``advance(values, out, error_out)``: ``values`` the sample of every channel as
+        floats (checked, in the model's ``CHANNELS`` order), ``out`` a float64 array of
+        shape ``(n_parameters, 1)``, ``error_out`` one of shape ``(1,)``.
     """
     companion = state.companion
     companion.dt = state.dt
-    ready = max(state.points, companion.points)
+    first = max(state.points, companion.points)
     if backend == "numba":
         from algid.core_numba import bound_sample_pair
-        advance = bound_sample_pair(state)
+        step = bound_sample_pair(state)
     else:
         require_backend(backend)  # the backend is known
         if not sample_step_is_exact():
-            return lambda values, out, error_out: False
+            first = math.inf
         layout = core.integrator_layout(state.model)
         other = np.empty((len(state.model.PARAMETERS), 1))
         recent = state.recent_errors
 
-        def advance(values, out, error_out):
+        def step(values, out, error_out):
             numpy_sample(state, layout, values, out)
             numpy_sample(companion, layout, values, other)
             _sample_errors(out, other, recent, error_out)
@@ -348,17 +345,20 @@ def sample_stepper(state, backend="numpy"):
 
     span = [0, 0]  # from span[0] to span[1] - 1 samples seen, one more needs no check
 
-    def step(values, out, error_out):
+    def ready():
         seen = state.n_seen
-        if not span[0] <= seen < span[1]:
-            if seen < ready or seen + 1 >= next_check(seen):
-                return False
-            span[:] = seen, next_check(seen) - 1
-        advance(values, out, error_out)
+        if span[0] <= seen < span[1]:
+            return True
+        if seen < first or seen + 1 >= next_check(seen):
+            return False
+        span[:] = seen, next_check(seen) - 1
+        return True
+
+    def advance(values, out, error_out):
+        step(values, out, error_out)
         if state.undetermined:
             _mark_undetermined(state, out, error_out)
-        return True
-    return step
+    return ready, advance
 
 
 #: Whether the samples determine the parameters is judged when the estimator has seen
@@ -405,8 +405,15 @@ def _piece(state, rows, backend, out, error_out, scratch=None):
     core.advance_rows(state, rows, out, backend)  # rows and out checked by the caller
     other = core.advance_rows(state.companion, rows,
                               np.empty(out.shape) if scratch is None else scratch, backend)
-    _block_error(backend, out, other, state.recent_errors, error_out)
-    _track_channels(state, rows)
+    if backend == "numba":
+        block_error, track_extent = _compiled()
+        block_error(out, other, state.recent_errors, error_out)
+        for c, row in enumerate(rows):
+            track_extent(row, state.divisors.item(c), c, state.channel_max,
+                         state.channel_last)
+    else:
+        _block_error(out, other, state.recent_errors, error_out)
+        _track_channels(state, rows)
     if state.undetermined:
         _mark_undetermined(state, out, error_out)
 
@@ -439,7 +446,6 @@ def _mark_undetermined(state, out, error_out):
     error_out[...] = np.inf
 
 
-_COMPILED = []
 #: Chunks of at most this many samples take the scalar path of the NumPy backend
 #: (:func:`_sample_errors`: the same numbers, without the arrays' per-call cost).
 SCALAR_SAMPLES = 3
@@ -475,15 +481,17 @@ def _sample_errors(estimates, other, recent, out):
     recent[:] = held
 
 
-def _block_error(backend, estimates, other, recent, out):
-    """The numerical error of a block into ``out`` (compiled with numba, or in floats
-    for a few samples: the same numbers)."""
-    if backend == "numba":
-        if not _COMPILED:
-            from algid.core_numba import numerical_error
-            _COMPILED.append(numerical_error)
-        _COMPILED[0](estimates, other, recent, out)
-    elif out.size <= SCALAR_SAMPLES:
+@cache
+def _compiled():
+    """The compiled block error and channel extent (:mod:`algid.numerical_error_numba`)."""
+    from algid.numerical_error_numba import block_error, track_extent
+    return block_error, track_extent
+
+
+def _block_error(estimates, other, recent, out):
+    """The numerical error of a block into ``out``, with NumPy (in floats for a few
+    samples: the same numbers)."""
+    if out.size <= SCALAR_SAMPLES:
         _sample_errors(estimates, other, recent, out)
     else:
         window_maximum(relative_difference(estimates, other), recent, out)

@@ -15,7 +15,7 @@ import math
 import numba
 import numpy as np
 
-__all__ = ["block_error", "sample_error"]
+__all__ = ["block_error", "sample_error", "track_extent"]
 
 
 @numba.njit(cache=True, nogil=True, error_model="numpy")  # x / 0: inf or NaN, no exception
@@ -63,8 +63,7 @@ def block_error(estimates, companion, recent, out):  # pragma: no cover - compil
     span = 1
     while span <= width:
         for k in range(width + m - span):
-            if level[k + span] > level[k]:
-                level[k] = level[k + span]
+            level[k] = max(level[k], level[k + span])  # (no NaN here) branch-free
         span *= 2
     for j in range(m):
         if math.isfinite(out[j]):
@@ -95,3 +94,28 @@ def sample_error(estimates, companion, recent, out):  # pragma: no cover - compi
             recent[i] = recent[i + 1]
         recent[width - 1] = value
     out[0] = largest if finite else raw
+
+
+@numba.njit(cache=True, nogil=True)
+def track_extent(row, divisor, c, channel_max, channel_last):  # pragma: no cover - compiled
+    """The extent of channel ``c`` over a block: its largest absolute value divided by
+    ``divisor`` into ``channel_max[c]`` if larger, its last value so divided into
+    ``channel_last[c]`` (as :func:`algid.numerical_error.advance_with_error` tracks it).
+
+    Parameters
+    ----------
+    row : ndarray, shape (m,)
+        The block's samples of the channel (finite, ``m >= 1``).
+    divisor : float
+    c : int
+    channel_max, channel_last : ndarray
+        Updated in place.
+    """
+    largest = 0.0
+    for value in row:
+        if abs(value) > largest:
+            largest = abs(value)
+    size = largest / divisor
+    if size > channel_max[c]:
+        channel_max[c] = size
+    channel_last[c] = row[row.shape[0] - 1] / divisor

@@ -70,7 +70,8 @@ from algid import core
 from algid.backends import choose_engine
 from algid.errors import InputDataError
 from algid.late_origin import advance_best, late_twin
-from algid.numerical_error import advance_rows_with_error, with_companion
+from algid.long_stream import run_stream
+from algid.numerical_error import advance_rows_with_error, sample_stepper, with_companion
 from algid.options import (DEFAULT_FILTER_ORDER, channel_divisors, check_filter_order,
                            known_mass, quadrature_points_option, with_mass_scaled)
 from algid.reanchoring import anchor_plan
@@ -78,9 +79,9 @@ from algid.registry import load_model
 from algid.result import EstimationResult
 from algid.scaling import amplitude_scale, scalable
 from algid.stream_checks import (check_chunk, check_signals_call, check_signals_chunk,
-                                 compiled_scan)
+                                 compiled_scan, float_sample)
 from algid.user_models import ChannelStream
-from algid.validation import positive_number
+from algid.validation import UNIFORM_RTOL, positive_number
 
 __all__ = ["OnlineEstimator", "run_stream", "TRACKING_RESET_PERIOD"]
 
@@ -267,6 +268,10 @@ class OnlineEstimator:
         self.signals = self._channel_stream.signals
         self._takes_pair = (not getattr(module, "FACTORS", None)
                             and set(module.CHANNELS) == {module.INPUT, module.OUTPUT})
+        # one sample as floats: the short path of update() (_update_sample)
+        self._sample_path = self._takes_pair and self._twin is None
+        self._steppers = None
+        self._discard_sample = (np.empty((self._n_parameters, 1)), np.empty(1))
         self.reset()
 
     @property
@@ -434,6 +439,10 @@ class OnlineEstimator:
         a nonzero sample when their amplitude is extreme (:mod:`algid.scaling`); the
         estimates do not change, bit for bit, and stay equal to the batch ones.
         """
+        sample = float_sample(t, f, x)
+        result = None if sample is None else self._update_sample(*sample)
+        if result is not None:
+            return result
         if signals is not None or not self._takes_pair or f is None or x is None:
             return self._update_signals(t, f, x, signals)
         t, f, x, dt = check_chunk(t, f, x, n=self._n, t_last=self._t_last, dt=self._dt,
@@ -460,6 +469,63 @@ class OnlineEstimator:
                                 quadrature_points=self.quadrature_points, mass=self.mass,
                                 mass_scaled=self._mass_scaled, numerical_error=error)
 
+    def _update_sample(self, t, f, x):
+        """:meth:`update` of one sample given as floats, where it continues a stream past
+        the start-up with no restart or identifiability check due: the estimators'
+        one-sample steps (:func:`algid.numerical_error.sample_stepper`; one compiled
+        call each with numba), the same numbers.  None elsewhere, and for a sample that
+        needs the full checks: nothing has changed then, and :meth:`update` takes its
+        general path."""
+        dt, t_last = self._dt, self._t_last
+        if t_last is None or dt is None or not self._sample_path:
+            return None
+        step = t - t_last  # a good step also means that t is finite
+        if not (step > 0.0 and abs(step - dt) <= UNIFORM_RTOL * dt and math.isfinite(f)
+                and math.isfinite(x)):
+            return None
+        scale = self._scale
+        if scale is None:
+            if self._scalable:  # not chosen yet (:meth:`_scaled`)
+                return None
+        elif scale != 1.0:
+            f, x = f * scale, x * scale
+        values = (f, x) if self._channel_order == (0, 1) else (x, f)
+        steppers = self._steppers
+        if steppers is None:
+            steppers = self._steppers = [sample_stepper(state, self.engine)
+                                         for state in self._states]
+        out = np.empty((self._n_parameters, 1))
+        error = np.empty(1)
+        half = self._half
+        k, phase = (0, 1) if half is None else divmod(self._n, half)
+        if phase == 0:  # an estimator restarts here
+            return None
+        if k == 0:  # one estimator (re-anchoring: the second has not started)
+            ready, advance = steppers[0]
+            if not ready():
+                return None
+            advance(values, out, error)
+            self._reported = 0
+        else:  # two, one reported: the older (estimator 0 in half periods 1, 3, ...)
+            (ready, advance), (ready_1, advance_1) = steppers
+            if not (ready() and ready_1()):
+                return None
+            reported = 0 if k % 2 else 1
+            if reported:
+                advance, advance_1 = advance_1, advance
+            advance(values, out, error)
+            advance_1(values, *self._discard_sample)
+            self._reported = reported
+        self._n += 1
+        self._t_last = t
+        estimates = dict(zip(self._module.PARAMETERS, out))
+        if self.mass is not None:
+            with_mass_scaled(self._module, estimates, self.mass)
+        return EstimationResult(t=np.array((t,)), estimates=estimates, model=self.model,
+                                filter_order=self.filter_order,
+                                quadrature_points=self.quadrature_points, mass=self.mass,
+                                mass_scaled=self._mass_scaled, numerical_error=error)
+
     def _take_step(self, dt):
         """Take the step ``dt`` of a checked chunk; the half period it implies."""
         half = self._half
@@ -469,6 +535,7 @@ class OnlineEstimator:
         if dt is not None and dt != self._states[0].dt:
             for state in self._states:
                 state.dt = dt
+            self._steppers = None  # they hold the step
         return half
 
     def _scaled(self, samples):
@@ -576,70 +643,3 @@ class OnlineEstimator:
         """Advance estimator ``i`` over samples ``start .. stop - 1`` of the chunk."""
         advance_rows_with_error(self._states[i], tuple(c[start:stop] for c in channels),
                                 target[:, start:stop], target_error[start:stop], self.engine)
-
-
-# --------------------------------------------------------------------------------------
-# long streams
-# --------------------------------------------------------------------------------------
-
-
-def run_stream(estimator, chunks, *, true_values=None, settle_time=0.0):
-    """Feed a stream to an estimator and summarise it without keeping it.
-
-    For long-stream checks and benchmarks: memory does not grow with the stream.
-
-    Parameters
-    ----------
-    estimator : OnlineEstimator
-    chunks : iterable of (t, f, x) or (t, signals)
-        The stream, chunk by chunk; ``signals`` a mapping of signal name -> samples
-        (``update(t, signals=...)``, e.g. for a user model).
-    true_values : dict or callable, optional
-        Parameter name -> true value, or a function of the chunk's times returning
-        such a dict (values may be arrays over the chunk).
-    settle_time : float, optional
-        Errors are accumulated over samples with ``t >= settle_time`` only.
-
-    Returns
-    -------
-    dict
-        ``n_samples``, ``n_chunks``, ``final`` (last estimates), ``max_state_magnitude``
-        (over the chunk ends), and with ``true_values``: ``max_rel_error`` (name ->
-        largest ``|estimate / true - 1|`` after ``settle_time``; NaN estimates count as
-        inf) and ``n_undefined`` (NaN estimates after ``settle_time``).
-    """
-    n_samples = n_chunks = 0
-    max_state = 0.0
-    max_err = {}
-    n_undefined = 0
-    result = None
-    for chunk in chunks:
-        if len(chunk) == 2:
-            result = estimator.update(chunk[0], signals=chunk[1])
-        else:
-            t, f, x = chunk
-            result = estimator.update(t, f, x)
-        n_samples += result.t.size
-        n_chunks += 1
-        max_state = max(max_state, estimator.state_magnitude)
-        if true_values is None:
-            continue
-        truth = true_values(result.t) if callable(true_values) else true_values
-        keep = result.t >= settle_time
-        if not keep.any():
-            continue
-        for name, value in truth.items():
-            est = result.estimates[name][keep]
-            ref = np.broadcast_to(value, result.t.shape)[keep]
-            err = np.abs(est / ref - 1.0)
-            undefined = ~np.isfinite(err)
-            n_undefined += int(np.count_nonzero(~np.isfinite(est)))
-            worst = np.inf if undefined.any() else float(np.max(err))
-            max_err[name] = max(max_err.get(name, 0.0), worst)
-    summary = {"n_samples": n_samples, "n_chunks": n_chunks,
-               "final": result.final() if result is not None and result.t.size else {},
-               "max_state_magnitude": max_state}
-    if true_values is not None:
-        summary["max_rel_error"] = max_err
-        summary["n_undefined"] = n_undefined
-    return summary

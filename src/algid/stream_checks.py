@@ -21,7 +21,8 @@ import numpy as np
 from algid.errors import InputDataError
 from algid.validation import UNIFORM_RTOL, as_signal, rounding_quantum, step_tolerance
 
-__all__ = ["check_signals_call", "check_chunk", "check_signals_chunk", "compiled_scan"]
+__all__ = ["check_signals_call", "check_chunk", "check_signals_chunk", "compiled_scan",
+           "float_sample"]
 
 _FLOAT64 = np.dtype(np.float64)
 
@@ -95,6 +96,28 @@ def _scan_chunk(scan, t, f, x, t_last, dt):
     return t, f, x, dt
 
 
+def float_sample(t, f, x):
+    """One sample given as three floats, or as three float64 arrays of one element.
+
+    Parameters
+    ----------
+    t, f, x : object
+        A chunk, as given to :meth:`algid.OnlineEstimator.update`.
+
+    Returns
+    -------
+    tuple of float or None
+        ``(t, f, x)`` as floats; None for any other form (not checked further).
+    """
+    if type(t) is float and type(f) is float and type(x) is float:
+        return t, f, x
+    if type(t) is np.ndarray and type(f) is np.ndarray and type(x) is np.ndarray and \
+            t.shape == f.shape == x.shape == (1,) and \
+            t.dtype is _FLOAT64 and f.dtype is _FLOAT64 and x.dtype is _FLOAT64:
+        return t.item(0), f.item(0), x.item(0)
+    return None
+
+
 def check_chunk(t, f, x, *, n, t_last, dt, scan=None):
     """Check the next chunk of a stream.
 
@@ -124,12 +147,9 @@ def check_chunk(t, f, x, *, n, t_last, dt, scan=None):
         Not 1-D numbers, NaN or inf, different lengths, time not increasing (within the
         chunk or from the previous one) or not uniform.
     """
-    if type(t) is float and type(f) is float and type(x) is float:  # one sample, fast
-        return _check_sample(t, f, x, n, t_last, dt)
-    if type(t) is np.ndarray and type(f) is np.ndarray and type(x) is np.ndarray and \
-            t.shape == f.shape == x.shape == (1,) and \
-            t.dtype is _FLOAT64 and f.dtype is _FLOAT64 and x.dtype is _FLOAT64:
-        return _check_sample(t.item(0), f.item(0), x.item(0), n, t_last, dt)
+    sample = float_sample(t, f, x)
+    if sample is not None:  # one sample, fast
+        return _check_sample(*sample, n, t_last, dt)
     if scan is not None:
         checked = _scan_chunk(scan, t, f, x, t_last, dt)
         if checked is not None:
