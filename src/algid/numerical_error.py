@@ -288,9 +288,11 @@ def advance_rows_with_error(state, rows, out, error_out, backend="numpy"):
         step = state.__dict__.get("_sample_step")
         if step is None or step[0] != state.dt or step[1] != backend:
             step = state._sample_step = (state.dt, backend, sample_stepper(state, backend))
-        ready, advance = step[2]
+        ready, advance, buffer = step[2]
         if ready():
             advance(tuple(row.item(0) for row in rows), out, error_out)
+            return out, error_out
+        if buffer(tuple(row.item(0) for row in rows), out, error_out):
             return out, error_out
     advance_with_error(state, rows, backend=backend, out=out, error_out=error_out)
     return out, error_out
@@ -322,6 +324,12 @@ def sample_stepper(state, backend="numpy"):
         ``advance(values, out, error_out)``: ``values`` the sample of every channel as
         floats (checked, in the model's ``CHANNELS`` order), ``out`` a float64 array of
         shape ``(n_parameters, 1)``, ``error_out`` one of shape ``(1,)``.
+    buffer : callable
+        ``buffer(values, out, error_out) -> bool``: a sample of the start-up that gives
+        no estimate yet, for an estimator without the early estimates (a re-anchored
+        one, :meth:`algid.core.EstimatorState.restart`): kept for the integration from
+        the origin, NaN into ``out`` and ``error_out``.  False, and nothing done,
+        elsewhere.
     """
     companion = state.companion
     companion.dt = state.dt
@@ -358,7 +366,27 @@ def sample_stepper(state, backend="numpy"):
         step(values, out, error_out)
         if state.undetermined:
             _mark_undetermined(state, out, error_out)
-    return ready, advance
+
+    # in the start-up both estimates are NaN: the raw error is NaN and 0 joins the
+    # recent values (algid.core.advance_rows buffers the samples up to sample q - 1)
+    last_buffered = min(state.points, companion.points) - 2
+    recent = state.recent_errors
+
+    def buffer(values, out, error_out):
+        seen = state.n_seen
+        if state.early or companion.early or seen > last_buffered or \
+                companion.n_seen != seen or seen + 1 >= next_check(seen):
+            return False
+        state.startup[:, seen] = values
+        companion.startup[:, seen] = values
+        state.n_seen = companion.n_seen = seen + 1
+        recent[:-1] = recent[1:]
+        recent[-1] = 0.0
+        _track_values(state, values)
+        out.fill(math.nan)
+        error_out.fill(math.nan)
+        return True
+    return ready, advance, buffer
 
 
 #: Whether the samples determine the parameters is judged when the estimator has seen

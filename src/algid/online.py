@@ -501,20 +501,22 @@ class OnlineEstimator:
         if phase == 0:  # an estimator restarts here
             return None
         if k == 0:  # one estimator (re-anchoring: the second has not started)
-            ready, advance = steppers[0]
+            ready, advance, _ = steppers[0]
             if not ready():
                 return None
             advance(values, out, error)
             self._reported = 0
         else:  # two, one reported: the older (estimator 0 in half periods 1, 3, ...)
-            (ready, advance), (ready_1, advance_1) = steppers
-            if not (ready() and ready_1()):
-                return None
             reported = 0 if k % 2 else 1
-            if reported:
-                advance, advance_1 = advance_1, advance
+            ready, advance, _ = steppers[reported]
+            ready_1, advance_1, buffer_1 = steppers[1 - reported]  # restarted later
+            if not ready():
+                return None
+            if not buffer_1(values, *self._discard_sample):  # in its start-up, or:
+                if not ready_1():
+                    return None
+                advance_1(values, *self._discard_sample)
             advance(values, out, error)
-            advance_1(values, *self._discard_sample)
             self._reported = reported
         self._n += 1
         self._t_last = t
