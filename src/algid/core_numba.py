@@ -30,7 +30,7 @@ from algid.numerical_error_numba import block_error  # ImportError: no numba
 from algid.quadrature import integrator_weights
 from algid.registry import module_from_source
 
-__all__ = ["advance", "bound_sample_pair", "compiled_loop", "numerical_error", "user_cache_dir"]
+__all__ = ["advance", "bound_sample_pair", "pack_pair", "PAIR_ARRAYS", "compiled_loop", "numerical_error", "user_cache_dir"]
 
 
 def user_cache_dir():
@@ -162,8 +162,9 @@ def _fixed(state):
 def bound_sample_pair(state):
     """One sample of a state and its companion, with the numerical error, in one call.
 
-    The generated ``advance_sample_pair``, with their arrays bound, for a stream fed one
-    sample at a time: the same numbers as :func:`advance` of the estimator and of its
+    The generated ``advance_sample_pair`` and its bound arguments (the arrays of both
+    estimators in one buffer, :func:`pack_pair`), for a stream fed one sample at a
+    time: the same numbers as :func:`advance` of the estimator and of its
     companion followed by :func:`numerical_error`, with the channels' extent tracked
     (:mod:`algid.numerical_error`).
 
@@ -171,32 +172,78 @@ def bound_sample_pair(state):
     ----------
     state : EstimatorState
         Past its start-up, with its companion
-        (:func:`algid.numerical_error.with_companion`).  The step holds their arrays and
+        (:func:`algid.numerical_error.with_companion`).  The arguments hold their arrays and
         ``dt``: make a new one if ``state.dt`` changes.
 
     Returns
     -------
-    callable
-        ``step(values, out, error_out)``: ``values`` the sample of every channel as
-        floats, in the model's ``CHANNELS`` order; ``out`` a float64 array of shape
-        ``(n_parameters, 1)`` and ``error_out`` one of shape ``(1,)`` receive the
-        estimates and their numerical error.
+    pair : callable
+        The compiled ``advance_sample_pair(*values, n_seen, dt, *arguments, out,
+        error_out)``: ``values`` the sample of every channel as floats, in the model's
+        ``CHANNELS`` order; ``out`` a float64 array of shape ``(n_parameters, 1)`` and
+        ``error_out`` one of shape ``(1,)`` receive the estimates and their numerical
+        error.  The caller adds one to ``n_seen`` of the state and of its companion.
+    arguments : tuple
+        The bound arguments.
     """
     companion = state.companion
-    pair = _loops_of(state.model).advance_sample_pair
-    own, its = _fixed(state), _fixed(companion)
-    other = np.empty((len(state.model.PARAMETERS), 1))
-    bound = (state.integrals, state.history, own[3], state.filter_order, other,
-             companion.integrals, companion.history, its[3], companion.filter_order,
-             state.recent_errors)
-    extent = (state.channel_max, state.channel_last)
-    dt, divisors = state.dt, state.divisors
+    buffer, offsets = pack_pair(state, _fixed(state)[3], _fixed(companion)[3])
+    return (_loops_of(state.model).advance_sample_pair,
+            (buffer, offsets, state.filter_order, companion.filter_order))
 
-    def step(values, out, error_out):
-        pair(*values, state.n_seen, dt, divisors, out, *bound, error_out, *extent)
-        state.n_seen += 1
-        companion.n_seen += 1
-    return step
+
+#: The arrays of an estimator and its companion that the one-sample step reads and
+#: writes, in the order they sit in one buffer (:func:`pack_pair`): passed as one array,
+#: they cost numba's dispatch one argument instead of eleven.
+PAIR_ARRAYS = ("integrals", "history", "companion.integrals", "companion.history",
+               "weights", "companion weights", "divisors", "scratch of the companion's estimates",
+               "recent_errors", "channel_max", "channel_last")
+
+
+def pack_pair(state, weights, companion_weights):
+    """Put the arrays of a state and its companion into one buffer (:data:`PAIR_ARRAYS`).
+
+    The state's arrays become views into it, holding the same values (the state works
+    as before); a state already packed keeps its buffer.  The weights are written in.
+
+    Parameters
+    ----------
+    state : EstimatorState
+        With its companion (:func:`algid.numerical_error.with_companion`).
+    weights, companion_weights : ndarray
+        The quadrature weights of the state and of its companion.
+
+    Returns
+    -------
+    buffer : ndarray
+        Float64, 1-D.
+    offsets : ndarray
+        Int64: array ``i`` of :data:`PAIR_ARRAYS` is ``buffer[offsets[i]:offsets[i + 1]]``.
+    """
+    companion = state.companion
+    arrays = [state.integrals, state.history, companion.integrals, companion.history,
+              weights, companion_weights, state.divisors,
+              np.empty(len(state.model.PARAMETERS)), state.recent_errors,
+              state.channel_max, state.channel_last]
+    offsets = np.cumsum([0] + [a.size for a in arrays])
+    packed = state.__dict__.get("_pair_buffer")
+    if packed is None or packed.size != offsets[-1] or any(
+            a.base is not packed for a in arrays[:4] + arrays[6:7] + arrays[8:]):
+        packed = np.empty(offsets[-1])
+        views = [packed[a:b].reshape(array.shape) for a, b, array in
+                 zip(offsets[:-1], offsets[1:], arrays)]
+        for view, array in zip(views, arrays):
+            view[...] = array
+        (state.integrals, state.history, companion.integrals, companion.history, _, _,
+         state.divisors, _, state.recent_errors, state.channel_max, state.channel_last) = views
+        companion.divisors = state.divisors
+        for cache in ("_pair_buffer", "_sample_step", "_numpy_sample"):  # bound to the old
+            for holder in (state, companion):
+                holder.__dict__.pop(cache, None)
+        state._pair_buffer = packed
+    packed[offsets[4]:offsets[5]] = weights
+    packed[offsets[5]:offsets[6]] = companion_weights
+    return packed, offsets
 
 
 def advance(state, layout, channels, out, *, from_origin=False):

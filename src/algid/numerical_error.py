@@ -336,7 +336,15 @@ def sample_stepper(state, backend="numpy"):
     first = max(state.points, companion.points)
     if backend == "numba":
         from algid.core_numba import bound_sample_pair
-        step = bound_sample_pair(state)
+        pair, arguments = bound_sample_pair(state)
+        dt = state.dt
+
+        def advance(values, out, error_out):  # (the hottest path of a stream)
+            pair(*values, state.n_seen, dt, *arguments, out, error_out)
+            state.n_seen += 1
+            companion.n_seen += 1
+            if state.undetermined:
+                _mark_undetermined(state, out, error_out)
     else:
         require_backend(backend)  # the backend is known
         if not sample_step_is_exact():
@@ -345,11 +353,13 @@ def sample_stepper(state, backend="numpy"):
         other = np.empty((len(state.model.PARAMETERS), 1))
         recent = state.recent_errors
 
-        def step(values, out, error_out):
+        def advance(values, out, error_out):
             numpy_sample(state, layout, values, out)
             numpy_sample(companion, layout, values, other)
             _sample_errors(out, other, recent, error_out)
             _track_values(state, values)
+            if state.undetermined:
+                _mark_undetermined(state, out, error_out)
 
     span = [0, 0]  # from span[0] to span[1] - 1 samples seen, one more needs no check
 
@@ -361,11 +371,6 @@ def sample_stepper(state, backend="numpy"):
             return False
         span[:] = seen, next_check(seen) - 1
         return True
-
-    def advance(values, out, error_out):
-        step(values, out, error_out)
-        if state.undetermined:
-            _mark_undetermined(state, out, error_out)
 
     # in the start-up both estimates are NaN: the raw error is NaN and 0 joins the
     # recent values (algid.core.advance_rows buffers the samples up to sample q - 1)

@@ -271,6 +271,11 @@ class OnlineEstimator:
         # one sample as floats: the short path of update() (_update_sample)
         self._sample_path = self._takes_pair and self._twin is None
         self._steppers = None
+        self._result = EstimationResult(  # the template of the results of one sample
+            t=np.empty(0), estimates={name: np.empty(0) for name in self.parameters},
+            model=self.model, filter_order=self.filter_order,
+            quadrature_points=self.quadrature_points, mass=self.mass,
+            mass_scaled=self._mass_scaled)
         self._discard_sample = (np.empty((self._n_parameters, 1)), np.empty(1))
         self.reset()
 
@@ -523,10 +528,8 @@ class OnlineEstimator:
         estimates = dict(zip(self._module.PARAMETERS, out))
         if self.mass is not None:
             with_mass_scaled(self._module, estimates, self.mass)
-        return EstimationResult(t=np.array((t,)), estimates=estimates, model=self.model,
-                                filter_order=self.filter_order,
-                                quadrature_points=self.quadrature_points, mass=self.mass,
-                                mass_scaled=self._mass_scaled, numerical_error=error)
+        return self._result.with_samples(t=np.array((t,)), estimates=estimates,
+                                         numerical_error=error)
 
     def _take_step(self, dt):
         """Take the step ``dt`` of a checked chunk; the half period it implies."""

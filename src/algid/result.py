@@ -127,6 +127,33 @@ class EstimationResult:
     def __dir__(self):
         return sorted(set(super().__dir__()) | set(self.estimates))
 
+    def with_samples(self, *, t, estimates, numerical_error=None) -> EstimationResult:
+        """A result of the same model, options and parameters for other samples.
+
+        Cheaper than the constructor (for a stream fed one sample at a time): nothing is
+        copied or checked.
+
+        Parameters
+        ----------
+        t : ndarray
+            Sample times.
+        estimates : dict
+            Parameter name -> ndarray over ``t``, with the keys of :attr:`parameters` in
+            their order; kept, not copied.
+        numerical_error : ndarray, optional
+            Over ``t``.
+
+        Returns
+        -------
+        EstimationResult
+        """
+        new = object.__new__(type(self))
+        new.__dict__ = {"t": t, "estimates": estimates, "parameters": self.parameters,
+                        "model": self.model, "filter_order": self.filter_order,
+                        "quadrature_points": self.quadrature_points, "mass": self.mass,
+                        "mass_scaled": self.mass_scaled, "numerical_error": numerical_error}
+        return new
+
     def final(self) -> dict:
         """Estimates at the last sample.
 

@@ -144,13 +144,24 @@ def advance_sample(channel_0, channel_1, out, integrals, history, n0, dt, diviso
 
 
 @numba.njit(cache=CACHE, nogil=True)
-def advance_sample_pair(channel_0, channel_1, n0, dt, divisors, out, integrals, history,
-                        weights, filter_order, other, other_integrals,
-                        other_history, other_weights, other_filter_order, recent,
-                        error_out, channel_max, channel_last):
-    """One sample continuing the stream: the estimator (into out), its companion
-    (other_*, into other), the numerical error (error_out; recent updated) and
-    the channels' extent (channel_max, channel_last), in one call."""
+def advance_sample_pair(channel_0, channel_1, n0, dt, buffer, offsets, filter_order,
+                        other_filter_order, out, error_out):
+    """One sample continuing the stream: the estimator (into out), its companion,
+    the numerical error (error_out) and the channels' extent, in one call; the
+    arrays of both estimators sit in buffer, array i at offsets[i] ..
+    offsets[i + 1] (algid.core_numba.PAIR_ARRAYS)."""
+    o = offsets
+    integrals = buffer[o[0]:o[1]]
+    history = buffer[o[1]:o[2]].reshape((o[1] - o[0], o[5] - o[4] - 1))
+    other_integrals = buffer[o[2]:o[3]]
+    other_history = buffer[o[3]:o[4]].reshape((o[3] - o[2], o[6] - o[5] - 1))
+    weights = buffer[o[4]:o[5]]
+    other_weights = buffer[o[5]:o[6]]
+    divisors = buffer[o[6]:o[7]]
+    other = buffer[o[7]:o[8]].reshape((o[8] - o[7], 1))
+    recent = buffer[o[8]:o[9]]
+    channel_max = buffer[o[9]:o[10]]
+    channel_last = buffer[o[10]:o[11]]
     advance_sample(channel_0, channel_1, out, integrals, history, n0, dt, divisors, weights,
                    filter_order)
     advance_sample(channel_0, channel_1, other, other_integrals, other_history, n0, dt,
