@@ -30,7 +30,8 @@ from algid.numerical_error_numba import block_error  # ImportError: no numba
 from algid.quadrature import integrator_weights
 from algid.registry import module_from_source
 
-__all__ = ["advance", "bound_sample_pair", "pack_pair", "PAIR_ARRAYS", "compiled_loop", "numerical_error", "user_cache_dir"]
+__all__ = ["advance", "bound_sample_pair", "pack_pair", "PAIR_ARRAYS", "compiled_loop",
+           "numerical_error", "user_cache_dir"]
 
 
 def user_cache_dir():
