@@ -380,8 +380,8 @@ def test_scalar_numerical_error_equals_the_arrays():
 
 @pytest.mark.skipif(len(ENGINES) < 2, reason="needs numba")
 def test_compiled_numerical_error_equals_numpy():
-    from algid.core_numba import numerical_error
     from algid.numerical_error import WINDOW, window_maximum
+    from algid.numerical_error_numba import block_error as numerical_error
 
     est, comp = _error_cases()
     expected = np.empty(300)

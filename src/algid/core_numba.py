@@ -23,15 +23,15 @@ import os
 import sys
 from functools import cache, lru_cache
 
+import numba  # noqa: F401 - ImportError here: the backend is not available
 import numpy as np
 
 from algid.generated import MODULES, NUMBA_MODULES
-from algid.numerical_error_numba import block_error  # ImportError: no numba
 from algid.quadrature import integrator_weights
 from algid.registry import module_from_source
 
 __all__ = ["advance", "bound_sample_pair", "pack_pair", "PAIR_ARRAYS", "compiled_loop",
-           "numerical_error", "user_cache_dir"]
+           "user_cache_dir"]
 
 
 def user_cache_dir():
@@ -165,9 +165,9 @@ def bound_sample_pair(state):
 
     The generated ``advance_sample_pair`` and its bound arguments (the arrays of both
     estimators in one buffer, :func:`pack_pair`), for a stream fed one sample at a
-    time: the same numbers as :func:`advance` of the estimator and of its
-    companion followed by :func:`numerical_error`, with the channels' extent tracked
-    (:mod:`algid.numerical_error`).
+    time: the same numbers as :func:`advance` of the estimator and of its companion
+    followed by :func:`algid.numerical_error_numba.block_error`, with the channels'
+    extent tracked (:mod:`algid.numerical_error`).
 
     Parameters
     ----------
@@ -276,21 +276,3 @@ def advance(state, layout, channels, out, *, from_origin=False):
     if from_origin:
         out[:, :state.points - 1] = np.nan
     state.n_seen += channels[0].size
-
-
-def numerical_error(estimates, companion, recent, out):
-    """The numerical error of a block, compiled (see :mod:`algid.numerical_error`).
-
-    The same numbers as :func:`algid.numerical_error.relative_difference` followed by
-    :func:`algid.numerical_error.window_maximum`, in one pass.
-
-    Parameters
-    ----------
-    estimates, companion : ndarray, shape (n_parameters, m)
-        The estimates and the companion's.
-    recent : ndarray, shape (WINDOW - 1,)
-        The finite raw values before the block; updated in place.
-    out : ndarray, shape (m,)
-        Receives the numerical error.
-    """
-    block_error(estimates, companion, recent, out)
