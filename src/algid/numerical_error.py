@@ -289,10 +289,11 @@ def advance_rows_with_error(state, rows, out, error_out, backend="numpy"):
         if step is None or step[0] != state.dt or step[1] != backend:
             step = state._sample_step = (state.dt, backend, sample_stepper(state, backend))
         ready, advance, buffer = step[2]
+        values = tuple(row.item(0) for row in rows)
         if ready():
-            advance(tuple(row.item(0) for row in rows), out, error_out)
+            advance(values, out, error_out)
             return out, error_out
-        if buffer(tuple(row.item(0) for row in rows), out, error_out):
+        if buffer(values, out, error_out):
             return out, error_out
     advance_with_error(state, rows, backend=backend, out=out, error_out=error_out)
     return out, error_out
