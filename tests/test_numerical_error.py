@@ -405,7 +405,7 @@ def test_compiled_numerical_error_equals_numpy():
 @pytest.mark.skipif(len(ENGINES) < 2, reason="needs numba")
 def test_compiled_channel_extent_equals_numpy():
     from algid.numerical_error import _track_channels
-    from algid.numerical_error_numba import track_extent
+    from algid.numerical_error_numba import sample_extent, track_extent
 
     rng = np.random.default_rng(5)
     state = with_companion(algid.core.new_state(load_model("msd"), points=8, filter_order=2,
@@ -418,6 +418,13 @@ def test_compiled_channel_extent_equals_numpy():
         for c, row in enumerate(rows):
             track_extent(row, compiled.divisors.item(c), c, compiled.channel_max,
                          compiled.channel_last)
+        np.testing.assert_array_equal(compiled.channel_max, state.channel_max)
+        np.testing.assert_array_equal(compiled.channel_last, state.channel_last)
+    for value in (-40.0, 2.5, -0.0, 1e3):  # one sample as a number, as the pair step does
+        _track_channels(state, (np.array([value]), np.array([-value])))
+        for c, v in enumerate((value, -value)):
+            sample_extent(v, compiled.divisors.item(c), c, compiled.channel_max,
+                          compiled.channel_last)
         np.testing.assert_array_equal(compiled.channel_max, state.channel_max)
         np.testing.assert_array_equal(compiled.channel_last, state.channel_last)
 

@@ -15,7 +15,7 @@ import math
 import numba
 import numpy as np
 
-__all__ = ["block_error", "sample_error", "track_extent"]
+__all__ = ["block_error", "sample_error", "track_extent", "sample_extent"]
 
 
 # x / 0: inf or NaN, no exception; inlined into its callers (a call per sample costs
@@ -117,7 +117,30 @@ def track_extent(row, divisor, c, channel_max, channel_last):  # pragma: no cove
     for value in row:
         if abs(value) > largest:
             largest = abs(value)
-    size = largest / divisor
+    _record_extent(largest / divisor, row[row.shape[0] - 1] / divisor, c, channel_max,
+                   channel_last)
+
+
+@numba.njit(cache=True, nogil=True)
+def sample_extent(value, divisor, c, channel_max, channel_last):  # pragma: no cover
+    """:func:`track_extent` of one sample given as a number (the one-sample step of the
+    generated loops calls it).
+
+    Parameters
+    ----------
+    value : float
+    divisor : float
+    c : int
+    channel_max, channel_last : ndarray
+        Updated in place.
+    """
+    newest = value / divisor
+    _record_extent(abs(newest), newest, c, channel_max, channel_last)
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _record_extent(size, newest, c, channel_max, channel_last):  # pragma: no cover
+    """The extent rule: the largest size so far, the newest value."""
     if size > channel_max[c]:
         channel_max[c] = size
-    channel_last[c] = row[row.shape[0] - 1] / divisor
+    channel_last[c] = newest

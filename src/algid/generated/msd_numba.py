@@ -12,7 +12,7 @@ import numba
 import numpy as np
 
 from algid.generated.msd import cramer, regressors_packed
-from algid.numerical_error_numba import sample_error
+from algid.numerical_error_numba import sample_error, sample_extent
 
 CACHE = True
 BLOCK = 256
@@ -159,14 +159,8 @@ def advance_sample_pair(channel_0, channel_1, n0, dt, buffer, offsets, filter_or
     advance_sample(channel_0, channel_1, other, other_integrals, other_history, n0, dt,
                    divisors, other_weights, other_filter_order)
     sample_error(out, other, recent, error_out)
-    v0 = channel_0 / divisors[0]
-    if abs(v0) > channel_max[0]:
-        channel_max[0] = abs(v0)
-    channel_last[0] = v0
-    v1 = channel_1 / divisors[1]
-    if abs(v1) > channel_max[1]:
-        channel_max[1] = abs(v1)
-    channel_last[1] = v1
+    sample_extent(channel_0, divisors[0], 0, channel_max, channel_last)
+    sample_extent(channel_1, divisors[1], 1, channel_max, channel_last)
 
 
 @numba.njit(cache=CACHE, nogil=True)

@@ -158,10 +158,7 @@ def _sample_source(layout, channels, n_par):
             "                   divisors, other_weights, other_filter_order)",
             "    sample_error(out, other, recent, error_out)"]
     for i, name in enumerate(channels):
-        a(f"    v{i} = {name} / divisors[{i}]")
-        a(f"    if abs(v{i}) > channel_max[{i}]:")
-        a(f"        channel_max[{i}] = abs(v{i})")
-        a(f"    channel_last[{i}] = v{i}")
+        a(f"    sample_extent({name}, divisors[{i}], {i}, channel_max, channel_last)")
     return src
 
 
@@ -192,7 +189,7 @@ def numba_module_source(module, *, header, cache=True) -> str:
            f"Channels: {', '.join(f'{c} = {n!r}' for c, n in zip(channels, module.CHANNELS))}.",
            "", header, '"""', "", "import math", "", "import numba", "import numpy as np", "",
            f"from {module.__name__} import cramer, regressors_packed",
-           "from algid.numerical_error_numba import sample_error", "",
+           "from algid.numerical_error_numba import sample_error, sample_extent", "",
            f"CACHE = {bool(cache)!r}", f"BLOCK = {BLOCK}", "",
            "_regressors_packed = numba.njit(cache=CACHE, nogil=True)(regressors_packed)",
            "_cramer = numba.njit(cache=CACHE, nogil=True)(cramer)", "", "",
