@@ -121,29 +121,30 @@ def _c_runner(handle, f, x, out, chunk):
 
 
 def _numba_runners(f, x):
-    """label -> callable for the numba engine (empty if it cannot run here)."""
+    """label -> callable for the numba backend (empty if it cannot run here).
+
+    The loop runs the C pair's own options (the defaults: filter ``1/s**2``, the
+    default rule), so that the two do the same arithmetic.
+    """
     import algid
+    from algid import core
+    from algid.backends import numba_available
+    from algid.options import DEFAULT_QUADRATURE_POINTS
+    from algid.registry import load_model
 
-    try:
-        from algid import engine
-        from algid.estimator import load_model
-    except ImportError:
-        return {}, "algid.engine not available"
-    if not engine.available():
+    if not numba_available():
         return {}, "numba not installed"
-    runners = {}
     t = np.arange(f.size) * STEP
-    runners["numba_estimate"] = lambda: algid.estimate(t, f, x, engine="numba")
-    if hasattr(engine, "make_state") and hasattr(engine, "run_chunk"):
-        gen = load_model("msd")
-        out = np.empty((2, f.size))
+    gen = load_model("msd")
+    out = np.empty((2, f.size))
 
-        def core():
-            state = engine.make_state(gen, 6, 2, step=STEP)
-            engine.run_chunk(state, f, x, out=out)
+    def loop():
+        state = core.new_state(gen, points=DEFAULT_QUADRATURE_POINTS, filter_order=2,
+                               dt=STEP)
+        core.advance(state, (f, x), backend="numba", out=out)
 
-        runners["numba_loop"] = core
-    return runners, "available"
+    return {"numba_estimate": lambda: algid.estimate(t, f, x, engine="numba"),
+            "numba_loop": loop}, "available"
 
 
 def c_speed(config):
