@@ -171,7 +171,7 @@ def advance(channel_0, channel_1, out, integrals, history, n0, dt, divisors,
     The state layout is that of algid.core.integrator_layout.  With from_origin
     the chunk starts at the time origin and holds at least len(weights) samples.
     """
-    W = weights.shape[0] - 1
+    W = max(weights.shape[0] - 1, 0)
     size = channel_0.shape[0]
     if size == 1 and not from_origin:
         advance_sample(channel_0[0], channel_1[0], out, integrals, history, n0, dt,

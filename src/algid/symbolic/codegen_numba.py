@@ -204,7 +204,9 @@ def numba_module_source(module, *, header, cache=True) -> str:
            "    the chunk starts at the time origin and holds at least len(weights) samples.",
            '    """']
     a = src.append
-    a("    W = weights.shape[0] - 1")
+    # max(.., 0): W + b is then known to be non-negative, and the compiler drops the
+    # negative-index wraparound from every access (about a fifth of the loop's time)
+    a("    W = max(weights.shape[0] - 1, 0)")
     a(f"    size = {channels[0]}.shape[0]")
     a("    if size == 1 and not from_origin:")
     a(f"        advance_sample({', '.join(c + '[0]' for c in channels)}, out, integrals, history,"
