@@ -191,10 +191,13 @@ def undetermined(module, channels, dt, *, rtol=IDENTIFIABILITY_RTOL, state=None)
         return None
     with np.errstate(over="ignore", under="ignore", invalid="ignore"):
         if state is not None and state.n_seen == channels[0].size:
-            values, sizes = _kernels_from_state(
-                state, [max(float(c.max()), -float(c.min())) / d
-                        for c, d in zip(channels, state.divisors)],
-                [float(c[-1]) / d for c, d in zip(channels, state.divisors)])
+            if state.channel_max is not None:  # tracked with the numerical error
+                largest, last = state.channel_max, state.channel_last
+            else:
+                largest = [max(float(c.max()), -float(c.min())) / d
+                           for c, d in zip(channels, state.divisors)]
+                last = [float(c[-1]) / d for c, d in zip(channels, state.divisors)]
+            values, sizes = _kernels_from_state(state, largest, last)
         else:
             values, sizes = _kernels_at_end(module, [np.asarray(c, dtype=float)
                                                      for c in channels], dt)
