@@ -18,23 +18,29 @@ import numpy as np
 __all__ = ["block_error", "sample_error", "track_extent", "sample_extent"]
 
 
-# x / 0: inf or NaN, no exception; inlined into its callers (a call per sample costs
-# as much as the rest of the error)
+# x / 0: inf or NaN, no exception; inlined into their callers (a call per sample costs
+# as much as the rest of the error), as selects (the block's loops vectorise)
+@numba.njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _relative(a, b):  # pragma: no cover - compiled
+    """``|a - b| / |a|``; for a finite ``a`` where that is NaN (0 / 0: ``a = b = 0``, or
+    ``b`` NaN: the data do not determine it), 0 if ``a == b``, else inf."""
+    rel = abs(a - b) / abs(a)
+    equal = 0.0 if a == b else np.inf
+    return equal if (rel != rel and abs(a) < np.inf) else rel
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _larger(raw, rel):  # pragma: no cover - compiled
+    """The larger of two relative differences, NaN if either is NaN."""
+    return np.nan if (rel != rel or raw != raw) else max(raw, rel)
+
+
 @numba.njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def _raw_error(estimates, companion, j):  # pragma: no cover - compiled
     """The largest relative difference over the parameters at sample ``j``."""
-    n_parameters = estimates.shape[0]
-    raw = 0.0 if n_parameters else np.nan
-    for i in range(n_parameters):
-        a = estimates[i, j]
-        b = companion[i, j]
-        rel = abs(a - b) / abs(a)
-        if rel != rel and math.isfinite(a):
-            rel = 0.0 if a == b else np.inf
-        if rel != rel or raw != raw:
-            raw = np.nan
-        else:
-            raw = max(raw, rel)  # branch-free (neither is NaN)
+    raw = 0.0 if estimates.shape[0] else np.nan
+    for i in range(estimates.shape[0]):
+        raw = _larger(raw, _relative(estimates[i, j], companion[i, j]))
     return raw
 
 
@@ -51,14 +57,21 @@ def block_error(estimates, companion, recent, out):  # pragma: no cover - compil
     out : ndarray, shape (m,)
         Receives the numerical error.
     """
-    m = estimates.shape[1]
+    n_parameters, m = estimates.shape
     width = recent.shape[0]
     level = np.empty(width + m)
     level[:width] = recent
+    # the raw error (_raw_error's numbers) into out, parameter by parameter over every
+    # sample: the loops vectorise (6 -> 3.5 ns per sample)
+    first = 0.0 if n_parameters else np.nan
     for j in range(m):
-        raw = _raw_error(estimates, companion, j)
-        out[j] = raw
-        level[width + j] = raw if math.isfinite(raw) else 0.0
+        out[j] = first
+    for i in range(n_parameters):
+        for j in range(m):
+            out[j] = _larger(out[j], _relative(estimates[i, j], companion[i, j]))
+    for j in range(m):
+        raw = out[j]
+        level[width + j] = raw if abs(raw) < np.inf else 0.0  # finite
     recent[:] = level[m:]
     # the largest over the last width + 1 samples: maxima of 2, 4, 8, ... samples (the
     # window is a power of two), each pass reading the previous one's values ahead
@@ -68,7 +81,7 @@ def block_error(estimates, companion, recent, out):  # pragma: no cover - compil
             level[k] = max(level[k], level[k + span])  # (no NaN here) branch-free
         span *= 2
     for j in range(m):
-        if math.isfinite(out[j]):
+        if abs(out[j]) < np.inf:
             out[j] = level[j]
 
 
