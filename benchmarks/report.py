@@ -14,6 +14,8 @@ TARGETS = {
                     1e-6),
     "tracking": ("parameter change: time until within 0.1 % (s)", 0.1),
     "c_speed": ("C estimator (-O2) on one chunk: its time / the numba loop's", 1.0),
+    "numpy_speed": ("NumPy backend, default (with the numerical error): its time / the "
+                    "naive NumPy estimator's", 1.0 / 1.5),
 }
 
 
@@ -86,6 +88,15 @@ def targets(results):
         add("tracking", math.inf if math.isnan(worst) else worst,
             "worst of step/sine, the three changes and the change instants, except a "
             "change of B alone on a settled step (not excited)")
+    perf = results.get("performance")
+    if perf and "batch" in perf:
+        ratios = {r["method"]: r["throughput_ratio"] for r in perf["batch"]
+                  if "throughput_ratio" in r}
+        if "algid" in ratios:
+            detail = f"{ratios['algid']:.2f}× the naive estimator's throughput"
+            if "algid_alone" in ratios:
+                detail += f"; without the numerical error {ratios['algid_alone']:.2f}×"
+            add("numpy_speed", 1.0 / ratios["algid"], detail)
     cs = results.get("c_speed")
     if cs and cs.get("c_over_numba", {}).get("O2"):
         from benchmarks.c_speed import target
@@ -247,7 +258,7 @@ def markdown(results):
         parts.append(c_speed_markdown(results["c_speed"]))
     tg = results.get("targets")
     if tg:
-        rows = [[t["description"], f"≤ {t['limit']:g}", _num(t["measured"], ".3g"),
+        rows = [[t["description"], f"≤ {t['limit']:.3g}", _num(t["measured"], ".3g"),
                  {True: "met", False: "missed", None: "not run"}[t["met"]], t["detail"]]
                 for t in tg]
         parts.append("### Targets\n\n" + _table(["target", "limit", "measured", "", "detail"],

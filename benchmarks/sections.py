@@ -421,11 +421,23 @@ def _batch_methods(n_oe):
         "algid": ("algid default (NumPy engine)",
                   lambda t, f, x: algid.estimate(t, f, x, **numpy_engine), None),
     }
+    # the estimator without its companion (numerical_error=False): the work the speed
+    # targets of the estimator core were set for, before the numerical error existed
+    alone = ({"numerical_error": False}
+             if "numerical_error" in inspect.signature(algid.estimate).parameters else None)
+    if alone is not None:
+        methods["algid_alone"] = (
+            "algid, numerical_error=False (NumPy engine)",
+            lambda t, f, x: algid.estimate(t, f, x, **alone, **numpy_engine), None)
     ok, _ = _numba_engine()
     if ok:
         methods["algid_numba"] = ("algid default (numba engine)",
                                   lambda t, f, x: algid.estimate(t, f, x, engine="numba"),
                                   None)
+        if alone is not None:
+            methods["algid_numba_alone"] = (
+                "algid, numerical_error=False (numba engine)",
+                lambda t, f, x: algid.estimate(t, f, x, engine="numba", **alone), None)
     methods.update({
         "algid_trap_p0": ("algid trapezoid, p=0 (NumPy engine)",
                           lambda t, f, x: algid.estimate(t, f, x, quadrature_points=2,

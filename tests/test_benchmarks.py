@@ -44,7 +44,8 @@ def test_smoke_run_writes_every_section(smoke):
     for heading in ("### 1.", "### 2.", "### 3.", "### 4.", "### 5.", "### 6.", "### Targets"):
         assert heading in stdout
     names = {t["name"] for t in results["targets"]}
-    assert names - {"c_speed"} == {"convergence", "efficiency", "long_stream", "tracking"}
+    assert names - {"c_speed"} == {"convergence", "efficiency", "long_stream", "tracking",
+                                   "numpy_speed"}
     for t in results["targets"]:
         assert set(t) == {"name", "description", "limit", "measured", "met", "detail"}
 
