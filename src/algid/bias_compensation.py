@@ -46,11 +46,14 @@ def bias_compensated(A, b, grams, bound=np.inf):
 
     Returns
     -------
-    theta, scores, jacobian
+    theta, scores, jacobian : numpy.ndarray
         The estimate, its estimating equations per window and their derivative.
     variance : float or None
-        The noise variance from the eigenvalue, or None where it exceeds ``bound`` (the
-        misfit is not only output noise) or no correction was made.
+        The noise variance of the correction: the eigenvalue, or ``bound`` where the
+        eigenvalue exceeds it (the misfit is not only output noise); None where no
+        correction was made (plain least squares).
+    capped : bool
+        Whether the variance is the cap ``bound``.
     """
     from scipy.linalg import eigh
 
@@ -80,11 +83,10 @@ def bias_compensated(A, b, grams, bound=np.inf):
             theta_bar = np.append(theta, -1.0)
     if theta_bar is None:
         theta = np.linalg.lstsq(A, b, rcond=None)[0]
-        return theta, A * (b - A @ theta)[:, None], A.T @ A, None
+        return theta, A * (b - A @ theta)[:, None], A.T @ A, None, False
     theta = theta_bar[:p]
     scores = A * (b - A @ theta)[:, None] + variance * (grams @ theta_bar)[:, :p]
-    return (theta, scores, A.T @ A - variance * noise[:p, :p],
-            None if capped else variance)
+    return theta, scores, A.T @ A - variance * noise[:p, :p], variance, capped
 
 
 def solve_equilibrated(H, g):

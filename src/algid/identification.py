@@ -79,14 +79,16 @@ from algid.errors import InputDataError, ModelError
 from algid.expression import Call, Signal
 from algid.grammar import parse_equation
 from algid.model import Model
-from algid.records import estimate_derivative, prepare_records
+from algid.records import Segment, estimate_derivative, prepare_records
 from algid.sign_crossings import crossing_jumps, crossing_motion, sign_factor
-from algid.window_covariance import hac_meat, noise_meat
+from algid.window_basis import ROUNDOFF_SEPARABILITY, WindowBasis, exponent, separability
+from algid.window_covariance import hac_meat, noise_meat, sandwich
 from algid.window_kernels import (
     step_window_integrals,
     uniform_window_integrals,
     window_integrals,
     window_noise_products,
+    window_sample_weights,
 )
 
 __all__ = ["identify", "METHODS", "MULTIPLICITIES", "AGREEMENT", "CROSSING_PASSES",
@@ -112,6 +114,13 @@ CROSSING_PASSES = 2
 #: Windows overlap: a window starts every ``length // WINDOW_OVERLAP`` samples.
 WINDOW_OVERLAP = 8
 
+#: Non-overlapping windows needed beyond one per parameter.
+MIN_SPARE_WINDOWS = 10
+
+#: Round-off standard error of the solution, per sample of a window, relative to the
+#: known side (in the orthonormal basis of :mod:`algid.window_basis`).
+ROUNDOFF = 4 * np.finfo(float).eps
+
 
 def window_grid(n_min, n_max, ratio=1.25):
     """Geometric grid of window lengths (samples) between ``n_min`` and ``n_max``.
@@ -136,13 +145,29 @@ def window_grid(n_min, n_max, ratio=1.25):
 
 
 class _Problem:
-    """Channel samples of a model on the segments of the records."""
+    """Channel samples of a model on the segments of the records.
+
+    Internally the time is counted in :attr:`time_unit`, a power of two near the median
+    sampling step, from the first sample of each segment (:attr:`segments`; the records'
+    own times are in :attr:`user_segments`), and the samples of every factor are divided
+    by a power of two bringing the largest into ``[1, 2)`` (the output's, the unit of the
+    output noise, is :attr:`output_unit`).  The columns of :meth:`rows` are then each in
+    a power of two of their own (:meth:`exponents`): ``theta_p`` is the solution for
+    column ``p`` times ``2**(E_b - E_p)``.  Powers of two are exact: the results do not
+    depend on the units of the records, and nothing overflows or underflows.
+    """
 
     def __init__(self, model, segments, step):
         self.model = model
-        self.segments = segments
-        self.step = step
+        self.time_unit = float(np.ldexp(1.0, int(np.round(np.log2(step)))))
+        self.user_segments = segments
+        self.segments = [Segment(s.record, s.rows, (s.t - s.t[0]) / self.time_unit, s.values,
+                                 None if s.step is None else s.step / self.time_unit)
+                         for s in segments]
+        self.step = step / self.time_unit
         self.parameters = model.parameters
+        self.output_exponent = exponent([s.values[model.output] for s in segments])
+        self.output_unit = float(np.ldexp(1.0, self.output_exponent))
         self.factors = {}
         self.sign_jumps = {}   # sign factor -> jump of q'' (refined crossings)
         self.first_values = {}  # parameter -> first estimate (the crossings' local fits)
@@ -152,34 +177,78 @@ class _Problem:
         # (sign factor, which, segment) -> (first value, times and sizes of its steps)
         self.steps = {}
 
+    @property
+    def exact_columns(self):
+        """Columns of :meth:`rows` whose terms read no measured signal."""
+        return [i for i, p in enumerate(self.parameters)
+                if not any(t.factor.signals() for t in self.model.terms if t.parameter == p)]
+
     def factor_samples(self, factor, which="measured"):
+        """Samples of a factor per segment, over the power of two of its largest."""
         key = (factor, which)
         if key not in self.factors:
-            samples = []
-            for seg in self.segments:
+            samples, steps, crossings = [], [], []
+            for seg in self.user_segments:
                 values = seg.values if which == "measured" else seg.simulated
                 if isinstance(factor, Call) and factor.function == "sign":
                     refine = which == "measured" and factor in self.sign_jumps
                     motion = crossing_motion(self.model, self.first_values, values,
                                              seg.t) if refine else None
-                    z, steps, crossings = sign_factor(
+                    z, step, crossing = sign_factor(
                         factor.args[0].evaluate(values, seg.t), seg.t,
                         position=values[self.model.output] if refine else None,
                         jump=self.sign_jumps.get(factor), motion=motion)
-                    self.steps[(factor, which, len(samples))] = steps
-                    if refine:
-                        self.crossings[(factor, len(samples))] = crossings
+                    steps.append(step)
+                    crossings.append(crossing if refine else None)
                 else:
                     z = np.asarray(factor.evaluate(values, seg.t), dtype=float) \
                         * np.ones(len(seg))
+                    steps.append(None)
+                    crossings.append(None)
                 samples.append(z)
+            e = exponent(samples)
+            unit = self.time_unit
+            moves = np.ldexp(1.0, self.output_exponent) / unit
+            for s, seg in enumerate(self.user_segments):
+                samples[s] = np.ldexp(samples[s], -e)
+                if steps[s] is not None:   # in the internal time and the factor's unit
+                    level, times, sizes = steps[s]
+                    self.steps[(factor, which, s)] = (
+                        np.ldexp(level, -e), (np.asarray(times) - seg.t[0]) / unit,
+                        np.ldexp(np.asarray(sizes, dtype=float), -e))
+                if crossings[s] is not None:
+                    self.crossings[(factor, s)] = [
+                        ((time - seg.t[0]) / unit, np.ldexp(size, -e), first, fit * moves)
+                        for time, size, first, fit in crossings[s]]
             self.factors[key] = samples
+            self.factors[(factor, which, "exponent")] = e
         return self.factors[key]
 
+    def exponents(self, which="measured"):
+        """Powers of two of the columns of :meth:`rows` and of its known side, and of
+        every term within its column (``{term index: shift}``, at most 0)."""
+        unit = int(np.round(np.log2(self.time_unit)))
+        own = []
+        for term in self.model.terms:
+            self.factor_samples(term.factor, which)
+            own.append(self.factors[(term.factor, which, "exponent")] - term.derivative * unit)
+        columns = {}
+        for term, e in zip(self.model.terms, own):
+            columns[term.parameter] = max(columns.get(term.parameter, e), e)
+        shifts = {i: e - columns[term.parameter]
+                  for i, (term, e) in enumerate(zip(self.model.terms, own))}
+        return (np.array([columns[p] for p in self.parameters]), columns.get(None, 0), shifts)
+
+    def term_scale(self, term, which="measured"):
+        """The power of two of a term within its column of :meth:`rows`."""
+        return float(np.ldexp(1.0, self.exponents(which)[2][self.model.terms.index(term)]))
+
     def rows(self, length, multiplicity, which="measured"):
-        """Regressors ``A``, known side ``b`` and window ids for one multiplicity."""
+        """Regressors ``A``, known side ``b`` and window ids for one multiplicity (each
+        column in its power of two, :meth:`exponents`)."""
         stride = max(1, length // WINDOW_OVERLAP)
         index = {p: i for i, p in enumerate(self.parameters)}
+        shifts = self.exponents(which)[2]
         blocks_a, blocks_b, ids = [], [], []
         for s, seg in enumerate(self.segments):
             if len(seg) < length:
@@ -187,7 +256,7 @@ class _Problem:
             n_win = (len(seg) - length) // stride + 1
             A = np.zeros((n_win, len(self.parameters)))
             b = np.zeros(n_win)
-            for term in self.model.terms:
+            for i, term in enumerate(self.model.terms):
                 z = self.factor_samples(term.factor, which)[s]
                 steps = self.steps.get((term.factor, which, s))
                 if steps is not None:
@@ -199,10 +268,11 @@ class _Problem:
                 else:
                     w = window_integrals(z, seg.t, length, multiplicity, term.derivative,
                                          stride)
+                w = np.ldexp(term.coefficient * w, shifts[i])
                 if term.parameter is None:
-                    b -= term.coefficient * w
+                    b -= w
                 else:
-                    A[:, index[term.parameter]] += term.coefficient * w
+                    A[:, index[term.parameter]] += w
             blocks_a.append(A)
             blocks_b.append(b)
             ids.append(np.full(n_win, s))
@@ -210,32 +280,58 @@ class _Problem:
             raise InputDataError(f"no segment holds a window of {length} samples")
         return np.vstack(blocks_a), np.concatenate(blocks_b), np.concatenate(ids)
 
+    def to_parameters(self, theta, which="measured"):
+        """Parameter values from a solution of :meth:`rows`."""
+        columns, known, _ = self.exponents(which)
+        return np.ldexp(theta, known - columns)
+
+    def excitation(self, length, multiplicity, A, b):
+        """Per column of ``A`` and for ``b``, their rms over the largest they could be
+        for factors of the same largest samples (at most about 1; round-off for a term
+        that vanishes on the records)."""
+        shifts = self.exponents()[2]
+        bound = np.zeros(len(self.parameters) + 1)
+        index = {p: i for i, p in enumerate(self.parameters)}
+        for i, term in enumerate(self.model.terms):
+            z = self.factor_samples(term.factor)
+            largest = max(float(np.max(np.abs(v))) for v in z)
+            kernel = np.sum(np.abs(window_sample_weights(None, self.step, length,
+                                                         multiplicity, term.derivative)))
+            column = len(self.parameters) if term.parameter is None else index[term.parameter]
+            bound[column] += abs(term.coefficient) * np.ldexp(kernel * largest, shifts[i])
+        rms = np.sqrt(np.mean(np.column_stack([A, b]) ** 2, axis=0))
+        return np.where(bound > 0, rms / np.where(bound > 0, bound, 1.0), 0.0)
+
     def sensitivity(self, factor):
         """Derivative of a factor with respect to the measured output, per segment
-        (``None`` where the factor does not read the output's plain samples)."""
+        (``None`` where the factor does not read the output's plain samples), both in
+        their units (the powers of two of :meth:`factor_samples`)."""
         key = (factor, "sensitivity")
         if key not in self.factors:
             output = self.model.output
+            self.factor_samples(factor)
+            shift = self.output_exponent - self.factors[(factor, "measured", "exponent")]
             if output not in factor.signals():
                 self.factors[key] = None
             elif factor == Signal(output):
                 self.factors[key] = [np.ones(len(seg)) for seg in self.segments]
             else:
                 sensitivities = []
-                for seg in self.segments:
+                for seg in self.user_segments:
                     y = seg.values[output]
                     h = 1e-6 * max(float(np.max(np.abs(y))), 1e-300)
                     up, down = dict(seg.values), dict(seg.values)
                     up[output], down[output] = y + h, y - h
-                    sensitivities.append(
-                        (np.asarray(factor.evaluate(up, seg.t), dtype=float)
-                         - np.asarray(factor.evaluate(down, seg.t), dtype=float))
-                        / (2 * h) * np.ones(len(seg)))
+                    difference = (np.asarray(factor.evaluate(up, seg.t), dtype=float)
+                                  - np.asarray(factor.evaluate(down, seg.t), dtype=float))
+                    sensitivities.append(np.ldexp(difference / (2 * h), shift)
+                                         * np.ones(len(seg)))
                 self.factors[key] = sensitivities
         return self.factors[key]
 
     def noise_bound(self):
-        """An upper bound on the variance of white noise on the output samples.
+        """An upper bound on the variance of white noise on the output samples (in the
+        output's unit, :attr:`output_unit`).
 
         The ``k``-th difference of the samples has the variance ``C(2k, k) sigma^2`` of
         white noise plus that of the signal's difference (signal and noise being
@@ -244,7 +340,8 @@ class _Problem:
         sample grid; loose (harmless) at a few samples per period.
         """
         if "noise_bound" not in self.factors:
-            y = [seg.values[self.model.output] for seg in self.segments]
+            y = [np.ldexp(seg.values[self.model.output], -self.output_exponent)
+                 for seg in self.segments]
             bounds = []
             for k in range(1, 9):
                 d = [np.diff(v, k) for v in y if len(v) > k]
@@ -270,11 +367,11 @@ class _Problem:
         for term in self.model.terms:
             if self.sensitivity(term.factor) is None:
                 continue
+            weight = term.coefficient * self.term_scale(term)
             if term.parameter is None:
-                noisy.append((p, -term.coefficient, term.derivative, term.factor))
+                noisy.append((p, -weight, term.derivative, term.factor))
             else:
-                noisy.append((index[term.parameter], term.coefficient, term.derivative,
-                              term.factor))
+                noisy.append((index[term.parameter], weight, term.derivative, term.factor))
         blocks = []
         for s, seg in enumerate(self.segments):
             if len(seg) < length:
@@ -295,28 +392,53 @@ class _Problem:
 
 
 class _Fit:
-    """One estimate on one window length: parameters, covariance, diagnostics."""
+    """One estimate on one window length: parameters, covariance, diagnostics (in the
+    records' units)."""
 
-    def __init__(self, theta, covariance, separate, scale, residuals, n_windows):
+    def __init__(self, theta, covariance, separate, scale, residuals, n_windows,
+                 separation=None):
         self.theta = theta
         self.covariance = covariance
         self.separate = separate          # multiplicity -> estimate alone
         self.scale = scale                # effect of a unit parameter error on the equation
         self.residuals = residuals
         self.n_windows = n_windows
+        self.separation = separation      # Separability of the highest multiplicity
 
     @property
     def stderr(self):
         return np.sqrt(np.maximum(np.diag(self.covariance), 0.0))
 
+    @property
+    def numerical_error(self):
+        """Per parameter: the difference between the lowest and highest multiplicity."""
+        values = [self.separate[a] for a in sorted(self.separate)]
+        return np.abs(values[-1] - values[0])
+
     def relative_error(self):
         """Per parameter: max(standard error, multiplicity difference), relative to the
         parameter (or to the value whose term is 5 % of the known side, for a parameter
         near zero)."""
-        values = list(self.separate.values())
-        difference = np.abs(values[0] - values[-1])
         reference = np.maximum(np.abs(self.theta), NEGLIGIBLE_TERM / self.scale)
-        return np.maximum(self.stderr, difference) / reference
+        return np.maximum(self.stderr, self.numerical_error) / reference
+
+
+def _check_excited(problem, length, multiplicity, A, b):
+    """Refuse records on which a parameter's terms, or the known side, vanish."""
+    excitation = problem.excitation(length, multiplicity, A, b)
+    idle = [p for p, e in zip(problem.parameters, excitation) if e < ROUNDOFF_SEPARABILITY]
+    if excitation[-1] < ROUNDOFF_SEPARABILITY and len(idle) == len(problem.parameters):
+        raise InputDataError("the signals are constant or zero on these records: they "
+                             "determine no parameter")
+    if idle:
+        terms = ", ".join(str(t) for t in problem.model.terms if t.parameter in idle)
+        raise InputDataError(f"parameter{'s' if len(idle) > 1 else ''} {', '.join(idle)} "
+                             f"cannot be determined: {terms} vanish{'es' if len(idle) == 1 else ''}"
+                             f" on these records (a constant or zero signal)")
+    if excitation[-1] < ROUNDOFF_SEPARABILITY:
+        known = " + ".join(str(t) for t in problem.model.known_terms) or "0"
+        raise InputDataError(f"the known side {known} vanishes on these records: nothing "
+                             f"fixes the scale of the parameters")
 
 
 def _solve(problem, length, multiplicities, instruments=None, method="ls"):
@@ -326,45 +448,66 @@ def _solve(problem, length, multiplicities, instruments=None, method="ls"):
     separate = {}
     for a in multiplicities:
         A, b, ids = problem.rows(length, a)
-        variance = None
-        weights = A
+        _check_excited(problem, length, a, A, b)
+        basis = WindowBasis(A, b)
+        separation = separability(basis, problem.exact_columns)
+        if separation.proportional:
+            raise ModelError(separation.message(problem.parameters))
+        variance, capped = None, False
+        weights = basis.A
         if instruments is not None:
-            Z = weights = instruments[a][0]
-            theta = solve_equilibrated(Z.T @ A, Z.T @ b)
-            scores, jacobian = Z * (b - A @ theta)[:, None], Z.T @ A
+            Z = weights = basis.instruments(instruments[a][0])
+            phi = solve_equilibrated(Z.T @ basis.A, Z.T @ basis.b)
+            scores, jacobian = Z * (basis.b - basis.A @ phi)[:, None], Z.T @ basis.A
         elif method == "bc":
-            theta, scores, jacobian, variance = bias_compensated(
-                A, b, problem.noise_grams(length, a), problem.noise_bound())
+            phi, scores, jacobian, variance, capped = bias_compensated(
+                basis.A, basis.b, basis.grams(problem.noise_grams(length, a)),
+                problem.noise_bound())
         else:
-            theta = np.linalg.lstsq(A, b, rcond=None)[0]
-            scores, jacobian = A * (b - A @ theta)[:, None], A.T @ A
-        separate[a] = (theta, A, b, ids, scores, jacobian, variance, weights)
+            phi = np.linalg.lstsq(basis.A, basis.b, rcond=None)[0]
+            scores, jacobian = basis.A * (basis.b - basis.A @ phi)[:, None], \
+                basis.A.T @ basis.A
+        separate[a] = (phi, basis, ids, scores, jacobian, variance, capped, weights,
+                       separation)
     top = max(multiplicities)
-    theta, A, b, ids, scores, jacobian, variance, weights = separate[top]
-    r = b - A @ theta
+    phi, basis, ids, scores, jacobian, variance, capped, weights, separation = separate[top]
+    r = basis.b - basis.A @ phi
     bread = np.linalg.pinv(jacobian)
-    theta_bar = np.append(theta, -1.0)
-    if variance is None:  # least squares: the misfit per unit of white-noise variance
-        noise_weight = float(np.einsum("i,wij,j->", theta_bar,
-                                       problem.noise_grams(length, top), theta_bar))
-        variance = float(r @ r) / noise_weight if noise_weight > 0 else np.inf
-        if not variance <= problem.noise_bound():
-            variance = None
+    theta_s = basis.theta(phi)
+    theta_bar = np.append(theta_s, -1.0)   # in the units of the rows (noise_meat)
     stride = max(1, length // WINDOW_OVERLAP)
-    # the residuals' own covariance, and, where the misfit is no larger than white output
-    # noise could make it, that of such noise through the kernels: kept if the former
-    # is at most AGREEMENT times it for every parameter (a misfit that does not change
-    # between noise realisations inflates the former a little; a misfit that is not
-    # output noise at all, a force disturbance or noise on an input, inflates it more)
-    covariance = bread @ hac_meat(scores, ids, int(np.ceil(length / stride))) @ bread.T
-    if variance is not None:
-        analytic = bread @ (variance * noise_meat(problem, length, top, theta_bar, weights,
-                                                  stride)) @ bread.T
-        if np.all(np.diag(covariance) <= AGREEMENT * np.diag(analytic)):
-            covariance = analytic
-    scale = np.sqrt(np.mean(A ** 2, axis=0)) / max(float(np.sqrt(np.mean(b ** 2))), 1e-300)
-    return _Fit(theta, covariance, {a: v[0] for a, v in separate.items()}, scale, r,
-                len(ids))
+    noise = None
+    if variance is None and not capped:  # least squares: misfit per unit noise variance
+        weight = float(np.einsum("i,wij,j->", np.append(phi, -1.0),
+                                 basis.grams(problem.noise_grams(length, top)),
+                                 np.append(phi, -1.0)))
+        variance = float(r @ r) / weight if weight > 0 else np.inf
+        if not variance <= problem.noise_bound():
+            variance, capped = problem.noise_bound(), True
+    if variance is not None and np.isfinite(variance) and variance > 0:
+        beta = np.ldexp(1.0, -basis.b_shift)
+        noise = variance * beta ** 2 * noise_meat(problem, length, top, theta_bar, weights,
+                                                  stride)
+    covariance = sandwich(bread, hac_meat(scores, ids, int(np.ceil(length / stride))),
+                          noise, AGREEMENT, floor=ROUNDOFF * length * np.linalg.norm(basis.b))
+    columns, known, _ = problem.exponents()
+    shift = known - columns
+    theta = np.ldexp(theta_s, shift)
+    covariance = np.ldexp(basis.covariance(covariance), shift[:, None] + shift[None, :])
+    lost = ~np.isfinite(theta) | ((theta == 0) & (theta_s != 0)) \
+        | ~(np.diag(covariance) > 0) | ~np.isfinite(np.diag(covariance))
+    if np.any(lost):
+        name = problem.parameters[int(np.flatnonzero(lost)[0])]
+        raise InputDataError(f"the estimate of {name} or its variance is outside the "
+                             f"floating-point range in the units of these records (a "
+                             f"factor 2**{int(shift[np.flatnonzero(lost)[0]])} from the "
+                             f"signals'); express the time or the signals in other units")
+    A = basis.A @ basis.R[:-1, :-1]
+    scale = np.ldexp(np.sqrt(np.mean(A ** 2, axis=0)) / max(float(np.sqrt(np.mean(
+        basis.b ** 2))), 1e-300), basis.shifts - basis.b_shift - shift)
+    return _Fit(theta, covariance,
+                {a: np.ldexp(v[1].theta(v[0]), shift) for a, v in separate.items()},
+                scale, r, len(ids), separation)
 
 
 def _add_derivatives(model, segments, estimator):
@@ -385,18 +528,52 @@ def _derivative_estimate(y, t, order, step):
     return algebraic_derivative(y, time=t, derivative=order)
 
 
-def _length_of(window, step, segments):
+def _independent_windows(problem, length):
+    """Windows of ``length`` samples that share no sample, over the segments."""
+    return sum(len(seg) // length for seg in problem.segments)
+
+
+def _needed_windows(problem):
+    # the HAC covariance estimates a p x p middle from the residuals: it needs
+    # independent windows well beyond the parameters (the window rule asks for 30)
+    return len(problem.parameters) + MIN_SPARE_WINDOWS
+
+
+def _length_of(window, step, problem, multiplicities):
+    """Samples of an explicit window (s), refused if too short or too long."""
     if window is None:
         return None
     window = float(window)
     if not np.isfinite(window) or window <= 0:
         raise InputDataError(f"window must be a positive number of seconds, got {window}")
-    length = int(round(window / step)) + 1
-    longest = max(len(s) for s in segments)
-    if length > longest:
-        raise InputDataError(f"window {window:g} s ({length} samples) is longer than the "
-                             f"longest run of contiguous samples ({longest})")
+    shortest = _min_length(multiplicities)
+    samples = window / step + 1
+    longest = max(len(s) for s in problem.segments)
+    limits = (f"use {(shortest - 1) * step:.4g} s ({shortest} samples) to "
+              f"{_longest_window(problem, shortest) * step:.4g} s")
+    if samples < shortest - 0.5:
+        raise InputDataError(f"window {window:g} s ({samples:.3g} samples) is shorter than "
+                             f"the kernels of multiplicity {max(multiplicities)} need; "
+                             f"{limits}")
+    if samples > longest + 0.5:
+        raise InputDataError(f"window {window:g} s ({samples:.3g} samples) is longer than "
+                             f"the longest run of contiguous samples ({longest}); {limits}")
+    length = int(round(samples - 1)) + 1
+    count, needed = _independent_windows(problem, length), _needed_windows(problem)
+    if count < needed:
+        raise InputDataError(f"window {window:g} s ({length} samples) leaves {count} "
+                             f"non-overlapping windows for {len(problem.parameters)} "
+                             f"parameters (need {needed}); {limits}")
     return length
+
+
+def _longest_window(problem, shortest):
+    """The longest window (samples) giving the independent windows needed."""
+    needed = _needed_windows(problem)
+    longest = max(len(s) for s in problem.segments)
+    while longest > shortest and _independent_windows(problem, longest) < needed:
+        longest = max(shortest, min(longest - 1, int(longest / 1.05)))
+    return longest - 1
 
 
 def _check_multiplicities(model, multiplicities):
@@ -462,14 +639,25 @@ def choose_window(problem, multiplicities, *, n_max=None, method="ls"):
     total = sum(len(s) for s in problem.segments)
     # at least 30 independent windows: the HAC covariance needs many of them
     n_max = min(n_max or total // 30, longest, 4096)
-    grid = window_grid(n_min, max(n_min, n_max))
-    fits = {}
+    grid = [n for n in window_grid(n_min, max(n_min, n_max))
+            if _independent_windows(problem, n) >= _needed_windows(problem)]
+    if not grid:
+        raise InputDataError(f"the records are too short: windows of at least {n_min} "
+                             f"samples must leave {_needed_windows(problem)} non-overlapping "
+                             f"ones ({_independent_windows(problem, n_min)} here)")
+    fits, free = {}, []
     for length in grid:
         try:
-            fits[length] = _solve(problem, length, multiplicities, method=method)
-        except (np.linalg.LinAlgError, InputDataError):
+            fit = _solve(problem, length, multiplicities, method=method)
+        except np.linalg.LinAlgError:
             continue
+        if fit.separation.free:   # this window cannot tell the parameters apart
+            free.append(fit.separation)
+        else:
+            fits[length] = fit
     scores = window_criterion(fits) if fits else {}
+    if not scores and free:
+        raise ModelError(max(free, key=lambda f: f.ratio).message(problem.parameters))
     if not scores:
         raise InputDataError("no window length gives a solvable system: the records are "
                              "too short or the signals do not excite the model")
@@ -484,7 +672,7 @@ def _simulated_values(problem, theta, model):
     # fixed-step RK4 on cubic-spline inputs: instruments need not be accurate, only
     # noise-free and correlated with the regressors
     options = {"method": "RK4", "substeps": 4, "interpolation": "cubic"}
-    for seg in problem.segments:
+    for seg in problem.user_segments:
         inputs = {name: seg.values[name] for name in model.inputs}
         x0 = fit_initial_state(model, parameters, seg.t, inputs, seg.values[model.output],
                                min(50, len(seg)), **options)
@@ -556,7 +744,7 @@ def identify(data, equation, parameters=None, *, time=None, rate=None, output=No
                                                 min_length=_min_length(multiplicities))
     _add_derivatives(model, segments, _derivative_estimate)
     problem = _Problem(model, segments, step)
-    length = _length_of(window, step, segments)
+    length = _length_of(window, step, problem, multiplicities)
     scores = None
     if length is None:
         length, scores = choose_window(problem, multiplicities,
@@ -578,9 +766,13 @@ def identify(data, equation, parameters=None, *, time=None, rate=None, output=No
                                      "first estimate diverges; use method='bc'")
             instruments = {a: problem.rows(length, a, "simulated") for a in multiplicities}
             fit = _solve(problem, length, multiplicities, instruments)
+    if fit.separation.free:
+        raise ModelError(fit.separation.message(model.parameters))
     return IdentificationResult(
         model=model, values=dict(zip(model.parameters, fit.theta.tolist())),
         covariance=fit.covariance, window=(length - 1) * step, n_samples=n_samples,
         n_windows=fit.n_windows, method=method, multiplicities=multiplicities,
         time=time, rate=rate, window_scores=scores,
-        separate={a: dict(zip(model.parameters, v.tolist())) for a, v in fit.separate.items()})
+        separate={a: dict(zip(model.parameters, v.tolist())) for a, v in fit.separate.items()},
+        numerical_error=dict(zip(model.parameters, fit.numerical_error.tolist())),
+        warnings=[fit.separation.warning(model.parameters)] if fit.separation.weak else [])

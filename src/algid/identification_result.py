@@ -84,6 +84,14 @@ class IdentificationResult:
         Window length (samples) -> criterion, when the window was chosen automatically.
     separate : dict
         Multiplicity -> estimate with that multiplicity alone.
+    numerical_error : dict
+        Parameter name -> estimated quadrature error (absolute): the difference between
+        the estimates of the lowest and highest multiplicity (as an embedded
+        Runge-Kutta pair estimates its step error).  Not part of the covariance; report
+        it beside the standard error (on noisy records it also holds the part of the
+        noise in which the two estimates differ).
+    warnings : list of str
+        One line per reservation about the estimate (e.g. poorly separated parameters).
     """
 
     model: object
@@ -98,6 +106,8 @@ class IdentificationResult:
     rate: float | None = None
     window_scores: dict | None = None
     separate: dict = field(default_factory=dict)
+    numerical_error: dict = field(default_factory=dict)
+    warnings: list = field(default_factory=list)
 
     def __getattr__(self, name):
         values = self.__dict__.get("values", {})
@@ -122,7 +132,12 @@ class IdentificationResult:
         return dict(zip(self.model.parameters, se.tolist()))
 
     def __repr__(self):
-        pieces = ", ".join(f"{p}={v:.6g} ± {self.stderr[p]:.2g}" for p, v in self.values.items())
+        def piece(p, v):
+            numerical = self.numerical_error.get(p)
+            extra = "" if numerical is None else f" (numerical {numerical:.2g})"
+            return f"{p}={v:.6g} ± {self.stderr[p]:.2g}{extra}"
+
+        pieces = ", ".join(piece(p, v) for p, v in self.values.items())
         return (f"IdentificationResult({self.model.equation!r}: {pieces}; window "
                 f"{self.window:.4g} s, {self.n_samples} samples, {self.method})")
 

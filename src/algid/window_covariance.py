@@ -19,7 +19,12 @@ import numpy as np
 
 from algid.window_kernels import term_kernel, window_sample_weights
 
-__all__ = ["noise_meat", "hac_meat"]
+__all__ = ["noise_meat", "hac_meat", "sandwich", "upper_envelope", "positive_definite",
+           "INDEFINITE_RTOL"]
+
+#: A middle of the sandwich whose smallest eigenvalue is below this fraction of its
+#: largest counts as indefinite.
+INDEFINITE_RTOL = 1e-10
 
 
 def noise_meat(problem, length, multiplicity, theta_bar, scores, stride):
@@ -46,7 +51,8 @@ def noise_meat(problem, length, multiplicity, theta_bar, scores, stride):
         ``sensitivity(factor)`` (per segment, the derivative of the factor with
         respect to the output samples, or None where it does not read them) and
         ``crossings`` (``(factor, segment)`` -> ``(time, step, first, weights)`` per
-        refined crossing).
+        refined crossing), and ``term_scale(term)`` (the factor of a term within its
+        column of the rows, a power of two).
     length, multiplicity : int
         Samples per window and kernel multiplicity.
     theta_bar : ndarray, shape (p + 1,)
@@ -80,6 +86,7 @@ def noise_meat(problem, length, multiplicity, theta_bar, scores, stride):
                 factor = -theta_bar[p] * term.coefficient
             else:
                 factor = theta_bar[index[term.parameter]] * term.coefficient
+            factor *= problem.term_scale(term)   # the term's power of two in its column
             for time, step, start, moves in problem.crossings.get((term.factor, s), ()):
                 inside = (t0 < time) & (time < t0 + span)
                 u = (time - t0[inside]) / span[inside]
@@ -120,8 +127,8 @@ def hac_meat(scores, ids, overlap):
     Flat-top (trapezoid) lag weights: 1 up to ``overlap`` lags (overlapping windows
     under white noise give residuals correlated over exactly that many windows; the
     Bartlett weights of Newey-West would underestimate), then a linear taper to zero at
-    twice that (coloured noise).  The result is projected on the positive semi-definite
-    matrices.
+    twice that (coloured noise).  Unlike Bartlett's, these weights do not make the sum
+    positive semi-definite: :func:`sandwich` deals with an indefinite one.
 
     Parameters
     ----------
@@ -146,5 +153,88 @@ def hac_meat(scores, ids, overlap):
             weight = 1.0 if lag <= overlap else 1.0 - (lag - overlap) / (lags - overlap + 1.0)
             cross = g[lag:].T @ g[:-lag]
             meat += weight * (cross + cross.T)
-    values, vectors = np.linalg.eigh(meat)
-    return (vectors * np.maximum(values, 0.0)) @ vectors.T
+    return meat
+
+
+def positive_definite(meat, rtol=INDEFINITE_RTOL):
+    """Whether a symmetric matrix's eigenvalues are all above ``rtol`` times the largest.
+
+    Parameters
+    ----------
+    meat : numpy.ndarray
+        Symmetric matrix.
+    rtol : float
+        Relative floor.
+
+    Returns
+    -------
+    bool
+    """
+    values = np.linalg.eigvalsh(meat)
+    return bool(values[-1] > 0 and values[0] > rtol * values[-1])
+
+
+def upper_envelope(hac, noise):
+    """A positive definite middle at least both ``hac`` and ``noise`` (Loewner order).
+
+    In the coordinates where ``noise`` is the identity, the eigenvalues of ``hac`` are
+    raised to at least 1: directions where the residuals' covariance is below that of
+    the output noise (or negative, an indefinite HAC sum) take the noise's.
+
+    Parameters
+    ----------
+    hac, noise : numpy.ndarray
+        Symmetric matrices, ``noise`` positive semi-definite.
+
+    Returns
+    -------
+    numpy.ndarray
+    """
+    k = noise.shape[0]
+    regular = noise + INDEFINITE_RTOL * max(np.trace(noise) / k, np.finfo(float).tiny) \
+        * np.eye(k)
+    lower = np.linalg.cholesky(regular)
+    inverse = np.linalg.inv(lower)
+    values, vectors = np.linalg.eigh(inverse @ hac @ inverse.T)
+    raised = lower @ vectors
+    return (raised * np.maximum(values, 1.0)) @ raised.T
+
+
+def sandwich(bread, hac, noise=None, agreement=4.0, floor=0.0):
+    """Covariance ``J^-1 S J^-T`` of the windowed estimate, never indefinite nor zero.
+
+    The middle ``S`` is the output noise's (``noise``) where the HAC one gives variances
+    at most ``agreement`` times the noise's for every parameter; else the HAC one where
+    it is positive definite; else (an indefinite HAC sum: its clipped projection gave
+    some combination a variance of exactly zero) the :func:`upper_envelope` of the two,
+    or, without a noise model, the HAC sum with its negative eigenvalues reflected.
+    ``floor**2`` is added to every variance (the round-off of the solution).
+
+    Parameters
+    ----------
+    bread : numpy.ndarray
+        ``J^-1``.
+    hac : numpy.ndarray
+        :func:`hac_meat`.
+    noise : numpy.ndarray or None
+        :func:`noise_meat` times the noise variance.
+    agreement : float
+        Largest ratio of HAC to noise variances at which the noise's is used.
+    floor : float
+        Round-off standard error.
+
+    Returns
+    -------
+    numpy.ndarray
+    """
+    values, vectors = np.linalg.eigh(hac)
+    clipped = bread @ ((vectors * np.maximum(values, 0.0)) @ vectors.T) @ bread.T
+    if noise is not None:
+        analytic = bread @ noise @ bread.T
+        if np.all(np.diag(clipped) <= agreement * np.diag(analytic)):
+            clipped = analytic
+        elif not positive_definite(hac):
+            clipped = bread @ upper_envelope(hac, noise) @ bread.T
+    elif not positive_definite(hac):
+        clipped = bread @ ((vectors * np.abs(values)) @ vectors.T) @ bread.T
+    return (clipped + clipped.T) / 2 + floor ** 2 * np.eye(len(clipped))

@@ -1,0 +1,237 @@
+"""The window equations of :func:`algid.identify` in a well-conditioned basis, and
+whether they separate the parameters.
+
+The stacked equations ``A theta = b`` come with their columns already divided by powers
+of two (:mod:`algid.identification`: every factor's samples brought into ``[1, 2)``, the
+time measured in a power of two near the sampling step), so that no product of them
+overflows or underflows whatever the units of the records.  Their columns can still be
+nearly dependent for reasons that have nothing to do with the data's information: an
+offset next to a drift ``d1*t`` on Unix-epoch times, or ``t**6`` next to ``t``.  Normal
+equations square that conditioning, so every solver works in the basis of
+:class:`WindowBasis`: the columns scaled by powers of two to norms in ``[0.5, 1)`` and
+then orthonormalised (a QR factorisation), the known side scaled by a power of two.
+The parameters in that basis, ``phi``, give back ``theta = M phi`` (``M`` upper
+triangular over a power of two).
+
+Separability (:func:`separability`): from the same factorisation, the singular values
+of the regressors with unit columns.  A smallest one at round-off level
+(:data:`ROUNDOFF_SEPARABILITY`) means proportional terms; otherwise it is compared with
+the equations' own misfit, the smallest singular value of the regressors and the known
+side together (with unit columns): the ratio (:attr:`Separability.ratio`) is at least 1,
+and near 1 the weakest combination of the parameters is no better determined than the
+misfit (output noise, quadrature error, model error): that combination is free.  Columns
+that read no measured signal (offsets, drifts in ``t``) are exact and taken out of that
+comparison.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+__all__ = ["WindowBasis", "Separability", "separability", "exponent", "ROUNDOFF_SEPARABILITY",
+           "FREE_RATIO", "WEAK_RATIO"]
+
+#: Smallest singular value of the unit-column regressors below which terms count as
+#: proportional whatever the misfit (round-off of window sums is about 1e-15).
+ROUNDOFF_SEPARABILITY = 1e-10
+
+#: Separability ratio below which the weakest parameter combination counts as free.
+FREE_RATIO = 1.5
+
+#: Separability ratio below which the weakest combination is reported as poorly
+#: determined (a warning).
+WEAK_RATIO = 4.0
+
+#: A parameter belongs to the weakest combination if its weight there is at least this
+#: fraction of the largest weight.
+NAMED_WEIGHT = 0.2
+
+
+def exponent(values):
+    """The power of two ``e`` bringing the largest ``|value|`` into ``[1, 2)`` (0 for
+    no nonzero value).
+
+    Parameters
+    ----------
+    values : array_like or sequence of array_like
+        Finite samples.
+
+    Returns
+    -------
+    int
+    """
+    largest = max((float(np.max(np.abs(v))) for v in values if np.size(v)), default=0.0) \
+        if isinstance(values, (list, tuple)) else float(np.max(np.abs(values), initial=0.0))
+    if largest == 0.0 or not np.isfinite(largest):
+        return 0
+    return int(np.frexp(largest)[1]) - 1
+
+
+class WindowBasis:
+    """Orthonormal regressors ``Q = A D R^-1`` and known side ``beta b``.
+
+    Parameters
+    ----------
+    A : numpy.ndarray, shape (windows, p)
+        Regressors (no zero column).
+    b : numpy.ndarray, shape (windows,)
+        Known side.
+
+    Attributes
+    ----------
+    A, b : numpy.ndarray
+        The regressors and known side in the basis.
+    R : numpy.ndarray
+        The triangular factor of the scaled ``[A | b]`` (``p + 1`` square).
+    """
+
+    def __init__(self, A, b):
+        p = A.shape[1]
+        self.shifts = np.array([exponent(np.linalg.norm(A[:, i])) + 1 for i in range(p)])
+        self.b_shift = exponent(np.linalg.norm(b)) + 1
+        scaled = np.column_stack([np.ldexp(A, -self.shifts), np.ldexp(b, -self.b_shift)])
+        Q, self.R = np.linalg.qr(scaled)
+        self.A = Q[:, :p]
+        self.b = scaled[:, p]
+        self._inverse = None
+
+    @property
+    def map(self):
+        """``M`` with ``theta = M phi`` when ``beta`` is folded in: ``D R^-1 / beta``."""
+        if self._inverse is None:
+            p = len(self.shifts)
+            inverse = np.linalg.inv(self.R[:p, :p])
+            self._inverse = np.ldexp(inverse, (self.b_shift - self.shifts)[:, None])
+        return self._inverse
+
+    def grams(self, grams):
+        """Per-window noise covariances of ``[A | b]`` in the basis."""
+        p = len(self.shifts)
+        full = np.zeros((p + 1, p + 1))
+        full[:p, :p] = np.ldexp(np.linalg.inv(self.R[:p, :p]), -self.shifts[:, None])
+        full[p, p] = np.ldexp(1.0, -self.b_shift)
+        return np.einsum("ji,wjk,kl->wil", full, grams, full)
+
+    def theta(self, phi):
+        """Parameters from their values in the basis."""
+        return self.map @ phi
+
+    def covariance(self, covariance):
+        """Covariance of the parameters from that in the basis."""
+        return self.map @ covariance @ self.map.T
+
+    def instruments(self, Z):
+        """Instruments in the basis (the same change of variables as the regressors)."""
+        p = len(self.shifts)
+        return np.ldexp(Z, -self.shifts) @ np.linalg.inv(self.R[:p, :p])
+
+
+@dataclass
+class Separability:
+    """How well the window equations separate the parameters.
+
+    Attributes
+    ----------
+    smallest : float
+        Smallest singular value of the regressors with unit columns.
+    misfit : float
+        Smallest singular value of the regressors and known side with unit columns.
+    weights : numpy.ndarray
+        The weakest combination (right singular vector, unit columns).
+    """
+
+    smallest: float
+    misfit: float
+    weights: np.ndarray
+
+    @property
+    def ratio(self):
+        """``smallest / misfit`` (at least 1; infinite for exact equations)."""
+        return self.smallest / self.misfit if self.misfit > 0 else np.inf
+
+    @property
+    def proportional(self):
+        """Whether the weakest combination is zero to round-off."""
+        return self.smallest < ROUNDOFF_SEPARABILITY
+
+    @property
+    def free(self):
+        """Whether the weakest combination is not determined (proportional terms, or a
+        combination no better determined than the misfit)."""
+        return self.proportional or self.ratio < FREE_RATIO
+
+    @property
+    def weak(self):
+        """Whether the weakest combination is poorly determined (a warning)."""
+        return self.ratio < WEAK_RATIO
+
+    def involved(self, names):
+        """Names of the parameters of the weakest combination."""
+        w = np.abs(self.weights)
+        return [n for n, v in zip(names, w) if v >= NAMED_WEIGHT * w.max()]
+
+    def message(self, names):
+        """One line naming the parameters of the weakest combination."""
+        involved = self.involved(names)
+        listed = (" and ".join(involved) if len(involved) <= 2
+                  else ", ".join(involved[:-1]) + " and " + involved[-1])
+        one = len(involved) == 1
+        if self.proportional:
+            cause = ("its term vanishes" if one else
+                     "their terms are proportional") + " on these records"
+        else:
+            cause = (f"{'its term is' if one else 'their terms are'} dependent to within "
+                     f"the equations' misfit on these records (separability ratio "
+                     f"{self.ratio:.3g}, need {FREE_RATIO:g})")
+        verb = "cannot be determined" if one else "cannot be separated"
+        return f"parameter{'' if one else 's'} {listed} {verb}: {cause}"
+
+    def warning(self, names):
+        """One line for a poorly determined combination."""
+        involved = self.involved(names)
+        return (f"parameters {', '.join(involved)} are poorly separated on these records "
+                f"(separability ratio {self.ratio:.3g}, below {WEAK_RATIO:g}): their "
+                f"standard errors are large and less reliable")
+
+
+def separability(basis, exact=()):
+    """Separability of the parameters from a :class:`WindowBasis`.
+
+    Columns whose factors read no measured signal (an offset, a drift in ``t``) carry
+    neither noise nor quadrature error: a combination of them alone is determined
+    however small it is, so the ratio is that of the other columns and the known side
+    after what the exact columns explain is removed from them (an offset next to a
+    drift on epoch times does not make the model unidentifiable, only the two
+    parameters strongly correlated).
+
+    Parameters
+    ----------
+    basis : WindowBasis
+    exact : sequence of int
+        Indices of the exact columns.
+
+    Returns
+    -------
+    Separability
+    """
+    R = basis.R
+    p = R.shape[0] - 1
+    tiny = np.finfo(float).tiny
+    unit = R / np.maximum(np.linalg.norm(R, axis=0), tiny)
+    _, values, vectors = np.linalg.svd(unit[:p, :p])
+    if values[-1] < ROUNDOFF_SEPARABILITY:
+        return Separability(float(values[-1]), float(values[-1]), vectors[-1])
+    exact = sorted(set(exact))
+    measured = [i for i in range(p) if i not in exact]
+    if not measured:
+        return Separability(float(values[-1]), 0.0, vectors[-1])
+    # the measured columns and the known side, less their projection on the exact ones
+    rest = np.linalg.qr(R[:, exact + measured + [p]], mode="r")[len(exact):, len(exact):]
+    rest = rest / np.maximum(np.linalg.norm(rest, axis=0), tiny)
+    _, values, vectors = np.linalg.svd(rest[:, :-1])
+    weights = np.zeros(p)
+    weights[measured] = vectors[-1]
+    misfit = float(np.linalg.svd(rest, compute_uv=False)[-1])
+    return Separability(float(values[-1]), misfit, weights)
