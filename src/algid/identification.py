@@ -450,7 +450,8 @@ def _solve(problem, length, multiplicities, instruments=None, method="ls"):
         A, b, ids = problem.rows(length, a)
         _check_excited(problem, length, a, A, b)
         basis = WindowBasis(A, b)
-        separation = separability(basis, problem.exact_columns)
+        grams = basis.grams(problem.noise_grams(length, a))
+        separation = separability(basis, problem.exact_columns, grams.sum(axis=0))
         if separation.proportional:
             raise ModelError(separation.message(problem.parameters))
         variance, capped = None, False
@@ -461,16 +462,16 @@ def _solve(problem, length, multiplicities, instruments=None, method="ls"):
             scores, jacobian = Z * (basis.b - basis.A @ phi)[:, None], Z.T @ basis.A
         elif method == "bc":
             phi, scores, jacobian, variance, capped = bias_compensated(
-                basis.A, basis.b, basis.grams(problem.noise_grams(length, a)),
-                problem.noise_bound())
+                basis.A, basis.b, grams, problem.noise_bound())
         else:
             phi = np.linalg.lstsq(basis.A, basis.b, rcond=None)[0]
             scores, jacobian = basis.A * (basis.b - basis.A @ phi)[:, None], \
                 basis.A.T @ basis.A
         separate[a] = (phi, basis, ids, scores, jacobian, variance, capped, weights,
-                       separation)
+                       separation, grams)
     top = max(multiplicities)
-    phi, basis, ids, scores, jacobian, variance, capped, weights, separation = separate[top]
+    phi, basis, ids, scores, jacobian, variance, capped, weights, separation, grams = \
+        separate[top]
     r = basis.b - basis.A @ phi
     bread = np.linalg.pinv(jacobian)
     theta_s = basis.theta(phi)
@@ -478,8 +479,7 @@ def _solve(problem, length, multiplicities, instruments=None, method="ls"):
     stride = max(1, length // WINDOW_OVERLAP)
     noise = None
     if variance is None and not capped:  # least squares: misfit per unit noise variance
-        weight = float(np.einsum("i,wij,j->", np.append(phi, -1.0),
-                                 basis.grams(problem.noise_grams(length, top)),
+        weight = float(np.einsum("i,wij,j->", np.append(phi, -1.0), grams,
                                  np.append(phi, -1.0)))
         variance = float(r @ r) / weight if weight > 0 else np.inf
         if not variance <= problem.noise_bound():

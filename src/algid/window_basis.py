@@ -31,7 +31,7 @@ from dataclasses import dataclass
 import numpy as np
 
 __all__ = ["WindowBasis", "Separability", "separability", "exponent", "ROUNDOFF_SEPARABILITY",
-           "FREE_RATIO", "WEAK_RATIO"]
+           "FREE_RATIO", "WEAK_RATIO", "FREE_NOISE_RATIO", "WEAK_NOISE_RATIO"]
 
 #: Smallest singular value of the unit-column regressors below which terms count as
 #: proportional whatever the misfit (round-off of window sums is about 1e-15).
@@ -44,9 +44,16 @@ FREE_RATIO = 1.5
 #: determined (a warning).
 WEAK_RATIO = 4.0
 
+#: Noise separability (second generalised eigenvalue over the first) below which a
+#: combination counts as free: it is determined to about its own size or worse.
+FREE_NOISE_RATIO = 2.0
+
+#: Noise separability below which a combination is reported as poorly determined.
+WEAK_NOISE_RATIO = 10.0
+
 #: A parameter belongs to the weakest combination if its weight there is at least this
 #: fraction of the largest weight.
-NAMED_WEIGHT = 0.2
+NAMED_WEIGHT = 0.1
 
 
 def exponent(values):
@@ -135,16 +142,24 @@ class Separability:
     Attributes
     ----------
     smallest : float
-        Smallest singular value of the regressors with unit columns.
+        Smallest singular value of the regressors with unit columns (of the measured
+        columns less their projection on the exact ones, see :func:`separability`).
     misfit : float
-        Smallest singular value of the regressors and known side with unit columns.
+        Smallest singular value of those regressors and the known side.
     weights : numpy.ndarray
-        The weakest combination (right singular vector, unit columns).
+        The weakest combination of the parameters (unit columns).
+    noise_ratio : float
+        The second smallest generalised eigenvalue of the normal matrix of ``[A | b]``
+        and the output noise's covariance, over the smallest (infinite without noise).
+    noise_weights : numpy.ndarray or None
+        The combination of the parameters of the second eigenvector, less the known side.
     """
 
     smallest: float
     misfit: float
     weights: np.ndarray
+    noise_ratio: float = np.inf
+    noise_weights: np.ndarray | None = None
 
     @property
     def ratio(self):
@@ -158,19 +173,33 @@ class Separability:
 
     @property
     def free(self):
-        """Whether the weakest combination is not determined (proportional terms, or a
-        combination no better determined than the misfit)."""
-        return self.proportional or self.ratio < FREE_RATIO
+        """Whether a combination of the parameters is not determined: proportional
+        terms, or a combination no better determined than the misfit or the noise."""
+        return (self.proportional or self.ratio < FREE_RATIO
+                or self.noise_ratio < FREE_NOISE_RATIO)
 
     @property
     def weak(self):
         """Whether the weakest combination is poorly determined (a warning)."""
-        return self.ratio < WEAK_RATIO
+        return self.ratio < WEAK_RATIO or self.noise_ratio < WEAK_NOISE_RATIO
+
+    def _by_noise(self):
+        # which test names the combination: the noise's where it is the one that fails
+        by_misfit = self.proportional or self.ratio < FREE_RATIO \
+            or (not self.noise_ratio < FREE_NOISE_RATIO and self.ratio < WEAK_RATIO)
+        return self.noise_weights is not None and not by_misfit
 
     def involved(self, names):
         """Names of the parameters of the weakest combination."""
-        w = np.abs(self.weights)
+        w = np.abs(self.noise_weights if self._by_noise() else self.weights)
         return [n for n, v in zip(names, w) if v >= NAMED_WEIGHT * w.max()]
+
+    def _cause(self):
+        if self._by_noise():
+            return (f"to within the output noise (noise separability {self.noise_ratio:.3g}, "
+                    f"need {FREE_NOISE_RATIO:g}; {WEAK_NOISE_RATIO:g} for a reliable error)")
+        return (f"to within the equations' misfit (separability {self.ratio:.3g}, need "
+                f"{FREE_RATIO:g}; {WEAK_RATIO:g} for a reliable error)")
 
     def message(self, names):
         """One line naming the parameters of the weakest combination."""
@@ -182,35 +211,44 @@ class Separability:
             cause = ("its term vanishes" if one else
                      "their terms are proportional") + " on these records"
         else:
-            cause = (f"{'its term is' if one else 'their terms are'} dependent to within "
-                     f"the equations' misfit on these records (separability ratio "
-                     f"{self.ratio:.3g}, need {FREE_RATIO:g})")
+            cause = (f"{'its term is' if one else 'their terms are'} dependent on these "
+                     f"records {self._cause()}")
         verb = "cannot be determined" if one else "cannot be separated"
         return f"parameter{'' if one else 's'} {listed} {verb}: {cause}"
 
     def warning(self, names):
         """One line for a poorly determined combination."""
         involved = self.involved(names)
-        return (f"parameters {', '.join(involved)} are poorly separated on these records "
-                f"(separability ratio {self.ratio:.3g}, below {WEAK_RATIO:g}): their "
-                f"standard errors are large and less reliable")
+        return (f"parameter{'s' if len(involved) > 1 else ''} {', '.join(involved)}: poorly "
+                f"separated on these records, {self._cause()}; the standard errors are "
+                f"large and less reliable")
 
 
-def separability(basis, exact=()):
+def separability(basis, exact=(), noise=None):
     """Separability of the parameters from a :class:`WindowBasis`.
 
+    Two tests.  The misfit's: the smallest singular value of the regressors with unit
+    columns against that of the regressors and the known side (the equations' misfit).
     Columns whose factors read no measured signal (an offset, a drift in ``t``) carry
     neither noise nor quadrature error: a combination of them alone is determined
-    however small it is, so the ratio is that of the other columns and the known side
+    however small it is, so this ratio is that of the other columns and the known side
     after what the exact columns explain is removed from them (an offset next to a
     drift on epoch times does not make the model unidentifiable, only the two
-    parameters strongly correlated).
+    parameters strongly correlated).  The noise's, when the output noise's covariance
+    of ``[A | b]`` is given: the generalised eigenvalues of the normal matrix and that
+    covariance are the misfit per unit of noise of every combination; the smallest is
+    the model's equation, and a second one close to it a combination of the parameters
+    that the data determine no better than the noise (columns unequally affected by
+    noise, as a third derivative and the plain output, make the first test's singular
+    values differ even for such a combination).
 
     Parameters
     ----------
     basis : WindowBasis
     exact : sequence of int
         Indices of the exact columns.
+    noise : numpy.ndarray, optional
+        Output noise covariance of ``[basis.A | basis.b]`` (summed over the windows).
 
     Returns
     -------
@@ -225,13 +263,37 @@ def separability(basis, exact=()):
         return Separability(float(values[-1]), float(values[-1]), vectors[-1])
     exact = sorted(set(exact))
     measured = [i for i in range(p) if i not in exact]
-    if not measured:
-        return Separability(float(values[-1]), 0.0, vectors[-1])
-    # the measured columns and the known side, less their projection on the exact ones
-    rest = np.linalg.qr(R[:, exact + measured + [p]], mode="r")[len(exact):, len(exact):]
-    rest = rest / np.maximum(np.linalg.norm(rest, axis=0), tiny)
-    _, values, vectors = np.linalg.svd(rest[:, :-1])
-    weights = np.zeros(p)
-    weights[measured] = vectors[-1]
-    misfit = float(np.linalg.svd(rest, compute_uv=False)[-1])
-    return Separability(float(values[-1]), misfit, weights)
+    smallest, misfit, weights = float(values[-1]), 0.0, vectors[-1]
+    if measured:
+        # the measured columns and the known side, less their projection on the exact ones
+        rest = np.linalg.qr(R[:, exact + measured + [p]], mode="r")[len(exact):, len(exact):]
+        rest = rest / np.maximum(np.linalg.norm(rest, axis=0), tiny)
+        _, values, vectors = np.linalg.svd(rest[:, :-1])
+        smallest, weights = float(values[-1]), np.zeros(p)
+        weights[measured] = vectors[-1]
+        misfit = float(np.linalg.svd(rest, compute_uv=False)[-1])
+    result = Separability(smallest, misfit, weights)
+    if noise is not None and p > 1 and np.any(noise != 0):
+        _noise_test(result, basis, noise)
+    return result
+
+
+def _noise_test(result, basis, noise):
+    """The noise's separability test of :func:`separability` (fills ``result``)."""
+    from scipy.linalg import eigh
+
+    p = len(basis.shifts)
+    phi = np.column_stack([basis.A, basis.b])
+    normal = phi.T @ phi
+    d = np.sqrt(np.diag(normal))
+    try:
+        mu, vectors = eigh(noise / d[:, None] / d[None, :], normal / d[:, None] / d[None, :])
+    except np.linalg.LinAlgError:   # equations exact to round-off: no noise to compare
+        return
+    if not mu[-1] > 0:
+        return
+    result.noise_ratio = float(mu[-1] / mu[-2]) if mu[-2] > 0 else np.inf
+    first, second = vectors[:, -1] / d, vectors[:, -2] / d
+    combination = second * first[p] - first * second[p]   # no known side in it
+    direction = np.linalg.solve(basis.R[:p, :p], combination[:p])
+    result.noise_weights = direction * np.linalg.norm(basis.R[:p, :p], axis=0)
