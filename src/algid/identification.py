@@ -90,6 +90,13 @@ from algid.window_kernels import (
     window_noise_products,
     window_sample_weights,
 )
+from algid.window_rule import (
+    choose_window,
+    min_length,
+    window_criterion,
+    window_grid,
+    window_length,
+)
 
 __all__ = ["identify", "METHODS", "MULTIPLICITIES", "AGREEMENT", "CROSSING_PASSES",
            "window_criterion", "window_grid"]
@@ -114,34 +121,9 @@ CROSSING_PASSES = 2
 #: Windows overlap: a window starts every ``length // WINDOW_OVERLAP`` samples.
 WINDOW_OVERLAP = 8
 
-#: Non-overlapping windows needed beyond one per parameter.
-MIN_SPARE_WINDOWS = 10
-
 #: Round-off standard error of the solution, per sample of a window, relative to the
 #: known side (in the orthonormal basis of :mod:`algid.window_basis`).
 ROUNDOFF = 4 * np.finfo(float).eps
-
-
-def window_grid(n_min, n_max, ratio=1.25):
-    """Geometric grid of window lengths (samples) between ``n_min`` and ``n_max``.
-
-    Parameters
-    ----------
-    n_min, n_max : int
-        Shortest and longest window (samples).
-    ratio : float
-        Ratio of successive lengths (before rounding).
-
-    Returns
-    -------
-    list of int
-    """
-    grid, n = [], float(n_min)
-    while n <= n_max:
-        if not grid or int(round(n)) != grid[-1]:
-            grid.append(int(round(n)))
-        n *= ratio
-    return grid
 
 
 class _Problem:
@@ -528,54 +510,6 @@ def _derivative_estimate(y, t, order, step):
     return algebraic_derivative(y, time=t, derivative=order)
 
 
-def _independent_windows(problem, length):
-    """Windows of ``length`` samples that share no sample, over the segments."""
-    return sum(len(seg) // length for seg in problem.segments)
-
-
-def _needed_windows(problem):
-    # the HAC covariance estimates a p x p middle from the residuals: it needs
-    # independent windows well beyond the parameters (the window rule asks for 30)
-    return len(problem.parameters) + MIN_SPARE_WINDOWS
-
-
-def _length_of(window, step, problem, multiplicities):
-    """Samples of an explicit window (s), refused if too short or too long."""
-    if window is None:
-        return None
-    window = float(window)
-    if not np.isfinite(window) or window <= 0:
-        raise InputDataError(f"window must be a positive number of seconds, got {window}")
-    shortest = _min_length(multiplicities)
-    samples = window / step + 1
-    longest = max(len(s) for s in problem.segments)
-    limits = (f"use {(shortest - 1) * step:.4g} s ({shortest} samples) to "
-              f"{_longest_window(problem, shortest) * step:.4g} s")
-    if samples < shortest - 0.5:
-        raise InputDataError(f"window {window:g} s ({samples:.3g} samples) is shorter than "
-                             f"the kernels of multiplicity {max(multiplicities)} need; "
-                             f"{limits}")
-    if samples > longest + 0.5:
-        raise InputDataError(f"window {window:g} s ({samples:.3g} samples) is longer than "
-                             f"the longest run of contiguous samples ({longest}); {limits}")
-    length = int(round(samples - 1)) + 1
-    count, needed = _independent_windows(problem, length), _needed_windows(problem)
-    if count < needed:
-        raise InputDataError(f"window {window:g} s ({length} samples) leaves {count} "
-                             f"non-overlapping windows for {len(problem.parameters)} "
-                             f"parameters (need {needed}); {limits}")
-    return length
-
-
-def _longest_window(problem, shortest):
-    """The longest window (samples) giving the independent windows needed."""
-    needed = _needed_windows(problem)
-    longest = max(len(s) for s in problem.segments)
-    while longest > shortest and _independent_windows(problem, longest) < needed:
-        longest = max(shortest, min(longest - 1, int(longest / 1.05)))
-    return longest - 1
-
-
 def _check_multiplicities(model, multiplicities):
     multiplicities = tuple(int(a) for a in multiplicities)
     if not multiplicities:
@@ -585,83 +519,6 @@ def _check_multiplicities(model, multiplicities):
         raise ModelError(f"kernel multiplicity {low} is below the model order "
                          f"{model.order}")
     return multiplicities
-
-
-def _min_length(multiplicities):
-    # a kernel of multiplicity a vanishes to order a at both window ends; with fewer
-    # than a + 4 samples its sampled sum is no longer spectrally accurate (measured on
-    # the synthetic records at 8 samples per period: a = 8 on 11 samples biases the
-    # stiffness by several standard errors, on 12-16 samples it does not)
-    return max(8, max(multiplicities) + 4)
-
-
-def window_criterion(fits):
-    """The window rule's criterion on a grid of fits ``{length: _Fit}``.
-
-    A parameter's relative error on a window is the larger of its standard error and of
-    the difference between the two multiplicities (the bias estimate), relative to the
-    parameter (or, for a parameter near zero, to the value at which its term would be
-    5 % of the known side).  Each parameter's relative error is divided by the smallest
-    it reaches on the grid, and the criterion is that of the worst parameter: the rule
-    keeps every parameter near its best precision.  (The worst relative error alone is
-    dominated by the least determined parameter, often an offset, and leaves the
-    others' choice to chance; absolute standard errors alone favour long windows where
-    output noise shrinks every estimate towards zero.)
-
-    Parameters
-    ----------
-    fits : dict
-        Window length (samples) -> the fit on that window (with both multiplicities).
-
-    Returns
-    -------
-    dict
-        Window length -> criterion (finite values only); the rule keeps the smallest.
-    """
-    lengths = list(fits)
-    relative = [fits[n].relative_error() for n in lengths]
-    relative = np.array(relative)
-    best = np.min(np.where(relative > 0, relative, np.inf), axis=0)
-    best = np.where(np.isfinite(best), best, 1.0)
-    scores = {}
-    for n, row in zip(lengths, relative):
-        value = float(np.max(row / best))
-        if np.isfinite(value):
-            scores[n] = value
-    return scores
-
-
-def choose_window(problem, multiplicities, *, n_max=None, method="ls"):
-    """Window length (samples) by the rule of this module; also every grid point's
-    criterion ``{length: value}``."""
-    longest = max(len(s) for s in problem.segments)
-    n_min = _min_length(multiplicities)
-    total = sum(len(s) for s in problem.segments)
-    # at least 30 independent windows: the HAC covariance needs many of them
-    n_max = min(n_max or total // 30, longest, 4096)
-    grid = [n for n in window_grid(n_min, max(n_min, n_max))
-            if _independent_windows(problem, n) >= _needed_windows(problem)]
-    if not grid:
-        raise InputDataError(f"the records are too short: windows of at least {n_min} "
-                             f"samples must leave {_needed_windows(problem)} non-overlapping "
-                             f"ones ({_independent_windows(problem, n_min)} here)")
-    fits, free = {}, []
-    for length in grid:
-        try:
-            fit = _solve(problem, length, multiplicities, method=method)
-        except np.linalg.LinAlgError:
-            continue
-        if fit.separation.free:   # this window cannot tell the parameters apart
-            free.append(fit.separation)
-        else:
-            fits[length] = fit
-    scores = window_criterion(fits) if fits else {}
-    if not scores and free:
-        raise ModelError(max(free, key=lambda f: f.ratio).message(problem.parameters))
-    if not scores:
-        raise InputDataError("no window length gives a solvable system: the records are "
-                             "too short or the signals do not excite the model")
-    return min(scores, key=scores.get), scores
 
 
 def _simulated_values(problem, theta, model):
@@ -741,13 +598,13 @@ def identify(data, equation, parameters=None, *, time=None, rate=None, output=No
         equation, parameters, output=output, name=name)
     multiplicities = _check_multiplicities(model, multiplicities)
     segments, step, n_samples = prepare_records(data, model.signals, time=time, rate=rate,
-                                                min_length=_min_length(multiplicities))
+                                                min_length=min_length(multiplicities))
     _add_derivatives(model, segments, _derivative_estimate)
     problem = _Problem(model, segments, step)
-    length = _length_of(window, step, problem, multiplicities)
+    length = window_length(window, step, problem, multiplicities)
     scores = None
     if length is None:
-        length, scores = choose_window(problem, multiplicities,
+        length, scores = choose_window(problem, multiplicities, _solve,
                                        method="bc" if method == "iv" else method)
     fit = _solve(problem, length, multiplicities, method="bc" if method == "iv" else method)
     for _ in range(CROSSING_PASSES):  # again, crossings of sign(q') placed by the model

@@ -57,8 +57,9 @@ NAMED_WEIGHT = 0.1
 
 
 def exponent(values):
-    """The power of two ``e`` bringing the largest ``|value|`` into ``[1, 2)`` (0 for
-    no nonzero value).
+    """The power of two ``e`` bringing the largest ``|value|`` into ``[1, 2)``.
+
+    Zero where no value is nonzero.
 
     Parameters
     ----------
@@ -114,7 +115,17 @@ class WindowBasis:
         return self._inverse
 
     def grams(self, grams):
-        """Per-window noise covariances of ``[A | b]`` in the basis."""
+        """Per-window noise covariances of ``[A | b]`` in the basis.
+
+        Parameters
+        ----------
+        grams : numpy.ndarray, shape (windows, p + 1, p + 1)
+            Those of the original ``[A | b]``.
+
+        Returns
+        -------
+        numpy.ndarray
+        """
         p = len(self.shifts)
         full = np.zeros((p + 1, p + 1))
         full[:p, :p] = np.ldexp(np.linalg.inv(self.R[:p, :p]), -self.shifts[:, None])
@@ -122,15 +133,46 @@ class WindowBasis:
         return np.einsum("ji,wjk,kl->wil", full, grams, full)
 
     def theta(self, phi):
-        """Parameters from their values in the basis."""
+        """Parameters from their values in the basis.
+
+        Parameters
+        ----------
+        phi : numpy.ndarray
+            Solution of ``self.A phi = self.b``.
+
+        Returns
+        -------
+        numpy.ndarray
+            Solution of the original ``A theta = b``.
+        """
         return self.map @ phi
 
     def covariance(self, covariance):
-        """Covariance of the parameters from that in the basis."""
+        """Covariance of the parameters from that in the basis.
+
+        Parameters
+        ----------
+        covariance : numpy.ndarray
+            Covariance of ``phi``.
+
+        Returns
+        -------
+        numpy.ndarray
+        """
         return self.map @ covariance @ self.map.T
 
     def instruments(self, Z):
-        """Instruments in the basis (the same change of variables as the regressors)."""
+        """Instruments in the basis (the same change of variables as the regressors).
+
+        Parameters
+        ----------
+        Z : numpy.ndarray, shape (windows, p)
+            Instruments of the original regressors.
+
+        Returns
+        -------
+        numpy.ndarray
+        """
         p = len(self.shifts)
         return np.ldexp(Z, -self.shifts) @ np.linalg.inv(self.R[:p, :p])
 
@@ -173,8 +215,11 @@ class Separability:
 
     @property
     def free(self):
-        """Whether a combination of the parameters is not determined: proportional
-        terms, or a combination no better determined than the misfit or the noise."""
+        """Whether a combination of the parameters is not determined.
+
+        That is: proportional terms, or a combination no better determined than the
+        misfit or the noise.
+        """
         return (self.proportional or self.ratio < FREE_RATIO
                 or self.noise_ratio < FREE_NOISE_RATIO)
 
@@ -190,7 +235,17 @@ class Separability:
         return self.noise_weights is not None and not by_misfit
 
     def involved(self, names):
-        """Names of the parameters of the weakest combination."""
+        """Names of the parameters of the weakest combination.
+
+        Parameters
+        ----------
+        names : sequence of str
+            The parameters, in column order.
+
+        Returns
+        -------
+        list of str
+        """
         w = np.abs(self.noise_weights if self._by_noise() else self.weights)
         return [n for n, v in zip(names, w) if v >= NAMED_WEIGHT * w.max()]
 
@@ -202,7 +257,17 @@ class Separability:
                 f"{FREE_RATIO:g}; {WEAK_RATIO:g} for a reliable error)")
 
     def message(self, names):
-        """One line naming the parameters of the weakest combination."""
+        """One line naming the parameters of the weakest combination.
+
+        Parameters
+        ----------
+        names : sequence of str
+            The parameters, in column order.
+
+        Returns
+        -------
+        str
+        """
         involved = self.involved(names)
         listed = (" and ".join(involved) if len(involved) <= 2
                   else ", ".join(involved[:-1]) + " and " + involved[-1])
@@ -217,7 +282,17 @@ class Separability:
         return f"parameter{'' if one else 's'} {listed} {verb}: {cause}"
 
     def warning(self, names):
-        """One line for a poorly determined combination."""
+        """One line for a poorly determined combination.
+
+        Parameters
+        ----------
+        names : sequence of str
+            The parameters, in column order.
+
+        Returns
+        -------
+        str
+        """
         involved = self.involved(names)
         return (f"parameter{'s' if len(involved) > 1 else ''} {', '.join(involved)}: poorly "
                 f"separated on these records, {self._cause()}; the standard errors are "
