@@ -43,8 +43,10 @@ def test_json_has_a_key_per_parameter_stderr_window_and_samples(capsys, record_f
                          "--parameters", LINEAR_EQUATION[1], "--json")
     assert code == 0, err
     payload = json.loads(out)
-    assert set(payload) == {"B", "K", "G", "d", "stderr", "window", "n_samples"}
-    assert set(payload["stderr"]) == {"B", "K", "G", "d"}
+    assert set(payload) == {"B", "K", "G", "d", "stderr", "numerical_error", "window",
+                            "n_samples"}
+    assert set(payload["stderr"]) == set(payload["numerical_error"]) == {"B", "K", "G", "d"}
+    assert all(v > 0 for v in payload["numerical_error"].values())
     assert payload["n_samples"] == 4000 and 0 < payload["window"] < 1
     for p in truth:
         assert abs(payload[p] - truth[p]) < 5 * payload["stderr"][p]
@@ -56,6 +58,7 @@ def test_text_output_and_rate_and_window(capsys, record_files):
                          "--parameters", LINEAR_EQUATION[1], "--rate", 80, "--window", 0.2)
     assert code == 0, err
     assert "window 0.2 s" in out and "std. error" in out and out.count("\n") == 7
+    assert "numerical" in out.splitlines()[2]
 
 
 @pytest.mark.parametrize("extra, fragments", [

@@ -401,7 +401,7 @@ def _cmd_estimate(args) -> int:
 
 
 #: Keys of ``algid identify --json`` besides the parameters.
-IDENTIFY_JSON_KEYS = ("stderr", "window", "n_samples")
+IDENTIFY_JSON_KEYS = ("stderr", "numerical_error", "window", "n_samples")
 
 
 def _cmd_identify(args) -> int:
@@ -424,6 +424,8 @@ def _cmd_identify(args) -> int:
     if args.json:
         payload = {p: _finite_or_none(v) for p, v in result.values.items()}
         payload["stderr"] = {p: _finite_or_none(v) for p, v in stderr.items()}
+        payload["numerical_error"] = {p: _finite_or_none(v)
+                                      for p, v in result.numerical_error.items()}
         payload["window"] = float(result.window)
         payload["n_samples"] = int(result.n_samples)
         print(json.dumps(payload, allow_nan=False))
@@ -432,9 +434,10 @@ def _cmd_identify(args) -> int:
     print(f"{len(args.files)} record(s), {result.n_samples} samples, window "
           f"{result.window:.6g} s ({result.n_windows} windows), method {result.method}")
     width = max([len("parameter")] + [len(p) for p in model.parameters])
-    print(f"{'parameter':<{width}}  {'estimate':>13}  {'std. error':>10}")
+    print(f"{'parameter':<{width}}  {'estimate':>13}  {'std. error':>10}  {'numerical':>10}")
     for p, v in result.values.items():
-        print(f"{p:<{width}}  {v:>13.6g}  {stderr[p]:>10.2g}")
+        print(f"{p:<{width}}  {v:>13.6g}  {stderr[p]:>10.2g}  "
+              f"{result.numerical_error.get(p, math.nan):>10.2g}")
     return 0
 
 

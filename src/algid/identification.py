@@ -151,6 +151,7 @@ class _Problem:
         self.output_exponent = exponent([s.values[model.output] for s in segments])
         self.output_unit = float(np.ldexp(1.0, self.output_exponent))
         self.factors = {}
+        self._exponents = {}
         self.sign_jumps = {}   # sign factor -> jump of q'' (refined crossings)
         self.first_values = {}  # parameter -> first estimate (the crossings' local fits)
         # (sign factor, segment) -> refined crossings: (time, step of the sign, first
@@ -212,14 +213,20 @@ class _Problem:
         unit = int(np.round(np.log2(self.time_unit)))
         own = []
         for term in self.model.terms:
-            self.factor_samples(term.factor, which)
+            if (term.factor, which, "exponent") not in self.factors:
+                self.factor_samples(term.factor, which)
             own.append(self.factors[(term.factor, which, "exponent")] - term.derivative * unit)
+        key = (which, tuple(own))
+        if key in self._exponents:
+            return self._exponents[key]
         columns = {}
         for term, e in zip(self.model.terms, own):
             columns[term.parameter] = max(columns.get(term.parameter, e), e)
         shifts = {i: e - columns[term.parameter]
                   for i, (term, e) in enumerate(zip(self.model.terms, own))}
-        return (np.array([columns[p] for p in self.parameters]), columns.get(None, 0), shifts)
+        self._exponents[key] = (np.array([columns[p] for p in self.parameters]),
+                                columns.get(None, 0), shifts)
+        return self._exponents[key]
 
     def term_scale(self, term, which="measured"):
         """The power of two of a term within its column of :meth:`rows`."""
@@ -430,12 +437,16 @@ def _solve(problem, length, multiplicities, instruments=None, method="ls"):
     separate = {}
     for a in multiplicities:
         A, b, ids = problem.rows(length, a)
-        _check_excited(problem, length, a, A, b)
+        if not problem.factors.get("excited"):  # once: a vanishing term does so at any window
+            _check_excited(problem, length, a, A, b)
+            problem.factors["excited"] = True
         basis = WindowBasis(A, b)
         grams = basis.grams(problem.noise_grams(length, a))
-        separation = separability(basis, problem.exact_columns, grams.sum(axis=0))
-        if separation.proportional:
-            raise ModelError(separation.message(problem.parameters))
+        separation = None
+        if a == max(multiplicities):
+            separation = separability(basis, problem.exact_columns, grams.sum(axis=0))
+            if separation.proportional:
+                raise ModelError(separation.message(problem.parameters))
         variance, capped = None, False
         weights = basis.A
         if instruments is not None:

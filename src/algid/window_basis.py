@@ -130,7 +130,7 @@ class WindowBasis:
         full = np.zeros((p + 1, p + 1))
         full[:p, :p] = np.ldexp(np.linalg.inv(self.R[:p, :p]), -self.shifts[:, None])
         full[p, p] = np.ldexp(1.0, -self.b_shift)
-        return np.einsum("ji,wjk,kl->wil", full, grams, full)
+        return full.T @ grams @ full
 
     def theta(self, phi):
         """Parameters from their values in the basis.
