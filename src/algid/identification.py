@@ -162,9 +162,12 @@ class _Problem:
 
     @property
     def exact_columns(self):
-        """Columns of :meth:`rows` whose terms read no measured signal."""
+        """Columns of :meth:`rows` whose terms do not read the output (inputs, offsets,
+        drifts): no output noise enters them."""
+        output = self.model.output
         return [i for i, p in enumerate(self.parameters)
-                if not any(t.factor.signals() for t in self.model.terms if t.parameter == p)]
+                if not any(output in t.factor.signals()
+                           for t in self.model.terms if t.parameter == p)]
 
     def factor_samples(self, factor, which="measured"):
         """Samples of a factor per segment, over the power of two of its largest."""
@@ -184,11 +187,16 @@ class _Problem:
                     steps.append(step)
                     crossings.append(crossing if refine else None)
                 else:
-                    z = np.asarray(factor.evaluate(values, seg.t), dtype=float) \
-                        * np.ones(len(seg))
+                    with np.errstate(over="ignore", under="ignore", invalid="ignore"):
+                        z = np.asarray(factor.evaluate(values, seg.t), dtype=float) \
+                            * np.ones(len(seg))
                     steps.append(None)
                     crossings.append(None)
                 samples.append(z)
+            if not all(np.all(np.isfinite(z)) for z in samples):
+                raise InputDataError(f"the factor {factor} is not finite on these records "
+                                     f"(out of the floating-point range at these "
+                                     f"amplitudes?): express the signals in other units")
             e = exponent(samples)
             unit = self.time_unit
             moves = np.ldexp(1.0, self.output_exponent) / unit
@@ -420,10 +428,13 @@ def _check_excited(problem, length, multiplicity, A, b):
         raise InputDataError("the signals are constant or zero on these records: they "
                              "determine no parameter")
     if idle:
-        terms = ", ".join(str(t) for t in problem.model.terms if t.parameter in idle)
-        raise InputDataError(f"parameter{'s' if len(idle) > 1 else ''} {', '.join(idle)} "
-                             f"cannot be determined: {terms} vanish{'es' if len(idle) == 1 else ''}"
-                             f" on these records (a constant or zero signal)")
+        terms = ", ".join(f"{t.factor}" + "'" * t.derivative
+                          for t in problem.model.terms if t.parameter in idle)
+        one = len(idle) == 1
+        raise InputDataError(f"parameter{'' if one else 's'} {', '.join(idle)} cannot be "
+                             f"determined: {'its term' if one else 'their terms'} {terms} "
+                             f"vanish{'es' if one else ''} on these records (a constant "
+                             f"signal, or one too small in these units)")
     if excitation[-1] < ROUNDOFF_SEPARABILITY:
         known = " + ".join(str(t) for t in problem.model.known_terms) or "0"
         raise InputDataError(f"the known side {known} vanishes on these records: nothing "
@@ -485,8 +496,9 @@ def _solve(problem, length, multiplicities, instruments=None, method="ls"):
                           noise, AGREEMENT, floor=ROUNDOFF * length * np.linalg.norm(basis.b))
     columns, known, _ = problem.exponents()
     shift = known - columns
-    theta = np.ldexp(theta_s, shift)
-    covariance = np.ldexp(basis.covariance(covariance), shift[:, None] + shift[None, :])
+    with np.errstate(over="ignore", under="ignore"):
+        theta = np.ldexp(theta_s, shift)
+        covariance = np.ldexp(basis.covariance(covariance), shift[:, None] + shift[None, :])
     lost = ~np.isfinite(theta) | ((theta == 0) & (theta_s != 0)) \
         | ~(np.diag(covariance) > 0) | ~np.isfinite(np.diag(covariance))
     if np.any(lost):
@@ -643,4 +655,4 @@ def identify(data, equation, parameters=None, *, time=None, rate=None, output=No
         time=time, rate=rate, window_scores=scores,
         separate={a: dict(zip(model.parameters, v.tolist())) for a, v in fit.separate.items()},
         numerical_error=dict(zip(model.parameters, fit.numerical_error.tolist())),
-        warnings=[fit.separation.warning(model.parameters)] if fit.separation.weak else [])
+        warnings=fit.separation.warnings(model.parameters))

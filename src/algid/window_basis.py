@@ -20,8 +20,8 @@ the equations' own misfit, the smallest singular value of the regressors and the
 side together (with unit columns): the ratio (:attr:`Separability.ratio`) is at least 1,
 and near 1 the weakest combination of the parameters is no better determined than the
 misfit (output noise, quadrature error, model error): that combination is free.  Columns
-that read no measured signal (offsets, drifts in ``t``) are exact and taken out of that
-comparison.
+that do not read the output (inputs, offsets, drifts in ``t``) carry no output noise and
+are taken out of that comparison.
 """
 
 from __future__ import annotations
@@ -31,7 +31,7 @@ from dataclasses import dataclass
 import numpy as np
 
 __all__ = ["WindowBasis", "Separability", "separability", "exponent", "ROUNDOFF_SEPARABILITY",
-           "FREE_RATIO", "WEAK_RATIO", "FREE_NOISE_RATIO", "WEAK_NOISE_RATIO"]
+           "FREE_RATIO", "WEAK_RATIO", "FREE_NOISE_RATIO", "WEAK_NOISE_RATIO", "COLLINEAR"]
 
 #: Smallest singular value of the unit-column regressors below which terms count as
 #: proportional whatever the misfit (round-off of window sums is about 1e-15).
@@ -50,6 +50,10 @@ FREE_NOISE_RATIO = 2.0
 
 #: Noise separability below which a combination is reported as poorly determined.
 WEAK_NOISE_RATIO = 10.0
+
+#: Smallest singular value of the unit-column regressors below which some parameters
+#: are reported as strongly correlated (a condition index of 1000).
+COLLINEAR = 1e-3
 
 #: A parameter belongs to the weakest combination if its weight there is at least this
 #: fraction of the largest weight.
@@ -195,6 +199,11 @@ class Separability:
         and the output noise's covariance, over the smallest (infinite without noise).
     noise_weights : numpy.ndarray or None
         The combination of the parameters of the second eigenvector, less the known side.
+    collinear : float
+        Smallest singular value of all the regressors with unit columns (exact ones
+        included): below :data:`COLLINEAR` some parameters are strongly correlated.
+    collinear_weights : numpy.ndarray or None
+        Its combination of the parameters.
     """
 
     smallest: float
@@ -202,6 +211,8 @@ class Separability:
     weights: np.ndarray
     noise_ratio: float = np.inf
     noise_weights: np.ndarray | None = None
+    collinear: float = 1.0
+    collinear_weights: np.ndarray | None = None
 
     @property
     def ratio(self):
@@ -225,8 +236,9 @@ class Separability:
 
     @property
     def weak(self):
-        """Whether the weakest combination is poorly determined (a warning)."""
-        return self.ratio < WEAK_RATIO or self.noise_ratio < WEAK_NOISE_RATIO
+        """Whether some combination is poorly determined or strongly correlated."""
+        return (self.ratio < WEAK_RATIO or self.noise_ratio < WEAK_NOISE_RATIO
+                or self.collinear < COLLINEAR)
 
     def _by_noise(self):
         # which test names the combination: the noise's where it is the one that fails
@@ -281,8 +293,9 @@ class Separability:
         verb = "cannot be determined" if one else "cannot be separated"
         return f"parameter{'' if one else 's'} {listed} {verb}: {cause}"
 
-    def warning(self, names):
-        """One line for a poorly determined combination.
+    def warnings(self, names):
+        """One line per reservation: a poorly determined combination, strongly
+        correlated parameters.
 
         Parameters
         ----------
@@ -291,12 +304,22 @@ class Separability:
 
         Returns
         -------
-        str
+        list of str
         """
-        involved = self.involved(names)
-        return (f"parameter{'s' if len(involved) > 1 else ''} {', '.join(involved)}: poorly "
-                f"separated on these records, {self._cause()}; the standard errors are "
-                f"large and less reliable")
+        lines = []
+        if self.ratio < WEAK_RATIO or self.noise_ratio < WEAK_NOISE_RATIO:
+            involved = self.involved(names)
+            lines.append(f"parameter{'s' if len(involved) > 1 else ''} {', '.join(involved)}: "
+                         f"poorly separated on these records, {self._cause()}; the "
+                         f"standard errors are large and less reliable")
+        if self.collinear < COLLINEAR and self.collinear_weights is not None:
+            w = np.abs(self.collinear_weights)
+            involved = [n for n, v in zip(names, w) if v >= NAMED_WEIGHT * w.max()]
+            lines.append(f"parameters {', '.join(involved)}: nearly proportional terms on "
+                         f"these records (smallest singular value {self.collinear:.2g} of "
+                         f"the regressors with unit columns, below {COLLINEAR:g}): their "
+                         f"estimates are strongly correlated (see the covariance)")
+        return lines
 
 
 def separability(basis, exact=(), noise=None):
@@ -304,12 +327,13 @@ def separability(basis, exact=(), noise=None):
 
     Two tests.  The misfit's: the smallest singular value of the regressors with unit
     columns against that of the regressors and the known side (the equations' misfit).
-    Columns whose factors read no measured signal (an offset, a drift in ``t``) carry
-    neither noise nor quadrature error: a combination of them alone is determined
-    however small it is, so this ratio is that of the other columns and the known side
-    after what the exact columns explain is removed from them (an offset next to a
-    drift on epoch times does not make the model unidentifiable, only the two
-    parameters strongly correlated).  The noise's, when the output noise's covariance
+    Columns whose factors do not read the output (an input, an offset, a drift in ``t``)
+    carry no output noise, and no quadrature error beyond the inputs' own: a
+    combination of them alone is determined however small it is (its error is linear
+    in the misfit, and the standard errors say how large), so this ratio is that of the
+    other columns and the known side after what the exact columns explain is removed
+    from them (an offset next to a drift on epoch times does not make the model
+    unidentifiable, only the two parameters strongly correlated).  The noise's, when the output noise's covariance
     of ``[A | b]`` is given: the generalised eigenvalues of the normal matrix and that
     covariance are the misfit per unit of noise of every combination; the smallest is
     the model's equation, and a second one close to it a combination of the parameters
@@ -336,18 +360,28 @@ def separability(basis, exact=(), noise=None):
     _, values, vectors = np.linalg.svd(unit[:p, :p])
     if values[-1] < ROUNDOFF_SEPARABILITY:
         return Separability(float(values[-1]), float(values[-1]), vectors[-1])
+    collinear, collinear_vectors = values, vectors
     exact = sorted(set(exact))
     measured = [i for i in range(p) if i not in exact]
     smallest, misfit, weights = float(values[-1]), 0.0, vectors[-1]
     if measured:
         # the measured columns and the known side, less their projection on the exact ones
-        rest = np.linalg.qr(R[:, exact + measured + [p]], mode="r")[len(exact):, len(exact):]
-        rest = rest / np.maximum(np.linalg.norm(rest, axis=0), tiny)
+        k = len(exact)
+        full = np.linalg.qr(R[:, exact + measured + [p]], mode="r")
+        norms = np.maximum(np.linalg.norm(full[k:, k:], axis=0), tiny)
+        rest = full[k:, k:] / norms
         _, values, vectors = np.linalg.svd(rest[:, :-1])
-        smallest, weights = float(values[-1]), np.zeros(p)
-        weights[measured] = vectors[-1]
+        smallest = float(values[-1])
         misfit = float(np.linalg.svd(rest, compute_uv=False)[-1])
-    result = Separability(smallest, misfit, weights)
+        # the weakest combination, with the exact columns that compensate it
+        coefficients = np.zeros(p)
+        coefficients[measured] = vectors[-1] / norms[:-1]
+        if k:
+            coefficients[exact] = -np.linalg.solve(full[:k, :k], full[:k, k:-1]
+                                                   @ coefficients[measured])
+        weights = coefficients * np.linalg.norm(R[:, :p], axis=0)
+    result = Separability(smallest, misfit, weights, collinear=float(collinear[-1]),
+                          collinear_weights=collinear_vectors[-1])
     if noise is not None and p > 1 and np.any(noise != 0):
         _noise_test(result, basis, noise)
     return result
