@@ -333,13 +333,13 @@ def separability(basis, exact=(), noise=None):
     in the misfit, and the standard errors say how large), so this ratio is that of the
     other columns and the known side after what the exact columns explain is removed
     from them (an offset next to a drift on epoch times does not make the model
-    unidentifiable, only the two parameters strongly correlated).  The noise's, when the output noise's covariance
-    of ``[A | b]`` is given: the generalised eigenvalues of the normal matrix and that
-    covariance are the misfit per unit of noise of every combination; the smallest is
-    the model's equation, and a second one close to it a combination of the parameters
-    that the data determine no better than the noise (columns unequally affected by
-    noise, as a third derivative and the plain output, make the first test's singular
-    values differ even for such a combination).
+    unidentifiable, only the two parameters strongly correlated).  The noise's, when
+    the output noise's covariance of ``[A | b]`` is given: the generalised eigenvalues
+    of the normal matrix and that covariance are the misfit per unit of noise of every
+    combination; the smallest is the model's equation, and a second one close to it a
+    combination of the parameters that the data determine no better than the noise
+    (columns unequally affected by noise, as a third derivative and the plain output,
+    make the first test's singular values differ even for such a combination).
 
     Parameters
     ----------
