@@ -293,6 +293,7 @@ def test_noise_meat_is_the_covariance_of_the_window_equations_noise(uniform):
     from algid.window_covariance import noise_meat
 
     record, truth = cubic_spring(3, n=160)
+    record = dict(record, y=10.0 * record["y"])   # noise in the output's power of two
     if not uniform:  # jittered sample times: per-window trapezoid weights
         jitter = np.random.default_rng(1).uniform(-0.1, 0.1, 160) / 80.0
         record = dict(record, t=np.asarray(record["t"]) + jitter)
@@ -319,10 +320,11 @@ def test_noise_meat_is_the_covariance_of_the_window_equations_noise(uniform):
 
     base = np.column_stack([A, b]) @ theta_bar
     columns, h = [], 1e-6
+    assert problem.output_unit == 16.0
     for s, seg in enumerate(segments):
         for n in range(len(seg)):
             shift = np.zeros(len(seg))
-            shift[n] = h
+            shift[n] = h * problem.output_unit
             columns.append((equations(shift, s) - equations(-shift, s)) / (2 * h))
     M = np.column_stack(columns)
     expected = scores.T @ M @ M.T @ scores
