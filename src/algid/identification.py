@@ -41,31 +41,52 @@ the crossings are then placed by fits of ``q`` with the motion the model gives i
 each pass with the parameters of the one before), with the steps of ``sign(q')``
 integrated exactly (:func:`algid.window_kernels.step_window_integrals`).
 
+Units: internally the time is counted in a power of two near the sampling step, from
+the first sample of each segment, and every factor's samples and every column of the
+equations are divided by powers of two (``_Problem``); the equations are then solved in
+an orthonormal basis of their regressors (:mod:`algid.window_basis`).  Powers of two
+are exact and the basis conditions the equations whatever the units: seconds,
+milliseconds or sample numbers, Unix-epoch times with a drift ``d0 + d1*t``, amplitudes
+from 1e-300 to 1e300 give the same window and the same (converted) estimates, or a
+one-line refusal where an estimate or its variance leaves the floating-point range.
+
+Refusals: a parameter whose terms vanish on the records (a constant output: ``y' = 0``),
+a known side that vanishes, proportional terms (``K*y + K2*y``), a combination of the
+parameters that the window equations determine no better than their misfit or the
+output noise (a model of too high an order), with the parameters named
+(:func:`algid.window_basis.separability`); a barely separated combination, or nearly
+proportional terms, gives a line in the result's ``warnings``.  Windows too short for
+the kernels or leaving too few non-overlapping windows are refused, and the window rule
+looks at no such window (:mod:`algid.window_rule`).
+
 Standard errors come from a sandwich over the window index.  Its middle is the
 residuals' own covariance, a HAC (heteroscedasticity and autocorrelation consistent)
 estimate: the residuals of overlapping windows are correlated over ``length / stride``
 windows, and the lag weights are flat up to that lag and taper linearly to zero at twice
 it (a flat-top kernel: Newey-West's Bartlett weights underestimate such a correlation).
-Where the misfit is no larger than white output noise could make it (its variance per
-unit of noise weight at most the bound that the samples alone put on the output noise,
-``_Problem.noise_bound``), the covariance that such noise puts into the window
-equations is also computed: known from the kernels and the factors' sensitivities,
-including the correlation of overlapping windows
-(:func:`algid.window_covariance.noise_meat`), times the noise variance.  It replaces the
-HAC one where the HAC variances are at most :data:`AGREEMENT` times its own for every
-parameter.  A misfit that does not change between noise realisations (the aliasing of a
-sampled ``y**3``) inflates the HAC estimate a little, and then counts only through the
-noise variance; a misfit that is not output noise at all (a force disturbance, noise on
-an input, a misestimated ``sign(q')``) inflates it more, and the HAC estimate is kept.
+The covariance that white output noise puts into the window equations is also computed:
+known from the kernels and the factors' sensitivities, including the correlation of
+overlapping windows (:func:`algid.window_covariance.noise_meat`), times the noise
+variance (the misfit's, or where that exceeds it the bound that the samples alone put
+on the output noise, ``_Problem.noise_bound``).  It replaces the HAC one where the HAC
+variances are at most :data:`AGREEMENT` times its own for every parameter.  A misfit
+that does not change between noise realisations (the aliasing of a sampled ``y**3``)
+inflates the HAC estimate a little, and then counts only through the noise variance; a
+misfit that is not output noise at all (a force disturbance, noise on an input, a
+misestimated ``sign(q')``) inflates it more, and the HAC estimate is kept, unless it is
+indefinite (:func:`algid.window_covariance.sandwich`).  The difference between the two
+multiplicities is the numerical (quadrature) error of each parameter, reported beside
+its standard error (``numerical_error``): the standard error is the misfit's scatter,
+which on a short noise-free record can be far below the quadrature error.
 
-Window rule (``window=None``): on a geometric grid of window lengths (ratio 1.25, from
-``a_max + 4`` samples up to a thirtieth of the data, so that the HAC covariance sees at
-least 30 independent windows), estimate with both multiplicities.  A parameter's error
-on a window is the larger of its standard error and of the difference between the two
-multiplicities (the bias estimate, as an embedded Runge-Kutta pair estimates its step
-error), relative to the parameter (or, near zero, to the value whose term is 5 % of the
-known side), divided by the smallest such error that parameter reaches on the grid; the
-window minimising the worst parameter's ratio is kept (:func:`window_criterion`).
+Window rule (``window=None``, :mod:`algid.window_rule`): on a geometric grid of window
+lengths (ratio 1.25, from ``a_max + 4`` samples up to a thirtieth of the data, so that
+the HAC covariance sees at least 30 independent windows), estimate with both
+multiplicities.  A parameter's error on a window is the larger of its standard error
+and of its numerical error, relative to the parameter (or, near zero, to the value
+whose term is 5 % of the known side), divided by the smallest such error that parameter
+reaches on the grid; among the windows that separate the parameters, the one minimising
+the worst parameter's ratio is kept (:func:`window_criterion`).
 """
 
 from __future__ import annotations
@@ -81,7 +102,7 @@ from algid.grammar import parse_equation
 from algid.model import Model
 from algid.records import Segment, estimate_derivative, prepare_records
 from algid.sign_crossings import crossing_jumps, crossing_motion, sign_factor
-from algid.window_basis import ROUNDOFF_SEPARABILITY, WindowBasis, exponent, separability
+from algid.window_basis import WindowBasis, check_excited, exponent, separability
 from algid.window_covariance import hac_meat, noise_meat, sandwich
 from algid.window_kernels import (
     step_window_integrals,
@@ -91,6 +112,7 @@ from algid.window_kernels import (
     window_sample_weights,
 )
 from algid.window_rule import (
+    WindowFit,
     choose_window,
     min_length,
     window_criterion,
@@ -106,9 +128,6 @@ METHODS = ("ls", "bc", "iv")
 
 #: Kernel multiplicities stacked in every estimate (their difference drives the window rule).
 MULTIPLICITIES = (8, 12)
-
-#: A term this small next to the known side (5 %) counts as negligible in the window rule.
-NEGLIGIBLE_TERM = 0.05
 
 #: The covariance of output noise through the kernels replaces the residuals' own (HAC)
 #: where the latter's variances are at most this many times the former's.
@@ -388,59 +407,6 @@ class _Problem:
         return np.concatenate(blocks)
 
 
-class _Fit:
-    """One estimate on one window length: parameters, covariance, diagnostics (in the
-    records' units)."""
-
-    def __init__(self, theta, covariance, separate, scale, residuals, n_windows,
-                 separation=None):
-        self.theta = theta
-        self.covariance = covariance
-        self.separate = separate          # multiplicity -> estimate alone
-        self.scale = scale                # effect of a unit parameter error on the equation
-        self.residuals = residuals
-        self.n_windows = n_windows
-        self.separation = separation      # Separability of the highest multiplicity
-
-    @property
-    def stderr(self):
-        return np.sqrt(np.maximum(np.diag(self.covariance), 0.0))
-
-    @property
-    def numerical_error(self):
-        """Per parameter: the difference between the lowest and highest multiplicity."""
-        values = [self.separate[a] for a in sorted(self.separate)]
-        return np.abs(values[-1] - values[0])
-
-    def relative_error(self):
-        """Per parameter: max(standard error, multiplicity difference), relative to the
-        parameter (or to the value whose term is 5 % of the known side, for a parameter
-        near zero)."""
-        reference = np.maximum(np.abs(self.theta), NEGLIGIBLE_TERM / self.scale)
-        return np.maximum(self.stderr, self.numerical_error) / reference
-
-
-def _check_excited(problem, length, multiplicity, A, b):
-    """Refuse records on which a parameter's terms, or the known side, vanish."""
-    excitation = problem.excitation(length, multiplicity, A, b)
-    idle = [p for p, e in zip(problem.parameters, excitation) if e < ROUNDOFF_SEPARABILITY]
-    if excitation[-1] < ROUNDOFF_SEPARABILITY and len(idle) == len(problem.parameters):
-        raise InputDataError("the signals are constant or zero on these records: they "
-                             "determine no parameter")
-    if idle:
-        terms = ", ".join(f"{t.factor}" + "'" * t.derivative
-                          for t in problem.model.terms if t.parameter in idle)
-        one = len(idle) == 1
-        raise InputDataError(f"parameter{'' if one else 's'} {', '.join(idle)} cannot be "
-                             f"determined: {'its term' if one else 'their terms'} {terms} "
-                             f"vanish{'es' if one else ''} on these records (a constant "
-                             f"signal, or one too small in these units)")
-    if excitation[-1] < ROUNDOFF_SEPARABILITY:
-        known = " + ".join(str(t) for t in problem.model.known_terms) or "0"
-        raise InputDataError(f"the known side {known} vanishes on these records: nothing "
-                             f"fixes the scale of the parameters")
-
-
 def _solve(problem, length, multiplicities, instruments=None, method="ls"):
     """Estimates of every multiplicity on windows of ``length`` samples; the result is
     that of the highest multiplicity (the most accurate quadrature), the others serve
@@ -449,7 +415,7 @@ def _solve(problem, length, multiplicities, instruments=None, method="ls"):
     for a in multiplicities:
         A, b, ids = problem.rows(length, a)
         if not problem.factors.get("excited"):  # once: a vanishing term does so at any window
-            _check_excited(problem, length, a, A, b)
+            check_excited(problem, length, a, A, b)
             problem.factors["excited"] = True
         basis = WindowBasis(A, b)
         grams = basis.grams(problem.noise_grams(length, a))
@@ -510,7 +476,7 @@ def _solve(problem, length, multiplicities, instruments=None, method="ls"):
     A = basis.A @ basis.R[:-1, :-1]
     scale = np.ldexp(np.sqrt(np.mean(A ** 2, axis=0)) / max(float(np.sqrt(np.mean(
         basis.b ** 2))), 1e-300), basis.shifts - basis.b_shift - shift)
-    return _Fit(theta, covariance,
+    return WindowFit(theta, covariance,
                 {a: np.ldexp(v[1].theta(v[0]), shift) for a, v in separate.items()},
                 scale, r, len(ids), separation)
 

@@ -30,8 +30,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["WindowBasis", "Separability", "separability", "exponent", "ROUNDOFF_SEPARABILITY",
-           "FREE_RATIO", "WEAK_RATIO", "FREE_NOISE_RATIO", "WEAK_NOISE_RATIO", "COLLINEAR"]
+from algid.errors import InputDataError
+
+__all__ = ["WindowBasis", "Separability", "separability", "check_excited", "exponent",
+           "ROUNDOFF_SEPARABILITY", "FREE_RATIO", "WEAK_RATIO", "FREE_NOISE_RATIO",
+           "WEAK_NOISE_RATIO", "COLLINEAR"]
 
 #: Smallest singular value of the unit-column regressors below which terms count as
 #: proportional whatever the misfit (round-off of window sums is about 1e-15).
@@ -294,8 +297,9 @@ class Separability:
         return f"parameter{'' if one else 's'} {listed} {verb}: {cause}"
 
     def warnings(self, names):
-        """One line per reservation: a poorly determined combination, strongly
-        correlated parameters.
+        """One line per reservation about the estimate.
+
+        A poorly determined combination; strongly correlated parameters.
 
         Parameters
         ----------
@@ -406,3 +410,41 @@ def _noise_test(result, basis, noise):
     combination = second * first[p] - first * second[p]   # no known side in it
     direction = np.linalg.solve(basis.R[:p, :p], combination[:p])
     result.noise_weights = direction * np.linalg.norm(basis.R[:p, :p], axis=0)
+
+
+def check_excited(problem, length, multiplicity, A, b):
+    """Refuse records on which a parameter's terms, or the known side, vanish.
+
+    Parameters
+    ----------
+    problem : object
+        The windowed problem of :func:`algid.identify`: its ``parameters``, ``model``
+        and ``excitation(length, multiplicity, A, b)`` (per column and for the known
+        side, their size relative to the largest they could have).
+    length, multiplicity : int
+        The windows of ``A`` and ``b``.
+    A, b : numpy.ndarray
+        The window equations.
+
+    Raises
+    ------
+    InputDataError
+        Naming the parameters whose terms vanish, or the known side.
+    """
+    excitation = problem.excitation(length, multiplicity, A, b)
+    idle = [p for p, e in zip(problem.parameters, excitation) if e < ROUNDOFF_SEPARABILITY]
+    if excitation[-1] < ROUNDOFF_SEPARABILITY and len(idle) == len(problem.parameters):
+        raise InputDataError("the signals are constant or zero on these records: they "
+                             "determine no parameter")
+    if idle:
+        terms = ", ".join(f"{t.factor}" + "'" * t.derivative
+                          for t in problem.model.terms if t.parameter in idle)
+        one = len(idle) == 1
+        raise InputDataError(f"parameter{'' if one else 's'} {', '.join(idle)} cannot be "
+                             f"determined: {'its term' if one else 'their terms'} {terms} "
+                             f"vanish{'es' if one else ''} on these records (a constant "
+                             f"signal, or one too small in these units)")
+    if excitation[-1] < ROUNDOFF_SEPARABILITY:
+        known = " + ".join(str(t) for t in problem.model.known_terms) or "0"
+        raise InputDataError(f"the known side {known} vanishes on these records: nothing "
+                             f"fixes the scale of the parameters")

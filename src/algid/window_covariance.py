@@ -11,6 +11,13 @@ estimates of ``S``:
   correlation of overlapping windows (they share samples);
 - :func:`hac_meat`, the residuals' own covariance over window lags (heteroscedasticity
   and autocorrelation consistent), for a misfit that is not output noise.
+
+:func:`sandwich` chooses between them and makes sure that no combination of the
+parameters gets a variance of zero or below: the flat-top lag weights of the HAC sum
+can make it indefinite, and its projection on the positive semi-definite matrices gave
+some realisations of ordinary noisy records a standard error of exactly 0 (which the
+window rule then preferred).  There the middle is the smallest one at least both
+estimates (:func:`upper_envelope`), and a round-off floor is added to every variance.
 """
 
 from __future__ import annotations

@@ -18,11 +18,74 @@ import numpy as np
 
 from algid.errors import InputDataError, ModelError
 
-__all__ = ["window_grid", "window_criterion", "choose_window", "window_length", "min_length",
-           "longest_window", "independent_windows", "needed_windows", "MIN_SPARE_WINDOWS"]
+__all__ = ["WindowFit", "window_grid", "window_criterion", "choose_window", "window_length",
+           "min_length", "longest_window", "independent_windows", "needed_windows",
+           "MIN_SPARE_WINDOWS", "NEGLIGIBLE_TERM"]
 
 #: Non-overlapping windows needed beyond one per parameter.
 MIN_SPARE_WINDOWS = 8
+
+#: A term this small next to the known side (5 %) counts as negligible in the window rule.
+NEGLIGIBLE_TERM = 0.05
+
+
+class WindowFit:
+    """One estimate on one window length: parameters, covariance, diagnostics.
+
+    Everything in the records' units.
+
+    Parameters
+    ----------
+    theta : numpy.ndarray
+        The estimate (of the highest multiplicity).
+    covariance : numpy.ndarray
+        Its covariance.
+    separate : dict
+        Multiplicity -> the estimate of that multiplicity alone.
+    scale : numpy.ndarray
+        Per parameter, the effect of a unit error on the equations, relative to their
+        known side.
+    residuals : numpy.ndarray
+        The residuals of the window equations.
+    n_windows : int
+        Windows stacked.
+    separation : Separability, optional
+        :func:`algid.window_basis.separability` of the highest multiplicity.
+    """
+
+    def __init__(self, theta, covariance, separate, scale, residuals, n_windows,
+                 separation=None):
+        self.theta = theta
+        self.covariance = covariance
+        self.separate = separate          # multiplicity -> estimate alone
+        self.scale = scale                # effect of a unit parameter error on the equation
+        self.residuals = residuals
+        self.n_windows = n_windows
+        self.separation = separation      # Separability of the highest multiplicity
+
+    @property
+    def stderr(self):
+        """Per parameter: the standard error."""
+        return np.sqrt(np.maximum(np.diag(self.covariance), 0.0))
+
+    @property
+    def numerical_error(self):
+        """Per parameter: the difference between the lowest and highest multiplicity."""
+        values = [self.separate[a] for a in sorted(self.separate)]
+        return np.abs(values[-1] - values[0])
+
+    def relative_error(self):
+        """Per parameter: max(standard error, numerical error), relative to the value.
+
+        Relative to the parameter, or to the value whose term is 5 % of the known side
+        for a parameter near zero (:data:`NEGLIGIBLE_TERM`).
+
+        Returns
+        -------
+        numpy.ndarray
+        """
+        reference = np.maximum(np.abs(self.theta), NEGLIGIBLE_TERM / self.scale)
+        return np.maximum(self.stderr, self.numerical_error) / reference
 
 
 def window_grid(n_min, n_max, ratio=1.25):
