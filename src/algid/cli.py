@@ -1,5 +1,6 @@
 """Command line interface: ``algid simulate``, ``algid estimate``, ``algid identify``,
-``algid derive``, ``algid codegen``, ``algid paper`` and ``algid errata``.
+``algid datasets``, ``algid derive``, ``algid codegen``, ``algid paper`` and
+``algid errata``.
 
 Errors caused by the user (bad data, bad file, unknown model) are printed as one line
 ``algid: error: <message>`` on standard error with exit code 2; usage errors are
@@ -191,7 +192,8 @@ def build_parser() -> argparse.ArgumentParser:
             "\"V2'' + B*V2' + K*V2 + K3*V2**3 = G*V1 + d\" --parameters \"B K K3 G d\"."
         ),
     )
-    ide.add_argument("files", nargs="+", metavar="FILE", help="data files (.csv, .txt, .mat)")
+    ide.add_argument("files", nargs="+", metavar="FILE",
+                     help="data files (.csv, .txt, .csv.gz, .txt.gz, .mat)")
     ide.add_argument("--equation", required=True, metavar="EQ", help="the model equation")
     ide.add_argument("--parameters", required=True, metavar="\"P1 P2 ...\"",
                      help="the unknown parameters, separated by spaces")
@@ -211,6 +213,30 @@ def build_parser() -> argparse.ArgumentParser:
                      help="print one JSON object: a key per parameter, stderr, window, "
                           "n_samples")
     ide.set_defaults(handler=_cmd_identify)
+
+    dat = commands.add_parser(
+        "datasets",
+        help="list or export the measured records shipped with algid (Silverbox, EMPS)",
+        description=("The measured benchmark records shipped with algid, written as plain "
+                     "CSV files with a time column t that `algid identify` reads as they "
+                     "are. Example: algid datasets export emps records; algid identify "
+                     "records/emps_estimation.csv --equation \"M*qm'' + Fv*qm' + "
+                     "Fc*sign(qm') + off = F\" --parameters \"M Fv Fc off\"."),
+    )
+    actions = dat.add_subparsers(dest="action", metavar="ACTION", required=True)
+    actions.add_parser("list", help="the records, the files each exports, their citations",
+                       description="List the shipped records, the files `export` writes "
+                                   "for each and the papers to cite."
+                       ).set_defaults(handler=_cmd_datasets_list)
+    export = actions.add_parser(
+        "export", help="write a record as CSV files into a folder",
+        description=("Write a shipped record as plain CSV files (header line, time column "
+                     "t, exact values) into DIR, with the records' provenance note; "
+                     "files of the same names are replaced."))
+    export.add_argument("name", choices=("silverbox", "emps"), metavar="NAME",
+                        help="silverbox or emps (see `algid datasets list`)")
+    export.add_argument("folder", metavar="DIR", help="folder to write into (created if missing)")
+    export.set_defaults(handler=_cmd_datasets_export)
 
     der = commands.add_parser(
         "derive",
@@ -435,6 +461,24 @@ def _cmd_identify(args) -> int:
     print(f"{'parameter':<{width}}  {'estimate':>13}  {'std. error':>10}")
     for p, v in result.values.items():
         print(f"{p:<{width}}  {v:>13.6g}  {stderr[p]:>10.2g}")
+    return 0
+
+
+def _cmd_datasets_list(args) -> int:
+    from . import datasets
+
+    citations = {"silverbox": datasets.SILVERBOX_CITATION, "emps": datasets.EMPS_CITATION}
+    for name, files in datasets.EXPORTS.items():
+        print(f"{name}: {files}")
+        print(f"  cite: {citations[name]}")
+    return 0
+
+
+def _cmd_datasets_export(args) -> int:
+    from .datasets import export
+
+    for path in export(args.name, args.folder):
+        print(f"wrote {path}")
     return 0
 
 

@@ -1,5 +1,8 @@
 """Reading measured experiments from CSV/text and MATLAB files.
 
+A CSV/text file may be gzip-compressed (``.csv.gz``, ``.txt.gz``, as the Silverbox
+record ships in the package): it is decompressed while read.
+
 Only file-specific problems are reported here (missing file, unreadable format,
 missing or non-numeric column).  Checks on the signals themselves (NaN, lengths,
 time axis, excitation) are made by :func:`algid.validation.check_experiment`.
@@ -9,19 +12,25 @@ Every :class:`~algid.errors.DataFileError` message starts with the file name.
 from __future__ import annotations
 
 import csv
+import gzip
 import math
 import os
+import zlib
 from pathlib import Path
 
 import numpy as np
 
+from . import memory
 from .errors import DataFileError, InputDataError
 from .memory import check_fits
 
-__all__ = ["read_experiment", "read_columns", "CSV_SUFFIXES", "MAT_SUFFIXES"]
+__all__ = ["read_experiment", "read_columns", "CSV_SUFFIXES", "MAT_SUFFIXES",
+           "GZIP_SUFFIXES"]
 
 CSV_SUFFIXES = (".csv", ".txt")
 MAT_SUFFIXES = (".mat",)
+#: gzip-compressed CSV/text files, decompressed while read.
+GZIP_SUFFIXES = (".csv.gz", ".txt.gz")
 
 
 def read_experiment(path, *, time="t", input="f", output="x", rate=None):
@@ -30,8 +39,9 @@ def read_experiment(path, *, time="t", input="f", output="x", rate=None):
     Parameters
     ----------
     path : str or os.PathLike
-        A ``.csv``/``.txt`` file with a header line of column names, or a MATLAB
-        ``.mat`` file (up to version 7.2) whose variables are named like the columns.
+        A ``.csv``/``.txt`` file with a header line of column names (or the same
+        gzip-compressed, ``.csv.gz``/``.txt.gz``), or a MATLAB ``.mat`` file (up to
+        version 7.2) whose variables are named like the columns.
     time : str, optional
         Name of the time column.  Ignored when ``rate`` is given.
     input : str, optional
@@ -88,8 +98,10 @@ def _checked_path(path):
         label = os.fsdecode(label)
     p = Path(label)
     suffix = p.suffix.lower()
-    if suffix not in CSV_SUFFIXES + MAT_SUFFIXES:
-        supported = ", ".join(CSV_SUFFIXES + MAT_SUFFIXES)
+    if suffix == ".gz":
+        suffix = "".join(p.suffixes[-2:]).lower()
+    if suffix not in CSV_SUFFIXES + GZIP_SUFFIXES + MAT_SUFFIXES:
+        supported = ", ".join(CSV_SUFFIXES + GZIP_SUFFIXES + MAT_SUFFIXES)
         shown = f"extension {p.suffix!r}" if p.suffix else "no extension"
         raise DataFileError(f"{label}: unknown file type ({shown}); supported: {supported}")
     if not p.exists():
@@ -108,8 +120,8 @@ def _available(p, label, suffix):
         except Exception:  # unreadable: _read_mat reports it
             return []
     try:
-        text = p.read_text(encoding="utf-8-sig")
-    except (UnicodeDecodeError, OSError):
+        text = _read_text(p, label)
+    except DataFileError:
         return []  # _read_csv reports it
     for _, line in _split_lines(text):
         try:
@@ -125,7 +137,8 @@ def read_columns(path, names, *, optional=()):
     Parameters
     ----------
     path : str or path-like
-        A ``.csv``/``.txt`` file with a header line, or a MATLAB ``.mat`` file.
+        A ``.csv``/``.txt`` file with a header line (or the same gzip-compressed,
+        ``.csv.gz``/``.txt.gz``), or a MATLAB ``.mat`` file.
     names : sequence of str
         Columns or variables that must be present.
     optional : sequence of str
@@ -244,14 +257,44 @@ def _check_size(p, label, bytes_per_file_byte):
         raise DataFileError(str(exc)) from None
 
 
-def _read_csv(p, label, wanted, time_name):
-    _check_size(p, label, CSV_BYTES_PER_FILE_BYTE)
+def _read_gzip(p, label):
+    """The decompressed bytes of a gzip file, refused beyond what memory can parse.
+
+    The reading's peak memory is :data:`CSV_BYTES_PER_FILE_BYTE` per byte of text, the
+    decompressed text (not the file) is what counts, and its size is known only once
+    decompressed: at most the budget plus one byte is decompressed.
+    """
+    available = memory.available_memory()
+    budget = available // CSV_BYTES_PER_FILE_BYTE
     try:
-        text = p.read_text(encoding="utf-8-sig")
+        with gzip.open(p, "rb") as stream:
+            data = stream.read(budget + 1)
+    except (OSError, EOFError, zlib.error) as exc:
+        reason = " ".join(str(exc).split()) or type(exc).__name__
+        raise DataFileError(f"{label}: not a readable gzip file ({reason})") from None
+    if len(data) > budget:
+        raise DataFileError(
+            f"{label}: too large to read: its decompressed text exceeds "
+            f"{memory._size(budget)}, the most that the {memory._size(available)} "
+            f"of memory available can parse ({CSV_BYTES_PER_FILE_BYTE} bytes per byte of text)")
+    return data
+
+
+def _read_text(p, label):
+    """The text of a CSV/text file (decompressed when gzip), refused when too large."""
+    try:
+        if p.name.lower().endswith(".gz"):
+            return _read_gzip(p, label).decode("utf-8-sig")
+        _check_size(p, label, CSV_BYTES_PER_FILE_BYTE)
+        return p.read_text(encoding="utf-8-sig")
     except UnicodeDecodeError:
         raise DataFileError(f"{label}: not a UTF-8 text file") from None
     except OSError as exc:
         raise DataFileError(f"{label}: cannot read file ({exc.strerror or exc})") from None
+
+
+def _read_csv(p, label, wanted, time_name):
+    text = _read_text(p, label)
 
     lines = _split_lines(text)
     try:
