@@ -173,5 +173,6 @@ def test_export_writes_exact_csv_files_that_the_readers_take(tmp_path):
 
 
 def test_export_of_an_unknown_name_is_a_clear_error(tmp_path):
-    with pytest.raises(InputDataError, match=r"unknown dataset 'wiener' \(known: silverbox, emps\)"):
+    with pytest.raises(InputDataError,
+                       match=r"unknown dataset 'wiener' \(known: silverbox, emps\)"):
         datasets.export("wiener", tmp_path)
