@@ -13,8 +13,15 @@ sampling step, which adds about 1 mV on Silverbox).  ``method="RK4"`` is the cla
 Runge-Kutta method with a fixed number of sub-steps per sample on the same interpolants,
 for loops that simulate many times (an output-error fit, instrumental variables).
 Nonlinear factors that read the output's derivatives (``sign(q')``) are evaluated on the
-simulated state.  This module is the one simulator of algid:
-:meth:`algid.IdentificationResult.simulate` uses it.
+simulated state.  A ``sign()`` of the simulated state is integrated piecewise, from
+switch to switch, sliding on the switching surface where the flows on both sides point
+to it (a mass held by Coulomb friction; :mod:`algid.switching`): the EMPS validation
+run simulates in seconds instead of crawling through the sticking phases.  Every
+solver but ``"RK4"`` is bounded in right-hand-side evaluations (:data:`MAX_EVALUATIONS`
+per sample on average, :data:`MAX_STALLED_EVALUATIONS` without advancing one sampling
+step): beyond, a :class:`~algid.errors.ModelError` suggests ``method="RK4"``.  This
+module is the one simulator of algid: :meth:`algid.IdentificationResult.simulate` uses
+it.
 
 Between the samples the forcing must be interpolated, and at few samples per period this
 matters more than the integrator:
@@ -57,13 +64,21 @@ from scipy.signal import firwin, resample_poly
 from .differentiation import algebraic_derivative
 from .errors import InputDataError, ModelError
 from .expression import Call, Constant, Power, Product, Signal, Sum, Time
+from .switching import integrate_switched
 
-__all__ = ["simulate_model", "fit_initial_state", "UPSAMPLING", "FILTER_HALF_LENGTH"]
+__all__ = ["simulate_model", "fit_initial_state", "UPSAMPLING", "FILTER_HALF_LENGTH",
+           "MAX_EVALUATIONS", "MAX_STALLED_EVALUATIONS"]
 
 #: Band-limited interpolation: upsampling factor and filter half-length (input samples).
 UPSAMPLING = 16
 FILTER_HALF_LENGTH = 96
 _KAISER_BETA = 13.0
+
+#: Bound on the right-hand-side evaluations of the adaptive solvers, per sample on
+#: average (DOP853 needs about 35 at 9 samples per period, 15 on the EMPS records).
+MAX_EVALUATIONS = 1000
+#: Bound on the evaluations without the solution advancing one sampling step.
+MAX_STALLED_EVALUATIONS = 20000
 
 
 _SCALAR = {
@@ -73,11 +88,16 @@ _SCALAR = {
 }
 
 
-def _scalar(expr, slot):
+def _scalar(expr, slot, held=None):
     """A closure ``f(values, time) -> float`` for ``expr`` on scalars (fast per step).
 
-    ``slot(name, k)`` is the index in ``values`` of a signal or derivative.
+    ``slot(name, k)`` is the index in ``values`` of a signal or derivative; ``held``
+    maps a sub-expression to the index in ``values`` of a value that replaces it (the
+    mode of a switch).
     """
+    if held and expr in held:
+        index = held[expr]
+        return lambda v, t: v[index]
     if isinstance(expr, Constant):
         value = float(expr.value)
         return lambda v, t: value
@@ -87,20 +107,36 @@ def _scalar(expr, slot):
         index = slot(expr.name, expr.derivative)
         return lambda v, t: v[index]
     if isinstance(expr, Call) and expr.function in _SCALAR and len(expr.args) == 1:
-        function, arg = _SCALAR[expr.function], _scalar(expr.args[0], slot)
+        function, arg = _SCALAR[expr.function], _scalar(expr.args[0], slot, held)
         return lambda v, t: function(arg(v, t))
     if isinstance(expr, Power):
-        base, exponent = _scalar(expr.base, slot), float(expr.exponent)
+        base, exponent = _scalar(expr.base, slot, held), float(expr.exponent)
         if exponent == int(exponent):
             exponent = int(exponent)
         return lambda v, t: base(v, t) ** exponent
     if isinstance(expr, Sum):
-        parts = [_scalar(p, slot) for p in expr.terms]
+        parts = [_scalar(p, slot, held) for p in expr.terms]
         return lambda v, t: sum(p(v, t) for p in parts)
     if isinstance(expr, Product):
-        parts = [_scalar(p, slot) for p in expr.factors]
+        parts = [_scalar(p, slot, held) for p in expr.factors]
         return lambda v, t: math.prod(p(v, t) for p in parts)
     raise ModelError(f"cannot simulate the factor {expr}")
+
+
+def _switches(expr, output, found):
+    """Append to ``found`` the ``sign()`` calls of ``expr`` whose argument reads the
+    output (each once, in order of appearance)."""
+    if isinstance(expr, Call):
+        if expr.function == "sign" and output in expr.args[0].signals() and expr not in found:
+            found.append(expr)
+        children = expr.args
+    else:
+        children = getattr(expr, "terms", None) or getattr(expr, "factors", None) or ()
+        if isinstance(expr, Power):
+            children = (expr.base,)
+    for child in children:
+        _switches(child, output, found)
+    return found
 
 
 def _weight(term, parameters):
@@ -256,8 +292,23 @@ class _OutputEquation:
         keys = [(output, k) for k in range(self.order)] + list(self.inputs)
         index = {(key if isinstance(key, tuple) else (key, 0)): i for i, key in enumerate(keys)}
         self.input_interpolants = list(self.inputs.values())
-        self.compiled = [(w, _scalar(f, lambda name, k: index[(name, k)]))
-                         for w, f in self.state_terms]
+
+        def slot(name, k):
+            return index[(name, k)]
+
+        self.compiled = [(w, _scalar(f, slot)) for w, f in self.state_terms]
+        # sign() of the simulated state: a mode held between switches (algid.switching),
+        # read from the values after the state and the inputs
+        switches = []
+        for _, factor in self.state_terms:
+            _switches(factor, output, switches)
+        held = {call: len(keys) + j for j, call in enumerate(switches)}
+        self.switched = [(w, _scalar(f, slot, held)) for w, f in self.state_terms]
+        self.switch_arguments = [_scalar(call.args[0], slot) for call in switches]
+        self.plain_switches = [call.args[0].derivative
+                               if isinstance(call.args[0], Signal)
+                               and call.args[0].name == output else None
+                               for call in switches]
 
     @staticmethod
     def _known_values(term, columns, splines, t):
@@ -276,9 +327,31 @@ class _OutputEquation:
         return np.broadcast_to(np.asarray(factor.evaluate(values, time=t), dtype=float),
                                t.shape)
 
-    def __call__(self, time, state):
+    def _values(self, time, state):
         values = [float(x) for x in state]
         values.extend(f(time) for f in self.input_interpolants)
+        return values
+
+    def top(self, time, state, modes):
+        """The highest derivative with each switch's ``sign()`` held at ``modes``."""
+        values = self._values(time, state) + list(modes)
+        top = self.forcing(time)
+        try:
+            for weight, f in self.switched:
+                top += weight * f(values, time)
+        except (ArithmeticError, ValueError):
+            top = math.nan
+        return top
+
+    def switch_argument(self, j, time, state):
+        """The argument of switch ``j``'s ``sign()`` (NaN outside its domain)."""
+        try:
+            return self.switch_arguments[j](self._values(time, state), time)
+        except (ArithmeticError, ValueError):
+            return math.nan
+
+    def __call__(self, time, state):
+        values = self._values(time, state)
         top = self.forcing(time)
         try:
             for weight, f in self.compiled:
@@ -362,11 +435,60 @@ def _integrate(equation, t, initial_state, method, rtol, atol, substeps=4):
         if substeps < 1:
             raise InputDataError(f"substeps must be a positive integer, got {substeps!r}")
         return _integrate_rk4(equation, t, state, substeps)
-    solution = solve_ivp(equation, (t[0], t[-1]), state, method=method, t_eval=t,
-                         rtol=rtol, atol=atol)
+    budget = _Budget(t)
+    try:
+        if equation.plain_switches:
+            return integrate_switched(equation, t, state, method, rtol, atol, budget.tick)
+
+        def rhs(time, x):
+            budget.tick(time)
+            return equation(time, x)
+
+        solution = solve_ivp(rhs, (t[0], t[-1]), state, method=method, t_eval=t,
+                             rtol=rtol, atol=atol)
+    except _Exhausted as stop:
+        raise ModelError(
+            f"simulation by {method} stopped at t = {stop.time:.6g} s after {stop.count} "
+            f"right-hand-side evaluations ({stop.reason}): the model is stiff or switches "
+            f"too often for it; use method='RK4' (fixed steps) or a stiff method "
+            f"('LSODA')") from None
     out = np.full((equation.order, len(t)), np.nan)
     out[:, :solution.y.shape[1]] = solution.y  # a diverging model stops early: NaN after
     return out
+
+
+class _Exhausted(Exception):
+    """The bound on the right-hand-side evaluations was reached."""
+
+    def __init__(self, time, count, reason):
+        super().__init__(reason)
+        self.time, self.count, self.reason = time, count, reason
+
+
+class _Budget:
+    """Counts right-hand-side evaluations; raises :class:`_Exhausted` past the bounds:
+    :data:`MAX_EVALUATIONS` per sample, or a block of :data:`MAX_STALLED_EVALUATIONS`
+    whose median time is less than one mean sampling step past the previous block's (the
+    median: a trial step, rejected or the first of a solver, may look far ahead)."""
+
+    def __init__(self, t):
+        self.limit = MAX_EVALUATIONS * len(t)
+        self.step = (t[-1] - t[0]) / (len(t) - 1)
+        self.count = 0
+        self.block = []
+        self.previous_median = -math.inf
+
+    def tick(self, time):
+        self.count += 1
+        self.block.append(time)
+        if len(self.block) == MAX_STALLED_EVALUATIONS:
+            median = float(np.median(self.block))
+            if median < self.previous_median + self.step:
+                raise _Exhausted(time, self.count, f"{MAX_STALLED_EVALUATIONS} without "
+                                                   f"advancing one sampling step")
+            self.previous_median, self.block = median, []
+        if self.count > self.limit:
+            raise _Exhausted(time, self.count, f"{MAX_EVALUATIONS} per sample")
 
 
 def simulate_model(model, parameters, time, inputs, *, initial_state=None, output=None,
