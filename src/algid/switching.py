@@ -143,7 +143,7 @@ def integrate_switched(equation, t, state, method, rtol, atol, tick):
     ----------
     equation : object
         The model solved for its highest derivative, with the switch interface of
-        :class:`_Pieces`.
+        ``_Pieces``.
     t : numpy.ndarray
         Sample times.
     state : numpy.ndarray
