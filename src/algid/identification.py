@@ -74,6 +74,7 @@ from math import comb
 
 import numpy as np
 
+from algid.adequacy import model_adequacy
 from algid.bias_compensation import bias_compensated, solve_equilibrated
 from algid.errors import InputDataError, ModelError
 from algid.expression import Call, Signal
@@ -578,9 +579,12 @@ def identify(data, equation, parameters=None, *, time=None, rate=None, output=No
                                      "first estimate diverges; use method='bc'")
             instruments = {a: problem.rows(length, a, "simulated") for a in multiplicities}
             fit = _solve(problem, length, multiplicities, instruments)
+    adequacy = model_adequacy(problem, length, fit, _solve, multiplicities, method,
+                              _min_length(multiplicities))
     return IdentificationResult(
         model=model, values=dict(zip(model.parameters, fit.theta.tolist())),
         covariance=fit.covariance, window=(length - 1) * step, n_samples=n_samples,
         n_windows=fit.n_windows, method=method, multiplicities=multiplicities,
         time=time, rate=rate, window_scores=scores,
-        separate={a: dict(zip(model.parameters, v.tolist())) for a, v in fit.separate.items()})
+        separate={a: dict(zip(model.parameters, v.tolist())) for a, v in fit.separate.items()},
+        adequacy=adequacy, warnings=adequacy.warnings())
