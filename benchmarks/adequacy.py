@@ -8,7 +8,7 @@ warnings counted: right models (the synthetic records of
 ``y'' + 2 y' + 3 y = u`` at 100 Hz for 60 s with 1 % output noise) must stay silent,
 wrong ones (a linear model on the cubic record, ``G*u'`` for ``G*u``, the output
 delayed by 5 samples) must be flagged.  The real records (EMPS with its friction model,
-the Silverbox arrow part with its cubic model) are run once.  Each row gives the
+the three parts of Silverbox with its cubic model) are run once.  Each row gives the
 warnings out of the runs and the median and extreme values of the test's two numbers
 (:mod:`algid.adequacy`: misfit over the output-noise bound, shift in standard errors).
 """
@@ -83,20 +83,26 @@ def synthetic_cases():
 
 
 def real_cases():
-    """``(name, record, equation, parameters, options)`` of the shipped real records."""
+    """``(name, record, equation, parameters, options)`` of the shipped real records:
+    the three parts of Silverbox with the cubic model, the EMPS runs with the friction
+    model (the validation run also with the pulses added to the force once more, as
+    ``tests/test_identify_real.py`` does)."""
     from algid import datasets
 
     silverbox = datasets.silverbox()
-    arrow = {k: np.asarray(silverbox[k])[40650:105712] for k in ("V1", "V2")}
-    cases = [("Silverbox arrow part, cubic model", arrow,
-              "V2'' + B*V2' + K*V2 + K3*V2**3 = G*V1 + d", "B K K3 G d",
-              {"rate": 610.35})]
-    for run, pulses in (("estimation", False), ("validation", True)):
+    cases = []
+    for part in silverbox.segments:
+        signals = silverbox.segment(part)
+        cases.append((f"Silverbox {part} part, cubic model",
+                      {k: signals[k] for k in ("V1", "V2")},
+                      "V2'' + B*V2' + K*V2 + K3*V2**3 = G*V1 + d", "B K K3 G d",
+                      {"rate": silverbox.rate}))
+    for run, pulses in (("estimation", False), ("validation", False), ("validation", True)):
         record = datasets.emps(run)
         force = record.gtau * np.asarray(record["vir"])
         if pulses:
             force = force + np.asarray(record["pulses_N"])
-        cases.append((f"EMPS {run} run, friction model",
+        cases.append((f"EMPS {run} run{' + pulses_N' if pulses else ''}, friction model",
                       {"t": np.asarray(record["t"]), "q": np.asarray(record["qm"]),
                        "F": force}, *FRICTION_EQUATION, {}))
     return cases
