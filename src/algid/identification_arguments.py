@@ -113,13 +113,16 @@ def check_model_columns(model, time):
 
 
 #: Peak memory of :func:`algid.identify` per sample [bytes] is about
-#: ``BYTES_PER_TERM * terms + BYTES_PER_GRAM_ENTRY * (parameters + 1)**2``: window
-#: sums and sample weights per term, noise matrices per window (measured at 2e5 and
-#: 1e6 samples: 330 for 4 terms and 3 parameters, 520 for 6 and 5, 440 for a friction
-#: model of 4 and 4, 1170 for 11 and 9; the formula is 1.3 to 1.6 times that).
+#: ``BYTES_PER_SAMPLE + BYTES_PER_TERM * terms + BYTES_PER_GRAM_ENTRY * (parameters +
+#: 1)**2``: the factors' samples and sensitivities per term, noise matrices per window.
+#: Peaks measured with tracemalloc on 6e4 samples, automatic window: 270-400 for 4
+#: terms and 3 parameters, 430 for 5 and 4 (390 with a sign(q') term), 480 for 6 and 5,
+#: 1120 for 10 and 9; the formula is 1.3 to 1.7 times those.
+BYTES_PER_SAMPLE = 128
+#: See :data:`BYTES_PER_SAMPLE`.
 BYTES_PER_TERM = 64
-#: See :data:`BYTES_PER_TERM`.
-BYTES_PER_GRAM_ENTRY = 12
+#: See :data:`BYTES_PER_SAMPLE`.
+BYTES_PER_GRAM_ENTRY = 8
 
 
 def identify_bytes(model):
@@ -133,7 +136,7 @@ def identify_bytes(model):
     -------
     int
     """
-    return (BYTES_PER_TERM * len(model.terms)
+    return (BYTES_PER_SAMPLE + BYTES_PER_TERM * len(model.terms)
             + BYTES_PER_GRAM_ENTRY * (len(model.parameters) + 1) ** 2)
 
 
