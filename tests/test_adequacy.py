@@ -105,9 +105,9 @@ def test_a_user_window_too_long_to_double_is_compared_with_half_of_it():
 
 def test_misfit_limit_rises_on_few_windows():
     # chi-square with few degrees of freedom exceeds 2 often: the limit follows it
-    assert misfit_limit(2000, 16, 4) == MISFIT_LIMIT
-    few = misfit_limit(40, 16, 4)
-    assert few > misfit_limit(100, 16, 4) > MISFIT_LIMIT
+    assert misfit_limit(2000, 16, 4, 2) == MISFIT_LIMIT
+    few = misfit_limit(40, 16, 4, 2)
+    assert few > misfit_limit(100, 16, 4, 2) > MISFIT_LIMIT
     assert few > 5
 
 

@@ -103,8 +103,10 @@ class Adequacy:
 
 
 def misfit_ratio(problem, length, multiplicity, theta):
-    """Residual energy of the window equations per unit of white output-noise weight,
-    over the output-noise bound (inf when the bound is zero and the misfit is not).
+    """The misfit of the window equations over what white output noise allows.
+
+    Their residual energy per unit of white output-noise weight, over the output-noise
+    bound (inf when the bound is zero and the misfit is not).
 
     Parameters
     ----------
@@ -133,7 +135,7 @@ def misfit_ratio(problem, length, multiplicity, theta):
     return energy / weight / bound
 
 
-def model_adequacy(problem, length, fit, solve, multiplicities, method, min_length):
+def model_adequacy(problem, length, fit, solve, method, min_length, stride):
     """The adequacy test of an identified model (see the module notes).
 
     Parameters
@@ -143,22 +145,24 @@ def model_adequacy(problem, length, fit, solve, multiplicities, method, min_leng
     length : int
         Its window length (samples).
     fit : algid.identification._Fit
-        The estimate (``theta``, ``stderr``, ``separate``).
+        The estimate (``theta``, ``stderr``, ``n_windows``, and ``separate``: the
+        estimate of every kernel multiplicity).
     solve : callable
         ``solve(problem, length, multiplicities, instruments, method=...)``: the
         estimate on windows of another length (``algid.identification._solve``).
-    multiplicities : tuple of int
-        Kernel multiplicities of the estimate.
     method : str
         Its method (``"iv"``: instruments from the simulated output, as the estimate's).
     min_length : int
         Shortest window the multiplicities allow (samples).
+    stride : int
+        Samples between the starts of the estimate's consecutive windows.
 
     Returns
     -------
     Adequacy
     """
     step = problem.step
+    multiplicities = tuple(fit.separate)
     misfit = misfit_ratio(problem, length, max(fit.separate), fit.theta)
     longest = max(len(s) for s in problem.segments)
     shift, parameter, other = np.nan, None, np.nan
@@ -185,20 +189,23 @@ def model_adequacy(problem, length, fit, solve, multiplicities, method, min_leng
         if not z[worst] <= shift:   # the larger of the two (NaN: the first)
             shift, parameter = float(z[worst]), problem.parameters[worst]
             other = (candidate - 1) * step
-    return Adequacy(misfit, misfit_limit(fit.n_windows, length, len(fit.theta)), shift,
-                    parameter, (length - 1) * step, other)
+    return Adequacy(misfit, misfit_limit(fit.n_windows, length, len(fit.theta), stride),
+                    shift, parameter, (length - 1) * step, other)
 
 
-def misfit_limit(n_windows, length, n_parameters):
-    """The misfit limit on ``n_windows`` windows of ``length`` samples: the larger of
-    :data:`MISFIT_LIMIT` and the level that white output noise exceeds with probability
-    :data:`MISFIT_FALSE_ALARM`, its residual energy being chi-square with as many
-    degrees of freedom as independent windows, less the parameters.
+def misfit_limit(n_windows, length, n_parameters, stride):
+    """The misfit limit on ``n_windows`` windows of ``length`` samples.
+
+    The larger of :data:`MISFIT_LIMIT` and the level that white output noise exceeds
+    with probability :data:`MISFIT_FALSE_ALARM`, its residual energy being chi-square
+    with as many degrees of freedom as independent windows, less the parameters.
 
     Parameters
     ----------
     n_windows, length, n_parameters : int
         Windows stacked, their length (samples) and the parameters estimated.
+    stride : int
+        Samples between the starts of consecutive windows.
 
     Returns
     -------
@@ -206,9 +213,6 @@ def misfit_limit(n_windows, length, n_parameters):
     """
     from scipy.special import gammaincinv
 
-    from algid.identification import WINDOW_OVERLAP
-
-    stride = max(1, length // WINDOW_OVERLAP)
     freedom = max(1.0, n_windows * stride / length - n_parameters)
     quantile = 2.0 * gammaincinv(freedom / 2.0, 1.0 - MISFIT_FALSE_ALARM) / freedom
     return max(MISFIT_LIMIT, float(quantile))

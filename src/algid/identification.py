@@ -79,8 +79,8 @@ from algid.bias_compensation import bias_compensated, solve_equilibrated
 from algid.errors import InputDataError, ModelError
 from algid.expression import Call, Signal
 from algid.grammar import parse_equation
-from algid.model import Model
 from algid.identification_arguments import check_arguments, check_memory, check_model_columns
+from algid.model import Model
 from algid.records import check_factors, estimate_derivative, prepare_records
 from algid.sign_crossings import crossing_jumps, crossing_motion, sign_factor
 from algid.window_covariance import hac_meat, noise_meat
@@ -589,8 +589,8 @@ def identify(data, equation, parameters=None, *, time=None, rate=None, output=No
                                      "first estimate diverges; use method='bc'")
             instruments = {a: problem.rows(length, a, "simulated") for a in multiplicities}
             fit = _solve(problem, length, multiplicities, instruments)
-    adequacy = model_adequacy(problem, length, fit, _solve, multiplicities, method,
-                              _min_length(multiplicities))
+    adequacy = model_adequacy(problem, length, fit, _solve, method, _min_length(multiplicities),
+                              max(1, length // WINDOW_OVERLAP))
     return IdentificationResult(
         model=model, values=dict(zip(model.parameters, fit.theta.tolist())),
         covariance=fit.covariance, window=(length - 1) * step, n_samples=n_samples,

@@ -37,8 +37,9 @@ def check_arguments(equation, parameters, *, time, rate, output, window, method,
 
     Parameters
     ----------
-    equation, parameters, time, rate, output, window, method, multiplicities, name,
-    iterations
+    equation, parameters, time, rate, output, window : object
+        As given to :func:`algid.identify`.
+    method, multiplicities, name, iterations : object
         As given to :func:`algid.identify`.
     methods : tuple of str
         The methods known.
