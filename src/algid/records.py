@@ -147,8 +147,8 @@ def check_rate(rate, what="rate"):
     if not low <= 1.0 / value <= high:
         raise InputDataError(
             f"{what} {value:g} Hz gives a sampling step of {1.0 / value:.3g} s, outside "
-            f"{low:g} .. {high:g} s where the window integrals stay in the floating-point "
-            f"range; give the rate in Hz")
+            f"{low:g} .. {high:g} s: the estimators' integrals would overflow or "
+            f"underflow; express the time in other units")
     return value
 
 
@@ -210,8 +210,8 @@ def _time_axis(record, index, n, time, rate):
         if not low <= median <= high:
             raise InputDataError(
                 f"record {index}: time column {time!r} has a step of {median:.3g}, outside "
-                f"{low:g} .. {high:g} s where the window integrals stay in the "
-                f"floating-point range; express the time in seconds")
+                f"{low:g} .. {high:g} s: the window integrals would overflow or "
+                f"underflow; express the time in other units")
     return t, time
 
 
