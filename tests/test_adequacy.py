@@ -71,6 +71,9 @@ def test_wrong_derivative_order_and_delayed_output_are_flagged(wrong):
         assert "\n" not in text and "does not explain the data within the noise" in text
         assert r.adequacy.parameter in text
         assert "warning: " + text in repr(r)
+        # made for the identified values: not carried over to other ones
+        other = r.with_parameters(r.values)
+        assert other.warnings == [] and other.adequacy is None
 
 
 def test_misfit_of_a_wrong_model_falls_with_the_noise_as_one_plus_bias_over_noise():

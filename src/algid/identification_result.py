@@ -137,6 +137,7 @@ class IdentificationResult:
         """Return a copy with other parameter values (e.g. published ones).
 
         The covariance is kept as it is; use it to validate other values the same way.
+        The adequacy test, made for the identified values, is not carried over.
 
         Parameters
         ----------
@@ -150,7 +151,8 @@ class IdentificationResult:
         missing = [p for p in self.model.parameters if p not in values]
         if missing:
             raise InputDataError(f"no value for parameter {missing[0]}")
-        return replace(self, values={p: float(values[p]) for p in self.model.parameters})
+        return replace(self, values={p: float(values[p]) for p in self.model.parameters},
+                       adequacy=None, warnings=[])
 
     # validation -------------------------------------------------------------------------
 
