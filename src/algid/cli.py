@@ -197,11 +197,11 @@ def build_parser() -> argparse.ArgumentParser:
     ide.add_argument("--equation", required=True, metavar="EQ", help="the model equation")
     ide.add_argument("--parameters", required=True, metavar="\"P1 P2 ...\"",
                      help="the unknown parameters, separated by spaces")
-    timing = ide.add_mutually_exclusive_group()
-    timing.add_argument("--time", default=None, metavar="COL",
-                        help="time column (default: t or time when present)")
-    timing.add_argument("--rate", type=_positive, default=None, metavar="HZ",
-                        help="sampling rate in Hz, for files without a time column")
+    ide.add_argument("--time", default=None, metavar="COL",
+                     help="time column (default: t or time when present)")
+    ide.add_argument("--rate", type=_positive, default=None, metavar="HZ",
+                     help="sampling rate in Hz, for files without a time column (with "
+                          "one, it must agree with it)")
     ide.add_argument("--output", default=None, metavar="COL",
                      help="output signal (default: the one of highest derivative order)")
     ide.add_argument("--window", type=_positive, default=None, metavar="SECONDS",
@@ -211,7 +211,7 @@ def build_parser() -> argparse.ArgumentParser:
                           "instrumental variables")
     ide.add_argument("--json", action="store_true",
                      help="print one JSON object: a key per parameter, stderr, window, "
-                          "n_samples")
+                          "n_samples, warnings")
     ide.set_defaults(handler=_cmd_identify)
 
     dat = commands.add_parser(
@@ -366,13 +366,29 @@ def _finite_or_none(value):
 NUMERICAL_ERROR_WARNING = 1e-3
 
 
-def _warn_numerical_error(source, error):
-    """One line on stderr when the final estimate's numerical error is large."""
-    if error > NUMERICAL_ERROR_WARNING:
-        what = ("the data do not determine the estimate" if math.isinf(error) else
-                f"estimated relative numerical error {error:.1e}")
-        print(f"warning: {source}: {what}; resample faster or use a longer record",
-              file=sys.stderr)
+def _warn_numerical_error(source, error, output, x):
+    """One line on stderr when the final estimate's error is large, with what the data
+    say of its cause: white noise where the output's differences reach a noise floor,
+    else too few samples per period (or a model that does not fit)."""
+    if not error > NUMERICAL_ERROR_WARNING:
+        return
+    if math.isinf(error):
+        print(f"warning: {source}: the data do not determine the estimate; use a record "
+              f"that excites the model", file=sys.stderr)
+        return
+    from .records import white_noise_floor
+
+    noisy, variance = white_noise_floor(x)
+    spread = float(x.std()) if len(x) else 0.0
+    if noisy and spread > 0:
+        cause = (f"{output!r} carries white noise of about {math.sqrt(variance) / spread:.1e} "
+                 f"of its rms: a higher --filter-order or a longer record reduces its effect")
+    else:
+        cause = (f"{output!r} shows no noise floor: too few samples per period of the "
+                 f"signals, or a model that does not fit them (resample faster or use a "
+                 f"longer record)")
+    print(f"warning: {source}: estimated relative error {error:.1e}; {cause}",
+          file=sys.stderr)
 
 
 def _cmd_estimate(args) -> int:
@@ -380,6 +396,15 @@ def _cmd_estimate(args) -> int:
     from .validation import check_experiment
 
     time = "t" if args.time is None else args.time
+    named = {"--input": args.input, "--output": args.output}
+    if args.rate is None:
+        named["--time"] = time
+    seen = {}
+    for option, column in named.items():
+        if column in seen:
+            raise InputDataError(f"{seen[column]} and {option} name the same column "
+                                 f"{column!r}")
+        seen[column] = option
     t, f, x = read_experiment(
         args.file, time=time, input=args.input, output=args.output, rate=args.rate
     )
@@ -398,7 +423,7 @@ def _cmd_estimate(args) -> int:
     names = tuple(result.parameters)
     t_valid = float(result.t_valid)
     error = getattr(result, "final_numerical_error", lambda: math.nan)()
-    _warn_numerical_error(args.file, error)
+    _warn_numerical_error(args.file, error, args.output, x)
     if args.json:
         payload = {name: _finite_or_none(final[name]) for name in names}
         payload["t_valid"] = _finite_or_none(t_valid)
@@ -427,7 +452,7 @@ def _cmd_estimate(args) -> int:
 
 
 #: Keys of ``algid identify --json`` besides the parameters.
-IDENTIFY_JSON_KEYS = ("stderr", "window", "n_samples")
+IDENTIFY_JSON_KEYS = ("stderr", "window", "n_samples", "warnings")
 
 
 def _cmd_identify(args) -> int:
@@ -442,16 +467,21 @@ def _cmd_identify(args) -> int:
         raise ModelError(f"parameter name {clash[0]!r} is reserved by the output "
                          f"({', '.join(IDENTIFY_JSON_KEYS)}); rename it")
     names = list(model.signals) + ([args.time] if args.time else [])
-    optional = () if args.time or args.rate else TIME_COLUMNS
+    # a time column is read with --rate too: the two must agree
+    optional = () if args.time else TIME_COLUMNS
     records = [read_columns(path, names, optional=optional) for path in args.files]
     result = identify(records, model, time=args.time, rate=args.rate, window=args.window,
                       method=args.method)
     stderr = result.stderr
+    source = args.files[0] if len(args.files) == 1 else f"{len(args.files)} records"
+    for warning in result.warnings:
+        print(f"warning: {source}: {warning}", file=sys.stderr)
     if args.json:
         payload = {p: _finite_or_none(v) for p, v in result.values.items()}
         payload["stderr"] = {p: _finite_or_none(v) for p, v in stderr.items()}
         payload["window"] = float(result.window)
         payload["n_samples"] = int(result.n_samples)
+        payload["warnings"] = list(result.warnings)
         print(json.dumps(payload, allow_nan=False))
         return 0
     print(f"{model.equation}")

@@ -74,12 +74,14 @@ from math import comb
 
 import numpy as np
 
+from algid.adequacy import model_adequacy
 from algid.bias_compensation import bias_compensated, solve_equilibrated
 from algid.errors import InputDataError, ModelError
 from algid.expression import Call, Signal
 from algid.grammar import parse_equation
+from algid.identification_arguments import check_arguments, check_memory, check_model_columns
 from algid.model import Model
-from algid.records import estimate_derivative, prepare_records
+from algid.records import check_factors, estimate_derivative, prepare_records
 from algid.sign_crossings import crossing_jumps, crossing_motion, sign_factor
 from algid.window_covariance import hac_meat, noise_meat
 from algid.window_kernels import (
@@ -518,7 +520,8 @@ def identify(data, equation, parameters=None, *, time=None, rate=None, output=No
     time : str, optional
         Name of the time column; by default a column ``t`` or ``time``.
     rate : float, optional
-        Sampling rate (Hz) of records without a time column.
+        Sampling rate (Hz) of records without a time column (with one, it must agree
+        with it: :data:`algid.records.RATE_TOLERANCE`).
     output : str, optional
         Output signal; by default the signal of highest derivative order.
     window : float, optional
@@ -539,22 +542,30 @@ def identify(data, equation, parameters=None, *, time=None, rate=None, output=No
     Returns
     -------
     IdentificationResult
+        With ``warnings`` when the model does not explain the data within the noise
+        (:mod:`algid.adequacy`).
 
     Raises
     ------
     ModelError, InputDataError
-        One-line messages for a bad equation or unusable data.
+        One-line messages for a bad equation, an argument of the wrong type, unusable
+        data, or records too large for the memory available.
     """
     from algid.identification_result import IdentificationResult
 
-    if method not in METHODS:
-        raise InputDataError(f"unknown method {method!r} (choose from {', '.join(METHODS)})")
+    multiplicities = check_arguments(
+        equation, parameters, time=time, rate=rate, output=output, window=window,
+        method=method, methods=METHODS, multiplicities=multiplicities, name=name,
+        iterations=iterations)
     model = equation if isinstance(equation, Model) else parse_equation(
         equation, parameters, output=output, name=name)
+    check_model_columns(model, time)
+    check_memory(data, model)
     multiplicities = _check_multiplicities(model, multiplicities)
     segments, step, n_samples = prepare_records(data, model.signals, time=time, rate=rate,
                                                 min_length=_min_length(multiplicities))
     _add_derivatives(model, segments, _derivative_estimate)
+    check_factors(model, segments)
     problem = _Problem(model, segments, step)
     length = _length_of(window, step, segments)
     scores = None
@@ -578,9 +589,12 @@ def identify(data, equation, parameters=None, *, time=None, rate=None, output=No
                                      "first estimate diverges; use method='bc'")
             instruments = {a: problem.rows(length, a, "simulated") for a in multiplicities}
             fit = _solve(problem, length, multiplicities, instruments)
+    adequacy = model_adequacy(problem, length, fit, _solve, method, _min_length(multiplicities),
+                              max(1, length // WINDOW_OVERLAP))
     return IdentificationResult(
         model=model, values=dict(zip(model.parameters, fit.theta.tolist())),
         covariance=fit.covariance, window=(length - 1) * step, n_samples=n_samples,
         n_windows=fit.n_windows, method=method, multiplicities=multiplicities,
         time=time, rate=rate, window_scores=scores,
-        separate={a: dict(zip(model.parameters, v.tolist())) for a, v in fit.separate.items()})
+        separate={a: dict(zip(model.parameters, v.tolist())) for a, v in fit.separate.items()},
+        adequacy=adequacy, warnings=adequacy.warnings())

@@ -84,6 +84,10 @@ class IdentificationResult:
         Window length (samples) -> criterion, when the window was chosen automatically.
     separate : dict
         Multiplicity -> estimate with that multiplicity alone.
+    adequacy : algid.adequacy.Adequacy or None
+        The test of whether the model explains the data within the noise.
+    warnings : list of str
+        One-line warnings about the result (e.g. an inadequate model).
     """
 
     model: object
@@ -98,6 +102,8 @@ class IdentificationResult:
     rate: float | None = None
     window_scores: dict | None = None
     separate: dict = field(default_factory=dict)
+    adequacy: object = None
+    warnings: list = field(default_factory=list)
 
     def __getattr__(self, name):
         values = self.__dict__.get("values", {})
@@ -123,13 +129,15 @@ class IdentificationResult:
 
     def __repr__(self):
         pieces = ", ".join(f"{p}={v:.6g} ± {self.stderr[p]:.2g}" for p, v in self.values.items())
+        warned = "".join(f"; warning: {w}" for w in self.warnings)
         return (f"IdentificationResult({self.model.equation!r}: {pieces}; window "
-                f"{self.window:.4g} s, {self.n_samples} samples, {self.method})")
+                f"{self.window:.4g} s, {self.n_samples} samples, {self.method}{warned})")
 
     def with_parameters(self, values):
         """Return a copy with other parameter values (e.g. published ones).
 
         The covariance is kept as it is; use it to validate other values the same way.
+        The adequacy test, made for the identified values, is not carried over.
 
         Parameters
         ----------
@@ -143,7 +151,8 @@ class IdentificationResult:
         missing = [p for p in self.model.parameters if p not in values]
         if missing:
             raise InputDataError(f"no value for parameter {missing[0]}")
-        return replace(self, values={p: float(values[p]) for p in self.model.parameters})
+        return replace(self, values={p: float(values[p]) for p in self.model.parameters},
+                       adequacy=None, warnings=[])
 
     # validation -------------------------------------------------------------------------
 

@@ -23,6 +23,7 @@ import numpy as np
 from . import memory
 from .errors import DataFileError, InputDataError
 from .memory import check_fits
+from .records import check_rate, check_rate_agrees
 
 __all__ = ["read_experiment", "read_columns", "CSV_SUFFIXES", "MAT_SUFFIXES",
            "GZIP_SUFFIXES"]
@@ -43,7 +44,8 @@ def read_experiment(path, *, time="t", input="f", output="x", rate=None):
         gzip-compressed, ``.csv.gz``/``.txt.gz``), or a MATLAB ``.mat`` file (up to
         version 7.2) whose variables are named like the columns.
     time : str, optional
-        Name of the time column.  Ignored when ``rate`` is given.
+        Name of the time column.  When ``rate`` is given, the column is optional; if
+        the file has it, it must agree with the rate.
     input : str, optional
         Name of the input (force) column.
     output : str, optional
@@ -67,7 +69,8 @@ def read_experiment(path, *, time="t", input="f", output="x", rate=None):
         or holds a non-numeric value (the message gives the column and the 1-based line
         number for CSV files).
     InputDataError
-        If ``rate`` is not a positive finite number.
+        If ``rate`` is not a positive finite number whose step lies in
+        :data:`algid.records.STEP_RANGE`, or contradicts the file's time column.
 
     Examples
     --------
@@ -77,7 +80,9 @@ def read_experiment(path, *, time="t", input="f", output="x", rate=None):
     if rate is not None:
         rate = _check_rate(rate)
     p, label, suffix = _checked_path(path)
-    wanted = [input, output] if rate is not None else [time, input, output]
+    # with a rate, a time column present in the file is read too: the two must agree
+    timed = rate is None or time in _available(p, label, suffix)
+    wanted = [time, input, output] if timed else [input, output]
     if suffix in MAT_SUFFIXES:
         columns = _read_mat(p, label, wanted, time if rate is None else None)
     else:
@@ -85,11 +90,11 @@ def read_experiment(path, *, time="t", input="f", output="x", rate=None):
 
     f = columns[input]
     x = columns[output]
-    if rate is not None:
-        t = np.arange(f.size, dtype=np.float64) / rate
-    else:
-        t = columns[time]
-    return t, f, x
+    if rate is None:
+        return columns[time], f, x
+    if timed and np.all(np.diff(columns[time]) > 0):
+        check_rate_agrees(rate, columns[time], time, label)
+    return np.arange(f.size, dtype=np.float64) / rate, f, x
 
 
 def _checked_path(path):
@@ -119,15 +124,14 @@ def _available(p, label, suffix):
             return [name for name, _, _ in whosmat(p)]
         except Exception:  # unreadable: _read_mat reports it
             return []
-    try:
-        text = _read_text(p, label)
-    except DataFileError:
+    opener = gzip.open if suffix in GZIP_SUFFIXES else open
+    try:  # the header only: the first line that is neither blank nor a comment
+        with opener(p, "rt", encoding="utf-8-sig") as lines:
+            for line in lines:
+                if line.strip() and not line.strip().startswith("#"):
+                    return _fields(line.rstrip("\r\n"), _delimiter(line))
+    except (UnicodeDecodeError, OSError, EOFError, csv.Error):
         return []  # _read_csv reports it
-    for _, line in _split_lines(text):
-        try:
-            return _fields(line, _delimiter(line))
-        except csv.Error:
-            return []
     return []
 
 
@@ -165,13 +169,15 @@ def read_columns(path, names, *, optional=()):
 
 
 def _check_rate(rate) -> float:
+    if isinstance(rate, (bool, np.bool_)):
+        raise InputDataError(f"rate must be a number of Hz, got {rate!r}")
     try:
         value = float(rate)
     except (TypeError, ValueError):
         raise InputDataError(f"rate must be a number of Hz, got {rate!r}") from None
     if not (math.isfinite(value) and value > 0):
         raise InputDataError(f"rate must be a positive finite number of Hz, got {rate!r}")
-    return value
+    return check_rate(value)
 
 
 def _missing(label, kind, name, available, time_name):
