@@ -317,6 +317,26 @@ class CausalDifferentiator:
         self._history = np.empty(0)
         self._seen = 0
 
+    def state(self):
+        """What the differentiator carries from one chunk to the next, for :meth:`restore`.
+
+        Returns
+        -------
+        tuple
+            Not to be modified (:meth:`update` replaces it, never changes it).
+        """
+        return self._history, self._seen
+
+    def restore(self, state):
+        """Go back to a :meth:`state` taken before: the samples since are forgotten.
+
+        Parameters
+        ----------
+        state : tuple
+            From :meth:`state`.
+        """
+        self._history, self._seen = state
+
     def update(self, y):
         """Estimates of the derivative at the next samples of the stream.
 

@@ -8,6 +8,11 @@ the times), or within twice the decimal rounding of the times
 mean step of the first chunk (with the sample before it, if the first chunk was one
 sample).  Anything else is an
 :class:`~algid.errors.InputDataError` whose one-line message names the stream sample.
+
+A chunk must also leave the estimator usable: its channels finite (a user model's
+``log(y)`` of a negative ``y`` is NaN) and within :func:`amplitude_limits`, so that
+one absurd sample cannot turn every later estimate into NaN or overflow
+(:func:`check_amplitudes`, :func:`check_channels`).  A refused chunk changes nothing.
 """
 
 from __future__ import annotations
@@ -22,7 +27,8 @@ from algid.errors import InputDataError
 from algid.validation import UNIFORM_RTOL, as_signal, rounding_quantum, step_tolerance
 
 __all__ = ["check_signals_call", "check_chunk", "check_signals_chunk", "compiled_scan",
-           "float_sample"]
+           "float_sample", "AMPLITUDE_BITS", "amplitude_limits", "check_amplitudes",
+           "check_channels", "half_period", "MAX_HALF_PERIOD_SAMPLES"]
 
 _FLOAT64 = np.dtype(np.float64)
 
@@ -330,3 +336,174 @@ def compiled_scan():
         return violations == 0
 
     return scan
+
+
+#: Largest half period of re-anchoring, in samples: sample counts up to ``2**53`` are
+#: exact in floating point.
+MAX_HALF_PERIOD_SAMPLES = 2**53
+
+
+def half_period(period, dt, points):
+    """Samples in half a re-anchoring period (:class:`algid.OnlineEstimator`).
+
+    Parameters
+    ----------
+    period : float
+        The requested ``reset_period`` [s].
+    dt : float
+        The sampling step [s].
+    points : int
+        Points of the quadrature rule: the fewest samples of a half period.
+
+    Returns
+    -------
+    int
+        ``round(period / (2 dt))``.
+
+    Raises
+    ------
+    InputDataError
+        Fewer than ``points`` or more than :data:`MAX_HALF_PERIOD_SAMPLES` samples.
+    """
+    halves = period / (2.0 * dt)
+    if not halves <= MAX_HALF_PERIOD_SAMPLES:  # also inf
+        longest = 2 * MAX_HALF_PERIOD_SAMPLES * dt
+        raise InputDataError(
+            f"reset_period {_fmt(period)} s is too long for step {_fmt(dt)} s: at most "
+            f"{_fmt(longest)} s (2**54 steps, beyond which sample counts are not exact in "
+            f"floating point); use reset_period=None never to re-anchor")
+    half = int(round(halves))
+    if half < points:
+        raise InputDataError(
+            f"reset_period {_fmt(period)} s is too short for step {_fmt(dt)} s: half a "
+            f"period must hold at least {points} samples (reset_period >= "
+            f"{_fmt(2 * points * dt)} s)")
+    return half
+
+
+#: Bits of the floating-point exponent range (up to ``2**1024``) given to the amplitude
+#: of a stream's channels.  Cramer's rule multiplies ``n`` integrals of the channels
+#: (``n`` parameters), each weighted by powers of the time since the origin: a channel may
+#: reach ``2**(AMPLITUDE_BITS // n)`` times the stream's unit (set by its first chunk,
+#: :mod:`algid.scaling`), and the other half of the range is left to those powers (the
+#: paper's model, whose denominator grows like ``t**10``, then runs for ``2**48`` time
+#: units before it overflows; at the unit amplitude, ``2**100``).
+AMPLITUDE_BITS = 512
+
+
+def amplitude_limits(module, divisors, scale):
+    """The largest absolute sample of every channel that a stream takes.
+
+    Parameters
+    ----------
+    module : module
+        The generated estimator module (``PARAMETERS``).
+    divisors : sequence of float
+        Every channel's divisor (a known mass), in ``CHANNELS`` order.
+    scale : float or None
+        The power of two the samples are multiplied by (:mod:`algid.scaling`); None
+        for 1.
+
+    Returns
+    -------
+    tuple of float
+        ``2**(AMPLITUDE_BITS // n) * divisor / scale`` per channel, in the units of the
+        samples given (inf where that overflows).
+    """
+    bits = AMPLITUDE_BITS // len(module.PARAMETERS)
+    unit = 1.0 if scale is None else float(scale)
+    limits = []
+    for divisor in divisors:
+        try:
+            limits.append(math.ldexp(float(divisor), bits) / unit)
+        except OverflowError:
+            limits.append(math.inf)
+    return tuple(limits)
+
+
+def _unit_phrase(module, divisor):
+    bits = AMPLITUDE_BITS // len(module.PARAMETERS)
+    mass = "" if divisor == 1.0 else f", times the mass {_fmt(divisor)} it is divided by"
+    return (f"2**{bits} times the stream's unit, set by its first chunk{mass}: beyond it "
+            f"the products of the estimator's integrals overflow")
+
+
+def check_amplitudes(module, names, samples, limits, divisors, *, n):
+    """Refuse a chunk with a sample beyond its channel's :func:`amplitude_limits`.
+
+    Parameters
+    ----------
+    module : module
+        The generated estimator module.
+    names : sequence of str
+        The signals' names, for the message.
+    samples : sequence of ndarray
+        The chunk's finite samples of every signal, in the units given.
+    limits : sequence of float
+        Their limits (:func:`amplitude_limits`).
+    divisors : sequence of float
+        Their divisors (a known mass), for the message.
+    n : int
+        Stream index of the chunk's first sample.
+
+    Raises
+    ------
+    InputDataError
+        Naming the signal, the sample and the limit; the stream is unchanged.
+    """
+    for name, values, limit, divisor in zip(names, samples, limits, divisors):
+        if values.size and not (values.max() <= limit and -values.min() <= limit):
+            i = int(np.argmax(np.abs(values)))
+            raise InputDataError(
+                f"signal {name!r} reaches {_fmt(values[i])} at stream sample {n + i}, beyond "
+                f"{_fmt(limit)} ({_unit_phrase(module, divisor)}); the chunk is refused, "
+                f"the stream is unchanged")
+
+
+def check_channels(module, channels, limits, *, n, signals, first=0):
+    """Refuse a chunk of a user model whose channels are not finite or too large.
+
+    Parameters
+    ----------
+    module : module
+        The generated estimator module (``CHANNELS``, ``FACTORS``).
+    channels : sequence of ndarray
+        The chunk's channels (:class:`algid.user_models.ChannelStream`), ``CHANNELS``
+        order, from its sample ``first`` on.
+    limits : sequence of float
+        Their limits (:func:`amplitude_limits`).
+    signals : mapping
+        The chunk's measured signals (for the message).
+    n : int
+        Stream index of the chunk's first sample.
+    first : int, optional
+        Index in the chunk of the channels' first sample.
+
+    Raises
+    ------
+    InputDataError
+        Naming the channel, its expression, the stream sample and the signals there;
+        the stream is unchanged.
+    """
+    factors = getattr(module, "FACTORS", {})
+    for name, values, limit in zip(module.CHANNELS, channels, limits):
+        values = np.asarray(values)
+        if not values.size or (values.max() <= limit and -values.min() <= limit):
+            continue  # (NaN fails both comparisons)
+        bad = ~(np.abs(values) <= limit)
+        i = int(np.argmax(bad))
+        what = (f"channel {name!r} = {factors[name]}" if name in factors
+                else f"signal {name!r}")
+        where = first + i
+        at = ", ".join(f"{s} = {_fmt(np.asarray(v).reshape(-1)[where])}"
+                       for s, v in signals.items())
+        value = float(values[i])
+        if math.isfinite(value):
+            raise InputDataError(
+                f"{what} reaches {_fmt(value)} at stream sample {n + where} ({at}), beyond "
+                f"{_fmt(limit)} ({_unit_phrase(module, 1.0)}); the chunk is refused, the "
+                f"stream is unchanged")
+        kind = "NaN" if value != value else "infinite"
+        raise InputDataError(
+            f"{what} is {kind} at stream sample {n + where} ({at}): outside the domain of "
+            f"its function, or an overflow; the chunk is refused, the stream is unchanged")

@@ -257,6 +257,27 @@ class ChannelStream:
         for differentiator in self._differentiators.values():
             differentiator.reset()
 
+    def state(self):
+        """What the stream carries from one chunk to the next, for :meth:`restore`.
+
+        Returns
+        -------
+        tuple
+            The differentiators' states.
+        """
+        return tuple(d.state() for d in self._differentiators.values())
+
+    def restore(self, state):
+        """Go back to a :meth:`state` taken before: the samples since are forgotten.
+
+        Parameters
+        ----------
+        state : tuple
+            From :meth:`state`.
+        """
+        for differentiator, saved in zip(self._differentiators.values(), state):
+            differentiator.restore(saved)
+
     def missing(self, signals):
         """The first signal the channels need that ``signals`` lacks, or None.
 
@@ -313,7 +334,8 @@ class ChannelStream:
         channels = []
         for name in module.CHANNELS:
             if name in factors:
-                samples = self._factor_of[name].evaluate(values, time)
+                with np.errstate(all="ignore"):  # NaN and inf are refused by the callers
+                    samples = self._factor_of[name].evaluate(values, time)
                 channels.append(samples if np.shape(samples) == shape
                                 else np.broadcast_to(samples, shape))
             else:
