@@ -80,7 +80,7 @@ from algid.result import EstimationResult
 from algid.scaling import amplitude_scale, scalable
 from algid.stream_checks import (amplitude_limits, check_amplitudes, check_channels,
                                  check_chunk, check_signals_call, check_signals_chunk,
-                                 compiled_scan, float_sample, half_period)
+                                 compiled_scan, compiled_within, float_sample, half_period)
 from algid.user_models import ChannelStream
 from algid.validation import UNIFORM_RTOL, positive_number
 
@@ -233,7 +233,8 @@ class OnlineEstimator:
             tuple(module.MASS_SCALED) if self.mass is not None else ())
         if reset_period is not None and self._given_dt is not None:
             half_period(self._requested_period, self._given_dt, self.quadrature_points)
-        self._scan = compiled_scan() if self.engine == "numba" else None
+        self._scan, self._within = ((compiled_scan(), compiled_within())
+                                    if self.engine == "numba" else (None, None))
         self._states = [with_companion(core.new_state(module, points=self.quadrature_points,
                                                       filter_order=self.filter_order,
                                                       dt=self._given_dt or 1.0,
@@ -433,7 +434,8 @@ class OnlineEstimator:
         half, scale = self._half_of(dt), self._scale_of((f, x))
         module = self._module
         check_amplitudes(module, (module.INPUT, module.OUTPUT), (f, x),
-                         self._pair_limits(scale), self._pair_divisors, n=self._n)
+                         self._limits if scale == self._scale else self._pair_limits(scale),
+                         self._pair_divisors, n=self._n, within=self._within)
         self._take_step(dt, half, scale)  # checks done: from here on the state changes
         m = t.size
         if self._scale is not None and self._scale != 1.0:
@@ -533,8 +535,7 @@ class OnlineEstimator:
             self._scale, self._limits = scale, self._pair_limits(scale)
 
     def _scale_of(self, samples):
-        """The stream's power of two, chosen once per stream from the first chunk with a
-        nonzero sample (:mod:`algid.scaling`)."""
+        """The stream's power of two, from its first nonzero chunk (:mod:`algid.scaling`)."""
         if self._scale is None and samples[0].size and self._scalable:
             return amplitude_scale(samples)
         return self._scale
@@ -559,7 +560,7 @@ class OnlineEstimator:
         skip = min(max(self._channel_stream.warmup - self._warmed, 0), m)
         try:
             check_channels(self._module, tuple(c[skip:] for c in channels), self._unit_limits,
-                           n=self.n_seen, signals=checked, first=skip)
+                           n=self.n_seen, signals=checked, first=skip, scale=scale)
         except InputDataError:
             self._channel_stream.restore(saved)
             raise

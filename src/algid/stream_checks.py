@@ -28,7 +28,7 @@ from algid.validation import UNIFORM_RTOL, as_signal, rounding_quantum, step_tol
 
 __all__ = ["check_signals_call", "check_chunk", "check_signals_chunk", "compiled_scan",
            "float_sample", "AMPLITUDE_BITS", "amplitude_limits", "check_amplitudes",
-           "check_channels", "half_period", "MAX_HALF_PERIOD_SAMPLES"]
+           "check_channels", "compiled_within", "half_period", "MAX_HALF_PERIOD_SAMPLES"]
 
 _FLOAT64 = np.dtype(np.float64)
 
@@ -428,7 +428,7 @@ def _unit_phrase(module, divisor):
             f"the products of the estimator's integrals overflow")
 
 
-def check_amplitudes(module, names, samples, limits, divisors, *, n):
+def check_amplitudes(module, names, samples, limits, divisors, *, n, within=None):
     """Refuse a chunk with a sample beyond its channel's :func:`amplitude_limits`.
 
     Parameters
@@ -445,12 +445,21 @@ def check_amplitudes(module, names, samples, limits, divisors, *, n):
         Their divisors (a known mass), for the message.
     n : int
         Stream index of the chunk's first sample.
+    within : callable, optional
+        :func:`compiled_within`, to check the two signals (``f``, ``x``) in one compiled
+        pass.
 
     Raises
     ------
     InputDataError
         Naming the signal, the sample and the limit; the stream is unchanged.
     """
+    if within is not None:  # the common case, in one compiled pass
+        f, x = samples
+        if type(f) is np.ndarray and type(x) is np.ndarray and f.dtype is _FLOAT64 and \
+                x.dtype is _FLOAT64 and f.flags.c_contiguous and x.flags.c_contiguous and \
+                within(f, x, *limits):
+            return
     for name, values, limit, divisor in zip(names, samples, limits, divisors):
         if values.size and not (values.max() <= limit and -values.min() <= limit):
             i = int(np.argmax(np.abs(values)))
@@ -460,50 +469,77 @@ def check_amplitudes(module, names, samples, limits, divisors, *, n):
                 f"the stream is unchanged")
 
 
-def check_channels(module, channels, limits, *, n, signals, first=0):
-    """Refuse a chunk of a user model whose channels are not finite or too large.
+def check_channels(module, channels, limits, *, n, signals, first=0, scale=None):
+    """Refuse a chunk of a user model whose signals or channels are not finite or too
+    large.
 
     Parameters
     ----------
     module : module
-        The generated estimator module (``CHANNELS``, ``FACTORS``).
+        The generated estimator module (``CHANNELS``, ``FACTORS``, ``PARAMETERS``).
     channels : sequence of ndarray
         The chunk's channels (:class:`algid.user_models.ChannelStream`), ``CHANNELS``
         order, from its sample ``first`` on.
     limits : sequence of float
         Their limits (:func:`amplitude_limits`).
     signals : mapping
-        The chunk's measured signals (for the message).
+        The chunk's measured signals, as given: each is held to the limit of a channel
+        (also in the warm-up of a differentiator, whose past samples it becomes).
     n : int
         Stream index of the chunk's first sample.
     first : int, optional
         Index in the chunk of the channels' first sample.
+    scale : float, optional
+        The power of two the signals are multiplied by before the channels are
+        computed (:mod:`algid.scaling`).
 
     Raises
     ------
     InputDataError
-        Naming the channel, its expression, the stream sample and the signals there;
-        the stream is unchanged.
+        Naming the signal or the channel and its expression, the stream sample and the
+        signals there; the stream is unchanged.
     """
     factors = getattr(module, "FACTORS", {})
-    for name, values, limit in zip(module.CHANNELS, channels, limits):
-        values = np.asarray(values)
+    unit = 1.0 if scale is None else float(scale)
+    signal_limit = amplitude_limits(module, (1.0,), scale)[0]
+    # (label, samples, limit, index of the first in the chunk, their unit)
+    checks = [(f"signal {name!r}", np.asarray(values), signal_limit, 0, 1.0)
+              for name, values in signals.items()]
+    checks += [(f"channel {name!r} = {factors[name]}" if name in factors
+                else f"signal {name!r}", np.asarray(values), limit, first, unit)
+               for name, values, limit in zip(module.CHANNELS, channels, limits)]
+    for what, values, limit, offset, shown in checks:
         if not values.size or (values.max() <= limit and -values.min() <= limit):
             continue  # (NaN fails both comparisons)
-        bad = ~(np.abs(values) <= limit)
-        i = int(np.argmax(bad))
-        what = (f"channel {name!r} = {factors[name]}" if name in factors
-                else f"signal {name!r}")
-        where = first + i
+        i = int(np.argmax(~(np.abs(values) <= limit)))
+        where = offset + i
         at = ", ".join(f"{s} = {_fmt(np.asarray(v).reshape(-1)[where])}"
                        for s, v in signals.items())
         value = float(values[i])
         if math.isfinite(value):
             raise InputDataError(
-                f"{what} reaches {_fmt(value)} at stream sample {n + where} ({at}), beyond "
-                f"{_fmt(limit)} ({_unit_phrase(module, 1.0)}); the chunk is refused, the "
-                f"stream is unchanged")
+                f"{what} reaches {_fmt(value / shown)} at stream sample {n + where} ({at}), "
+                f"beyond {_fmt(limit / shown)} ({_unit_phrase(module, 1.0)}); the chunk is "
+                f"refused, the stream is unchanged")
         kind = "NaN" if value != value else "infinite"
         raise InputDataError(
             f"{what} is {kind} at stream sample {n + where} ({at}): outside the domain of "
             f"its function, or an overflow; the chunk is refused, the stream is unchanged")
+
+
+@cache
+def compiled_within():
+    """The test of :func:`check_amplitudes` on two float64 arrays, compiled (needs
+    numba): ``within(f, x, limit_f, limit_x)`` is True when every ``|f| <= limit_f``
+    and ``|x| <= limit_x`` (False for NaN)."""
+    import numba
+
+    @numba.njit("boolean(float64[::1], float64[::1], float64, float64)", cache=True,
+                nogil=True)
+    def within(f, x, limit_f, limit_x):
+        beyond = 0
+        for i in range(f.shape[0]):  # counts, without branches: the loop vectorises
+            beyond += (not abs(f[i]) <= limit_f) + (not abs(x[i]) <= limit_x)
+        return beyond == 0
+
+    return within
