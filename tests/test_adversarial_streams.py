@@ -8,7 +8,7 @@ import pytest
 
 import algid
 from algid.errors import InputDataError
-from algid.stream_checks import AMPLITUDE_BITS
+from algid.scaling import AMPLITUDE_BITS
 
 ENGINES = ["numpy", "numba"]
 LIMIT = 2.0 ** (AMPLITUDE_BITS // 2)  # of msd (two parameters), in the stream's unit

@@ -205,12 +205,19 @@ def undetermined(module, channels, dt, *, rtol=IDENTIFIABILITY_RTOL, state=None)
     span = (channels[0].size - 1) * dt
     with np.errstate(over="ignore", under="ignore"):
         powers = np.float64(span) ** np.array([p + lv for _, p, lv in module.KERNELS])
-    if not (np.isfinite(P).all() and np.isfinite(Q).all() and np.isfinite(size_p).all()
-            and np.isfinite(size_q).all() and np.isfinite(powers).all()
-            and (powers > 0).all()):
+    if not (np.isfinite(powers).all() and (powers > 0).all()):
         raise InputDataError(
             f"the estimator's integrals overflow or underflow over a time span of "
             f"{span:.4g} s (step {dt:.4g} s): express the time in other units")
+    if not (np.isfinite(P).all() and np.isfinite(Q).all() and np.isfinite(size_p).all()
+            and np.isfinite(size_q).all()):  # the time is fine: the amplitudes are not
+        reach = ", ".join(f"{name!r} {float(np.max(np.abs(c))):.4g}"
+                          for name, c in zip(module.CHANNELS, channels))
+        raise InputDataError(
+            f"the estimator's integrals overflow over a time span of {span:.4g} s: the "
+            f"channels reach {reach} (as the estimator takes them, after any rescaling by "
+            f"a power of two, before any division by the mass): express the signals in "
+            f"other units")
     kind, free = _verdict(module, P, Q, size_p, size_q, rtol)
     parameters = list(module.PARAMETERS)
     named = " and ".join(parameters[j] for j in free)
@@ -246,13 +253,21 @@ def _verdict(module, P, Q, size_p, size_q, rtol):
     # unit norm; a combination of the parameters is free when the smallest singular
     # value is at round-off.  (Not the determinant: the product of all the singular
     # values is small for a model of five parameters that the data determine well.)
-    rows = P / np.linalg.norm(P, axis=1)[:, None]
-    normalised = rows / np.linalg.norm(rows, axis=0)
+    # (each row first divided by its largest entry: the norms of entries near the ends
+    # of the floating-point range neither overflow nor underflow)
+    rows = P / _nonzero(np.max(np.abs(P), axis=1))[:, None]
+    rows /= _nonzero(np.linalg.norm(rows, axis=1))[:, None]
+    normalised = rows / _nonzero(np.linalg.norm(rows, axis=0))
     _, singular, vt = np.linalg.svd(normalised)
     if singular[-1] < rtol:
         free = np.abs(vt[-1])
         return "dependent", tuple(j for j in range(n) if free[j] > 0.1 * free.max())
     return None, ()
+
+
+def _nonzero(norms):
+    """The norms, with 1 for a zero (whose row or column stays zero)."""
+    return np.where(norms > 0, norms, 1.0)
 
 
 def undetermined_in_stream(state, rtol=IDENTIFIABILITY_RTOL):

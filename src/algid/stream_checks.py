@@ -24,10 +24,11 @@ from functools import cache
 import numpy as np
 
 from algid.errors import InputDataError
+from algid.scaling import AMPLITUDE_BITS
 from algid.validation import UNIFORM_RTOL, as_signal, rounding_quantum, step_tolerance
 
 __all__ = ["check_signals_call", "check_chunk", "check_signals_chunk", "compiled_scan",
-           "float_sample", "AMPLITUDE_BITS", "amplitude_limits", "check_amplitudes",
+           "float_sample", "amplitude_limits", "check_amplitudes",
            "check_channels", "compiled_within", "half_period", "MAX_HALF_PERIOD_SAMPLES"]
 
 _FLOAT64 = np.dtype(np.float64)
@@ -381,14 +382,6 @@ def half_period(period, dt, points):
     return half
 
 
-#: Bits of the floating-point exponent range (up to ``2**1024``) given to the amplitude
-#: of a stream's channels.  Cramer's rule multiplies ``n`` integrals of the channels
-#: (``n`` parameters), each weighted by powers of the time since the origin: a channel may
-#: reach ``2**(AMPLITUDE_BITS // n)`` times the stream's unit (set by its first chunk,
-#: :mod:`algid.scaling`), and the other half of the range is left to those powers (the
-#: paper's model, whose denominator grows like ``t**10``, then runs for ``2**48`` time
-#: units before it overflows; at the unit amplitude, ``2**100``).
-AMPLITUDE_BITS = 512
 
 
 def amplitude_limits(module, divisors, scale):
