@@ -313,8 +313,8 @@ class CausalDifferentiator:
         if not (np.ndim(dt) == 0 and np.isfinite(dt) and dt > 0):
             raise InputDataError(f"dt must be a positive finite number, got {dt!r}")
         self.steps = steps = _window_steps(window, float(dt), True, n, kappa, mu)
-        check_fits(steps + 1, _BYTES_PER_WINDOW_STEP, what=f"a window of {steps * dt:g} s at "
-                   f"step {dt:g} s", unit="steps")
+        check_fits(steps + 1, _BYTES_PER_WINDOW_STEP, what=f"window {steps * dt:g} s at step "
+                   f"{dt:g} s", unit="steps")
         T = steps * float(dt)
         # reversed window: u measured backwards from the current sample, d/dt -> -d/du
         self._taps = (-1.0) ** n * _uniform_taps(steps, n, kappa, mu, N, 0.0) / T ** n
