@@ -218,6 +218,17 @@ def undetermined(module, channels, dt, *, rtol=IDENTIFIABILITY_RTOL, state=None)
             f"channels reach {reach} (as the estimator takes them, after any rescaling by "
             f"a power of two, before any division by the mass): express the signals in "
             f"other units")
+    filter_order = 0 if state is None else state.filter_order
+    if not _cramer_in_range(module, P, Q, span, filter_order):
+        # a model of measured signals alone had its amplitudes brought into range
+        # (algid.scaling); others may have extreme ones
+        reach = "" if not getattr(module, "FACTORS", {}) else " with channels reaching " + \
+            ", ".join(f"{name!r} {float(np.max(np.abs(c))):.4g}"
+                      for name, c in zip(module.CHANNELS, channels))
+        raise InputDataError(
+            f"the estimator's products of integrals overflow or underflow over a time "
+            f"span of {span:.4g} s (step {dt:.4g} s){reach}: express the time"
+            f"{' or the signals' if reach else ''} in other units")
     kind, free = _verdict(module, P, Q, size_p, size_q, rtol)
     parameters = list(module.PARAMETERS)
     named = " and ".join(parameters[j] for j in free)
@@ -233,6 +244,21 @@ def undetermined(module, channels, dt, *, rtol=IDENTIFIABILITY_RTOL, state=None)
         return (f"{named} separately (the terms they multiply are proportional over the "
                 f"record)")
     return None
+
+
+def _cramer_in_range(module, P, Q, span, filter_order):
+    """Whether Cramer's numerators and denominator at the end, integrated by the filter
+    (about ``span**p / p!`` times them), are normal floating-point numbers or zero."""
+    with np.errstate(over="ignore", under="ignore", invalid="ignore"):
+        numerators, denominator = module.cramer(P.tolist(), Q.tolist())
+    gain = filter_order * math.log2(span) - math.log2(math.factorial(filter_order))
+    for value in (*numerators, denominator):
+        value = abs(float(value))
+        if not math.isfinite(value):
+            return False
+        if value and not -1022 <= math.log2(value) + gain <= 1023:
+            return False
+    return True
 
 
 def _verdict(module, P, Q, size_p, size_q, rtol):
@@ -327,3 +353,4 @@ def check_identifiable(module, channels, dt, *, rtol=IDENTIFIABILITY_RTOL, state
     what = undetermined(module, channels, dt, rtol=rtol, state=state)
     if what is not None:
         raise InputDataError(f"the data cannot determine {what}")
+
