@@ -62,8 +62,8 @@ from fractions import Fraction
 import numpy as np
 
 from .errors import InputDataError
-from .memory import check_fits
 from .generated.differentiator_kernels import DERIVATIVES, EXTRA_ORDERS, KAPPA, KERNELS, MU
+from .memory import check_fits
 
 __all__ = ["algebraic_derivative", "CausalDifferentiator", "differentiator_response",
            "differentiator_delay", "DEFAULT_WINDOW_STEPS", "DEFAULT_KAPPA", "DEFAULT_MU"]

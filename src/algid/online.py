@@ -414,8 +414,10 @@ class OnlineEstimator:
         InputDataError
             Bad samples: not 1-D numbers (booleans included), masked, NaN or inf,
             different lengths, time not increasing (within the chunk or from the
-            previous chunk) or not uniform; a missing signal; ``f``, ``x`` for a model
-            that needs ``signals=`` or both given.  The state is left unchanged.
+            previous chunk) or not uniform; beyond the stream's amplitude limit, or a
+            channel of a user model not finite (:mod:`algid.stream_checks`); a missing
+            signal; ``f``, ``x`` for a model that needs ``signals=`` or both given.  The
+            state is left unchanged.
 
         Notes
         -----
@@ -438,8 +440,7 @@ class OnlineEstimator:
                          self._pair_divisors, n=self._n, within=self._within)
         self._take_step(dt, half, scale)  # checks done: from here on the state changes
         m = t.size
-        if self._scale is not None and self._scale != 1.0:
-            f, x = f * self._scale, x * self._scale
+        f, x = (f, x) if scale is None or scale == 1.0 else (f * scale, x * scale)
         channels = (f, x) if self._channel_order == (0, 1) else \
             tuple((f, x)[i] for i in self._channel_order)
         out = np.empty((self._n_parameters, m))
@@ -472,13 +473,9 @@ class OnlineEstimator:
         if not (step > 0.0 and abs(step - dt) <= UNIFORM_RTOL * dt and math.isfinite(f)
                 and math.isfinite(x)):
             return None
-        scale = self._scale
-        limit_f, limit_x = self._limits  # beyond them, update() says why it refuses
-        if scale is None:
-            if self._scalable:  # not chosen yet (:meth:`_scale_of`)
-                return None
-        if not (abs(f) <= limit_f and abs(x) <= limit_x):
-            return None
+        scale, (limit_f, limit_x) = self._scale, self._limits
+        if (scale is None and self._scalable) or not (abs(f) <= limit_f and abs(x) <= limit_x):
+            return None  # no scale yet (:meth:`_scale_of`), or update() says why it refuses
         if scale is not None and scale != 1.0:
             f, x = f * scale, x * scale
         values = (f, x) if self._channel_order == (0, 1) else (x, f)

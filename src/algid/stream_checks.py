@@ -463,8 +463,7 @@ def check_amplitudes(module, names, samples, limits, divisors, *, n, within=None
 
 
 def check_channels(module, channels, limits, *, n, signals, first=0, scale=None):
-    """Refuse a chunk of a user model whose signals or channels are not finite or too
-    large.
+    """Refuse a chunk of a user model with a signal or channel not finite or too large.
 
     Parameters
     ----------
