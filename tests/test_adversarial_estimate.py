@@ -223,3 +223,37 @@ def test_the_large_error_warning_names_the_sampling_only_when_it_is_the_cause(
         assert ("resample faster" in err) == (name == "coarse"), err
         if name != "coarse":
             assert "does not come from the sampling" in err
+
+
+# ----------------------------------------------------------------- model simulation
+
+
+@pytest.mark.parametrize("change, words", [
+    ({"parameters": {"B": None}}, "parameter 'B' must be a real number, got None"),
+    ({"parameters": {"B": "1"}}, "parameter 'B' must be a real number"),
+    ({"parameters": {"G": 1e308}, "scale": 10.0}, "known terms"),
+    ({"time": "abc"}, "time must be numbers"),
+    ({"inputs": "list"}, "inputs must be a mapping"),
+    ({"inputs": {"u": "abc"}}, "input 'u' must be numbers"),
+    ({"spike": 1e308}, "too large to interpolate"),
+    ({"spike": 1e308, "interpolation": "cubic"}, "too large to interpolate"),
+    ({"initial_state": "ab"}, "initial_state must be numbers"),
+    ({"method": "XYZ"}, "method must be one of"),
+    ({"rtol": -1.0}, "rtol must be a positive number"),
+    ({"method": "RK4", "substeps": "4"}, "substeps must be a positive integer"),
+    ({"method": "RK4", "substeps": 10**12}, "of memory"),
+])
+def test_simulate_model_refuses_bad_arguments_in_one_line(change, words):
+    from algid.grammar import parse_equation
+    from algid.model_simulation import simulate_model
+    model = parse_equation("y'' + B*y' + K*y = G*u", "B K G")
+    t = np.arange(200) / 100.0
+    u = np.sin(t) * change.pop("scale", 1.0)
+    if "spike" in change:
+        u[-1] = change.pop("spike")
+    parameters = {"B": 1.0, "K": 4.0, "G": 1.0, **change.pop("parameters", {})}
+    inputs = change.pop("inputs", {"u": u})
+    inputs = [u] if inputs == "list" else inputs
+    with pytest.raises(AlgidError) as exc:
+        simulate_model(model, parameters, change.pop("time", t), inputs, **change)
+    assert words in one_line(exc)

@@ -47,6 +47,7 @@ from __future__ import annotations
 
 import bisect
 import math
+import numbers
 
 import numpy as np
 from scipy.integrate import solve_ivp
@@ -57,8 +58,10 @@ from scipy.signal import firwin, resample_poly
 from .differentiation import algebraic_derivative
 from .errors import InputDataError, ModelError
 from .expression import Call, Constant, Power, Product, Signal, Sum, Time
+from .memory import check_fits
 
-__all__ = ["simulate_model", "fit_initial_state", "UPSAMPLING", "FILTER_HALF_LENGTH"]
+__all__ = ["simulate_model", "fit_initial_state", "UPSAMPLING", "FILTER_HALF_LENGTH",
+           "METHODS"]
 
 #: Band-limited interpolation: upsampling factor and filter half-length (input samples).
 UPSAMPLING = 16
@@ -108,7 +111,11 @@ def _weight(term, parameters):
         return float(term.coefficient)
     if term.parameter not in parameters:
         raise ModelError(f"no value for the parameter {term.parameter!r}")
-    value = float(parameters[term.parameter])
+    value = parameters[term.parameter]
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Real):
+        raise ModelError(f"parameter {term.parameter!r} must be a real number, got "
+                         f"{value!r:.40}")
+    value = float(value)
     if not math.isfinite(value):
         raise ModelError(f"parameter {term.parameter!r} is not finite: {value!r}")
     return float(term.coefficient) * value
@@ -145,6 +152,12 @@ def _extrapolate(values, count, *, order=32, span=512):
     return np.concatenate([before[::-1], values, after])
 
 
+def _too_large(values):
+    raise InputDataError(
+        f"a signal of the model (largest |value| {np.max(np.abs(values)):.4g}) is too large "
+        f"to interpolate in floating point: express it in other units")
+
+
 class _Interpolant:
     """A sampled signal interpolated between samples, evaluated fast at scalar times."""
 
@@ -154,15 +167,25 @@ class _Interpolant:
             taps = firwin(2 * FILTER_HALF_LENGTH * UPSAMPLING + 1, 1.0 / UPSAMPLING,
                           window=("kaiser", _KAISER_BETA))
             margin = FILTER_HALF_LENGTH + 16
-            extended = _extrapolate(values, margin)
-            fine = resample_poly(extended, UPSAMPLING, 1, window=taps, padtype="antireflect")
+            with np.errstate(all="ignore"):  # out of range: refused below
+                extended = _extrapolate(values, margin)
+                fine = resample_poly(extended, UPSAMPLING, 1, window=taps,
+                                     padtype="antireflect")
+            if not np.isfinite(fine).all():
+                _too_large(values)
             skip = (margin if len(extended) > len(values) else 0) * UPSAMPLING
             fine = fine[skip:skip + (len(t) - 1) * UPSAMPLING + 1]
             grid = t[0] + np.arange(len(fine)) * (step / UPSAMPLING)
             grid[-1] = t[-1]
-            spline = CubicSpline(grid, fine)
         else:
-            spline = CubicSpline(t, values)
+            grid, fine = t, values
+        try:
+            with np.errstate(all="ignore"):
+                spline = CubicSpline(grid, fine)
+        except ValueError:  # its slopes overflow
+            _too_large(values)
+        if not np.isfinite(spline.c).all():
+            _too_large(values)
         self.spline = spline
         self.knots = spline.x.tolist()
         # polynomial pieces c0 (t - x_i)**3 + c1 (...)**2 + c2 (...) + c3, as lists
@@ -178,17 +201,30 @@ class _Interpolant:
         return self.spline(t, order)
 
 
+def _floats(values, what):
+    """``values`` as a float64 array, or a one-line error naming ``what``."""
+    if isinstance(values, (str, bytes)) or values is None:
+        raise InputDataError(f"{what} must be numbers, got {values!r:.40}")
+    try:
+        return np.asarray(values, dtype=float)
+    except (TypeError, ValueError):
+        raise InputDataError(f"{what} must be numbers, got {values!r:.60}") from None
+
+
 def _check_time_and_inputs(time, inputs, names):
-    t = np.asarray(time, dtype=float)
+    t = _floats(time, "time")
     if t.ndim != 1 or len(t) < 4:
         raise InputDataError("time must be a 1-D array of at least 4 sample times")
     if not np.all(np.isfinite(t)) or np.any(np.diff(t) <= 0):
         raise InputDataError("time must be finite and strictly increasing")
+    if not hasattr(inputs, "items"):
+        raise InputDataError(f"inputs must be a mapping of signal name -> samples, got "
+                             f"{type(inputs).__name__}")
     columns = {}
     for name in names:
         if name not in inputs:
             raise InputDataError(f"no samples for the input {name!r}")
-        values = np.asarray(inputs[name], dtype=float)
+        values = _floats(inputs[name], f"input {name!r}")
         if values.shape != t.shape:
             raise InputDataError(f"input {name!r} has shape {values.shape}, time has {t.shape}")
         if not np.all(np.isfinite(values)):
@@ -250,7 +286,12 @@ class _OutputEquation:
                         self.inputs[name] = splines[name]
                 self.state_terms.append((weight, factor))
             else:
-                forcing += weight * self._known_values(term, columns, splines, t)
+                with np.errstate(over="ignore", invalid="ignore"):
+                    forcing += weight * self._known_values(term, columns, splines, t)
+        if not np.isfinite(forcing).all():
+            raise InputDataError(f"the known terms of {model.equation!r} overflow in "
+                                 f"floating point with these parameters and inputs: express "
+                                 f"them in other units")
         self.forcing = _Interpolant(t, forcing, interpolation)
         # scalar closures over one list: the state, then the interpolated inputs
         keys = [(output, k) for k in range(self.order)] + list(self.inputs)
@@ -350,20 +391,44 @@ def _integrate_rk4(equation, t, state, substeps):
     return out
 
 
+#: The integrators of :func:`simulate_model`: those of :func:`scipy.integrate.solve_ivp`,
+#: and the classical Runge-Kutta method of fixed steps.
+METHODS = ("RK23", "RK45", "DOP853", "Radau", "BDF", "LSODA", "RK4")
+#: Peak memory of ``method="RK4"`` per step and half step [bytes] (the interpolated
+#: inputs and forcing as lists of floats), checked before the grid is made.
+_RK4_BYTES_PER_POINT = 128
+
+
+def _check_integrator(method, rtol, atol, substeps, n_samples):
+    """Refuse an unknown method, tolerances that are not positive numbers, or sub-steps
+    that are not a positive integer or whose grid does not fit in memory."""
+    if not isinstance(method, str) or method not in METHODS:
+        raise InputDataError(f"method must be one of {', '.join(METHODS)}, got {method!r}")
+    for name, value in (("rtol", rtol), ("atol", atol)):
+        if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Real) \
+                or not 0 < value < math.inf:
+            raise InputDataError(f"{name} must be a positive number, got {value!r:.40}")
+    if method == "RK4":
+        if isinstance(substeps, (bool, np.bool_)) or not isinstance(substeps, numbers.Integral) \
+                or substeps < 1:
+            raise InputDataError(f"substeps must be a positive integer, got {substeps!r}")
+        check_fits(2 * int(substeps) * n_samples, _RK4_BYTES_PER_POINT,
+                   what=f"RK4 with {substeps} substeps", unit="steps")
+
+
 def _integrate(equation, t, initial_state, method, rtol, atol, substeps=4):
+    _check_integrator(method, rtol, atol, substeps, len(t))
     state = np.zeros(equation.order) if initial_state is None else \
-        np.asarray(initial_state, dtype=float).ravel()
+        _floats(initial_state, "initial_state").ravel()
     if state.shape != (equation.order,) or not np.all(np.isfinite(state)):
         raise InputDataError(f"initial_state must hold {equation.order} finite values "
                              f"(the output and its derivatives up to order "
                              f"{equation.order - 1}), got {initial_state!r}")
     if method == "RK4":
-        substeps = int(substeps)
-        if substeps < 1:
-            raise InputDataError(f"substeps must be a positive integer, got {substeps!r}")
-        return _integrate_rk4(equation, t, state, substeps)
-    solution = solve_ivp(equation, (t[0], t[-1]), state, method=method, t_eval=t,
-                         rtol=rtol, atol=atol)
+        return _integrate_rk4(equation, t, state, int(substeps))
+    with np.errstate(over="ignore", invalid="ignore"):  # a diverging model: NaN below
+        solution = solve_ivp(equation, (t[0], t[-1]), state, method=method, t_eval=t,
+                             rtol=rtol, atol=atol)
     out = np.full((equation.order, len(t)), np.nan)
     out[:, :solution.y.shape[1]] = solution.y  # a diverging model stops early: NaN after
     return out
