@@ -257,3 +257,9 @@ def test_simulate_model_refuses_bad_arguments_in_one_line(change, words):
     with pytest.raises(AlgidError) as exc:
         simulate_model(model, parameters, change.pop("time", t), inputs, **change)
     assert words in one_line(exc)
+
+
+def test_a_rate_too_small_for_the_times_is_named(sine, capsys, tmp_path):
+    path = write_csv(tmp_path / "d.csv", sine.t, sine.f, sine.x)
+    code, _, err = run(capsys, "estimate", str(path), "--rate", "1e-308")
+    assert_one_line_error(code, err, "--rate 1e-308 Hz")

@@ -387,9 +387,16 @@ def _cmd_estimate(args) -> int:
     if args.input == args.output:
         raise InputDataError(f"--input and --output name the same column {args.input!r}: "
                              "the model needs the input and the output measured apart")
-    t, f, x = read_experiment(
-        args.file, time=time, input=args.input, output=args.output, rate=args.rate
-    )
+    import numpy as np
+
+    with np.errstate(over="ignore"):  # the times at a tiny --rate: refused below
+        t, f, x = read_experiment(
+            args.file, time=time, input=args.input, output=args.output, rate=args.rate
+        )
+    if args.rate is not None and t.size and not np.isfinite(t[-1]):
+        raise InputDataError(f"{args.file}: --rate {args.rate:g} Hz puts the times of its "
+                             f"{t.size} samples beyond the floating-point range: give the "
+                             f"rate in other units")
     try:
         t, f, x, _ = check_experiment(t, f, x, names=(time, args.input, args.output))
     except InputDataError as exc:
