@@ -171,3 +171,15 @@ def test_a_user_model_signal_or_channel_too_large_is_refused_also_in_the_warm_up
         part = {"y": y[start:stop], "u": u[start:stop]}
         _results_equal(clean.update(t[start:stop], signals=part),
                        hit.update(t[start:stop], signals=part))
+
+
+@pytest.mark.parametrize("engine", ENGINES)
+def test_a_huge_mass_is_refused_as_in_batch(record, engine):
+    t, f, x = record
+    with pytest.raises(InputDataError, match="mass 1e.308 is at most"):
+        algid.estimate(t, f, x, mass=1e308, engine=engine)
+    est = algid.OnlineEstimator(engine=engine, mass=1e308)
+    with pytest.raises(InputDataError) as exc:
+        est.update(t[:100], f[:100], x[:100])
+    assert "signal 'f' divided by the mass 1e+308 is at most" in _one_line(exc)
+    assert est.n_seen == 0 and est.dt is None

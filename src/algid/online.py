@@ -437,7 +437,8 @@ class OnlineEstimator:
         module = self._module
         check_amplitudes(module, (module.INPUT, module.OUTPUT), (f, x),
                          self._limits if scale == self._scale else self._pair_limits(scale),
-                         self._pair_divisors, n=self._n, within=self._within)
+                         self._pair_divisors, n=self._n, within=self._within,
+                         new_scale=scale != self._scale, scale=scale)
         self._take_step(dt, half, scale)  # checks done: from here on the state changes
         m = t.size
         f, x = (f, x) if scale is None or scale == 1.0 else (f * scale, x * scale)

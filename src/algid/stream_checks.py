@@ -24,7 +24,7 @@ from functools import cache
 import numpy as np
 
 from algid.errors import InputDataError
-from algid.scaling import AMPLITUDE_BITS
+from algid.scaling import AMPLITUDE_BITS, check_amplitude_range
 from algid.validation import UNIFORM_RTOL, as_signal, rounding_quantum, step_tolerance
 
 __all__ = ["check_signals_call", "check_chunk", "check_signals_chunk", "compiled_scan",
@@ -421,7 +421,8 @@ def _unit_phrase(module, divisor):
             f"the products of the estimator's integrals overflow")
 
 
-def check_amplitudes(module, names, samples, limits, divisors, *, n, within=None):
+def check_amplitudes(module, names, samples, limits, divisors, *, n, within=None,
+                     new_scale=False, scale=None):
     """Refuse a chunk with a sample beyond its channel's :func:`amplitude_limits`.
 
     Parameters
@@ -441,12 +442,20 @@ def check_amplitudes(module, names, samples, limits, divisors, *, n, within=None
     within : callable, optional
         :func:`compiled_within`, to check the two signals (``f``, ``x``) in one compiled
         pass.
+    new_scale : bool, optional
+        Whether the chunk sets the stream's scale: its signals, divided by their
+        divisors, must then also fit together in floating point, as a record's must
+        (:func:`algid.scaling.check_amplitude_range`).
+    scale : float or None, optional
+        The stream's scale (:mod:`algid.scaling`), with ``new_scale``.
 
     Raises
     ------
     InputDataError
         Naming the signal, the sample and the limit; the stream is unchanged.
     """
+    if new_scale:
+        check_amplitude_range(names, samples, divisors, scale, len(module.PARAMETERS))
     if within is not None:  # the common case, in one compiled pass
         f, x = samples
         if type(f) is np.ndarray and type(x) is np.ndarray and f.dtype is _FLOAT64 and \
