@@ -218,18 +218,19 @@ def undetermined(module, channels, dt, *, rtol=IDENTIFIABILITY_RTOL, state=None)
             f"channels reach {reach} (as the estimator takes them, after any rescaling by "
             f"a power of two, before any division by the mass): express the signals in "
             f"other units")
-    filter_order = 0 if state is None else state.filter_order
-    if not _cramer_in_range(module, P, Q, span, filter_order):
-        # a model of measured signals alone had its amplitudes brought into range
-        # (algid.scaling); others may have extreme ones
-        reach = "" if not getattr(module, "FACTORS", {}) else " with channels reaching " + \
-            ", ".join(f"{name!r} {float(np.max(np.abs(c))):.4g}"
-                      for name, c in zip(module.CHANNELS, channels))
-        raise InputDataError(
-            f"the estimator's products of integrals overflow or underflow over a time "
-            f"span of {span:.4g} s (step {dt:.4g} s){reach}: express the time"
-            f"{' or the signals' if reach else ''} in other units")
     kind, free = _verdict(module, P, Q, size_p, size_q, rtol)
+    if kind is None:  # determined, if the products of its entries are in range
+        filter_order = 0 if state is None else state.filter_order
+        if not _cramer_in_range(module, P, Q, span, filter_order):
+            # a model of measured signals alone had its amplitudes brought into range
+            # (algid.scaling); others may have extreme ones
+            reach = "" if not getattr(module, "FACTORS", {}) else " with channels reaching " + \
+                ", ".join(f"{name!r} {float(np.max(np.abs(c))):.4g}"
+                          for name, c in zip(module.CHANNELS, channels))
+            raise InputDataError(
+                f"the estimator's products of integrals overflow or underflow over a time "
+                f"span of {span:.4g} s (step {dt:.4g} s){reach}: express the time"
+                f"{' or the signals' if reach else ''} in other units")
     parameters = list(module.PARAMETERS)
     named = " and ".join(parameters[j] for j in free)
     if kind == "silent":
