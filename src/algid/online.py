@@ -552,8 +552,8 @@ class OnlineEstimator:
         half, scale = self._half_of(dt), self._scale_of(tuple(checked.values()))
         m = t.size
         saved, unit = self._channel_stream.state(), 1.0 if scale is None else scale
-        channels = self._channel_stream.update(
-            {name: values * unit for name, values in checked.items()}, t)
+        channels = self._channel_stream.update(checked if unit == 1.0 else {
+            name: values * unit for name, values in checked.items()}, t)
         # the differentiator's warm-up: no channel yet, no estimate
         skip = min(max(self._channel_stream.warmup - self._warmed, 0), m)
         try:
