@@ -38,9 +38,9 @@ SAFE_AMPLITUDES = (2.0**-64, 2.0**64)
 #: of the channels.  Cramer's rule multiplies ``n`` integrals of the channels (``n``
 #: parameters), each weighted by powers of the time since the origin: a channel may reach
 #: ``2**(AMPLITUDE_BITS // n)`` (after the rescaling, divided by a known mass), and the
-#: other half of the range is left to those powers (the paper's model, whose denominator
-#: grows like ``t**10``, then runs for ``2**48`` time units before it overflows; at unit
-#: amplitude, ``2**100``).
+#: other half of the range is left to those powers (the paper's model, whose numerators
+#: and denominator grow like ``t**10`` to ``t**11`` with the default filter, then runs for
+#: about ``2**46`` time units before it overflows; at unit amplitude, ``2**93``).
 AMPLITUDE_BITS = 512
 
 
