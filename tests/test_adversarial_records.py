@@ -288,4 +288,4 @@ def test_estimate_warning_names_noise_or_resolution(capsys, files):
     code, _, err = run(capsys, "estimate", coarse, "--input", "u", "--output", "y")
     lines = err.splitlines()
     assert code == 0 and len(lines) == 1
-    assert "shows no noise floor" in lines[0] and "resample faster" in lines[0]
+    assert "shows no noise floor" in lines[0] and "samples per period" in lines[0]

@@ -18,7 +18,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 import algid
-from algid import cli
+from algid import error_diagnosis
 
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
@@ -78,8 +78,8 @@ def test_well_resolved_plants_raise_no_warning(plant):
     # within the command line's warning threshold, and reported so (the error depends
     # on the excitation too: about 1.5e-4 for three sines at one frequency at zeta = 1)
     result = algid.estimate(*exact_response(plant))
-    assert result.final_numerical_error() <= cli.NUMERICAL_ERROR_WARNING
-    assert final_error(result, plant) <= cli.NUMERICAL_ERROR_WARNING
+    assert result.final_numerical_error() <= error_diagnosis.NUMERICAL_ERROR_WARNING
+    assert final_error(result, plant) <= error_diagnosis.NUMERICAL_ERROR_WARNING
 
 
 @SETTINGS

@@ -15,6 +15,7 @@ import argparse
 import importlib
 import json
 import math
+import re
 import sys
 
 from .errors import AlgidError, InputDataError, ModelError
@@ -50,6 +51,11 @@ class _Parser(argparse.ArgumentParser):
     exit code 2, and points at ``--help`` for the usage.  Sub-parsers are of the same
     class.
     """
+
+    def __init__(self, *args, **kwargs):
+        super().__init__(*args, **kwargs)
+        # negative numbers with an exponent (--v0 -1e-3) are values, not options
+        self._negative_number_matcher = re.compile(r"^-(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?$")
 
     def error(self, message):
         """Print ``message`` on one line with a pointer to ``--help``; exit with code 2."""
@@ -362,36 +368,8 @@ def _finite_or_none(value):
     return value if math.isfinite(value) else None
 
 
-#: Above this estimated relative numerical error ``algid estimate`` warns on stderr.
-NUMERICAL_ERROR_WARNING = 1e-3
-
-
-def _warn_numerical_error(source, error, output, x):
-    """One line on stderr when the final estimate's error is large, with what the data
-    say of its cause: white noise where the output's differences reach a noise floor,
-    else too few samples per period (or a model that does not fit)."""
-    if not error > NUMERICAL_ERROR_WARNING:
-        return
-    if math.isinf(error):
-        print(f"warning: {source}: the data do not determine the estimate; use a record "
-              f"that excites the model", file=sys.stderr)
-        return
-    from .records import white_noise_floor
-
-    noisy, variance = white_noise_floor(x)
-    spread = float(x.std()) if len(x) else 0.0
-    if noisy and spread > 0:
-        cause = (f"{output!r} carries white noise of about {math.sqrt(variance) / spread:.1e} "
-                 f"of its rms: a higher --filter-order or a longer record reduces its effect")
-    else:
-        cause = (f"{output!r} shows no noise floor: too few samples per period of the "
-                 f"signals, or a model that does not fit them (resample faster or use a "
-                 f"longer record)")
-    print(f"warning: {source}: estimated relative error {error:.1e}; {cause}",
-          file=sys.stderr)
-
-
 def _cmd_estimate(args) -> int:
+    from .error_diagnosis import numerical_error_warning
     from .io import read_experiment
     from .validation import check_experiment
 
@@ -405,9 +383,16 @@ def _cmd_estimate(args) -> int:
             raise InputDataError(f"{seen[column]} and {option} name the same column "
                                  f"{column!r}")
         seen[column] = option
-    t, f, x = read_experiment(
-        args.file, time=time, input=args.input, output=args.output, rate=args.rate
-    )
+    import numpy as np
+
+    with np.errstate(over="ignore"):  # the times at a tiny --rate: refused below
+        t, f, x = read_experiment(
+            args.file, time=time, input=args.input, output=args.output, rate=args.rate
+        )
+    if args.rate is not None and t.size and not np.isfinite(t[-1]):
+        raise InputDataError(f"{args.file}: --rate {args.rate:g} Hz puts the times of its "
+                             f"{t.size} samples beyond the floating-point range: give the "
+                             f"rate in other units")
     try:
         t, f, x, _ = check_experiment(t, f, x, names=(time, args.input, args.output))
     except InputDataError as exc:
@@ -423,7 +408,17 @@ def _cmd_estimate(args) -> int:
     names = tuple(result.parameters)
     t_valid = float(result.t_valid)
     error = getattr(result, "final_numerical_error", lambda: math.nan)()
-    _warn_numerical_error(args.file, error, args.output, x)
+
+    def half_rate_error():
+        try:
+            return estimator.estimate(t[::2], f[::2], x[::2],
+                                      **options).final_numerical_error()
+        except AlgidError:  # too short at half the rate
+            return math.nan
+
+    warning = numerical_error_warning(args.file, error, half_rate_error, args.output, x)
+    if warning:
+        print(warning, file=sys.stderr)
     if args.json:
         payload = {name: _finite_or_none(final[name]) for name in names}
         payload["t_valid"] = _finite_or_none(t_valid)

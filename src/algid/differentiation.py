@@ -66,6 +66,7 @@ import numpy as np
 
 from .errors import InputDataError
 from .generated.differentiator_kernels import DERIVATIVES, EXTRA_ORDERS, KAPPA, KERNELS, MU
+from .memory import check_fits
 
 __all__ = ["algebraic_derivative", "CausalDifferentiator", "differentiator_response",
            "differentiator_delay", "DEFAULT_WINDOW_STEPS", "DEFAULT_KAPPA", "DEFAULT_MU"]
@@ -77,6 +78,9 @@ DEFAULT_KAPPA = 2
 DEFAULT_MU = 2
 #: Windows integrated at once on a non-uniform grid (bounds the working memory).
 _CHUNK_ROWS = 4096
+#: Peak memory of the taps of a window [bytes per step] (measured: about 100 for the
+#: causal differentiator, most of it the least-squares correction of the taps).
+_BYTES_PER_WINDOW_STEP = 256
 #: Largest step allowed on a non-uniform grid, as a fraction of the window.
 _MAX_GAP = 0.25
 _MAX_DERIVATIVE = DERIVATIVES.stop - 1 - (EXTRA_ORDERS.stop - 1)
@@ -244,8 +248,12 @@ def _window_steps(window, dt, causal, n, kappa, mu):
     if window is None:
         steps = DEFAULT_WINDOW_STEPS
     else:
-        if not (np.ndim(window) == 0 and np.isfinite(window) and window > 0):
+        if isinstance(window, (bool, np.bool_, str, bytes)) or not (
+                np.ndim(window) == 0 and np.isfinite(window) and window > 0):
             raise InputDataError(f"window must be a positive duration in seconds, got {window!r}")
+        if not window / dt <= 2.0**53:  # also inf
+            raise InputDataError(f"window {window:g} s is {window / dt:.4g} steps of {dt:g} s: "
+                                 f"more than 2**53, beyond which sample counts are not exact")
         steps = max(int(round(window / dt)), 2)
     if not causal:
         # a whole number of steps before the centre xi = p/q: steps a multiple of q
@@ -328,6 +336,8 @@ class CausalDifferentiator:
         if not (np.ndim(dt) == 0 and np.isfinite(dt) and dt > 0):
             raise InputDataError(f"dt must be a positive finite number, got {dt!r}")
         self.steps = steps = _window_steps(window, float(dt), True, n, kappa, mu)
+        check_fits(steps + 1, _BYTES_PER_WINDOW_STEP, what=f"window {steps * dt:g} s at step "
+                   f"{dt:g} s", unit="steps")
         T = steps * float(dt)
         # reversed window: u measured backwards from the current sample, d/dt -> -d/du
         self._taps = (-1.0) ** n * _uniform_taps(steps, n, kappa, mu, N, 0.0) / T ** n
@@ -340,6 +350,26 @@ class CausalDifferentiator:
         """Forget the stream: the next sample is the first."""
         self._history = np.empty(0)
         self._seen = 0
+
+    def state(self):
+        """What the differentiator carries from one chunk to the next, for :meth:`restore`.
+
+        Returns
+        -------
+        tuple
+            Not to be modified (:meth:`update` replaces it, never changes it).
+        """
+        return self._history, self._seen
+
+    def restore(self, state):
+        """Go back to a :meth:`state` taken before: the samples since are forgotten.
+
+        Parameters
+        ----------
+        state : tuple
+            From :meth:`state`.
+        """
+        self._history, self._seen = state
 
     def update(self, y):
         """Estimates of the derivative at the next samples of the stream.
