@@ -33,7 +33,8 @@ from algid.errors import ModelError
 from algid.expression import FUNCTIONS, ONE, Call, Constant, Expr, Power, Product, Signal, Sum, Time
 from algid.model import Model, Term
 
-__all__ = ["parse_equation", "check_name", "RESERVED_NAMES", "LIMITS"]
+__all__ = ["parse_equation", "parse_expression", "chain_operands", "check_name",
+           "RESERVED_NAMES", "LIMITS"]
 
 #: Names with a fixed meaning in an equation.
 RESERVED_NAMES = ("t", "pi")
@@ -400,7 +401,7 @@ def _replace_primes(equation):
     return text
 
 
-def _parse_side(equation, text, reader):
+def _syntax_tree(equation, text):
     text = text.strip()
     try:
         tree = ast.parse(text, mode="eval")
@@ -409,7 +410,67 @@ def _parse_side(equation, text, reader):
     except (RecursionError, MemoryError):
         _fail(equation, f"expressions nested more than {LIMITS['nesting']} deep")
     _check_tree(equation, tree)
-    return reader.read(text, tree)
+    return text, tree
+
+
+def _parse_side(equation, text, reader):
+    return reader.read(*_syntax_tree(equation, text))
+
+
+def parse_expression(text):
+    """The syntax tree of an expression, with the limits and characters of an equation.
+
+    For other readers of user text (such as the coefficients of
+    :class:`algid.symbolic.LinearODEModel`): the tree is only checked, not
+    interpreted; read it with a whitelist of node types, and its chains of ``+ -`` and
+    ``* /`` with :func:`chain_operands` (they may be longer than the nesting limit).
+
+    Parameters
+    ----------
+    text : str
+        The expression, e.g. ``"2*B + 1"``.
+
+    Returns
+    -------
+    ast.Expression
+
+    Raises
+    ------
+    ModelError
+        One line naming the problem.
+    """
+    if not isinstance(text, str) or not text.strip():
+        raise ModelError(f"expression {text!r} is empty or not text")
+    if len(text) > LIMITS["length"]:
+        raise ModelError(f"expression of {len(text)} characters (at most {LIMITS['length']})")
+    expression = " ".join(text.split())
+    _check_characters(expression)
+    _check_parentheses(expression)
+    if "'" in expression or "=" in expression:
+        _fail(expression, "an expression has no primes and no '='")
+    return _syntax_tree(expression, expression)[1]
+
+
+def chain_operands(node):
+    """A chain ``a + b - c ...`` (or ``a * b / c ...``) as its first operand and the rest.
+
+    Parameters
+    ----------
+    node : ast.BinOp
+        The last operation of the chain.
+
+    Returns
+    -------
+    first : ast.expr
+    rest : list of (ast.operator, ast.expr)
+        The operations, left to right.
+    """
+    links = []
+    while _is_chain_link(node.left, node):
+        links.append(node)
+        node = node.left
+    links.append(node)
+    return node.left, [(link.op, link.right) for link in reversed(links)]
 
 
 def _check_parameters(parameters, equation):
