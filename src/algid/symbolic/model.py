@@ -31,6 +31,7 @@ TIME = sp.Symbol("t", nonnegative=True)
 LAPLACE = sp.Symbol("s")
 
 _NAME = re.compile(r"[A-Za-z][A-Za-z0-9_]*")
+_DIFFERENTIATED = re.compile(r"\b([A-Za-z_][A-Za-z0-9_]*)\s*'")
 _OPERATIONS = {ast.Add: sp.Add, ast.Sub: lambda a, b: a - b, ast.Mult: sp.Mul,
                ast.Div: lambda a, b: a / b}
 
@@ -339,18 +340,17 @@ class LinearODEModel:
         for sig in (output, input):
             if not isinstance(sig, str) or not _NAME.fullmatch(sig):
                 raise ModelError(f"signal name {sig!r} is not a usable identifier")
+        if isinstance(equation, str) and len(equation) <= LIMITS["length"]:
+            # a derivative of another signal is the likely mistake: say so first
+            for sig in _DIFFERENTIATED.findall(equation):
+                if sig not in (output, input):
+                    raise ModelError(f"equation {' '.join(equation.split())[:80]!r}: {sig!r} "
+                                     f"is differentiated but is not the output {output!r} "
+                                     f"or the input {input!r}")
         model = parse_equation(equation, parameters, name=name,
                                output=output if _mentions(equation, output) else None)
         shown = model.equation if len(model.equation) <= 80 else model.equation[:77] + "..."
         stray = [sig for sig in model.signals if sig not in (output, input)]
-        for term in model.terms:
-            reads = term.factor.derivatives()
-            if term.derivative and isinstance(term.factor, Signal):
-                reads += ((term.factor.name, term.derivative),)
-            for sig, _ in reads:
-                if sig in stray:
-                    raise ModelError(f"equation {shown!r}: {sig!r} is differentiated but is "
-                                     f"not the output {output!r} or the input {input!r}")
         if stray:
             raise ModelError(f"equation {shown!r} uses unknown names {sorted(stray)}")
         coefficients = {output: {}, input: {}}
