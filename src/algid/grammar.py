@@ -34,6 +34,7 @@ from algid.expression import FUNCTIONS, ONE, Call, Constant, Expr, Power, Produc
 from algid.model import Model, Term
 
 __all__ = ["parse_equation", "parse_expression", "chain_operands", "check_name",
+           "check_text",
            "RESERVED_NAMES", "LIMITS"]
 
 #: Names with a fixed meaning in an equation.
@@ -531,6 +532,36 @@ def _output(terms, signals, output, equation):
     return candidates[0]
 
 
+def check_text(text):
+    """The checks of an equation's text that come before reading it.
+
+    Parameters
+    ----------
+    text : str
+        The equation.
+
+    Returns
+    -------
+    str
+        The text on one line (runs of whitespace made one space).
+
+    Raises
+    ------
+    ModelError
+        Empty, too long, a character outside the grammar (``#``, quotes, brackets,
+        non-ASCII), or parentheses nested beyond ``LIMITS["nesting"]``.
+    """
+    if not isinstance(text, str) or not text.strip():
+        raise ModelError("the equation is empty")
+    if len(text) > LIMITS["length"]:
+        raise ModelError(f"equation {_shown(' '.join(text[:200].split()))!r}: "
+                         f"{len(text)} characters (at most {LIMITS['length']})")
+    equation = " ".join(text.split())
+    _check_characters(equation)
+    _check_parentheses(equation)
+    return equation
+
+
 def parse_equation(text, parameters, *, output=None, name="custom", signals=None) -> Model:
     """Read a model equation.
 
@@ -556,21 +587,14 @@ def parse_equation(text, parameters, *, output=None, name="custom", signals=None
     ModelError
         One line naming the problem.
     """
-    if not isinstance(text, str) or not text.strip():
-        raise ModelError("the equation is empty")
-    if len(text) > LIMITS["length"]:
-        raise ModelError(f"equation {_shown(' '.join(text[:200].split()))!r}: "
-                         f"{len(text)} characters (at most {LIMITS['length']})")
+    equation = check_text(text)
     check_name(name, "model name")
-    equation = " ".join(text.split())
-    _check_characters(equation)
     parameters = _check_parameters(parameters, equation)
     if signals is not None:
         signals = tuple(check_name(signal, "signal name") for signal in signals)
         clash = set(signals) & set(parameters)
         if clash:
             _fail(equation, f"{sorted(clash)[0]} is both a signal and a parameter")
-    _check_parentheses(equation)
     prepared = _replace_primes(equation)
     sides = re.split(r"(?<![=!<>])=(?!=)", prepared)
     if len(sides) != 2 or any(op in prepared for op in ("==", "<", ">", "!")):

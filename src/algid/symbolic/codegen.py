@@ -31,8 +31,17 @@ class _Printer(PythonCodePrinter):
     """Plain arithmetic on array arguments; rationals as quotients, floats as the
     literal of their double."""
 
+    def _print_Integer(self, expr):
+        # beyond 2**53 an integer is not exact in a double anyway, and is no integer
+        # literal a JIT compiler takes
+        return str(expr.p) if abs(expr.p) < 2 ** 53 else self._print_Float(expr)
+
     def _print_Rational(self, expr):
-        return f"({expr.p}/{expr.q})" if expr.q != 1 else str(expr.p)
+        if expr.q == 1:
+            return self._print_Integer(expr)
+        if abs(expr.p) < 2 ** 53 and expr.q < 2 ** 53:
+            return f"({expr.p}/{expr.q})"
+        return self._print_Float(expr)
 
     def _print_Float(self, expr):
         text = repr(float(expr))  # the double itself, all its digits

@@ -21,7 +21,14 @@ import sympy as sp
 
 from algid.errors import ModelError
 from algid.expression import Signal
-from algid.grammar import LIMITS, chain_operands, check_name, parse_equation, parse_expression
+from algid.grammar import (
+    LIMITS,
+    chain_operands,
+    check_name,
+    check_text,
+    parse_equation,
+    parse_expression,
+)
 
 __all__ = ["LinearODEModel", "TIME", "LAPLACE", "exact_number"]
 
@@ -340,13 +347,12 @@ class LinearODEModel:
         for sig in (output, input):
             if not isinstance(sig, str) or not _NAME.fullmatch(sig):
                 raise ModelError(f"signal name {sig!r} is not a usable identifier")
-        if isinstance(equation, str) and len(equation) <= LIMITS["length"]:
-            # a derivative of another signal is the likely mistake: say so first
-            for sig in _DIFFERENTIATED.findall(equation):
-                if sig not in (output, input):
-                    raise ModelError(f"equation {' '.join(equation.split())[:80]!r}: {sig!r} "
-                                     f"is differentiated but is not the output {output!r} "
-                                     f"or the input {input!r}")
+        # a derivative of another signal is the likely mistake: say so first
+        for sig in _DIFFERENTIATED.findall(check_text(equation)):
+            if sig not in (output, input):
+                raise ModelError(f"equation {' '.join(equation.split())[:80]!r}: {sig!r} "
+                                 f"is differentiated but is not the output {output!r} "
+                                 f"or the input {input!r}")
         model = parse_equation(equation, parameters, name=name,
                                output=output if _mentions(equation, output) else None)
         shown = model.equation if len(model.equation) <= 80 else model.equation[:77] + "..."
