@@ -363,8 +363,8 @@ class LinearODEModel:
         for term in model.terms:
             factor = term.factor
             if not isinstance(factor, Signal) or factor.derivative:
-                problem = ("has a term {} that is not proportional to {!r}, {!r} or a "
-                           "derivative".format(term, output, input) if not factor.signals()
+                problem = (f"has a term {term} that is not proportional to {output!r}, "
+                           f"{input!r} or a derivative" if not factor.signals()
                            else f"is not linear in {output!r} and {input!r}")
                 raise ModelError(f"equation {shown!r} {problem}")
             value = exact_number(term.coefficient)
