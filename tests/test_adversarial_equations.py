@@ -298,6 +298,18 @@ def test_limits_are_checked():
 
 # ------------------------------------------------------------------ generated C
 
+@needs_cc
+def test_user_text_in_c_comments_cannot_close_them(tmp_path):
+    """The description (free text of the API) is written into a C comment: a ``*/`` in
+    it does not end the comment, control characters are blanked; the C compiles."""
+    model = LinearODEModel(name="commented", output_coefficients=(1, "B", "K"),
+                           input_coefficients=(1,), parameters=("B", "K"),
+                           description="a */ int broken = ; /* b\x00\n*/")
+    files = c_sources(derive(model))
+    assert "int broken = ;" in files["algid_commented.c"]
+    _compile_c(files, tmp_path)
+
+
 def _compile_c(files, tmp_path):
     for name, text in files.items():
         (tmp_path / name).write_text(text)

@@ -135,6 +135,15 @@ def _weight_tables(w_name, ws_name, regular, startup, comment, head=False):
     return lines
 
 
+def _comment_text(text) -> str:
+    """``text`` safe inside a C block comment: on one line, printable, and unable to
+    close the comment or open another (``-Wcomment``)."""
+    text = "".join(ch if ch.isprintable() else " " for ch in str(text))
+    while "*/" in text or "/*" in text:
+        text = text.replace("*/", "* /").replace("/*", "/ *")
+    return text
+
+
 def _check(derivation, name, filter_order, quadrature_order):
     if not isinstance(derivation, Derivation):
         raise ModelError(f"expected a Derivation, got {type(derivation).__name__}")
@@ -259,10 +268,11 @@ class _Writer:
 
     def _banner(self, what):
         model = self.model
-        lines = [f"/* {what} of the model {model.name!r}: {model.equation_text()}",
-                 " *"]
+        lines = [f"/* {what} of the model {model.name!r}: "
+                 f"{_comment_text(model.equation_text())}", " *"]
         if model.description:
-            lines += [f" * {model.description[0].upper() + model.description[1:]}.", " *"]
+            description = _comment_text(model.description)
+            lines += [f" * {description[0].upper() + description[1:]}.", " *"]
         lines += [f" * {line}" for line in C_HEADER.splitlines()]
         lines.append(" */")
         return lines
