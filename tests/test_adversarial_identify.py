@@ -254,8 +254,8 @@ def test_time_units_give_the_same_window_and_converted_estimates(noisy):
     base = algid.identify(record, *LINEAR_EQUATION)
     step = 1 / 80
     # time unit (s) -> factor of each parameter: B in 1/s, K, G, d in 1/s^2
-    for scale, offset in ((1e-3, 0.0), (step, 0.0), (1.0, 1.7e9), (1e-60, 0.0),
-                          (1e60, 0.0)):
+    for scale, offset in ((1e-3, 0.0), (step, 0.0), (1.0, 1.7e9), (1e-25, 0.0),
+                          (1e25, 0.0)):
         t = record["t"] / scale + offset
         r = algid.identify(dict(record, t=t), *LINEAR_EQUATION)
         # epoch times are stored to 2.4e-7 s: the step, hence K, to about 1e-8
@@ -272,7 +272,8 @@ def test_a_time_unit_beyond_the_floating_point_range_is_refused(noisy):
     record, _ = noisy
     with pytest.raises(InputDataError) as info:
         algid.identify(dict(record, t=record["t"] * 1e-300), *LINEAR_EQUATION)
-    assert "floating-point range" in str(info.value) and "\n" not in str(info.value)
+    assert "express the time in other units" in str(info.value)
+    assert "\n" not in str(info.value)
 
 
 @pytest.mark.parametrize("scale", [1e-300, 1e-150, 1e160, 1e300])
@@ -303,7 +304,7 @@ def test_a_factor_beyond_the_floating_point_range_is_refused():
     record, _ = cubic_spring(0)
     with pytest.raises(InputDataError) as info:
         algid.identify(dict(record, y=record["y"] * 1e160), *CUBIC_EQUATION)
-    assert "y**3 is not finite" in str(info.value)
+    assert "y**3 overflows" in str(info.value) and "other units" in str(info.value)
 
 
 def test_drifts_on_epoch_times_and_high_powers_of_time(exact):

@@ -476,3 +476,70 @@ def test_derive_without_sympy(capsys, monkeypatch):
     code, out, err = run(capsys, "derive")
     assert out == ""
     assert_one_line_error(code, err, "algid derive needs SymPy: pip install 'algid[derive]'")
+
+
+# ------------------------------------------------------------------ datasets
+
+
+def test_identify_reads_a_gzip_csv(capsys, tmp_path):
+    import gzip
+
+    t = np.arange(3000) * 1e-3
+    u = np.sin(7 * t) + np.sin(31 * t)
+    # y'' + 4 y' + 100 y = 100 u, simulated finely enough for 5 significant digits
+    from algid.grammar import parse_equation
+    from algid.model_simulation import simulate_model
+
+    model = parse_equation("y'' + B*y' + K*y = G*u", "B K G")
+    y = simulate_model(model, {"B": 4.0, "K": 100.0, "G": 100.0}, t, {"u": u}, rtol=1e-11)
+    plain = write_csv(tmp_path / "run.csv", {"t": t, "u": u, "y": y})
+    packed = tmp_path / "run.csv.gz"
+    packed.write_bytes(gzip.compress(plain.read_bytes()))
+    answers = []
+    for path in (plain, packed):
+        code, out, err = run(capsys, "identify", path, "--equation", "y'' + B*y' + K*y = G*u",
+                             "--parameters", "B K G", "--json")
+        assert code == 0, err
+        answers.append(json.loads(out))
+    assert answers[0] == answers[1]
+    assert abs(answers[1]["K"] / 100 - 1) < 1e-3
+
+
+def test_datasets_list_names_each_record_its_files_and_citation(capsys):
+    code, out, err = run(capsys, "datasets", "list")
+    assert code == 0 and err == ""
+    assert out.startswith("silverbox: silverbox.csv") and "\nemps: emps_estimation.csv" in out
+    assert out.count("cite: ") == 2 and "Janot" in out and "Wigren" in out
+
+
+def test_datasets_export_then_identify_reads_the_files_directly(capsys, tmp_path):
+    code, out, err = run(capsys, "datasets", "export", "emps", tmp_path / "records")
+    assert code == 0, err
+    assert out.splitlines() == [f"wrote {tmp_path / 'records' / name}"
+                                for name in ("emps_estimation.csv", "emps_validation.csv")]
+    equation = "M*qm'' + Fv*qm' + Fc*sign(qm') + off = F"
+    code, out, err = run(capsys, "identify", tmp_path / "records" / "emps_estimation.csv",
+                         "--equation", equation, "--parameters", "M Fv Fc off", "--json")
+    assert code == 0, err
+    # the exported values are exact: the same estimate as from the record in Python
+    record = algid.datasets.emps("estimation")
+    expected = algid.identify({"t": record.t, "qm": record.qm, "F": record.F}, equation,
+                              "M Fv Fc off")
+    assert {p: json.loads(out)[p] for p in expected.values} == expected.values
+
+
+@pytest.mark.parametrize("argv, expected", [
+    (["datasets"], "the following arguments are required: ACTION"),
+    (["datasets", "export", "nope", "d"], "invalid choice: 'nope'"),
+    (["datasets", "export", "emps"], "the following arguments are required: DIR"),
+])
+def test_datasets_usage_errors_are_one_line(capsys, argv, expected):
+    code, _, err = run(capsys, *argv)
+    assert_one_line_error(code, err, "datasets", expected)
+
+
+def test_datasets_export_into_an_unwritable_place_is_one_line(capsys, tmp_path):
+    blocker = tmp_path / "file"
+    blocker.write_text("not a folder")
+    code, _, err = run(capsys, "datasets", "export", "emps", blocker / "sub")
+    assert_one_line_error(code, err, "cannot write")

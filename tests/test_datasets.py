@@ -142,3 +142,37 @@ def test_wheel_contains_the_data_files(tmp_path):
     names = set(zipfile.ZipFile(wheel).namelist())
     for name in SHIPPED:
         assert f"algid/data/{name}" in names
+
+
+def test_export_writes_exact_csv_files_that_the_readers_take(tmp_path):
+    from algid.io import read_columns
+
+    written = datasets.export("emps", tmp_path)
+    assert [p.name for p in written] == ["emps_estimation.csv", "emps_validation.csv"]
+    assert (tmp_path / datasets.EXPORT_NOTE).read_text() == \
+        resources.files("algid").joinpath("data", "README.md").read_text()
+    for path, run in zip(written, ("estimation", "validation")):
+        record = datasets.emps(run)
+        names = ["t", "qm", "vir", "qg", "F"] + (["pulses_N"] if run == "validation" else [])
+        assert path.read_text().splitlines()[0] == ",".join(names)
+        columns = read_columns(path, names)
+        for name in names:
+            np.testing.assert_array_equal(columns[name], record[name])
+
+    written = datasets.export("silverbox", tmp_path / "sb")
+    assert [p.name for p in written] == ["silverbox.csv", "silverbox_arrow.csv",
+                                         "silverbox_estimation.csv", "silverbox_test.csv"]
+    sb = datasets.silverbox()
+    columns = read_columns(written[0], ["t", "V1", "V2"])
+    np.testing.assert_array_equal(columns["V2"], sb.V2)
+    np.testing.assert_array_equal(columns["t"], np.arange(sb.n_samples) / sb.rate)
+    start, stop = sb.segments["test"]
+    part = read_columns(written[3], ["t", "V1"])
+    np.testing.assert_array_equal(part["V1"], sb.V1[start:stop])
+    np.testing.assert_array_equal(part["t"], columns["t"][start:stop])
+
+
+def test_export_of_an_unknown_name_is_a_clear_error(tmp_path):
+    with pytest.raises(InputDataError,
+                       match=r"unknown dataset 'wiener' \(known: silverbox, emps\)"):
+        datasets.export("wiener", tmp_path)

@@ -151,3 +151,37 @@ def test_quadrature_order_is_a_deprecated_alias():
 
 def test_public_namespace():
     assert algid.estimate is estimate
+
+
+# ---------------------------------------------------------------------- plot
+
+
+def test_plot_view_is_set_by_the_settled_estimates_not_the_start_up():
+    pytest.importorskip("matplotlib")
+    import matplotlib
+
+    matplotlib.use("Agg")
+    from algid.plotting import plot_estimates
+
+    sim = simulate("sine", m=1, c=2, k=3, noise_std=0.01, seed=0)
+    r = estimate(sim.t, sim.f, sim.x, filter_order=2, mass=1.0)
+    # the start-up spans about -1.4e6 .. 4e6: autoscaled, B = 2 and K = 3 are invisible
+    assert np.nanmax(r.estimates["K"]) - np.nanmin(r.estimates["K"]) > 1e6
+    for ax in (r.plot(true_values={"B": 2, "K": 3}),
+               plot_estimates(r, true_values={"B": 2, "K": 3}).axes[0]):
+        lo, hi = ax.get_ylim()
+        assert lo < 2 - 0.1 and 3 + 0.1 < hi      # both true values, with a margin
+        assert hi - lo < 3                          # and they fill a third of the view or more
+    ax = r.plot(true_values={"B": 2, "K": 3}, ylim=(-1.0, 10.0))
+    assert ax.get_ylim() == (-1.0, 10.0)
+
+
+def test_plot_view_of_one_converged_estimate_is_not_flat():
+    pytest.importorskip("matplotlib")
+    from algid.plotting import estimate_ylim
+
+    t = np.linspace(0.0, 1.0, 1001)
+    values = np.where(t < 0.01, np.nan, np.where(t < 0.05, -3e5, 5.0))
+    lo, hi = estimate_ylim(t, {"K": values})
+    assert (lo, hi) == pytest.approx((4.5, 5.5))
+    assert estimate_ylim(t, {"K": np.full_like(t, np.nan)}) is None

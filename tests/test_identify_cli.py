@@ -37,14 +37,16 @@ def record_files(tmp_path_factory):
     return csv, no_time, mat, truth
 
 
-def test_json_has_a_key_per_parameter_stderr_window_and_samples(capsys, record_files):
+def test_json_has_a_key_per_parameter_stderr_window_samples_and_warnings(capsys,
+                                                                         record_files):
     csv, _, mat, truth = record_files
     code, out, err = run(capsys, "identify", csv, mat, "--equation", LINEAR_EQUATION[0],
                          "--parameters", LINEAR_EQUATION[1], "--json")
     assert code == 0, err
     payload = json.loads(out)
     assert set(payload) == {"B", "K", "G", "d", "stderr", "numerical_error", "window",
-                            "n_samples"}
+                            "n_samples", "warnings"}
+    assert payload["warnings"] == [] and err == ""   # the right model
     assert set(payload["stderr"]) == set(payload["numerical_error"]) == {"B", "K", "G", "d"}
     assert all(v > 0 for v in payload["numerical_error"].values())
     assert payload["n_samples"] == 4000 and 0 < payload["window"] < 1

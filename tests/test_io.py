@@ -5,7 +5,7 @@ import pytest
 import scipy.io
 
 from algid.errors import AlgidError, DataFileError, InputDataError
-from algid.io import read_experiment
+from algid.io import read_columns, read_experiment
 
 
 def write(path, text):
@@ -255,3 +255,57 @@ def test_mat_corrupt_file(tmp_path):
         read_experiment(path)
     assert str(info.value).startswith(f"{path}: not a readable MATLAB file")
     assert "\n" not in str(info.value)
+
+
+# ---------------------------------------------------------------- gzip CSV
+
+
+def test_gzip_csv_reads_as_the_plain_file(tmp_path, good_csv):
+    import gzip
+
+    packed = tmp_path / "data.csv.gz"
+    packed.write_bytes(gzip.compress(good_csv.read_bytes()))
+    for got, expected in zip(read_experiment(packed), read_experiment(good_csv)):
+        np.testing.assert_array_equal(got, expected)
+    assert sorted(read_columns(packed, ["f"], optional=["t"])) == ["f", "t"]
+
+
+def test_shipped_silverbox_file_reads_from_its_path():
+    from importlib import resources
+
+    from algid import datasets
+
+    with resources.as_file(resources.files("algid").joinpath("data", "SNLS80mV.csv.gz")) as p:
+        t, f, x = read_experiment(p, input="V1", output="V2", rate=610.35)
+    sb = datasets.silverbox()
+    np.testing.assert_array_equal(f, sb.V1)
+    np.testing.assert_array_equal(x, sb.V2)
+
+
+def test_gzip_errors_are_one_line(tmp_path):
+    broken = tmp_path / "broken.csv.gz"
+    broken.write_bytes(b"t,f,x\n0,1,2\n")  # not compressed
+    with pytest.raises(DataFileError, match=r"broken.csv.gz: not a readable gzip file \(") as info:
+        read_experiment(broken)
+    assert "\n" not in str(info.value)
+    bare = write(tmp_path / "data.gz", "t,f,x\n")
+    with pytest.raises(DataFileError, match=r"unknown file type \(extension '.gz'\); "
+                                            r"supported: .*\.csv\.gz"):
+        read_experiment(bare)
+
+
+def test_gzip_csv_too_large_for_memory_is_refused_by_its_decompressed_size(
+        tmp_path, monkeypatch):
+    import gzip
+
+    import algid.memory
+
+    text = "t,f,x\n" + "0.5,1,2\n" * 20000
+    packed = tmp_path / "big.csv.gz"
+    packed.write_bytes(gzip.compress(text.encode()))
+    assert packed.stat().st_size * 100 < len(text)  # the file's own size would pass
+    monkeypatch.setattr(algid.memory, "available_memory", lambda: 6 * len(text) - 6)
+    with pytest.raises(DataFileError, match="big.csv.gz: too large to read: its decompressed"):
+        read_experiment(packed)
+    monkeypatch.setattr(algid.memory, "available_memory", lambda: 6 * len(text))
+    assert read_experiment(packed)[0].size == 20000

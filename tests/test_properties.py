@@ -6,11 +6,18 @@ plus an optional step, 20-100 samples per period), with shorter records so that 
 suite stays fast; their response is computed in closed form, independently of the
 project's simulators.  The suite draws few examples (``ALGID_PROPERTY_EXAMPLES``, default
 12, derandomised); ``python -m benchmarks.population`` is the study over 400 plants.
+
+The last tests feed the equation grammar random expression trees and junk text, with
+code to run, huge constants and stray characters mixed in: every text is read or
+refused with a one-line error, quickly, and none of it is ever executed.
 """
 
 import math
 import os
 import sys
+import tempfile
+import time
+from pathlib import Path
 
 import numpy as np
 from conftest import ROOT
@@ -18,7 +25,11 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 import algid
-from algid import cli
+from algid import error_diagnosis
+from algid.errors import AlgidError
+from algid.expression import FUNCTIONS
+from algid.grammar import parse_equation
+from algid.model import Model
 
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
@@ -78,8 +89,8 @@ def test_well_resolved_plants_raise_no_warning(plant):
     # within the command line's warning threshold, and reported so (the error depends
     # on the excitation too: about 1.5e-4 for three sines at one frequency at zeta = 1)
     result = algid.estimate(*exact_response(plant))
-    assert result.final_numerical_error() <= cli.NUMERICAL_ERROR_WARNING
-    assert final_error(result, plant) <= cli.NUMERICAL_ERROR_WARNING
+    assert result.final_numerical_error() <= error_diagnosis.NUMERICAL_ERROR_WARNING
+    assert final_error(result, plant) <= error_diagnosis.NUMERICAL_ERROR_WARNING
 
 
 @SETTINGS
@@ -119,3 +130,67 @@ def test_scaling_by_powers_of_two_is_exact(plant, amplitude_exponent, time_expon
     np.testing.assert_array_equal(scaled.B, r.B / s)
     np.testing.assert_array_equal(scaled.K, r.K / s**2)
     np.testing.assert_array_equal(scaled.numerical_error, r.numerical_error)
+
+
+# ------------------------------------------------------------------ hostile equations
+
+#: A file that an equation would create if any of its text were ever executed.
+CANARY = Path(tempfile.gettempdir()) / f"algid-equation-canary-{os.getpid()}"
+_PAYLOAD = f'__import__("os").system("touch {CANARY}")'
+_NAMES = ["y", "u", "B", "K", "t", "pi", "sin", "__import__", "x_1", "\u00b5", "os"]
+_NUMBERS = ["0", "1", "2.5", "1e400", "9" * 30, "1e-320", "0x1F", "1_000", "1j", "True"]
+ADVERSARIAL = settings(max_examples=int(os.environ.get("ALGID_ADVERSARIAL_EXAMPLES", "150")),
+                       deadline=2000, derandomize=True,
+                       suppress_health_check=[HealthCheck.too_slow])
+
+
+def _expressions():
+    leaves = st.one_of(st.sampled_from(_NAMES), st.sampled_from(_NUMBERS),
+                       st.sampled_from(_NAMES).map(lambda n: n + "'"),
+                       st.floats(allow_nan=False).map(repr), st.just(_PAYLOAD))
+
+    def extend(inner):
+        return st.one_of(
+            st.tuples(inner, st.sampled_from([" + ", " - ", "*", "/", "**"]), inner)
+            .map("".join),
+            inner.map(lambda e: f"-({e})"),
+            st.tuples(st.sampled_from(sorted(FUNCTIONS) + ["eval"]), inner)
+            .map(lambda c: f"{c[0]}({c[1]})"),
+            st.tuples(inner, st.sampled_from(["**9**9", "**100", ".__class__", "[0]",
+                                              " # note", '"""', "; x"]))
+            .map("".join))
+
+    return st.recursive(leaves, extend, max_leaves=24)
+
+
+def _junk():
+    pieces = st.sampled_from(["y''", "B*", "=", "(", ")", "#", '"""', "'", "\\", ";", "\n",
+                              "**", "9", "1e400", "lambda", "[", "]", ".", ",", "\u03bc",
+                              "\x00", _PAYLOAD, " "])
+    return st.one_of(st.text(max_size=120), st.lists(pieces, max_size=40).map("".join))
+
+
+def _read_or_refuse(text, parameters):
+    start = time.perf_counter()
+    try:
+        model = parse_equation(text, parameters)
+    except AlgidError as exc:
+        assert str(exc) and "\n" not in str(exc)
+    else:
+        assert isinstance(model, Model)
+        assert all(math.isfinite(term.coefficient) for term in model.terms)
+    assert time.perf_counter() - start < 1.0
+    assert not CANARY.exists()
+
+
+@ADVERSARIAL
+@given(_expressions(), _expressions(), st.sampled_from(["B", "B K", ["B", "K"], "B\n", ""]))
+def test_random_equations_are_read_or_refused_never_run(left, right, parameters):
+    _read_or_refuse(f"y'' + B*y' + {left} = {right}", parameters)
+    _read_or_refuse(f"{left} = {right}", parameters)
+
+
+@ADVERSARIAL
+@given(_junk())
+def test_junk_is_refused_never_run(text):
+    _read_or_refuse(text, "B")

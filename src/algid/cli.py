@@ -1,5 +1,6 @@
 """Command line interface: ``algid simulate``, ``algid estimate``, ``algid identify``,
-``algid derive``, ``algid codegen``, ``algid paper`` and ``algid errata``.
+``algid datasets``, ``algid derive``, ``algid codegen``, ``algid paper`` and
+``algid errata``.
 
 Errors caused by the user (bad data, bad file, unknown model) are printed as one line
 ``algid: error: <message>`` on standard error with exit code 2; usage errors are
@@ -14,6 +15,7 @@ import argparse
 import importlib
 import json
 import math
+import re
 import sys
 
 from .errors import AlgidError, InputDataError, ModelError
@@ -49,6 +51,11 @@ class _Parser(argparse.ArgumentParser):
     exit code 2, and points at ``--help`` for the usage.  Sub-parsers are of the same
     class.
     """
+
+    def __init__(self, *args, **kwargs):
+        super().__init__(*args, **kwargs)
+        # negative numbers with an exponent (--v0 -1e-3) are values, not options
+        self._negative_number_matcher = re.compile(r"^-(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?$")
 
     def error(self, message):
         """Print ``message`` on one line with a pointer to ``--help``; exit with code 2."""
@@ -191,15 +198,16 @@ def build_parser() -> argparse.ArgumentParser:
             "\"V2'' + B*V2' + K*V2 + K3*V2**3 = G*V1 + d\" --parameters \"B K K3 G d\"."
         ),
     )
-    ide.add_argument("files", nargs="+", metavar="FILE", help="data files (.csv, .txt, .mat)")
+    ide.add_argument("files", nargs="+", metavar="FILE",
+                     help="data files (.csv, .txt, .csv.gz, .txt.gz, .mat)")
     ide.add_argument("--equation", required=True, metavar="EQ", help="the model equation")
     ide.add_argument("--parameters", required=True, metavar="\"P1 P2 ...\"",
                      help="the unknown parameters, separated by spaces")
-    timing = ide.add_mutually_exclusive_group()
-    timing.add_argument("--time", default=None, metavar="COL",
-                        help="time column (default: t or time when present)")
-    timing.add_argument("--rate", type=_positive, default=None, metavar="HZ",
-                        help="sampling rate in Hz, for files without a time column")
+    ide.add_argument("--time", default=None, metavar="COL",
+                     help="time column (default: t or time when present)")
+    ide.add_argument("--rate", type=_positive, default=None, metavar="HZ",
+                     help="sampling rate in Hz, for files without a time column (with "
+                          "one, it must agree with it)")
     ide.add_argument("--output", default=None, metavar="COL",
                      help="output signal (default: the one of highest derivative order)")
     ide.add_argument("--window", type=_positive, default=None, metavar="SECONDS",
@@ -209,8 +217,32 @@ def build_parser() -> argparse.ArgumentParser:
                           "instrumental variables")
     ide.add_argument("--json", action="store_true",
                      help="print one JSON object: a key per parameter, stderr, window, "
-                          "n_samples")
+                          "n_samples, warnings")
     ide.set_defaults(handler=_cmd_identify)
+
+    dat = commands.add_parser(
+        "datasets",
+        help="list or export the measured records shipped with algid (Silverbox, EMPS)",
+        description=("The measured benchmark records shipped with algid, written as plain "
+                     "CSV files with a time column t that `algid identify` reads as they "
+                     "are. Example: algid datasets export emps records; algid identify "
+                     "records/emps_estimation.csv --equation \"M*qm'' + Fv*qm' + "
+                     "Fc*sign(qm') + off = F\" --parameters \"M Fv Fc off\"."),
+    )
+    actions = dat.add_subparsers(dest="action", metavar="ACTION", required=True)
+    actions.add_parser("list", help="the records, the files each exports, their citations",
+                       description="List the shipped records, the files `export` writes "
+                                   "for each and the papers to cite."
+                       ).set_defaults(handler=_cmd_datasets_list)
+    export = actions.add_parser(
+        "export", help="write a record as CSV files into a folder",
+        description=("Write a shipped record as plain CSV files (header line, time column "
+                     "t, exact values) into DIR, with the records' provenance note; "
+                     "files of the same names are replaced."))
+    export.add_argument("name", choices=("silverbox", "emps"), metavar="NAME",
+                        help="silverbox or emps (see `algid datasets list`)")
+    export.add_argument("folder", metavar="DIR", help="folder to write into (created if missing)")
+    export.set_defaults(handler=_cmd_datasets_export)
 
     der = commands.add_parser(
         "derive",
@@ -336,27 +368,31 @@ def _finite_or_none(value):
     return value if math.isfinite(value) else None
 
 
-#: Above this estimated relative numerical error ``algid estimate`` warns on stderr.
-NUMERICAL_ERROR_WARNING = 1e-3
-
-
-def _warn_numerical_error(source, error):
-    """One line on stderr when the final estimate's numerical error is large."""
-    if error > NUMERICAL_ERROR_WARNING:
-        what = ("the data do not determine the estimate" if math.isinf(error) else
-                f"estimated relative numerical error {error:.1e}")
-        print(f"warning: {source}: {what}; resample faster or use a longer record",
-              file=sys.stderr)
-
-
 def _cmd_estimate(args) -> int:
+    from .error_diagnosis import numerical_error_warning
     from .io import read_experiment
     from .validation import check_experiment
 
     time = "t" if args.time is None else args.time
-    t, f, x = read_experiment(
-        args.file, time=time, input=args.input, output=args.output, rate=args.rate
-    )
+    named = {"--input": args.input, "--output": args.output}
+    if args.rate is None:
+        named["--time"] = time
+    seen = {}
+    for option, column in named.items():
+        if column in seen:
+            raise InputDataError(f"{seen[column]} and {option} name the same column "
+                                 f"{column!r}")
+        seen[column] = option
+    import numpy as np
+
+    with np.errstate(over="ignore"):  # the times at a tiny --rate: refused below
+        t, f, x = read_experiment(
+            args.file, time=time, input=args.input, output=args.output, rate=args.rate
+        )
+    if args.rate is not None and t.size and not np.isfinite(t[-1]):
+        raise InputDataError(f"{args.file}: --rate {args.rate:g} Hz puts the times of its "
+                             f"{t.size} samples beyond the floating-point range: give the "
+                             f"rate in other units")
     try:
         t, f, x, _ = check_experiment(t, f, x, names=(time, args.input, args.output))
     except InputDataError as exc:
@@ -372,7 +408,17 @@ def _cmd_estimate(args) -> int:
     names = tuple(result.parameters)
     t_valid = float(result.t_valid)
     error = getattr(result, "final_numerical_error", lambda: math.nan)()
-    _warn_numerical_error(args.file, error)
+
+    def half_rate_error():
+        try:
+            return estimator.estimate(t[::2], f[::2], x[::2],
+                                      **options).final_numerical_error()
+        except AlgidError:  # too short at half the rate
+            return math.nan
+
+    warning = numerical_error_warning(args.file, error, half_rate_error, args.output, x)
+    if warning:
+        print(warning, file=sys.stderr)
     if args.json:
         payload = {name: _finite_or_none(final[name]) for name in names}
         payload["t_valid"] = _finite_or_none(t_valid)
@@ -401,7 +447,7 @@ def _cmd_estimate(args) -> int:
 
 
 #: Keys of ``algid identify --json`` besides the parameters.
-IDENTIFY_JSON_KEYS = ("stderr", "numerical_error", "window", "n_samples")
+IDENTIFY_JSON_KEYS = ("stderr", "numerical_error", "window", "n_samples", "warnings")
 
 
 def _cmd_identify(args) -> int:
@@ -416,11 +462,15 @@ def _cmd_identify(args) -> int:
         raise ModelError(f"parameter name {clash[0]!r} is reserved by the output "
                          f"({', '.join(IDENTIFY_JSON_KEYS)}); rename it")
     names = list(model.signals) + ([args.time] if args.time else [])
-    optional = () if args.time or args.rate else TIME_COLUMNS
+    # a time column is read with --rate too: the two must agree
+    optional = () if args.time else TIME_COLUMNS
     records = [read_columns(path, names, optional=optional) for path in args.files]
     result = identify(records, model, time=args.time, rate=args.rate, window=args.window,
                       method=args.method)
     stderr = result.stderr
+    source = args.files[0] if len(args.files) == 1 else f"{len(args.files)} records"
+    for warning in result.warnings:
+        print(f"warning: {source}: {warning}", file=sys.stderr)
     if args.json:
         payload = {p: _finite_or_none(v) for p, v in result.values.items()}
         payload["stderr"] = {p: _finite_or_none(v) for p, v in stderr.items()}
@@ -428,6 +478,7 @@ def _cmd_identify(args) -> int:
                                       for p, v in result.numerical_error.items()}
         payload["window"] = float(result.window)
         payload["n_samples"] = int(result.n_samples)
+        payload["warnings"] = list(result.warnings)
         print(json.dumps(payload, allow_nan=False))
         return 0
     print(f"{model.equation}")
@@ -438,6 +489,24 @@ def _cmd_identify(args) -> int:
     for p, v in result.values.items():
         print(f"{p:<{width}}  {v:>13.6g}  {stderr[p]:>10.2g}  "
               f"{result.numerical_error.get(p, math.nan):>10.2g}")
+    return 0
+
+
+def _cmd_datasets_list(args) -> int:
+    from . import datasets
+
+    citations = {"silverbox": datasets.SILVERBOX_CITATION, "emps": datasets.EMPS_CITATION}
+    for name, files in datasets.EXPORTS.items():
+        print(f"{name}: {files}")
+        print(f"  cite: {citations[name]}")
+    return 0
+
+
+def _cmd_datasets_export(args) -> int:
+    from .datasets import export
+
+    for path in export(args.name, args.folder):
+        print(f"wrote {path}")
     return 0
 
 

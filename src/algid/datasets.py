@@ -21,10 +21,15 @@ EMPS
     the mass ``F = gtau * vir`` [N], ``qg`` the reference position [m].  The validation
     run has force pulses injected into the drive command; ``vir`` already carries them
     (see :func:`emps`).  Published reference model
-    (inverse-model least squares): ``M q'' + Fv q' + Fc sign(q') + offset = F`` with
-    M = 95.1089 kg, Fv = 203.5034 N s/m, Fc = 20.3935 N, offset = -3.1648 N.
+    (inverse-model least squares): ``M*q'' + Fv*q' + Fc*sign(q') + off = F`` with
+    M = 95.1089 kg, Fv = 203.5034 N s/m, Fc = 20.3935 N, off = -3.1648 N
+    (:data:`EMPS_PUBLISHED`, keyed by these parameter names).
     Cite: A. Janot, M. Gautier, M. Brunot, "Data Set and Reference Models of EMPS",
     Workshop on Nonlinear System Identification Benchmarks, 2019.
+
+:func:`export` (and ``algid datasets export NAME DIR`` on the command line) writes the
+records as plain CSV files with a time column ``t``, which ``algid identify`` reads as
+they are.
 
 Neither data set states a licence of its own; both are distributed freely by the
 benchmark community, which asks users to cite the papers above.
@@ -38,13 +43,15 @@ import io
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from importlib import resources
+from pathlib import Path
 
 import numpy as np
 
-from .errors import InputDataError
+from .errors import AlgidError, InputDataError
 
-__all__ = ["BenchmarkRecord", "silverbox", "emps", "EMPS_PUBLISHED", "SILVERBOX_FILE",
-           "EMPS_FILES"]
+__all__ = ["BenchmarkRecord", "silverbox", "emps", "EMPS_EQUATION", "EMPS_PUBLISHED",
+           "EMPS_PUBLISHED_RELATIVE_STD", "EMPS_PUBLISHED_FORCE_ERROR", "SILVERBOX_FILE",
+           "EMPS_FILES", "export", "EXPORTS"]
 
 SILVERBOX_FILE = "SNLS80mV.csv.gz"
 EMPS_FILES = {"estimation": "DATA_EMPS.mat", "validation": "DATA_EMPS_PULSES.mat"}
@@ -56,14 +63,19 @@ EMPS_CITATION = (
     'A. Janot, M. Gautier, M. Brunot, "Data Set and Reference Models of EMPS", '
     'Workshop on Nonlinear System Identification Benchmarks, 2019.')
 
-#: Published IDIM-LS values of ``M q'' + Fv q' + Fc sign(q') + offset = F`` (Janot et
-#: al. 2019), with their relative standard deviations and the relative errors of the
-#: predicted force on both runs.
-EMPS_PUBLISHED = {
-    "M": 95.1089, "Fv": 203.5034, "Fc": 20.3935, "offset": -3.1648,
-    "relative_std": {"M": 0.0011, "Fv": 0.0056, "Fc": 0.0050, "offset": 0.014},
-    "force_relative_error": {"estimation": 0.0408, "validation": 0.0598},
-}
+#: The published reference model of the EMPS, as :func:`algid.identify` reads it.
+EMPS_EQUATION = "M*q'' + Fv*q' + Fc*sign(q') + off = F"
+
+#: Published IDIM-LS values (Janot et al. 2019) of the parameters of
+#: :data:`EMPS_EQUATION`, exactly its parameters: pass it wherever parameter values of
+#: that model are expected (``result.with_parameters(EMPS_PUBLISHED)``).
+EMPS_PUBLISHED = {"M": 95.1089, "Fv": 203.5034, "Fc": 20.3935, "off": -3.1648}
+
+#: Relative standard deviations of the published values, per parameter.
+EMPS_PUBLISHED_RELATIVE_STD = {"M": 0.0011, "Fv": 0.0056, "Fc": 0.0050, "off": 0.014}
+
+#: Published relative error of the force predicted by the published model, per run.
+EMPS_PUBLISHED_FORCE_ERROR = {"estimation": 0.0408, "validation": 0.0598}
 
 # Silverbox: 0-based, half-open row ranges of the record's parts.
 SILVERBOX_SEGMENTS = {
@@ -263,7 +275,9 @@ def emps(run="estimation") -> BenchmarkRecord:
     published model, ``pulses_N`` gets a coefficient of -0.002 and the relative error
     of the published model's force is 4.8 % with ``F = gtau * vir`` against 8.0 % with
     ``gtau * vir + pulses_N`` (4.1 % on the estimation run; 20 Hz zero-phase low-pass,
-    central differences).
+    central differences).  Identified anew on the validation run with
+    :data:`EMPS_EQUATION`, ``off`` comes out 2 % from the published value with
+    ``F = gtau * vir``, and 78 % from it with ``pulses_N`` added (the pulses' mean).
 
     Raises
     ------
@@ -297,3 +311,99 @@ def emps(run="estimation") -> BenchmarkRecord:
                         if run == "validation" else "")),
         citation=EMPS_CITATION,
     )
+
+
+#: The names :func:`export` knows, with what each writes.
+EXPORTS = {
+    "silverbox": ("silverbox.csv (t, V1, V2: 131072 samples at 610.35 Hz) and one file per "
+                  "part: silverbox_arrow.csv, silverbox_estimation.csv, silverbox_test.csv"),
+    "emps": ("emps_estimation.csv (t, qm, vir, qg, F: 24841 samples at 1 kHz) and "
+             "emps_validation.csv (the same and pulses_N, already contained in vir and F)"),
+}
+
+#: The provenance note written beside the exported files (the records' README).
+EXPORT_NOTE = "algid-datasets-README.md"
+
+
+def _export_tables(name):
+    """(file name, columns) of each CSV file :func:`export` writes for ``name``."""
+    if name == "silverbox":
+        record = silverbox()
+        whole = {"t": np.arange(record.n_samples) / record.rate, **record.signals}
+        tables = [("silverbox.csv", whole)]
+        for part, (start, stop) in record.segments.items():
+            tables.append((f"silverbox_{part}.csv",
+                           {key: values[start:stop] for key, values in whole.items()}))
+        return tables
+    tables = []
+    for run in EMPS_FILES:
+        record = emps(run)
+        names = ["t", "qm", "vir", "qg", "F"] + (["pulses_N"] if "pulses_N" in record else [])
+        tables.append((f"emps_{run}.csv", {key: record[key] for key in names}))
+    return tables
+
+
+def _csv_text(columns):
+    """CSV text: a header line, then one row per sample, each value as ``repr`` (the
+    shortest text that reads back to the same float)."""
+    rows = zip(*(np.asarray(values).tolist() for values in columns.values()))
+    lines = [",".join(columns)]
+    lines.extend(",".join(map(repr, row)) for row in rows)
+    return "\n".join(lines) + "\n"
+
+
+def export(name, folder) -> list:
+    """Write a shipped record as plain CSV files that ``algid identify`` reads directly.
+
+    Every file has a header line and a time column ``t`` [s] (the Silverbox record,
+    stored without one, gets ``t = row / 610.35``); the values are written exactly
+    (each float as its shortest round-trip text).  The records' provenance note is
+    written beside them as ``algid-datasets-README.md``.  Existing files of the same
+    names are replaced.
+
+    Parameters
+    ----------
+    name : {"silverbox", "emps"}
+        The record (see :data:`EXPORTS` for the files each writes).
+    folder : str or os.PathLike
+        Folder to write into; created if missing.
+
+    Returns
+    -------
+    list of pathlib.Path
+        The CSV files written.
+
+    Raises
+    ------
+    InputDataError
+        If ``name`` is not one of :data:`EXPORTS`.
+    AlgidError
+        If the folder or a file cannot be written.
+
+    Examples
+    --------
+    >>> from algid.datasets import export
+    >>> [p.name for p in export("emps", "records")]  # doctest: +SKIP
+    ['emps_estimation.csv', 'emps_validation.csv']
+
+    Then, on the command line::
+
+        algid identify records/emps_estimation.csv --parameters "M Fv Fc off" \\
+            --equation "M*qm'' + Fv*qm' + Fc*sign(qm') + off = F"
+    """
+    if name not in EXPORTS:
+        raise InputDataError(f"unknown dataset {name!r} (known: {', '.join(EXPORTS)})")
+    target = Path(folder)
+    written = []
+    try:
+        target.mkdir(parents=True, exist_ok=True)
+        for file_name, columns in _export_tables(name):
+            path = target / file_name
+            path.write_text(_csv_text(columns), encoding="ascii")
+            written.append(path)
+        note = _data_file("README.md").read_text(encoding="utf-8")
+        (target / EXPORT_NOTE).write_text(note, encoding="utf-8")
+    except OSError as exc:
+        raise AlgidError(f"{exc.filename or target}: cannot write "
+                         f"({exc.strerror or exc})") from None
+    return written

@@ -49,13 +49,16 @@ lower.
 
 Sampling.  On a uniform grid the integral is the plain sum of samples times kernel (the
 trapezoid rule; the kernel vanishes at both ends when ``kappa, mu >= 1``), whose error
-falls like ``(dt/T)**(min(kappa, mu) + 1)`` or faster.  On a non-uniform grid, the
-trapezoid rule on the samples, with the signal interpolated linearly at the window's
-ends (second order in the local step).
+falls like ``(dt/T)**(min(kappa, mu) + 1)`` or faster.  The taps of a setting are built
+once and kept (read-only) for later calls; the samples are then combined with them by
+one correlation (:func:`numpy.correlate`), the record's ends by one matrix product.  On
+a non-uniform grid, the trapezoid rule on the samples, with the signal interpolated
+linearly at the window's ends (second order in the local step).
 """
 
 from __future__ import annotations
 
+import functools
 import math
 from fractions import Fraction
 
@@ -63,6 +66,7 @@ import numpy as np
 
 from .errors import InputDataError
 from .generated.differentiator_kernels import DERIVATIVES, EXTRA_ORDERS, KAPPA, KERNELS, MU
+from .memory import check_fits
 
 __all__ = ["algebraic_derivative", "CausalDifferentiator", "differentiator_response",
            "differentiator_delay", "DEFAULT_WINDOW_STEPS", "DEFAULT_KAPPA", "DEFAULT_MU"]
@@ -74,6 +78,9 @@ DEFAULT_KAPPA = 2
 DEFAULT_MU = 2
 #: Windows integrated at once on a non-uniform grid (bounds the working memory).
 _CHUNK_ROWS = 4096
+#: Peak memory of the taps of a window [bytes per step] (measured: about 100 for the
+#: causal differentiator, most of it the least-squares correction of the taps).
+_BYTES_PER_WINDOW_STEP = 256
 #: Largest step allowed on a non-uniform grid, as a fraction of the window.
 _MAX_GAP = 0.25
 _MAX_DERIVATIVE = DERIVATIVES.stop - 1 - (EXTRA_ORDERS.stop - 1)
@@ -114,8 +121,9 @@ def _kernel(u, n, kappa, mu, N, at):
     return u ** kappa * (1.0 - u) ** mu * total
 
 
-def _uniform_taps(steps, n, kappa, mu, N, at):
-    """Weights of the samples of a window of ``steps`` steps (estimating ``T**n y^(n)``).
+def _build_taps(steps, n, kappa, mu, N, at):
+    """Weights of the samples of a window of ``steps`` steps (estimating ``T**n y^(n)``),
+    one row per expansion point in ``at`` (a 1-D array of fractions of the window).
 
     The plain sum of samples times kernel, corrected (least change, in the 2-norm) so
     that it integrates exactly every polynomial of degree up to ``max(N, n + 1) + 2``
@@ -123,6 +131,7 @@ def _uniform_taps(steps, n, kappa, mu, N, at):
     continuous one is exact on, instead of within ``O((dt/T)**(min(kappa, mu) + 2))``.
     """
     u = np.arange(steps + 1) / steps
+    at = np.asarray(at, dtype=float)[:, None]
     quadrature = np.full(steps + 1, 1.0 / steps)
     quadrature[[0, -1]] *= 0.5
     taps = quadrature * _kernel(u, n, kappa, mu, N, at)
@@ -135,8 +144,30 @@ def _uniform_taps(steps, n, kappa, mu, N, at):
     basis_nodes = np.polynomial.legendre.legvander(nodes, degree)
     moments = (0.5 * weights * _kernel(x, n, kappa, mu, N, at)) @ basis_nodes
     basis = np.polynomial.legendre.legvander(2.0 * u - 1.0, degree)
-    correction = np.linalg.lstsq(basis.T, moments - basis.T @ taps, rcond=None)[0]
-    return taps + correction
+    correction = np.linalg.lstsq(basis.T, (moments - taps @ basis).T, rcond=None)[0]
+    return taps + correction.T
+
+
+def _read_only(array):
+    array.setflags(write=False)
+    return array
+
+
+@functools.lru_cache(maxsize=128)
+def _uniform_taps(steps, n, kappa, mu, N, at):
+    """The taps of :func:`_build_taps` at one expansion point ``at``, built once per
+    setting and kept (read-only: callers share them)."""
+    return _read_only(_build_taps(steps, n, kappa, mu, N, [at])[0])
+
+
+@functools.lru_cache(maxsize=32)
+def _edge_taps(steps, n, kappa, mu, N, centre):
+    """Taps of the samples the centred window cannot be placed around, one row each:
+    the first ``centre`` samples from the first full window, the last ``steps - centre``
+    from the last one, each re-expanded at its own position (read-only)."""
+    first = _build_taps(steps, n, kappa, mu, N, np.arange(centre) / steps)
+    last = _build_taps(steps, n, kappa, mu, N, np.arange(centre + 1, steps + 1) / steps)
+    return _read_only(first), _read_only(last)
 
 
 def algebraic_derivative(y, dt=None, *, time=None, derivative=1, window=None,
@@ -217,8 +248,12 @@ def _window_steps(window, dt, causal, n, kappa, mu):
     if window is None:
         steps = DEFAULT_WINDOW_STEPS
     else:
-        if not (np.ndim(window) == 0 and np.isfinite(window) and window > 0):
+        if isinstance(window, (bool, np.bool_, str, bytes)) or not (
+                np.ndim(window) == 0 and np.isfinite(window) and window > 0):
             raise InputDataError(f"window must be a positive duration in seconds, got {window!r}")
+        if not window / dt <= 2.0**53:  # also inf
+            raise InputDataError(f"window {window:g} s is {window / dt:.4g} steps of {dt:g} s: "
+                                 f"more than 2**53, beyond which sample counts are not exact")
         steps = max(int(round(window / dt)), 2)
     if not causal:
         # a whole number of steps before the centre xi = p/q: steps a multiple of q
@@ -241,13 +276,9 @@ def _uniform(y, dt, n, kappa, mu, N, window, causal):
     taps = _uniform_taps(steps, n, kappa, mu, N, centre / steps) / T ** n
     out[centre:len(y) - steps + centre] = np.correlate(y, taps, mode="valid")
     # the ends: the first / last full window, re-expanded at the sample itself
-    N_edge = max(N, n + 1)
-    first, last = y[:steps + 1], y[-(steps + 1):]
-    for i in range(centre):
-        out[i] = _uniform_taps(steps, n, kappa, mu, N_edge, i / steps) @ first / T ** n
-    for i in range(len(y) - steps + centre, len(y)):
-        position = (i - (len(y) - 1 - steps)) / steps
-        out[i] = _uniform_taps(steps, n, kappa, mu, N_edge, position) @ last / T ** n
+    first, last = _edge_taps(steps, n, kappa, mu, max(N, n + 1), centre)
+    out[:centre] = first @ y[:steps + 1] / T ** n
+    out[len(y) - steps + centre:] = last @ y[-(steps + 1):] / T ** n
     return out
 
 
@@ -305,9 +336,12 @@ class CausalDifferentiator:
         if not (np.ndim(dt) == 0 and np.isfinite(dt) and dt > 0):
             raise InputDataError(f"dt must be a positive finite number, got {dt!r}")
         self.steps = steps = _window_steps(window, float(dt), True, n, kappa, mu)
+        check_fits(steps + 1, _BYTES_PER_WINDOW_STEP, what=f"window {steps * dt:g} s at step "
+                   f"{dt:g} s", unit="steps")
         T = steps * float(dt)
         # reversed window: u measured backwards from the current sample, d/dt -> -d/du
         self._taps = (-1.0) ** n * _uniform_taps(steps, n, kappa, mu, N, 0.0) / T ** n
+        self._reversed_taps = np.ascontiguousarray(self._taps[::-1])
         self.delay = T * _centre(n, kappa, mu) if N == n else 0.0
         self._history = np.empty(0)
         self._seen = 0
@@ -316,6 +350,26 @@ class CausalDifferentiator:
         """Forget the stream: the next sample is the first."""
         self._history = np.empty(0)
         self._seen = 0
+
+    def state(self):
+        """What the differentiator carries from one chunk to the next, for :meth:`restore`.
+
+        Returns
+        -------
+        tuple
+            Not to be modified (:meth:`update` replaces it, never changes it).
+        """
+        return self._history, self._seen
+
+    def restore(self, state):
+        """Go back to a :meth:`state` taken before: the samples since are forgotten.
+
+        Parameters
+        ----------
+        state : tuple
+            From :meth:`state`.
+        """
+        self._history, self._seen = state
 
     def update(self, y):
         """Estimates of the derivative at the next samples of the stream.
@@ -331,19 +385,16 @@ class CausalDifferentiator:
             One estimate per sample; NaN for the first ``steps`` samples of the stream.
         """
         y = np.asarray(y, dtype=float)
-        steps, taps = self.steps, self._taps
+        steps = self.steps
         buffer = np.concatenate((self._history, y))
         first = max(steps - self._seen, 0)  # samples of y without a full past window
         out = np.empty(y.size)
         out[:min(first, y.size)] = np.nan
         if first < y.size:
-            # sample i of the buffer: sum over j of taps[j] * buffer[i - j], j = 0 .. steps
-            stop = buffer.size
-            begin = stop - (y.size - first)
-            total = taps[0] * buffer[begin:stop]
-            for j in range(1, steps + 1):
-                total += taps[j] * buffer[begin - j:stop - j]
-            out[first:] = total
+            # sample i of the buffer: sum over j of taps[j] * buffer[i - j], j = 0 .. steps,
+            # each a dot product of the same window with the reversed taps
+            begin = buffer.size - (y.size - first)
+            out[first:] = np.correlate(buffer[begin - steps:], self._reversed_taps, "valid")
         self._history = buffer[-steps:].copy()
         self._seen += y.size
         return out

@@ -27,8 +27,8 @@ from algid.options import (
 from algid.quadrature import iterated_integrals, startup_samples
 from algid.registry import available_models, load_model
 from algid.result import EstimationResult
-from algid.scaling import amplitude_scale, scalable
-from algid.validation import as_signal, check_experiment
+from algid.scaling import amplitude_scale, check_amplitude_range, scalable
+from algid.validation import as_signal, check_experiment, positive_number
 
 __all__ = ["estimate", "available_models", "load_model", "kernel_values",
            "DEFAULT_FILTER_ORDER", "DEFAULT_QUADRATURE_POINTS", "DEFAULT_QUADRATURE_ORDER",
@@ -227,6 +227,7 @@ def estimate(t, f=None, x=None, *, model="msd", filter_order=DEFAULT_FILTER_ORDE
     elif f is None or x is None:
         raise InputDataError("estimate needs the input f and the output x")
     module = load_model(model)
+    _check_takes_pair(module)
     filter_order = check_filter_order(filter_order)
     points = quadrature_points_option(quadrature_points, quadrature_order)
     _check_late_origin(late_origin, numerical_error, lowpass)
@@ -246,7 +247,9 @@ def estimate(t, f=None, x=None, *, model="msd", filter_order=DEFAULT_FILTER_ORDE
         t, f, x, dt = check_experiment(t, f, x, min_samples=min_samples)
     state = core.new_state(module, points=points, filter_order=filter_order, dt=dt,
                            divisors=channel_divisors(module, mass))
-    signals = _rescaled(module, {module.INPUT: f, module.OUTPUT: x})
+    signals = _rescaled(module, {module.INPUT: f, module.OUTPUT: x},
+                        dict(zip(module.CHANNELS, channel_divisors(module, mass) or
+                                 (1.0,) * len(module.CHANNELS))))
     channels = tuple(signals[name] for name in module.CHANNELS)
     error = None
     if lowpass_filter is None:
@@ -274,7 +277,20 @@ def _min_samples(points):
     return max(2 * (core.first_estimate(points) + 1), 8)
 
 
+def _check_takes_pair(module):
+    """Refuse ``estimate(t, f, x)`` for a model that reads other signals."""
+    if getattr(module, "FACTORS", None) or \
+            set(module.CHANNELS) != {module.INPUT, module.OUTPUT}:
+        from algid.user_models import ChannelStream
+        names = ChannelStream(module, None, centred=True).signals
+        raise InputDataError(
+            f"model {module.MODEL!r} reads the signals {', '.join(names)}: give them as "
+            f"estimate(t, signals={{name: samples, ...}}) instead of f and x")
+
+
 def _check_late_origin(late_origin, numerical_error, lowpass):
+    if numerical_error not in (True, False):
+        raise InputDataError(f"numerical_error must be True or False, got {numerical_error!r}")
     if late_origin not in (True, False):
         raise InputDataError(f"late_origin must be True or False, got {late_origin!r}")
     if late_origin and (not numerical_error or lowpass is not None):
@@ -294,12 +310,18 @@ def _advance(state, channels, backend, with_error, late_origin):
     return advance_with_error(state, channels, backend=backend)[:2]
 
 
-def _rescaled(module, signals):
+def _rescaled(module, signals, divisors=None):
     """The signals times a common power of two against overflow and underflow, when
-    the model's parameters do not depend on it (:mod:`algid.scaling`)."""
+    the model's parameters do not depend on it (:mod:`algid.scaling`); refused where
+    their amplitudes, divided by ``divisors`` (name -> divisor, default 1), do not fit
+    together in floating point (:func:`algid.scaling.check_amplitude_range`)."""
     if not scalable(module):
         return signals
     scale = amplitude_scale(tuple(signals.values()))
+    divisors = divisors or {}
+    check_amplitude_range(tuple(signals), tuple(signals.values()),
+                          tuple(divisors.get(name, 1.0) for name in signals), scale,
+                          len(module.PARAMETERS))
     if scale is None or scale == 1.0:
         return signals
     return {name: values * scale for name, values in signals.items()}
@@ -336,6 +358,22 @@ def _with_lowpass(state, channels, lowpass, points=None):
     return values
 
 
+def _check_channels_finite(module, channels, start, signals):
+    """Refuse a channel of a user model that is NaN or infinite from sample ``start`` on
+    (a function outside its domain, ``log(y)`` of ``y <= 0``, or an overflow)."""
+    factors = getattr(module, "FACTORS", {})
+    for name, values in zip(module.CHANNELS, channels):
+        bad = ~np.isfinite(values[start:])
+        if bad.any():
+            i = start + int(np.argmax(bad))
+            what = (f"channel {name!r} = {factors[name]}" if name in factors
+                    else f"signal {name!r}")
+            at = ", ".join(f"{s} = {float(v[i]):.10g}" for s, v in signals.items())
+            kind = "NaN" if np.isnan(values[i]) else "infinite"
+            raise InputDataError(f"{what} is {kind} at row {i} ({at}): outside the domain "
+                                 f"of its function, or an overflow")
+
+
 def _estimate_signals(t, signals, *, model, filter_order, quadrature_points, quadrature_order,
                       engine, given, differentiator, derivative_window,
                       derivative_extra_orders, with_error, late_origin):
@@ -362,12 +400,18 @@ def _estimate_signals(t, signals, *, model, filter_order, quadrature_points, qua
                                  f"{t_checked.size}")
     if not any(values.any() for values in checked.values()):
         raise InputDataError("no excitation: every signal is identically zero")
+    span = t_checked[-1] - t_checked[0]
+    if derivative_window is not None and positive_number(
+            derivative_window, name="derivative_window") > span:
+        raise InputDataError(f"derivative_window {derivative_window:g} s is longer than "
+                             f"the record ({span:g} s)")
     stream = channel_stream(module, dt, differentiator=differentiator,
                             derivative_window=derivative_window,
                             derivative_extra_orders=derivative_extra_orders)
     channels = stream.update(_rescaled(module, checked), t_checked)
     # causal derivatives: the time origin is the first sample that has one
     start = stream.warmup
+    _check_channels_finite(module, channels, start, checked)
     if t_checked.size - start < _min_samples(points):
         raise InputDataError(f"too few samples: {t_checked.size}, of which the first {start} "
                              "have no causal derivative estimate")

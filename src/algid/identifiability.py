@@ -205,13 +205,32 @@ def undetermined(module, channels, dt, *, rtol=IDENTIFIABILITY_RTOL, state=None)
     span = (channels[0].size - 1) * dt
     with np.errstate(over="ignore", under="ignore"):
         powers = np.float64(span) ** np.array([p + lv for _, p, lv in module.KERNELS])
-    if not (np.isfinite(P).all() and np.isfinite(Q).all() and np.isfinite(size_p).all()
-            and np.isfinite(size_q).all() and np.isfinite(powers).all()
-            and (powers > 0).all()):
+    if not (np.isfinite(powers).all() and (powers > 0).all()):
         raise InputDataError(
             f"the estimator's integrals overflow or underflow over a time span of "
             f"{span:.4g} s (step {dt:.4g} s): express the time in other units")
+    if not (np.isfinite(P).all() and np.isfinite(Q).all() and np.isfinite(size_p).all()
+            and np.isfinite(size_q).all()):  # the time is fine: the amplitudes are not
+        reach = ", ".join(f"{name!r} {float(np.max(np.abs(c))):.4g}"
+                          for name, c in zip(module.CHANNELS, channels))
+        raise InputDataError(
+            f"the estimator's integrals overflow over a time span of {span:.4g} s: the "
+            f"channels reach {reach} (as the estimator takes them, after any rescaling by "
+            f"a power of two, before any division by the mass): express the signals in "
+            f"other units")
     kind, free = _verdict(module, P, Q, size_p, size_q, rtol)
+    if kind is None:  # determined, if the products of its entries are in range
+        filter_order = 0 if state is None else state.filter_order
+        if not _cramer_in_range(module, P, Q, span, filter_order):
+            # a model of measured signals alone had its amplitudes brought into range
+            # (algid.scaling); others may have extreme ones
+            reach = "" if not getattr(module, "FACTORS", {}) else " with channels reaching " + \
+                ", ".join(f"{name!r} {float(np.max(np.abs(c))):.4g}"
+                          for name, c in zip(module.CHANNELS, channels))
+            raise InputDataError(
+                f"the estimator's products of integrals overflow or underflow over a time "
+                f"span of {span:.4g} s (step {dt:.4g} s){reach}: express the time"
+                f"{' or the signals' if reach else ''} in other units")
     parameters = list(module.PARAMETERS)
     named = " and ".join(parameters[j] for j in free)
     if kind == "silent":
@@ -226,6 +245,21 @@ def undetermined(module, channels, dt, *, rtol=IDENTIFIABILITY_RTOL, state=None)
         return (f"{named} separately (the terms they multiply are proportional over the "
                 f"record)")
     return None
+
+
+def _cramer_in_range(module, P, Q, span, filter_order):
+    """Whether Cramer's numerators and denominator at the end, integrated by the filter
+    (about ``span**p / p!`` times them), are normal floating-point numbers or zero."""
+    with np.errstate(over="ignore", under="ignore", invalid="ignore"):
+        numerators, denominator = module.cramer(P.tolist(), Q.tolist())
+    gain = filter_order * math.log2(span) - math.log2(math.factorial(filter_order))
+    for value in (*numerators, denominator):
+        value = abs(float(value))
+        if not math.isfinite(value):
+            return False
+        if value and not -1022 <= math.log2(value) + gain <= 1023:
+            return False
+    return True
 
 
 def _verdict(module, P, Q, size_p, size_q, rtol):
@@ -246,13 +280,21 @@ def _verdict(module, P, Q, size_p, size_q, rtol):
     # unit norm; a combination of the parameters is free when the smallest singular
     # value is at round-off.  (Not the determinant: the product of all the singular
     # values is small for a model of five parameters that the data determine well.)
-    rows = P / np.linalg.norm(P, axis=1)[:, None]
-    normalised = rows / np.linalg.norm(rows, axis=0)
+    # (each row first divided by its largest entry: the norms of entries near the ends
+    # of the floating-point range neither overflow nor underflow)
+    rows = P / _nonzero(np.max(np.abs(P), axis=1))[:, None]
+    rows /= _nonzero(np.linalg.norm(rows, axis=1))[:, None]
+    normalised = rows / _nonzero(np.linalg.norm(rows, axis=0))
     _, singular, vt = np.linalg.svd(normalised)
     if singular[-1] < rtol:
         free = np.abs(vt[-1])
         return "dependent", tuple(j for j in range(n) if free[j] > 0.1 * free.max())
     return None, ()
+
+
+def _nonzero(norms):
+    """The norms, with 1 for a zero (whose row or column stays zero)."""
+    return np.where(norms > 0, norms, 1.0)
 
 
 def undetermined_in_stream(state, rtol=IDENTIFIABILITY_RTOL):
@@ -312,3 +354,4 @@ def check_identifiable(module, channels, dt, *, rtol=IDENTIFIABILITY_RTOL, state
     what = undetermined(module, channels, dt, rtol=rtol, state=state)
     if what is not None:
         raise InputDataError(f"the data cannot determine {what}")
+

@@ -95,12 +95,14 @@ from math import comb
 
 import numpy as np
 
+from algid.adequacy import model_adequacy
 from algid.bias_compensation import bias_compensated, solve_equilibrated
 from algid.errors import InputDataError, ModelError
 from algid.expression import Call, Signal
 from algid.grammar import parse_equation
+from algid.identification_arguments import check_arguments, check_memory, check_model_columns
 from algid.model import Model
-from algid.records import Segment, estimate_derivative, prepare_records
+from algid.records import Segment, check_factors, estimate_derivative, prepare_records
 from algid.sign_crossings import crossing_jumps, crossing_motion, sign_factor
 from algid.window_basis import WindowBasis, check_excited, exponent, separability
 from algid.window_covariance import hac_meat, noise_meat, sandwich
@@ -165,7 +167,8 @@ class _Problem:
         self.segments = [Segment(s.record, s.rows, (s.t - s.t[0]) / self.time_unit, s.values,
                                  None if s.step is None else s.step / self.time_unit)
                          for s in segments]
-        self.step = step / self.time_unit
+        self.step = step                        # the records' median step (s)
+        self.unit_step = step / self.time_unit  # the same in the internal time
         self.parameters = model.parameters
         self.output_exponent = exponent([s.values[model.output] for s in segments])
         self.output_unit = float(np.ldexp(1.0, self.output_exponent))
@@ -301,6 +304,11 @@ class _Problem:
         columns, known, _ = self.exponents(which)
         return np.ldexp(theta, known - columns)
 
+    def to_rows(self, theta, which="measured"):
+        """The solution of :meth:`rows` that parameter values make."""
+        columns, known, _ = self.exponents(which)
+        return np.ldexp(theta, columns - known)
+
     def excitation(self, length, multiplicity, A, b):
         """Per column of ``A`` and for ``b``, their rms over the largest they could be
         for factors of the same largest samples (at most about 1; round-off for a term
@@ -311,7 +319,7 @@ class _Problem:
         for i, term in enumerate(self.model.terms):
             z = self.factor_samples(term.factor)
             largest = max(float(np.max(np.abs(v))) for v in z)
-            kernel = np.sum(np.abs(window_sample_weights(None, self.step, length,
+            kernel = np.sum(np.abs(window_sample_weights(None, self.unit_step, length,
                                                          multiplicity, term.derivative)))
             column = len(self.parameters) if term.parameter is None else index[term.parameter]
             bound[column] += abs(term.coefficient) * np.ldexp(kernel * largest, shifts[i])
@@ -437,11 +445,13 @@ def _solve(problem, length, multiplicities, instruments=None, method="ls"):
             phi = np.linalg.lstsq(basis.A, basis.b, rcond=None)[0]
             scores, jacobian = basis.A * (basis.b - basis.A @ phi)[:, None], \
                 basis.A.T @ basis.A
-        separate[a] = (phi, basis, ids, scores, jacobian, variance, capped, weights,
-                       separation, grams)
+        separate[a] = basis.theta(phi)
+        if a == max(multiplicities):
+            kept = (phi, basis, ids, scores, jacobian, variance, capped, weights, separation,
+                    grams)
     top = max(multiplicities)
-    phi, basis, ids, scores, jacobian, variance, capped, weights, separation, grams = \
-        separate[top]
+    phi, basis, ids, scores, jacobian, variance, capped, weights, separation, grams = kept
+    del kept
     r = basis.b - basis.A @ phi
     bread = np.linalg.pinv(jacobian)
     theta_s = basis.theta(phi)
@@ -454,6 +464,7 @@ def _solve(problem, length, multiplicities, instruments=None, method="ls"):
         variance = float(r @ r) / weight if weight > 0 else np.inf
         if not variance <= problem.noise_bound():
             variance, capped = problem.noise_bound(), True
+    del grams   # the per-window noise matrices: their memory for noise_meat's
     if variance is not None and np.isfinite(variance) and variance > 0:
         beta = np.ldexp(1.0, -basis.b_shift)
         noise = variance * beta ** 2 * noise_meat(problem, length, top, theta_bar, weights,
@@ -477,7 +488,7 @@ def _solve(problem, length, multiplicities, instruments=None, method="ls"):
     scale = np.ldexp(np.sqrt(np.mean(A ** 2, axis=0)) / max(float(np.sqrt(np.mean(
         basis.b ** 2))), 1e-300), basis.shifts - basis.b_shift - shift)
     return WindowFit(theta, covariance,
-                {a: np.ldexp(v[1].theta(v[0]), shift) for a, v in separate.items()},
+                {a: np.ldexp(v, shift) for a, v in separate.items()},
                 scale, r, len(ids), separation)
 
 
@@ -552,7 +563,8 @@ def identify(data, equation, parameters=None, *, time=None, rate=None, output=No
     time : str, optional
         Name of the time column; by default a column ``t`` or ``time``.
     rate : float, optional
-        Sampling rate (Hz) of records without a time column.
+        Sampling rate (Hz) of records without a time column (with one, it must agree
+        with it: :data:`algid.records.RATE_TOLERANCE`).
     output : str, optional
         Output signal; by default the signal of highest derivative order.
     window : float, optional
@@ -573,22 +585,30 @@ def identify(data, equation, parameters=None, *, time=None, rate=None, output=No
     Returns
     -------
     IdentificationResult
+        With ``warnings`` when the model does not explain the data within the noise
+        (:mod:`algid.adequacy`).
 
     Raises
     ------
     ModelError, InputDataError
-        One-line messages for a bad equation or unusable data.
+        One-line messages for a bad equation, an argument of the wrong type, unusable
+        data, or records too large for the memory available.
     """
     from algid.identification_result import IdentificationResult
 
-    if method not in METHODS:
-        raise InputDataError(f"unknown method {method!r} (choose from {', '.join(METHODS)})")
+    multiplicities = check_arguments(
+        equation, parameters, time=time, rate=rate, output=output, window=window,
+        method=method, methods=METHODS, multiplicities=multiplicities, name=name,
+        iterations=iterations)
     model = equation if isinstance(equation, Model) else parse_equation(
         equation, parameters, output=output, name=name)
+    check_model_columns(model, time)
+    check_memory(data, model)
     multiplicities = _check_multiplicities(model, multiplicities)
     segments, step, n_samples = prepare_records(data, model.signals, time=time, rate=rate,
                                                 min_length=min_length(multiplicities))
     _add_derivatives(model, segments, _derivative_estimate)
+    check_factors(model, segments)
     problem = _Problem(model, segments, step)
     length = window_length(window, step, problem, multiplicities)
     scores = None
@@ -612,7 +632,11 @@ def identify(data, equation, parameters=None, *, time=None, rate=None, output=No
                                      "first estimate diverges; use method='bc'")
             instruments = {a: problem.rows(length, a, "simulated") for a in multiplicities}
             fit = _solve(problem, length, multiplicities, instruments)
-    if fit.separation.free:
+    adequacy = model_adequacy(problem, length, fit, _solve, method, min_length(multiplicities),
+                              max(1, length // WINDOW_OVERLAP))
+    # where the model explains the data, a combination no better determined than the
+    # noise or the misfit is free; where it does not, the model's error is the cause
+    if adequacy.adequate and (fit.separation.free or fit.separation.misfit_free):
         raise ModelError(fit.separation.message(model.parameters))
     return IdentificationResult(
         model=model, values=dict(zip(model.parameters, fit.theta.tolist())),
@@ -621,4 +645,6 @@ def identify(data, equation, parameters=None, *, time=None, rate=None, output=No
         time=time, rate=rate, window_scores=scores,
         separate={a: dict(zip(model.parameters, v.tolist())) for a, v in fit.separate.items()},
         numerical_error=dict(zip(model.parameters, fit.numerical_error.tolist())),
-        warnings=fit.separation.warnings(model.parameters))
+        adequacy=adequacy,
+        warnings=adequacy.warnings() + fit.separation.warnings(model.parameters,
+                                                               adequacy.adequate))

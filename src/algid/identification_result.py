@@ -90,8 +90,11 @@ class IdentificationResult:
         Runge-Kutta pair estimates its step error).  Not part of the covariance; report
         it beside the standard error (on noisy records it also holds the part of the
         noise in which the two estimates differ).
+    adequacy : algid.adequacy.Adequacy or None
+        The test of whether the model explains the data within the noise.
     warnings : list of str
-        One line per reservation about the estimate (e.g. poorly separated parameters).
+        One-line warnings about the result (an inadequate model, poorly separated or
+        strongly correlated parameters).
     """
 
     model: object
@@ -107,6 +110,7 @@ class IdentificationResult:
     window_scores: dict | None = None
     separate: dict = field(default_factory=dict)
     numerical_error: dict = field(default_factory=dict)
+    adequacy: object = None
     warnings: list = field(default_factory=list)
 
     def __getattr__(self, name):
@@ -138,13 +142,15 @@ class IdentificationResult:
             return f"{p}={v:.6g} ± {self.stderr[p]:.2g}{extra}"
 
         pieces = ", ".join(piece(p, v) for p, v in self.values.items())
+        warned = "".join(f"; warning: {w}" for w in self.warnings)
         return (f"IdentificationResult({self.model.equation!r}: {pieces}; window "
-                f"{self.window:.4g} s, {self.n_samples} samples, {self.method})")
+                f"{self.window:.4g} s, {self.n_samples} samples, {self.method}{warned})")
 
     def with_parameters(self, values):
         """Return a copy with other parameter values (e.g. published ones).
 
         The covariance is kept as it is; use it to validate other values the same way.
+        The adequacy test, made for the identified values, is not carried over.
 
         Parameters
         ----------
@@ -158,7 +164,8 @@ class IdentificationResult:
         missing = [p for p in self.model.parameters if p not in values]
         if missing:
             raise InputDataError(f"no value for parameter {missing[0]}")
-        return replace(self, values={p: float(values[p]) for p in self.model.parameters})
+        return replace(self, values={p: float(values[p]) for p in self.model.parameters},
+                       adequacy=None, warnings=[])
 
     # validation -------------------------------------------------------------------------
 

@@ -1,5 +1,8 @@
 """Reading measured experiments from CSV/text and MATLAB files.
 
+A CSV/text file may be gzip-compressed (``.csv.gz``, ``.txt.gz``, as the Silverbox
+record ships in the package): it is decompressed while read.
+
 Only file-specific problems are reported here (missing file, unreadable format,
 missing or non-numeric column).  Checks on the signals themselves (NaN, lengths,
 time axis, excitation) are made by :func:`algid.validation.check_experiment`.
@@ -9,19 +12,26 @@ Every :class:`~algid.errors.DataFileError` message starts with the file name.
 from __future__ import annotations
 
 import csv
+import gzip
 import math
 import os
+import zlib
 from pathlib import Path
 
 import numpy as np
 
+from . import memory
 from .errors import DataFileError, InputDataError
 from .memory import check_fits
+from .records import check_rate, check_rate_agrees
 
-__all__ = ["read_experiment", "read_columns", "CSV_SUFFIXES", "MAT_SUFFIXES"]
+__all__ = ["read_experiment", "read_columns", "CSV_SUFFIXES", "MAT_SUFFIXES",
+           "GZIP_SUFFIXES"]
 
 CSV_SUFFIXES = (".csv", ".txt")
 MAT_SUFFIXES = (".mat",)
+#: gzip-compressed CSV/text files, decompressed while read.
+GZIP_SUFFIXES = (".csv.gz", ".txt.gz")
 
 
 def read_experiment(path, *, time="t", input="f", output="x", rate=None):
@@ -30,10 +40,12 @@ def read_experiment(path, *, time="t", input="f", output="x", rate=None):
     Parameters
     ----------
     path : str or os.PathLike
-        A ``.csv``/``.txt`` file with a header line of column names, or a MATLAB
-        ``.mat`` file (up to version 7.2) whose variables are named like the columns.
+        A ``.csv``/``.txt`` file with a header line of column names (or the same
+        gzip-compressed, ``.csv.gz``/``.txt.gz``), or a MATLAB ``.mat`` file (up to
+        version 7.2) whose variables are named like the columns.
     time : str, optional
-        Name of the time column.  Ignored when ``rate`` is given.
+        Name of the time column.  When ``rate`` is given, the column is optional; if
+        the file has it, it must agree with the rate.
     input : str, optional
         Name of the input (force) column.
     output : str, optional
@@ -57,7 +69,8 @@ def read_experiment(path, *, time="t", input="f", output="x", rate=None):
         or holds a non-numeric value (the message gives the column and the 1-based line
         number for CSV files).
     InputDataError
-        If ``rate`` is not a positive finite number.
+        If ``rate`` is not a positive finite number whose step lies in
+        :data:`algid.records.STEP_RANGE`, or contradicts the file's time column.
 
     Examples
     --------
@@ -67,7 +80,9 @@ def read_experiment(path, *, time="t", input="f", output="x", rate=None):
     if rate is not None:
         rate = _check_rate(rate)
     p, label, suffix = _checked_path(path)
-    wanted = [input, output] if rate is not None else [time, input, output]
+    # with a rate, a time column present in the file is read too: the two must agree
+    timed = rate is None or time in _available(p, label, suffix)
+    wanted = [time, input, output] if timed else [input, output]
     if suffix in MAT_SUFFIXES:
         columns = _read_mat(p, label, wanted, time if rate is None else None)
     else:
@@ -75,11 +90,11 @@ def read_experiment(path, *, time="t", input="f", output="x", rate=None):
 
     f = columns[input]
     x = columns[output]
-    if rate is not None:
-        t = np.arange(f.size, dtype=np.float64) / rate
-    else:
-        t = columns[time]
-    return t, f, x
+    if rate is None:
+        return columns[time], f, x
+    if timed and np.all(np.diff(columns[time]) > 0):
+        check_rate_agrees(rate, columns[time], time, label)
+    return np.arange(f.size, dtype=np.float64) / rate, f, x
 
 
 def _checked_path(path):
@@ -88,8 +103,10 @@ def _checked_path(path):
         label = os.fsdecode(label)
     p = Path(label)
     suffix = p.suffix.lower()
-    if suffix not in CSV_SUFFIXES + MAT_SUFFIXES:
-        supported = ", ".join(CSV_SUFFIXES + MAT_SUFFIXES)
+    if suffix == ".gz":
+        suffix = "".join(p.suffixes[-2:]).lower()
+    if suffix not in CSV_SUFFIXES + GZIP_SUFFIXES + MAT_SUFFIXES:
+        supported = ", ".join(CSV_SUFFIXES + GZIP_SUFFIXES + MAT_SUFFIXES)
         shown = f"extension {p.suffix!r}" if p.suffix else "no extension"
         raise DataFileError(f"{label}: unknown file type ({shown}); supported: {supported}")
     if not p.exists():
@@ -107,15 +124,14 @@ def _available(p, label, suffix):
             return [name for name, _, _ in whosmat(p)]
         except Exception:  # unreadable: _read_mat reports it
             return []
-    try:
-        text = p.read_text(encoding="utf-8-sig")
-    except (UnicodeDecodeError, OSError):
+    opener = gzip.open if suffix in GZIP_SUFFIXES else open
+    try:  # the header only: the first line that is neither blank nor a comment
+        with opener(p, "rt", encoding="utf-8-sig") as lines:
+            for line in lines:
+                if line.strip() and not line.strip().startswith("#"):
+                    return _fields(line.rstrip("\r\n"), _delimiter(line))
+    except (UnicodeDecodeError, OSError, EOFError, csv.Error):
         return []  # _read_csv reports it
-    for _, line in _split_lines(text):
-        try:
-            return _fields(line, _delimiter(line))
-        except csv.Error:
-            return []
     return []
 
 
@@ -125,7 +141,8 @@ def read_columns(path, names, *, optional=()):
     Parameters
     ----------
     path : str or path-like
-        A ``.csv``/``.txt`` file with a header line, or a MATLAB ``.mat`` file.
+        A ``.csv``/``.txt`` file with a header line (or the same gzip-compressed,
+        ``.csv.gz``/``.txt.gz``), or a MATLAB ``.mat`` file.
     names : sequence of str
         Columns or variables that must be present.
     optional : sequence of str
@@ -152,13 +169,15 @@ def read_columns(path, names, *, optional=()):
 
 
 def _check_rate(rate) -> float:
+    if isinstance(rate, (bool, np.bool_)):
+        raise InputDataError(f"rate must be a number of Hz, got {rate!r}")
     try:
         value = float(rate)
     except (TypeError, ValueError):
         raise InputDataError(f"rate must be a number of Hz, got {rate!r}") from None
     if not (math.isfinite(value) and value > 0):
         raise InputDataError(f"rate must be a positive finite number of Hz, got {rate!r}")
-    return value
+    return check_rate(value)
 
 
 def _missing(label, kind, name, available, time_name):
@@ -244,14 +263,44 @@ def _check_size(p, label, bytes_per_file_byte):
         raise DataFileError(str(exc)) from None
 
 
-def _read_csv(p, label, wanted, time_name):
-    _check_size(p, label, CSV_BYTES_PER_FILE_BYTE)
+def _read_gzip(p, label):
+    """The decompressed bytes of a gzip file, refused beyond what memory can parse.
+
+    The reading's peak memory is :data:`CSV_BYTES_PER_FILE_BYTE` per byte of text, the
+    decompressed text (not the file) is what counts, and its size is known only once
+    decompressed: at most the budget plus one byte is decompressed.
+    """
+    available = memory.available_memory()
+    budget = available // CSV_BYTES_PER_FILE_BYTE
     try:
-        text = p.read_text(encoding="utf-8-sig")
+        with gzip.open(p, "rb") as stream:
+            data = stream.read(budget + 1)
+    except (OSError, EOFError, zlib.error) as exc:
+        reason = " ".join(str(exc).split()) or type(exc).__name__
+        raise DataFileError(f"{label}: not a readable gzip file ({reason})") from None
+    if len(data) > budget:
+        raise DataFileError(
+            f"{label}: too large to read: its decompressed text exceeds "
+            f"{memory._size(budget)}, the most that the {memory._size(available)} "
+            f"of memory available can parse ({CSV_BYTES_PER_FILE_BYTE} bytes per byte of text)")
+    return data
+
+
+def _read_text(p, label):
+    """The text of a CSV/text file (decompressed when gzip), refused when too large."""
+    try:
+        if p.name.lower().endswith(".gz"):
+            return _read_gzip(p, label).decode("utf-8-sig")
+        _check_size(p, label, CSV_BYTES_PER_FILE_BYTE)
+        return p.read_text(encoding="utf-8-sig")
     except UnicodeDecodeError:
         raise DataFileError(f"{label}: not a UTF-8 text file") from None
     except OSError as exc:
         raise DataFileError(f"{label}: cannot read file ({exc.strerror or exc})") from None
+
+
+def _read_csv(p, label, wanted, time_name):
+    text = _read_text(p, label)
 
     lines = _split_lines(text)
     try:

@@ -5,7 +5,8 @@ the memory) is refused with an :class:`~algid.errors.InputDataError` that gives 
 numbers, instead of ending in a ``MemoryError`` or in swapping.  The memory available
 is read from the operating system (``MemAvailable`` of ``/proc/meminfo`` on Linux,
 else the free physical pages); where it cannot be read, :data:`FALLBACK_MEMORY_BYTES`
-is assumed.
+is assumed.  A limit on the process's address space (``ulimit -v``) lowers it to what
+the limit leaves.
 """
 
 from __future__ import annotations
@@ -20,6 +21,23 @@ __all__ = ["available_memory", "check_fits", "FALLBACK_MEMORY_BYTES"]
 FALLBACK_MEMORY_BYTES = 8 * 2**30
 
 
+def _address_space_left():
+    """What the process's address-space limit leaves [bytes], or None without one."""
+    try:
+        import resource
+
+        limit = resource.getrlimit(resource.RLIMIT_AS)[0]
+        if limit == resource.RLIM_INFINITY:
+            return None
+        with open("/proc/self/status", encoding="ascii") as status:
+            for line in status:
+                if line.startswith("VmSize:"):
+                    return max(0, limit - int(line.split()[1]) * 1024)
+    except (ImportError, OSError, ValueError, IndexError):
+        pass
+    return None
+
+
 def available_memory() -> int:
     """Memory available to a new allocation without swapping [bytes].
 
@@ -27,8 +45,15 @@ def available_memory() -> int:
     -------
     int
         ``MemAvailable`` from ``/proc/meminfo`` (Linux), else the free physical pages
-        (``os.sysconf``), else :data:`FALLBACK_MEMORY_BYTES`.
+        (``os.sysconf``), else :data:`FALLBACK_MEMORY_BYTES`; at most what an
+        address-space limit (``ulimit -v``) leaves.
     """
+    left = _address_space_left()
+    physical = _physical_memory()
+    return physical if left is None else min(physical, left)
+
+
+def _physical_memory() -> int:
     try:
         with open("/proc/meminfo", encoding="ascii") as meminfo:
             for line in meminfo:

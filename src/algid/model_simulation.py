@@ -13,8 +13,15 @@ sampling step, which adds about 1 mV on Silverbox).  ``method="RK4"`` is the cla
 Runge-Kutta method with a fixed number of sub-steps per sample on the same interpolants,
 for loops that simulate many times (an output-error fit, instrumental variables).
 Nonlinear factors that read the output's derivatives (``sign(q')``) are evaluated on the
-simulated state.  This module is the one simulator of algid:
-:meth:`algid.IdentificationResult.simulate` uses it.
+simulated state.  A ``sign()`` of the simulated state is integrated piecewise, from
+switch to switch, sliding on the switching surface where the flows on both sides point
+to it (a mass held by Coulomb friction; :mod:`algid.switching`): the EMPS validation
+run simulates in seconds instead of crawling through the sticking phases.  Every
+solver but ``"RK4"`` is bounded in right-hand-side evaluations (:data:`MAX_EVALUATIONS`
+per sample on average, :data:`MAX_STALLED_EVALUATIONS` without advancing one sampling
+step): beyond, a :class:`~algid.errors.ModelError` suggests ``method="RK4"``.  This
+module is the one simulator of algid: :meth:`algid.IdentificationResult.simulate` uses
+it.
 
 Between the samples the forcing must be interpolated, and at few samples per period this
 matters more than the integrator:
@@ -45,25 +52,28 @@ default settings), as in identification, then interpolated with the rest of the 
 
 from __future__ import annotations
 
-import bisect
 import math
+import numbers
 
 import numpy as np
 from scipy.integrate import solve_ivp
-from scipy.interpolate import CubicSpline
 from scipy.optimize import least_squares
-from scipy.signal import firwin, resample_poly
 
 from .differentiation import algebraic_derivative
 from .errors import InputDataError, ModelError
 from .expression import Call, Constant, Power, Product, Signal, Sum, Time
+from .memory import check_fits
+from .signal_interpolation import Interpolant
+from .switching import integrate_switched
 
-__all__ = ["simulate_model", "fit_initial_state", "UPSAMPLING", "FILTER_HALF_LENGTH"]
+__all__ = ["simulate_model", "fit_initial_state",
+           "METHODS", "MAX_EVALUATIONS", "MAX_STALLED_EVALUATIONS"]
 
-#: Band-limited interpolation: upsampling factor and filter half-length (input samples).
-UPSAMPLING = 16
-FILTER_HALF_LENGTH = 96
-_KAISER_BETA = 13.0
+#: Bound on the right-hand-side evaluations of the adaptive solvers, per sample on
+#: average (DOP853 needs about 35 at 9 samples per period, 15 on the EMPS records).
+MAX_EVALUATIONS = 1000
+#: Bound on the evaluations without the solution advancing one sampling step.
+MAX_STALLED_EVALUATIONS = 20000
 
 
 _SCALAR = {
@@ -73,11 +83,16 @@ _SCALAR = {
 }
 
 
-def _scalar(expr, slot):
+def _scalar(expr, slot, held=None):
     """A closure ``f(values, time) -> float`` for ``expr`` on scalars (fast per step).
 
-    ``slot(name, k)`` is the index in ``values`` of a signal or derivative.
+    ``slot(name, k)`` is the index in ``values`` of a signal or derivative; ``held``
+    maps a sub-expression to the index in ``values`` of a value that replaces it (the
+    mode of a switch).
     """
+    if held and expr in held:
+        index = held[expr]
+        return lambda v, t: v[index]
     if isinstance(expr, Constant):
         value = float(expr.value)
         return lambda v, t: value
@@ -87,20 +102,36 @@ def _scalar(expr, slot):
         index = slot(expr.name, expr.derivative)
         return lambda v, t: v[index]
     if isinstance(expr, Call) and expr.function in _SCALAR and len(expr.args) == 1:
-        function, arg = _SCALAR[expr.function], _scalar(expr.args[0], slot)
+        function, arg = _SCALAR[expr.function], _scalar(expr.args[0], slot, held)
         return lambda v, t: function(arg(v, t))
     if isinstance(expr, Power):
-        base, exponent = _scalar(expr.base, slot), float(expr.exponent)
+        base, exponent = _scalar(expr.base, slot, held), float(expr.exponent)
         if exponent == int(exponent):
             exponent = int(exponent)
         return lambda v, t: base(v, t) ** exponent
     if isinstance(expr, Sum):
-        parts = [_scalar(p, slot) for p in expr.terms]
+        parts = [_scalar(p, slot, held) for p in expr.terms]
         return lambda v, t: sum(p(v, t) for p in parts)
     if isinstance(expr, Product):
-        parts = [_scalar(p, slot) for p in expr.factors]
+        parts = [_scalar(p, slot, held) for p in expr.factors]
         return lambda v, t: math.prod(p(v, t) for p in parts)
     raise ModelError(f"cannot simulate the factor {expr}")
+
+
+def _switches(expr, output, found):
+    """Append to ``found`` the ``sign()`` calls of ``expr`` whose argument reads the
+    output (each once, in order of appearance)."""
+    if isinstance(expr, Call):
+        if expr.function == "sign" and output in expr.args[0].signals() and expr not in found:
+            found.append(expr)
+        children = expr.args
+    else:
+        children = getattr(expr, "terms", None) or getattr(expr, "factors", None) or ()
+        if isinstance(expr, Power):
+            children = (expr.base,)
+    for child in children:
+        _switches(child, output, found)
+    return found
 
 
 def _weight(term, parameters):
@@ -108,87 +139,40 @@ def _weight(term, parameters):
         return float(term.coefficient)
     if term.parameter not in parameters:
         raise ModelError(f"no value for the parameter {term.parameter!r}")
-    value = float(parameters[term.parameter])
+    value = parameters[term.parameter]
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Real):
+        raise ModelError(f"parameter {term.parameter!r} must be a real number, got "
+                         f"{value!r:.40}")
+    value = float(value)
     if not math.isfinite(value):
         raise ModelError(f"parameter {term.parameter!r} is not finite: {value!r}")
     return float(term.coefficient) * value
 
 
-def _extrapolate(values, count, *, order=32, span=512):
-    """The samples extended by ``count`` linear-prediction samples at both ends.
-
-    A band-limited signal is predictable: a least-squares linear predictor of ``order``
-    taps, fitted on the ``span`` samples next to each end, continues it, so that the
-    interpolation filter sees plausible samples beyond the record instead of a padding
-    (measured on a sine at 9 samples per period: 1e-6 error at the first samples
-    against 1e-2 with odd-reflection padding).  If a prediction runs away (more than
-    four times the record's largest value) the record is returned unextended.
-    """
-    limit = 4.0 * np.max(np.abs(values)) + 1e-300
-
-    def forward(v):
-        v = v[-span:]
-        p = min(order, len(v) // 4)
-        if p < 2:
-            return None
-        rows = np.lib.stride_tricks.sliding_window_view(v[:-1], p)
-        coefficients = np.linalg.lstsq(rows, v[p:], rcond=None)[0]
-        out = list(v[-p:])
-        for _ in range(count):
-            out.append(float(np.dot(coefficients, out[-p:])))
-        tail = np.array(out[p:])
-        return tail if np.all(np.abs(tail) <= limit) else None
-
-    before, after = forward(values[::-1]), forward(values)
-    if before is None or after is None:
-        return values
-    return np.concatenate([before[::-1], values, after])
-
-
-class _Interpolant:
-    """A sampled signal interpolated between samples, evaluated fast at scalar times."""
-
-    def __init__(self, t, values, interpolation):
-        if interpolation == "bandlimited":
-            step = (t[-1] - t[0]) / (len(t) - 1)
-            taps = firwin(2 * FILTER_HALF_LENGTH * UPSAMPLING + 1, 1.0 / UPSAMPLING,
-                          window=("kaiser", _KAISER_BETA))
-            margin = FILTER_HALF_LENGTH + 16
-            extended = _extrapolate(values, margin)
-            fine = resample_poly(extended, UPSAMPLING, 1, window=taps, padtype="antireflect")
-            skip = (margin if len(extended) > len(values) else 0) * UPSAMPLING
-            fine = fine[skip:skip + (len(t) - 1) * UPSAMPLING + 1]
-            grid = t[0] + np.arange(len(fine)) * (step / UPSAMPLING)
-            grid[-1] = t[-1]
-            spline = CubicSpline(grid, fine)
-        else:
-            spline = CubicSpline(t, values)
-        self.spline = spline
-        self.knots = spline.x.tolist()
-        # polynomial pieces c0 (t - x_i)**3 + c1 (...)**2 + c2 (...) + c3, as lists
-        self.coefficients = [row.tolist() for row in spline.c]
-
-    def __call__(self, time):
-        i = min(max(bisect.bisect_right(self.knots, time) - 1, 0), len(self.knots) - 2)
-        h = time - self.knots[i]
-        c = self.coefficients
-        return ((c[0][i] * h + c[1][i]) * h + c[2][i]) * h + c[3][i]
-
-    def derivative_samples(self, t, order):
-        return self.spline(t, order)
+def _floats(values, what):
+    """``values`` as a float64 array, or a one-line error naming ``what``."""
+    if isinstance(values, (str, bytes)) or values is None:
+        raise InputDataError(f"{what} must be numbers, got {values!r:.40}")
+    try:
+        return np.asarray(values, dtype=float)
+    except (TypeError, ValueError):
+        raise InputDataError(f"{what} must be numbers, got {values!r:.60}") from None
 
 
 def _check_time_and_inputs(time, inputs, names):
-    t = np.asarray(time, dtype=float)
+    t = _floats(time, "time")
     if t.ndim != 1 or len(t) < 4:
         raise InputDataError("time must be a 1-D array of at least 4 sample times")
     if not np.all(np.isfinite(t)) or np.any(np.diff(t) <= 0):
         raise InputDataError("time must be finite and strictly increasing")
+    if not hasattr(inputs, "items"):
+        raise InputDataError(f"inputs must be a mapping of signal name -> samples, got "
+                             f"{type(inputs).__name__}")
     columns = {}
     for name in names:
         if name not in inputs:
             raise InputDataError(f"no samples for the input {name!r}")
-        values = np.asarray(inputs[name], dtype=float)
+        values = _floats(inputs[name], f"input {name!r}")
         if values.shape != t.shape:
             raise InputDataError(f"input {name!r} has shape {values.shape}, time has {t.shape}")
         if not np.all(np.isfinite(values)):
@@ -225,7 +209,7 @@ class _OutputEquation:
         if interpolation == "bandlimited" and not _is_uniform(t):
             interpolation = "cubic"
         self.output, self.interpolation = output, interpolation
-        splines = {name: _Interpolant(t, values, interpolation)
+        splines = {name: Interpolant(t, values, interpolation)
                    for name, values in columns.items()}
         forcing = np.zeros_like(t)
         self.state_terms = []      # (weight, factor): the terms that read the output
@@ -243,21 +227,41 @@ class _OutputEquation:
                         raise ModelError(f"cannot simulate {model.equation!r}: {output}"
                                          f"{chr(39) * k} appears inside a nonlinear factor")
                     if name != output:
-                        self.inputs[(name, k)] = _Interpolant(
+                        self.inputs[(name, k)] = Interpolant(
                             t, _differentiate(columns[name], t, k), interpolation)
                 for name in factor.signals():
                     if name != output:
                         self.inputs[name] = splines[name]
                 self.state_terms.append((weight, factor))
             else:
-                forcing += weight * self._known_values(term, columns, splines, t)
-        self.forcing = _Interpolant(t, forcing, interpolation)
+                with np.errstate(over="ignore", invalid="ignore"):
+                    forcing += weight * self._known_values(term, columns, splines, t)
+        if not np.isfinite(forcing).all():
+            raise InputDataError(f"the known terms of {model.equation!r} overflow in "
+                                 f"floating point with these parameters and inputs: express "
+                                 f"them in other units")
+        self.forcing = Interpolant(t, forcing, interpolation)
         # scalar closures over one list: the state, then the interpolated inputs
         keys = [(output, k) for k in range(self.order)] + list(self.inputs)
         index = {(key if isinstance(key, tuple) else (key, 0)): i for i, key in enumerate(keys)}
         self.input_interpolants = list(self.inputs.values())
-        self.compiled = [(w, _scalar(f, lambda name, k: index[(name, k)]))
-                         for w, f in self.state_terms]
+
+        def slot(name, k):
+            return index[(name, k)]
+
+        self.compiled = [(w, _scalar(f, slot)) for w, f in self.state_terms]
+        # sign() of the simulated state: a mode held between switches (algid.switching),
+        # read from the values after the state and the inputs
+        switches = []
+        for _, factor in self.state_terms:
+            _switches(factor, output, switches)
+        held = {call: len(keys) + j for j, call in enumerate(switches)}
+        self.switched = [(w, _scalar(f, slot, held)) for w, f in self.state_terms]
+        self.switch_arguments = [_scalar(call.args[0], slot) for call in switches]
+        self.plain_switches = [call.args[0].derivative
+                               if isinstance(call.args[0], Signal)
+                               and call.args[0].name == output else None
+                               for call in switches]
 
     @staticmethod
     def _known_values(term, columns, splines, t):
@@ -276,9 +280,31 @@ class _OutputEquation:
         return np.broadcast_to(np.asarray(factor.evaluate(values, time=t), dtype=float),
                                t.shape)
 
-    def __call__(self, time, state):
+    def _values(self, time, state):
         values = [float(x) for x in state]
         values.extend(f(time) for f in self.input_interpolants)
+        return values
+
+    def top(self, time, state, modes):
+        """The highest derivative with each switch's ``sign()`` held at ``modes``."""
+        values = self._values(time, state) + list(modes)
+        top = self.forcing(time)
+        try:
+            for weight, f in self.switched:
+                top += weight * f(values, time)
+        except (ArithmeticError, ValueError):
+            top = math.nan
+        return top
+
+    def switch_argument(self, j, time, state):
+        """The argument of switch ``j``'s ``sign()`` (NaN outside its domain)."""
+        try:
+            return self.switch_arguments[j](self._values(time, state), time)
+        except (ArithmeticError, ValueError):
+            return math.nan
+
+    def __call__(self, time, state):
+        values = self._values(time, state)
         top = self.forcing(time)
         try:
             for weight, f in self.compiled:
@@ -350,9 +376,35 @@ def _integrate_rk4(equation, t, state, substeps):
     return out
 
 
+#: The integrators of :func:`simulate_model`: those of :func:`scipy.integrate.solve_ivp`,
+#: and the classical Runge-Kutta method of fixed steps.
+METHODS = ("RK23", "RK45", "DOP853", "Radau", "BDF", "LSODA", "RK4")
+#: Peak memory of ``method="RK4"`` per step and half step [bytes] (the interpolated
+#: inputs and forcing as lists of floats), checked before the grid is made.
+_RK4_BYTES_PER_POINT = 128
+
+
+def _check_integrator(method, rtol, atol, substeps, n_samples):
+    """Refuse an unknown method, tolerances that are not positive numbers, or sub-steps
+    that are not a positive integer or whose grid does not fit in memory."""
+    if not isinstance(method, str) or method not in METHODS:
+        raise InputDataError(f"method must be one of {', '.join(METHODS)}, got {method!r}")
+    for name, value in (("rtol", rtol), ("atol", atol)):
+        if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Real) \
+                or not 0 < value < math.inf:
+            raise InputDataError(f"{name} must be a positive number, got {value!r:.40}")
+    if method == "RK4":
+        if isinstance(substeps, (bool, np.bool_)) or not isinstance(substeps, numbers.Integral) \
+                or substeps < 1:
+            raise InputDataError(f"substeps must be a positive integer, got {substeps!r}")
+        check_fits(2 * int(substeps) * n_samples, _RK4_BYTES_PER_POINT,
+                   what=f"RK4 with {substeps} substeps", unit="steps")
+
+
 def _integrate(equation, t, initial_state, method, rtol, atol, substeps=4):
+    _check_integrator(method, rtol, atol, substeps, len(t))
     state = np.zeros(equation.order) if initial_state is None else \
-        np.asarray(initial_state, dtype=float).ravel()
+        _floats(initial_state, "initial_state").ravel()
     if state.shape != (equation.order,) or not np.all(np.isfinite(state)):
         raise InputDataError(f"initial_state must hold {equation.order} finite values "
                              f"(the output and its derivatives up to order "
@@ -362,11 +414,61 @@ def _integrate(equation, t, initial_state, method, rtol, atol, substeps=4):
         if substeps < 1:
             raise InputDataError(f"substeps must be a positive integer, got {substeps!r}")
         return _integrate_rk4(equation, t, state, substeps)
-    solution = solve_ivp(equation, (t[0], t[-1]), state, method=method, t_eval=t,
-                         rtol=rtol, atol=atol)
+    budget = _Budget(t)
+    try:
+        if equation.plain_switches:
+            return integrate_switched(equation, t, state, method, rtol, atol, budget.tick)
+
+        def rhs(time, x):
+            budget.tick(time)
+            return equation(time, x)
+
+        with np.errstate(over="ignore", invalid="ignore"):  # a diverging model: NaN below
+            solution = solve_ivp(rhs, (t[0], t[-1]), state, method=method, t_eval=t,
+                                 rtol=rtol, atol=atol)
+    except _Exhausted as stop:
+        raise ModelError(
+            f"simulation by {method} stopped at t = {stop.time:.6g} s after {stop.count} "
+            f"right-hand-side evaluations ({stop.reason}): the model is stiff or switches "
+            f"too often for it; use method='RK4' (fixed steps) or a stiff method "
+            f"('LSODA')") from None
     out = np.full((equation.order, len(t)), np.nan)
     out[:, :solution.y.shape[1]] = solution.y  # a diverging model stops early: NaN after
     return out
+
+
+class _Exhausted(Exception):
+    """The bound on the right-hand-side evaluations was reached."""
+
+    def __init__(self, time, count, reason):
+        super().__init__(reason)
+        self.time, self.count, self.reason = time, count, reason
+
+
+class _Budget:
+    """Counts right-hand-side evaluations; raises :class:`_Exhausted` past the bounds:
+    :data:`MAX_EVALUATIONS` per sample, or a block of :data:`MAX_STALLED_EVALUATIONS`
+    whose median time is less than one mean sampling step past the previous block's (the
+    median: a trial step, rejected or the first of a solver, may look far ahead)."""
+
+    def __init__(self, t):
+        self.limit = MAX_EVALUATIONS * len(t)
+        self.step = (t[-1] - t[0]) / (len(t) - 1)
+        self.count = 0
+        self.block = []
+        self.previous_median = -math.inf
+
+    def tick(self, time):
+        self.count += 1
+        self.block.append(time)
+        if len(self.block) == MAX_STALLED_EVALUATIONS:
+            median = float(np.median(self.block))
+            if median < self.previous_median + self.step:
+                raise _Exhausted(time, self.count, f"{MAX_STALLED_EVALUATIONS} without "
+                                                   f"advancing one sampling step")
+            self.previous_median, self.block = median, []
+        if self.count > self.limit:
+            raise _Exhausted(time, self.count, f"{MAX_EVALUATIONS} per sample")
 
 
 def simulate_model(model, parameters, time, inputs, *, initial_state=None, output=None,

@@ -78,8 +78,9 @@ from algid.reanchoring import anchor_plan
 from algid.registry import load_model
 from algid.result import EstimationResult
 from algid.scaling import amplitude_scale, scalable
-from algid.stream_checks import (check_chunk, check_signals_call, check_signals_chunk,
-                                 compiled_scan, float_sample)
+from algid.stream_checks import (amplitude_limits, check_amplitudes, check_channels,
+                                 check_chunk, check_signals_call, check_signals_chunk,
+                                 compiled_scan, compiled_within, float_sample, half_period)
 from algid.user_models import ChannelStream
 from algid.validation import UNIFORM_RTOL, positive_number
 
@@ -96,15 +97,6 @@ __all__ = ["OnlineEstimator", "run_stream", "TRACKING_RESET_PERIOD"]
 #: it (at most one period).  Short periods do not average measurement noise: with noise
 #: of 1e-4 m on ``x`` they are useless here, and periods of seconds are needed.
 TRACKING_RESET_PERIOD = 0.05
-
-
-#: Largest half period of re-anchoring, in samples: sample counts up to ``2**53`` are
-#: exact in floating point.
-_MAX_HALF_PERIOD_SAMPLES = 2**53
-
-
-def _fmt(value) -> str:
-    return f"{float(value):.10g}"
 
 
 class OnlineEstimator:
@@ -240,8 +232,9 @@ class OnlineEstimator:
         self.parameters = tuple(module.PARAMETERS) + (
             tuple(module.MASS_SCALED) if self.mass is not None else ())
         if reset_period is not None and self._given_dt is not None:
-            self._half_period(self._given_dt)  # check early
-        self._scan = compiled_scan() if self.engine == "numba" else None
+            half_period(self._requested_period, self._given_dt, self.quadrature_points)
+        self._scan, self._within = ((compiled_scan(), compiled_within())
+                                    if self.engine == "numba" else (None, None))
         self._states = [with_companion(core.new_state(module, points=self.quadrature_points,
                                                       filter_order=self.filter_order,
                                                       dt=self._given_dt or 1.0,
@@ -259,6 +252,9 @@ class OnlineEstimator:
         self._channel_order = tuple(0 if name == module.INPUT else 1
                                     for name in module.CHANNELS)
         self._n_parameters = len(module.PARAMETERS)
+        divisors = tuple(self._states[0].divisors.tolist())
+        self._unit_limits = amplitude_limits(module, divisors, None)
+        self._pair_divisors = divisors if self._channel_order == (0, 1) else divisors[::-1]
         self._scalable = scalable(module)
         self._mass_scaled = self.parameters[len(module.PARAMETERS):]
         # user models: channels computed from the signals of every chunk
@@ -292,36 +288,19 @@ class OnlineEstimator:
         """
         self._dt = self._given_dt
         self._half = None if self._dt is None or self._requested_period is None \
-            else self._half_period(self._dt)
+            else half_period(self._requested_period, self._dt, self.quadrature_points)
         self._n = 0
         self._warmed = 0  # stream samples spent on the differentiator's warm-up
         self._channel_stream.reset()
         self._t_last = None
         self._scale = None
+        self._limits = self._pair_limits(None)
         self._reported = 0
         for i, state in enumerate(self._states):
             state.restart()
             self._origins[i] = math.nan
         if self._twin is not None:
             self._twin.restart()
-
-    def _half_period(self, dt):
-        halves = self._requested_period / (2.0 * dt)
-        if not halves <= _MAX_HALF_PERIOD_SAMPLES:  # also inf
-            longest = 2 * _MAX_HALF_PERIOD_SAMPLES * dt
-            raise InputDataError(
-                f"reset_period {_fmt(self._requested_period)} s is too long for step "
-                f"{_fmt(dt)} s: at most {_fmt(longest)} s (2**54 steps, beyond which "
-                f"sample counts are not exact in floating point); use reset_period=None "
-                f"never to re-anchor")
-        half = int(round(halves))
-        need = self.quadrature_points
-        if half < need:
-            raise InputDataError(
-                f"reset_period {_fmt(self._requested_period)} s is too short for step "
-                f"{_fmt(dt)} s: half a period must hold at least {need} samples "
-                f"(reset_period >= {_fmt(2 * need * dt)} s)")
-        return half
 
     @property
     def n_seen(self) -> int:
@@ -435,8 +414,10 @@ class OnlineEstimator:
         InputDataError
             Bad samples: not 1-D numbers (booleans included), masked, NaN or inf,
             different lengths, time not increasing (within the chunk or from the
-            previous chunk) or not uniform; a missing signal; ``f``, ``x`` for a model
-            that needs ``signals=`` or both given.  The state is left unchanged.
+            previous chunk) or not uniform; beyond the stream's amplitude limit, or a
+            channel of a user model not finite (:mod:`algid.stream_checks`); a missing
+            signal; ``f``, ``x`` for a model that needs ``signals=`` or both given.  The
+            state is left unchanged.
 
         Notes
         -----
@@ -452,10 +433,15 @@ class OnlineEstimator:
             return self._update_signals(t, f, x, signals)
         t, f, x, dt = check_chunk(t, f, x, n=self._n, t_last=self._t_last, dt=self._dt,
                                   scan=self._scan)
-        half = self._take_step(dt)  # checks done: from here on the state changes
-        m = t.size
+        half, scale = self._half_of(dt), self._scale_of((f, x))
         module = self._module
-        f, x = self._scaled((f, x))
+        check_amplitudes(module, (module.INPUT, module.OUTPUT), (f, x),
+                         self._limits if scale == self._scale else self._pair_limits(scale),
+                         self._pair_divisors, n=self._n, within=self._within,
+                         new_scale=scale != self._scale, scale=scale)
+        self._take_step(dt, half, scale)  # checks done: from here on the state changes
+        m = t.size
+        f, x = (f, x) if scale is None or scale == 1.0 else (f * scale, x * scale)
         channels = (f, x) if self._channel_order == (0, 1) else \
             tuple((f, x)[i] for i in self._channel_order)
         out = np.empty((self._n_parameters, m))
@@ -488,11 +474,10 @@ class OnlineEstimator:
         if not (step > 0.0 and abs(step - dt) <= UNIFORM_RTOL * dt and math.isfinite(f)
                 and math.isfinite(x)):
             return None
-        scale = self._scale
-        if scale is None:
-            if self._scalable:  # not chosen yet (:meth:`_scaled`)
-                return None
-        elif scale != 1.0:
+        scale, (limit_f, limit_x) = self._scale, self._limits
+        if (scale is None and self._scalable) or not (abs(f) <= limit_f and abs(x) <= limit_x):
+            return None  # no scale yet (:meth:`_scale_of`), or update() says why it refuses
+        if scale is not None and scale != 1.0:
             f, x = f * scale, x * scale
         values = (f, x) if self._channel_order == (0, 1) else (x, f)
         steppers = self._steppers
@@ -531,26 +516,32 @@ class OnlineEstimator:
         return self._result.with_samples(t=np.array((t,)), estimates=estimates,
                                          numerical_error=error)
 
-    def _take_step(self, dt):
-        """Take the step ``dt`` of a checked chunk; the half period it implies."""
-        half = self._half
-        if half is None and self._requested_period is not None and dt is not None:
-            half = self._half_period(dt)
+    def _half_of(self, dt):
+        """The half period (in samples) that the step ``dt`` of a checked chunk implies."""
+        if self._half is None and self._requested_period is not None and dt is not None:
+            return half_period(self._requested_period, dt, self.quadrature_points)
+        return self._half
+
+    def _take_step(self, dt, half, scale):
+        """Take the step, half period and scale of a chunk that passed every check."""
         self._dt, self._half = dt, half
         if dt is not None and dt != self._states[0].dt:
             for state in self._states:
                 state.dt = dt
             self._steppers = None  # they hold the step
-        return half
+        if scale != self._scale:
+            self._scale, self._limits = scale, self._pair_limits(scale)
 
-    def _scaled(self, samples):
-        """The samples times the stream's power of two, chosen once per stream from the
-        first chunk with samples (:mod:`algid.scaling`)."""
+    def _scale_of(self, samples):
+        """The stream's power of two, from its first nonzero chunk (:mod:`algid.scaling`)."""
         if self._scale is None and samples[0].size and self._scalable:
-            self._scale = amplitude_scale(samples)
-        if self._scale is None or self._scale == 1.0:
-            return samples
-        return tuple(values * self._scale for values in samples)
+            return amplitude_scale(samples)
+        return self._scale
+
+    def _pair_limits(self, scale):
+        """The largest absolute ``f`` and ``x`` (:func:`~algid.stream_checks.amplitude_limits`)."""
+        limits = amplitude_limits(self._module, self._states[0].divisors, scale)
+        return limits if self._channel_order == (0, 1) else limits[::-1]
 
     def _update_signals(self, t, f, x, signals):
         """:meth:`update` with ``signals=`` (any model)."""
@@ -558,14 +549,22 @@ class OnlineEstimator:
                            names=self.signals, missing=self._channel_stream.missing)
         t, checked, dt = check_signals_chunk(t, signals, self.signals, n=self.n_seen,
                                              t_last=self._t_last, dt=self._dt, scan=self._scan)
-        half = self._take_step(dt)  # checks done: from here on the state changes
+        half, scale = self._half_of(dt), self._scale_of(tuple(checked.values()))
         m = t.size
-        checked = dict(zip(checked, self._scaled(tuple(checked.values()))))
-        channels = self._channel_stream.update(checked, t)
-        out = np.empty((self._n_parameters, m))
-        error = np.empty(m)
+        saved, unit = self._channel_stream.state(), 1.0 if scale is None else scale
+        channels = self._channel_stream.update(checked if unit == 1.0 else {
+            name: values * unit for name, values in checked.items()}, t)
         # the differentiator's warm-up: no channel yet, no estimate
         skip = min(max(self._channel_stream.warmup - self._warmed, 0), m)
+        try:
+            check_channels(self._module, tuple(c[skip:] for c in channels), self._unit_limits,
+                           n=self.n_seen, signals=checked, first=skip, scale=scale)
+        except InputDataError:
+            self._channel_stream.restore(saved)
+            raise
+        self._take_step(dt, half, scale)  # checks done: from here on the state changes
+        out = np.empty((self._n_parameters, m))
+        error = np.empty(m)
         rest, rest_error = out, error
         if skip:
             out[:, :skip] = np.nan

@@ -13,7 +13,8 @@ import pathlib
 import numpy as np
 from matplotlib.figure import Figure
 
-__all__ = ["plot_input_response", "plot_responses", "plot_estimates", "save_figure"]
+__all__ = ["plot_input_response", "plot_responses", "plot_estimates", "estimate_ylim",
+           "save_figure"]
 
 #: Colours of the parameters (matplotlib's default cycle, fixed so figures agree).
 PARAMETER_COLORS = {"B": "C0", "K": "C3", "c": "C0", "k": "C3", "m": "C2"}
@@ -97,6 +98,70 @@ def plot_responses(panels, *, title=None, position_label="Position (m)",
     return fig
 
 
+#: The default view of the estimates is set by the later part of the span where they are
+#: defined: from this fraction of it to its end ("after they settle").
+SETTLED_FROM = 0.5
+#: Percentiles of the settled estimates that bound the default view: robust to the
+#: isolated spikes where the estimator's determinant passes near zero.
+SETTLED_PERCENTILES = (5.0, 95.0)
+
+
+def estimate_ylim(t, estimates, *, true_values=None, t_max=None):
+    """Y-limits that show estimates after they settle, the start-up clipped.
+
+    An algebraic estimate starts ill-conditioned (values of 1e6 in the first
+    milliseconds are common) and can spike where its determinant passes near zero; left
+    to autoscaling, either sets the scale and the settled values are invisible.  The
+    limits here are the 5th to 95th percentiles of each estimate over the later half of
+    the span where it is defined (up to ``t_max``), widened to include the final
+    estimates and the true values, with a margin of half the range on each side (the
+    range being at least a tenth of the largest magnitude in it, so that a converged
+    estimate is not a flat line at the edge).  What lies outside (the start-up, the
+    spikes) is clipped.
+
+    Parameters
+    ----------
+    t : array_like
+        Sample times.
+    estimates : mapping of str to array_like
+        The estimates to show, sampled at ``t``.
+    true_values : mapping of str to float, optional
+        Reference values that must be inside the view.
+    t_max : float, optional
+        Right end of the view (default: the end of the record).
+
+    Returns
+    -------
+    (float, float) or None
+        The limits; None if no estimate has a finite sample in the view.
+
+    Examples
+    --------
+    >>> t = np.linspace(0.0, 1.0, 101)
+    >>> start_up = np.where(t < 0.02, 1e6, 2.0)
+    >>> estimate_ylim(t, {"B": start_up}, true_values={"B": 2.0})
+    (1.8, 2.2)
+    """
+    t = np.asarray(t, dtype=float)
+    in_view = t <= (t[-1] if t_max is None else t_max)
+    values = [float(v) for v in (true_values or {}).values() if np.isfinite(v)]
+    for samples in estimates.values():
+        samples = np.asarray(samples, dtype=float)
+        defined = np.flatnonzero(np.isfinite(samples) & in_view)
+        if defined.size == 0:
+            continue
+        first, last = t[defined[0]], t[defined[-1]]
+        settled = samples[defined][t[defined] >= first + SETTLED_FROM * (last - first)]
+        values.extend(np.percentile(settled, SETTLED_PERCENTILES).tolist())
+        values.append(float(samples[defined[-1]]))
+    if not values:
+        return None
+    lo, hi = min(values), max(values)
+    span = max(hi - lo, 0.1 * max(abs(lo), abs(hi))) or 1.0
+    middle = 0.5 * (lo + hi)
+    return (middle - span, middle + span)
+
+
 def plot_estimates(result, *, true_values=None, parameters=None, t_max=None, ylim=None,
                    reference=None, label="estimate", reference_label="reference",
                    marks=(), spans=(), title=None, ax=None, figsize=(7.5, 5.0)):
@@ -113,8 +178,9 @@ def plot_estimates(result, *, true_values=None, parameters=None, t_max=None, yli
     t_max : float, optional
         Right end of the time axis (default: end of the record).
     ylim : (float, float), optional
-        View limits of the estimates; the early estimate is ill-conditioned and
-        would otherwise set the scale.
+        View limits of the estimates; default: :func:`estimate_ylim`, the range of the
+        settled estimates and the true values (the ill-conditioned start-up, which
+        would otherwise set the scale, is clipped).
     reference : algid.result.EstimationResult, optional
         A second estimation drawn thin and dotted for comparison.
     label, reference_label : str, optional
@@ -157,6 +223,9 @@ def plot_estimates(result, *, true_values=None, parameters=None, t_max=None, yli
     for start, stop, text in spans:
         ax.axvspan(start, stop, color="0.5", alpha=0.12, lw=0, label=text)
     ax.set_xlim(result.t[0], t_end)
+    if ylim is None:
+        ylim = estimate_ylim(result.t, {name: result.estimates[name] for name in names},
+                             true_values=true_values, t_max=t_end)
     if ylim is not None:
         ax.set_ylim(*ylim)
     ax.set_xlabel("Time (s)")

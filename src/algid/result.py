@@ -250,7 +250,7 @@ class EstimationResult:
             "inf" if np.isinf(error) else None
         return out
 
-    def plot(self, *, true_values=None, ax=None, parameters=None):
+    def plot(self, *, true_values=None, ax=None, parameters=None, ylim=None):
         """Plot the estimates over time (needs matplotlib).
 
         Parameters
@@ -260,6 +260,10 @@ class EstimationResult:
         ax : matplotlib Axes, optional
         parameters : sequence of str, optional
             Which estimates to draw (default: the model's parameters).
+        ylim : (float, float), optional
+            View limits; default: the range of the settled estimates and the true
+            values (:func:`algid.plotting.estimate_ylim`), the ill-conditioned start-up
+            clipped.  ``ax.autoscale()`` shows everything.
 
         Returns
         -------
@@ -276,6 +280,13 @@ class EstimationResult:
             if true_values and name in true_values:
                 ax.axhline(true_values[name], color=line.get_color(), ls="--", lw=1,
                            label=f"{name} = {true_values[name]:g}")
+        if ylim is None:
+            from .plotting import estimate_ylim
+
+            ylim = estimate_ylim(self.t, {name: self.estimates[name] for name in names},
+                                 true_values=true_values)
+        if ylim is not None:
+            ax.set_ylim(*ylim)
         ax.set_xlabel("time [s]")
         ax.set_ylabel("estimate")
         ax.set_title(f"algebraic estimates, model {self.model!r}, filter 1/s^{self.filter_order}")

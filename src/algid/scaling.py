@@ -24,10 +24,24 @@ from __future__ import annotations
 
 import math
 
-__all__ = ["SAFE_AMPLITUDES", "amplitude_scale", "scalable"]
+import numpy as np
+
+from algid.errors import InputDataError
+
+__all__ = ["SAFE_AMPLITUDES", "AMPLITUDE_BITS", "amplitude_scale", "scalable",
+           "check_amplitude_range"]
 
 #: Range of the largest absolute sample in which the signals are used as given.
 SAFE_AMPLITUDES = (2.0**-64, 2.0**64)
+
+#: Bits of the floating-point exponent range (up to ``2**1024``) given to the amplitude
+#: of the channels.  Cramer's rule multiplies ``n`` integrals of the channels (``n``
+#: parameters), each weighted by powers of the time since the origin: a channel may reach
+#: ``2**(AMPLITUDE_BITS // n)`` (after the rescaling, divided by a known mass), and the
+#: other half of the range is left to those powers (the paper's model, whose numerators
+#: and denominator grow like ``t**10`` to ``t**11`` with the default filter, then runs for
+#: about ``2**46`` time units before it overflows; at unit amplitude, ``2**93``).
+AMPLITUDE_BITS = 512
 
 
 def amplitude_scale(arrays):
@@ -72,3 +86,59 @@ def scalable(module) -> bool:
     bool
     """
     return not getattr(module, "FACTORS", {})
+
+
+def check_amplitude_range(names, channels, divisors, scale, n_parameters):
+    """Refuse channels whose amplitudes floating point cannot hold together.
+
+    After the rescaling (``scale``) and the division by a known mass (``divisors``),
+    a channel that is not identically zero must reach neither beyond ``2**(AMPLITUDE_BITS
+    // n_parameters)`` (the products of its integrals would overflow) nor only into the
+    subnormal numbers (below ``2**-1022``: its samples would have lost their precision,
+    as a record's other samples do beside an outlier of ``1e308``).
+
+    Parameters
+    ----------
+    names : sequence of str
+        The channels' names, for the message.
+    channels : sequence of ndarray
+        Their samples as given (finite).
+    divisors : sequence of float
+        Every channel's divisor (a known mass; 1 for none).
+    scale : float or None
+        The power of two the channels are multiplied by (:func:`amplitude_scale`).
+    n_parameters : int
+        The number of parameters (of integrals multiplied by Cramer's rule).
+
+    Raises
+    ------
+    InputDataError
+        Naming the channel, its largest sample and, for a lost precision, the largest
+        sample of the record.
+    """
+    unit = 1.0 if scale is None else float(scale)
+    largest = [max(float(c.max()), -float(c.min())) if c.size else 0.0 for c in channels]
+    high = math.ldexp(1.0, AMPLITUDE_BITS // n_parameters)
+    names = list(names)
+    for name, c, size, divisor in zip(names, channels, largest, divisors):
+        held = size * unit / divisor
+        if held == 0.0 or 2.0**-1022 <= held <= high:
+            continue
+        by = "" if divisor == 1.0 else f" divided by the mass {divisor:.6g}"
+        remedy = ("express the force and the mass in other units" if by else
+                  "remove the outlier or express the signals in other units")
+        if held > high:
+            row = int(np.argmax(np.abs(c)))
+            raise InputDataError(
+                f"signal {name!r}{by} reaches {c[row] / divisor:.6g} (row {row}), beyond "
+                f"2**{AMPLITUDE_BITS // n_parameters} times the other signals' unit: the "
+                f"products of the estimator's integrals overflow; {remedy}")
+        top = int(np.argmax(largest))
+        row = int(np.argmax(np.abs(channels[top])))
+        beside = ("" if top == names.index(name) else
+                  f" beside the largest sample, {channels[top][row]:.6g} of {names[top]!r} "
+                  f"(row {row}),")
+        raise InputDataError(
+            f"signal {name!r}{by} is at most {size / divisor:.6g}:{beside} its samples fall "
+            f"below the normal floating-point numbers in the estimator's unit and lose their "
+            f"precision; {remedy}")

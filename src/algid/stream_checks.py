@@ -8,6 +8,11 @@ the times), or within twice the decimal rounding of the times
 mean step of the first chunk (with the sample before it, if the first chunk was one
 sample).  Anything else is an
 :class:`~algid.errors.InputDataError` whose one-line message names the stream sample.
+
+A chunk must also leave the estimator usable: its channels finite (a user model's
+``log(y)`` of a negative ``y`` is NaN) and within :func:`amplitude_limits`, so that
+one absurd sample cannot turn every later estimate into NaN or overflow
+(:func:`check_amplitudes`, :func:`check_channels`).  A refused chunk changes nothing.
 """
 
 from __future__ import annotations
@@ -19,10 +24,12 @@ from functools import cache
 import numpy as np
 
 from algid.errors import InputDataError
+from algid.scaling import AMPLITUDE_BITS, check_amplitude_range
 from algid.validation import UNIFORM_RTOL, as_signal, rounding_quantum, step_tolerance
 
 __all__ = ["check_signals_call", "check_chunk", "check_signals_chunk", "compiled_scan",
-           "float_sample"]
+           "float_sample", "amplitude_limits", "check_amplitudes",
+           "check_channels", "compiled_within", "half_period", "MAX_HALF_PERIOD_SAMPLES"]
 
 _FLOAT64 = np.dtype(np.float64)
 
@@ -330,3 +337,210 @@ def compiled_scan():
         return violations == 0
 
     return scan
+
+
+#: Largest half period of re-anchoring, in samples: sample counts up to ``2**53`` are
+#: exact in floating point.
+MAX_HALF_PERIOD_SAMPLES = 2**53
+
+
+def half_period(period, dt, points):
+    """Samples in half a re-anchoring period (:class:`algid.OnlineEstimator`).
+
+    Parameters
+    ----------
+    period : float
+        The requested ``reset_period`` [s].
+    dt : float
+        The sampling step [s].
+    points : int
+        Points of the quadrature rule: the fewest samples of a half period.
+
+    Returns
+    -------
+    int
+        ``round(period / (2 dt))``.
+
+    Raises
+    ------
+    InputDataError
+        Fewer than ``points`` or more than :data:`MAX_HALF_PERIOD_SAMPLES` samples.
+    """
+    halves = period / (2.0 * dt)
+    if not halves <= MAX_HALF_PERIOD_SAMPLES:  # also inf
+        longest = 2 * MAX_HALF_PERIOD_SAMPLES * dt
+        raise InputDataError(
+            f"reset_period {_fmt(period)} s is too long for step {_fmt(dt)} s: at most "
+            f"{_fmt(longest)} s (2**54 steps, beyond which sample counts are not exact in "
+            f"floating point); use reset_period=None never to re-anchor")
+    half = int(round(halves))
+    if half < points:
+        raise InputDataError(
+            f"reset_period {_fmt(period)} s is too short for step {_fmt(dt)} s: half a "
+            f"period must hold at least {points} samples (reset_period >= "
+            f"{_fmt(2 * points * dt)} s)")
+    return half
+
+
+
+
+def amplitude_limits(module, divisors, scale):
+    """The largest absolute sample of every channel that a stream takes.
+
+    Parameters
+    ----------
+    module : module
+        The generated estimator module (``PARAMETERS``).
+    divisors : sequence of float
+        Every channel's divisor (a known mass), in ``CHANNELS`` order.
+    scale : float or None
+        The power of two the samples are multiplied by (:mod:`algid.scaling`); None
+        for 1.
+
+    Returns
+    -------
+    tuple of float
+        ``2**(AMPLITUDE_BITS // n) * divisor / scale`` per channel, in the units of the
+        samples given (inf where that overflows).
+    """
+    bits = AMPLITUDE_BITS // len(module.PARAMETERS)
+    unit = 1.0 if scale is None else float(scale)
+    limits = []
+    for divisor in divisors:
+        try:
+            limits.append(math.ldexp(float(divisor), bits) / unit)
+        except OverflowError:
+            limits.append(math.inf)
+    return tuple(limits)
+
+
+def _unit_phrase(module, divisor):
+    bits = AMPLITUDE_BITS // len(module.PARAMETERS)
+    mass = "" if divisor == 1.0 else f", times the mass {_fmt(divisor)} it is divided by"
+    return (f"2**{bits} times the stream's unit, set by its first chunk{mass}: beyond it "
+            f"the products of the estimator's integrals overflow")
+
+
+def check_amplitudes(module, names, samples, limits, divisors, *, n, within=None,
+                     new_scale=False, scale=None):
+    """Refuse a chunk with a sample beyond its channel's :func:`amplitude_limits`.
+
+    Parameters
+    ----------
+    module : module
+        The generated estimator module.
+    names : sequence of str
+        The signals' names, for the message.
+    samples : sequence of ndarray
+        The chunk's finite samples of every signal, in the units given.
+    limits : sequence of float
+        Their limits (:func:`amplitude_limits`).
+    divisors : sequence of float
+        Their divisors (a known mass), for the message.
+    n : int
+        Stream index of the chunk's first sample.
+    within : callable, optional
+        :func:`compiled_within`, to check the two signals (``f``, ``x``) in one compiled
+        pass.
+    new_scale : bool, optional
+        Whether the chunk sets the stream's scale: its signals, divided by their
+        divisors, must then also fit together in floating point, as a record's must
+        (:func:`algid.scaling.check_amplitude_range`).
+    scale : float or None, optional
+        The stream's scale (:mod:`algid.scaling`), with ``new_scale``.
+
+    Raises
+    ------
+    InputDataError
+        Naming the signal, the sample and the limit; the stream is unchanged.
+    """
+    if new_scale:
+        check_amplitude_range(names, samples, divisors, scale, len(module.PARAMETERS))
+    if within is not None:  # the common case, in one compiled pass
+        f, x = samples
+        if type(f) is np.ndarray and type(x) is np.ndarray and f.dtype is _FLOAT64 and \
+                x.dtype is _FLOAT64 and f.flags.c_contiguous and x.flags.c_contiguous and \
+                within(f, x, *limits):
+            return
+    for name, values, limit, divisor in zip(names, samples, limits, divisors):
+        if values.size and not (values.max() <= limit and -values.min() <= limit):
+            i = int(np.argmax(np.abs(values)))
+            raise InputDataError(
+                f"signal {name!r} reaches {_fmt(values[i])} at stream sample {n + i}, beyond "
+                f"{_fmt(limit)} ({_unit_phrase(module, divisor)}); the chunk is refused, "
+                f"the stream is unchanged")
+
+
+def check_channels(module, channels, limits, *, n, signals, first=0, scale=None):
+    """Refuse a chunk of a user model with a signal or channel not finite or too large.
+
+    Parameters
+    ----------
+    module : module
+        The generated estimator module (``CHANNELS``, ``FACTORS``, ``PARAMETERS``).
+    channels : sequence of ndarray
+        The chunk's channels (:class:`algid.user_models.ChannelStream`), ``CHANNELS``
+        order, from its sample ``first`` on.
+    limits : sequence of float
+        Their limits (:func:`amplitude_limits`).
+    signals : mapping
+        The chunk's measured signals, as given: each is held to the limit of a channel
+        (also in the warm-up of a differentiator, whose past samples it becomes).
+    n : int
+        Stream index of the chunk's first sample.
+    first : int, optional
+        Index in the chunk of the channels' first sample.
+    scale : float, optional
+        The power of two the signals are multiplied by before the channels are
+        computed (:mod:`algid.scaling`).
+
+    Raises
+    ------
+    InputDataError
+        Naming the signal or the channel and its expression, the stream sample and the
+        signals there; the stream is unchanged.
+    """
+    factors = getattr(module, "FACTORS", {})
+    unit = 1.0 if scale is None else float(scale)
+    signal_limit = amplitude_limits(module, (1.0,), scale)[0]
+    # (label, samples, limit, index of the first in the chunk, their unit)
+    checks = [(f"signal {name!r}", np.asarray(values), signal_limit, 0, 1.0)
+              for name, values in signals.items()]
+    checks += [(f"channel {name!r} = {factors[name]}" if name in factors
+                else f"signal {name!r}", np.asarray(values), limit, first, unit)
+               for name, values, limit in zip(module.CHANNELS, channels, limits)]
+    for what, values, limit, offset, shown in checks:
+        if not values.size or (values.max() <= limit and -values.min() <= limit):
+            continue  # (NaN fails both comparisons)
+        i = int(np.argmax(~(np.abs(values) <= limit)))
+        where = offset + i
+        at = ", ".join(f"{s} = {_fmt(np.asarray(v).reshape(-1)[where])}"
+                       for s, v in signals.items())
+        value = float(values[i])
+        if math.isfinite(value):
+            raise InputDataError(
+                f"{what} reaches {_fmt(value / shown)} at stream sample {n + where} ({at}), "
+                f"beyond {_fmt(limit / shown)} ({_unit_phrase(module, 1.0)}); the chunk is "
+                f"refused, the stream is unchanged")
+        kind = "NaN" if value != value else "infinite"
+        raise InputDataError(
+            f"{what} is {kind} at stream sample {n + where} ({at}): outside the domain of "
+            f"its function, or an overflow; the chunk is refused, the stream is unchanged")
+
+
+@cache
+def compiled_within():
+    """The test of :func:`check_amplitudes` on two float64 arrays, compiled (needs
+    numba): ``within(f, x, limit_f, limit_x)`` is True when every ``|f| <= limit_f``
+    and ``|x| <= limit_x`` (False for NaN)."""
+    import numba
+
+    @numba.njit("boolean(float64[::1], float64[::1], float64, float64)", cache=True,
+                nogil=True)
+    def within(f, x, limit_f, limit_x):
+        beyond = 0
+        for i in range(f.shape[0]):  # counts, without branches: the loop vectorises
+            beyond += (not abs(f[i]) <= limit_f) + (not abs(x[i]) <= limit_x)
+        return beyond == 0
+
+    return within

@@ -22,6 +22,7 @@ import numpy as np
 from algid.errors import InputDataError, ModelError
 from algid.grammar import parse_equation
 from algid.model import channel_names
+from algid.validation import positive_number
 
 __all__ = ["compile_equation", "channel_samples", "channel_stream", "ChannelStream",
            "model_of"]
@@ -221,6 +222,8 @@ class ChannelStream:
             raise InputDataError(f"derivative_extra_orders must be 0, 1 or 2, got "
                                  f"{derivative_extra_orders!r}")
         self._extra = int(derivative_extra_orders)
+        if derivative_window is not None:
+            positive_number(derivative_window, name="derivative_window")
         self.module = module
         self._factors = factors = getattr(module, "FACTORS", {})
         self._centred = centred
@@ -245,10 +248,13 @@ class ChannelStream:
                     f"model {module.MODEL!r} estimates "
                     f"{', '.join(n + chr(39) * k for n, k in self.needs_derivatives)} with "
                     "the causal differentiator, which needs the sampling step: give dt or rate")
-            self._differentiators = {
-                pair: CausalDifferentiator(dt, derivative=pair[1], window=derivative_window,
-                                           truncation=pair[1] + self._extra)
-                for pair in self.needs_derivatives}
+            try:
+                self._differentiators = {
+                    pair: CausalDifferentiator(dt, derivative=pair[1], window=derivative_window,
+                                               truncation=pair[1] + self._extra)
+                    for pair in self.needs_derivatives}
+            except InputDataError as exc:
+                raise InputDataError(f"derivative_window: {exc}") from None
         self.warmup = max((d.steps for d in self._differentiators.values()), default=0)
         self.delay = max((d.delay for d in self._differentiators.values()), default=0.0)
 
@@ -256,6 +262,27 @@ class ChannelStream:
         """Forget the stream (the differentiators' past samples)."""
         for differentiator in self._differentiators.values():
             differentiator.reset()
+
+    def state(self):
+        """What the stream carries from one chunk to the next, for :meth:`restore`.
+
+        Returns
+        -------
+        tuple
+            The differentiators' states.
+        """
+        return tuple(d.state() for d in self._differentiators.values())
+
+    def restore(self, state):
+        """Go back to a :meth:`state` taken before: the samples since are forgotten.
+
+        Parameters
+        ----------
+        state : tuple
+            From :meth:`state`.
+        """
+        for differentiator, saved in zip(self._differentiators.values(), state):
+            differentiator.restore(saved)
 
     def missing(self, signals):
         """The first signal the channels need that ``signals`` lacks, or None.
@@ -313,7 +340,8 @@ class ChannelStream:
         channels = []
         for name in module.CHANNELS:
             if name in factors:
-                samples = self._factor_of[name].evaluate(values, time)
+                with np.errstate(all="ignore"):  # NaN and inf are refused by the callers
+                    samples = self._factor_of[name].evaluate(values, time)
                 channels.append(samples if np.shape(samples) == shape
                                 else np.broadcast_to(samples, shape))
             else:

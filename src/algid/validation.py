@@ -147,7 +147,9 @@ def as_signal(values, *, name) -> np.ndarray:
             f"signal {name!r} is not a 1-D array of numbers (ragged or unconvertible input)"
         ) from None
     if arr.ndim != 1:
-        what = "a scalar" if arr.ndim == 0 else f"shape {arr.shape}"
+        what = (f"a {type(values).__name__} ({values!r:.40})" if isinstance(values, (str, bytes))
+                else "None" if values is None
+                else "a scalar" if arr.ndim == 0 else f"shape {arr.shape}")
         raise InputDataError(f"signal {name!r} must be 1-D, got {what}")
     if arr.size == 0:
         raise InputDataError(f"signal {name!r} is empty")

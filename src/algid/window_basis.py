@@ -127,17 +127,21 @@ class WindowBasis:
         Parameters
         ----------
         grams : numpy.ndarray, shape (windows, p + 1, p + 1)
-            Those of the original ``[A | b]``.
+            Those of the original ``[A | b]`` (overwritten).
 
         Returns
         -------
         numpy.ndarray
+            ``grams``, in the basis.
         """
         p = len(self.shifts)
         full = np.zeros((p + 1, p + 1))
         full[:p, :p] = np.ldexp(np.linalg.inv(self.R[:p, :p]), -self.shifts[:, None])
         full[p, p] = np.ldexp(1.0, -self.b_shift)
-        return full.T @ grams @ full
+        for start in range(0, len(grams), 4096):   # in place, in blocks: no full copies
+            block = grams[start:start + 4096]
+            block[...] = full.T @ block @ full
+        return grams
 
     def theta(self, phi):
         """Parameters from their values in the basis.
@@ -229,13 +233,22 @@ class Separability:
 
     @property
     def free(self):
-        """Whether a combination of the parameters is not determined.
+        """Whether a combination of the parameters is not determined by the records.
 
         That is: proportional terms, or a combination no better determined than the
-        misfit or the noise.
+        output noise.
         """
-        return (self.proportional or self.ratio < FREE_RATIO
-                or self.noise_ratio < FREE_NOISE_RATIO)
+        return self.proportional or self.noise_ratio < FREE_NOISE_RATIO
+
+    @property
+    def misfit_free(self):
+        """Whether a combination is no better determined than the equations' misfit.
+
+        Where the misfit is output noise or quadrature error (the model holds), such a
+        combination is free; where it is the model's own error, the model is wrong
+        rather than its parameters inseparable.
+        """
+        return self.ratio < FREE_RATIO
 
     @property
     def weak(self):
@@ -245,9 +258,11 @@ class Separability:
 
     def _by_noise(self):
         # which test names the combination: the noise's where it is the one that fails
-        by_misfit = self.proportional or self.ratio < FREE_RATIO \
-            or (not self.noise_ratio < FREE_NOISE_RATIO and self.ratio < WEAK_RATIO)
-        return self.noise_weights is not None and not by_misfit
+        if self.proportional or self.noise_weights is None:
+            return False
+        if self.noise_ratio < FREE_NOISE_RATIO:
+            return True
+        return not self.ratio < WEAK_RATIO and self.noise_ratio < WEAK_NOISE_RATIO
 
     def involved(self, names):
         """Names of the parameters of the weakest combination.
@@ -296,7 +311,7 @@ class Separability:
         verb = "cannot be determined" if one else "cannot be separated"
         return f"parameter{'' if one else 's'} {listed} {verb}: {cause}"
 
-    def warnings(self, names):
+    def warnings(self, names, misfit=True):
         """One line per reservation about the estimate.
 
         A poorly determined combination; strongly correlated parameters.
@@ -305,13 +320,17 @@ class Separability:
         ----------
         names : sequence of str
             The parameters, in column order.
+        misfit : bool
+            Whether the equations' misfit is output noise or quadrature error (the
+            model holds): if not, both tests measure the model's error, and a poorly
+            determined combination is not reported (the model's error is).
 
         Returns
         -------
         list of str
         """
         lines = []
-        if self.ratio < WEAK_RATIO or self.noise_ratio < WEAK_NOISE_RATIO:
+        if misfit and (self.noise_ratio < WEAK_NOISE_RATIO or self.ratio < WEAK_RATIO):
             involved = self.involved(names)
             lines.append(f"parameter{'s' if len(involved) > 1 else ''} {', '.join(involved)}: "
                          f"poorly separated on these records, {self._cause()}; the "

@@ -85,6 +85,7 @@ def noise_meat(problem, length, multiplicity, theta_bar, scores, stride):
         g = scores[first:first + n_win]
         first += n_win
         weights = np.zeros((n_win, length))  # noise weight of every sample of every window
+        product = np.empty_like(weights)     # one term's (no temporary per term)
         moved = np.zeros((len(seg), scores.shape[1]))   # G_n through the crossings
         t0 = seg.t[0:n_win * stride:stride]
         span = seg.t[length - 1:length - 1 + n_win * stride:stride] - t0
@@ -108,7 +109,9 @@ def noise_meat(problem, length, multiplicity, theta_bar, scores, stride):
                                            term.derivative, stride)
             windows = np.lib.stride_tricks.sliding_window_view(sensitivity[s],
                                                                length)[::stride]
-            weights += factor * windows * kernel
+            np.multiply(windows, kernel, out=product)
+            product *= factor
+            weights += product
         # sum_n G_n G_n^T of the direct weights: windows that share samples, lag by lag
         for lag in range(min(n_win, -(-length // stride))):
             shift = lag * stride

@@ -9,14 +9,15 @@ residuals).  An explicit window outside these limits is refused (:func:`window_l
 and the automatic rule (:func:`choose_window`) only looks at windows within them: on a
 geometric grid of lengths (:func:`window_grid`, ratio 1.25, from :func:`min_length` up
 to a thirtieth of the data), it keeps the one minimising :func:`window_criterion`, among
-those on which the parameters are separable (:mod:`algid.window_basis`).
+those on which the parameters are separable (:mod:`algid.window_basis`: within the
+output noise and the equations' misfit, else within the noise, where some window is).
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from algid.errors import InputDataError, ModelError
+from algid.errors import InputDataError
 
 __all__ = ["WindowFit", "window_grid", "window_criterion", "choose_window", "window_length",
            "min_length", "longest_window", "independent_windows", "needed_windows",
@@ -299,8 +300,8 @@ def choose_window(problem, multiplicities, solve, *, n_max=None, method="ls"):
 
     Raises
     ------
-    InputDataError, ModelError
-        Records too short for any window, or no window separating the parameters.
+    InputDataError
+        Records too short for any window.
     """
     longest = max(len(s) for s in problem.segments)
     n_min = min_length(multiplicities)
@@ -313,19 +314,19 @@ def choose_window(problem, multiplicities, solve, *, n_max=None, method="ls"):
         raise InputDataError(f"the records are too short: windows of at least {n_min} "
                              f"samples must leave {needed_windows(problem)} non-overlapping "
                              f"ones ({independent_windows(problem, n_min)} here)")
-    fits, free = {}, []
+    fits = {}
     for length in grid:
         try:
-            fit = solve(problem, length, multiplicities, method=method)
+            fits[length] = solve(problem, length, multiplicities, method=method)
         except np.linalg.LinAlgError:
             continue
-        if fit.separation.free:   # this window cannot tell the parameters apart
-            free.append(fit.separation)
-        else:
-            fits[length] = fit
-    scores = window_criterion(fits) if fits else {}
-    if not scores and free:
-        raise ModelError(max(free, key=lambda f: f.ratio).message(problem.parameters))
+    # the windows that separate the parameters within the noise and the misfit, else
+    # within the noise, else any (the misfit may be the model's own error on every
+    # window: algid.identify decides once the model's adequacy is known)
+    separating = {n: f for n, f in fits.items() if not f.separation.free}
+    scores = window_criterion({n: f for n, f in separating.items()
+                               if not f.separation.misfit_free} or separating or fits) \
+        if fits else {}
     if not scores:
         raise InputDataError("no window length gives a solvable system: the records are "
                              "too short or the signals do not excite the model")

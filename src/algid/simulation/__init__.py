@@ -43,6 +43,7 @@ from algid.simulation.arguments import (
     format_value,
     initial_state_vector,
     real_number,
+    seed_generator,
     time_grid,
 )
 from algid.simulation.responses import (
@@ -96,8 +97,13 @@ def plant(*, m: float = 1.0, c: float = 2.0, k: float = 3.0) -> control.StateSpa
            [-3., -2.]])
     """
     m, c, k = check_parameters(m, c, k)
-    A = np.array([[0.0, 1.0], [-k / m, -c / m]])
-    B = np.array([[0.0], [1.0 / m]])
+    with np.errstate(over="ignore"):
+        A = np.array([[0.0, 1.0], [-k / m, -c / m]])
+        B = np.array([[0.0], [1.0 / m]])
+    if not (np.isfinite(A).all() and np.isfinite(B).all()):
+        raise InputDataError(
+            f"m={m:g}, c={c:g}, k={k:g}: k/m, c/m or 1/m overflows; express the "
+            "parameters in other units")
     C = np.array([[1.0, 0.0]])
     D = np.array([[0.0]])
     return control.ss(
@@ -212,6 +218,36 @@ def simulate(
     sys = plant(m=m, c=c, k=k)
     A, b = plant_matrices(sys)
 
+    with np.errstate(all="ignore"):  # a response out of range is refused below
+        f, states = _response(inputs, sys, A, b, t, x0, amplitude, frequency)
+    x_true = np.ascontiguousarray(states[0], dtype=np.float64)
+    v_true = np.ascontiguousarray(states[1], dtype=np.float64)
+    if noise > 0.0:
+        rng = seed_generator(seed)
+        with np.errstate(over="ignore"):
+            x = x_true + rng.normal(0.0, noise, size=t.size)
+    else:
+        x = x_true.copy()
+    for name, values in (("x_true", x_true), ("v_true", v_true), ("x", x)):
+        if not np.isfinite(values).all():
+            row = int(np.argmax(~np.isfinite(values)))
+            given = [f"m={m:g}", f"c={c:g}", f"k={k:g}", f"initial_state={tuple(x0.tolist())}"]
+            if isinstance(inputs, str):
+                given += [f"{inputs} amplitude={float(amplitude):g}"] + (
+                    [f"frequency={float(frequency):g}"] if inputs == "sine" else [])
+            given += [f"noise_std={noise:g}"] if noise else []
+            raise InputDataError(
+                f"the simulated {name} is not finite in floating point from t = "
+                f"{float(t[row]):.6g} s on ({', '.join(given)}): express the quantities in "
+                f"other units")
+    return SimulationResult(
+        t=t, f=np.ascontiguousarray(f, dtype=np.float64), x=x, x_true=x_true,
+        v_true=v_true, m=m, c=c, k=k, noise_std=noise, seed=seed,
+    )
+
+
+def _response(inputs, sys, A, b, t, x0, amplitude, frequency):
+    """The input samples and the states of :func:`simulate`."""
     if isinstance(inputs, str):
         if inputs == "step":
             amp = real_number("amplitude", amplitude)
@@ -238,17 +274,6 @@ def simulate(
     else:
         f = array_samples(inputs, t)
         states = foh_response(sys, f, x0, t)
-
-    x_true = np.ascontiguousarray(states[0], dtype=np.float64)
-    v_true = np.ascontiguousarray(states[1], dtype=np.float64)
-    if noise > 0.0:
-        rng = np.random.default_rng(seed)
-        x = x_true + rng.normal(0.0, noise, size=t.size)
-    else:
-        x = x_true.copy()
-    return SimulationResult(
-        t=t, f=np.ascontiguousarray(f, dtype=np.float64), x=x, x_true=x_true,
-        v_true=v_true, m=m, c=c, k=k, noise_std=noise, seed=seed,
-    )
+    return f, states
 
 

@@ -13,7 +13,8 @@ from algid.errors import InputDataError
 from algid.memory import check_fits
 
 __all__ = ["SIMULATION_BYTES_PER_SAMPLE", "format_value", "real_number", "check_parameters",
-           "time_grid", "initial_state_vector", "callable_samples", "array_samples"]
+           "time_grid", "initial_state_vector", "callable_samples", "array_samples",
+           "seed_generator"]
 
 
 #: Peak memory of :func:`algid.simulate` per time point [bytes] (measured: 120-132 for
@@ -32,9 +33,11 @@ def format_value(value: Any) -> str:
     Returns
     -------
     str
-        ``repr(float(value))`` for a real number, else its ``repr`` on one line,
-        shortened to 60 characters.
+        ``repr(int(value))`` for an integer, ``repr(float(value))`` for another real
+        number, else its ``repr`` on one line, shortened to 60 characters.
     """
+    if isinstance(value, numbers.Integral) and not isinstance(value, (bool, np.bool_)):
+        return repr(int(value))
     if isinstance(value, numbers.Real) and not isinstance(value, bool):
         return repr(float(value))
     text = repr(value)
@@ -282,3 +285,32 @@ def array_samples(values: Any, t: np.ndarray) -> np.ndarray:
         i = int(bad[0])
         raise InputDataError(f"inputs[{i}] is {float(f[i])!r}; force samples must be finite")
     return f
+
+
+def seed_generator(seed: Any) -> np.random.Generator:
+    """The noise generator of a seed, checked.
+
+    Parameters
+    ----------
+    seed : None, int, numpy.random.SeedSequence or numpy.random.Generator
+        As for :func:`numpy.random.default_rng`; a non-negative integer.
+
+    Returns
+    -------
+    numpy.random.Generator
+
+    Raises
+    ------
+    InputDataError
+        For any other seed (a negative integer, a float, a string, a boolean).
+    """
+    if isinstance(seed, (bool, np.bool_)) or not (
+            seed is None or isinstance(seed, (numbers.Integral, np.random.SeedSequence,
+                                              np.random.BitGenerator, np.random.Generator))):
+        raise InputDataError(f"seed must be a non-negative integer, a SeedSequence or a "
+                             f"Generator, got {format_value(seed)}")
+    try:
+        return np.random.default_rng(seed)
+    except (TypeError, ValueError):
+        raise InputDataError(f"seed must be a non-negative integer, a SeedSequence or a "
+                             f"Generator, got {format_value(seed)}") from None

@@ -23,13 +23,29 @@ from __future__ import annotations
 
 from sympy.printing.c import C99CodePrinter
 
+from algid.symbolic.printing import double_constants
+
 __all__ = ["algebra_function", "algebra_statements", "level0", "startup_functions",
            "integrator_step_function", "sample_loop_function", "block_loop_function"]
 
 
 class _Printer(C99CodePrinter):
     """C99 arithmetic on doubles; small integer powers as products (as NumPy's
-    ``x**2`` is ``x * x``), not ``pow``."""
+    ``x**2`` is ``x * x``), not ``pow``; integers and rationals beyond 2**53 as double
+    literals (an integer constant that large is not C)."""
+
+    def _print_Integer(self, expr):
+        if abs(expr.p) < 2 ** 53:
+            return super()._print_Integer(expr)
+        return _double_literal(expr)
+
+    def _print_Rational(self, expr):
+        if abs(expr.p) < 2 ** 53 and expr.q < 2 ** 53:
+            return super()._print_Rational(expr)
+        return _double_literal(expr)
+
+    def _print_Float(self, expr):
+        return _double_literal(expr)
 
     def _print_Pow(self, expr):
         base, exp = expr.args
@@ -39,8 +55,15 @@ class _Printer(C99CodePrinter):
         return super()._print_Pow(expr)
 
 
+def _double_literal(number) -> str:
+    """The nearest double of ``number`` as a C literal that reads back exactly."""
+    text = repr(float(number))
+    return f"({text})" if text.startswith("-") else text if ("." in text or "e" in text) \
+        else text + ".0"
+
+
 def _code(expr) -> str:
-    return _Printer().doprint(expr)
+    return _Printer().doprint(double_constants(expr))
 
 
 def algebra_statements(w, kernel, lane, indent):
@@ -76,6 +99,8 @@ def algebra_statements(w, kernel, lane, indent):
             lines.append(f"{pad}const double p_{i}_{j} = {_code(w.P[i, j])};")
     for i in range(n_eq):
         lines.append(f"{pad}const double q_{i} = {_code(w.Q[i])};")
+    for symbol, value in w.steps:
+        lines.append(f"{pad}const double {symbol} = {_code(value)};")
     for r, num in enumerate(w.numerators):
         lines.append(f"{pad}{lane(r)} = {_code(num)};  /* numerator of {w.params[r]} */")
     lines.append(f"{pad}{lane(n_par)} = {_code(w.denominator)};  /* det P */")

@@ -16,14 +16,9 @@ from __future__ import annotations
 import sympy as sp
 
 from algid.model import Model, channel_names
+from algid.symbolic.model import exact_number
 
 __all__ = ["ChannelModel", "channel_names"]
-
-
-def _exact(value: float):
-    """A float coefficient as an exact rational when it is one (0.5, 2, -3)."""
-    rational = sp.nsimplify(value, rational=True)
-    return rational if float(rational) == float(value) else sp.Float(value)
 
 
 class ChannelModel:
@@ -84,7 +79,7 @@ class ChannelModel:
         """
         terms = []
         for term in self.model.terms:
-            coefficient = _exact(term.coefficient)
+            coefficient = exact_number(term.coefficient)
             if term.parameter is not None:
                 coefficient = coefficient * sp.Symbol(term.parameter)
             terms.append((coefficient, self._names[term.factor], term.derivative))

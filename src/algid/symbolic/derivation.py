@@ -11,20 +11,32 @@ The steps are those of Fliess and Sira-Ramirez, each kept as a field of
 4. Back to the time domain through the operator table ``d/ds -> x(-t)`` and
    ``1/s -> integral from 0``; never through an inverse Laplace transform.
 5. Further integration of the equation until there are as many equations as unknowns.
-6. The linear system ``P theta = Q`` and its Cramer solution.
+6. The linear system ``P theta = Q`` and its Cramer solution: for at most
+   :data:`EXPANDED_CRAMER_MAX` unknowns the numerators and the denominator are expanded
+   polynomials of the entries of ``P`` and ``Q``; beyond, whose expansion grows as the
+   factorial of the unknowns, a straight-line program computes them from the minors of
+   ``[P | Q]`` on the first rows, each minor once (:meth:`Derivation.cramer_program`).
 """
 
 from __future__ import annotations
 
+import itertools
+import math
 from dataclasses import dataclass
 
 import sympy as sp
 
+from algid.errors import ModelError
 from algid.symbolic.model import LAPLACE, TIME, LinearODEModel
 
-__all__ = ["IteratedIntegral", "Kernel", "Derivation", "derive", "evaluate_kernel"]
+__all__ = ["IteratedIntegral", "Kernel", "Derivation", "derive", "evaluate_kernel",
+           "EXPANDED_CRAMER_MAX"]
 
 s, t = LAPLACE, TIME
+
+#: Largest number of unknowns whose Cramer numerators and denominator are expanded
+#: (``n!`` products each); larger systems are solved through shared minors.
+EXPANDED_CRAMER_MAX = 5
 
 
 class IteratedIntegral(sp.Function):
@@ -199,10 +211,19 @@ class Derivation:
             One per parameter.
         denominator : sympy.Expr
             ``det P``.
+
+        Raises
+        ------
+        ModelError
+            More than :data:`EXPANDED_CRAMER_MAX` unknowns (see :meth:`cramer_program`).
         """
         Ps, Qs = self.entry_symbols()
         if Ps.shape[0] != Ps.shape[1]:
             raise ValueError("Cramer's rule needs as many equations as unknowns")
+        if Ps.shape[1] > EXPANDED_CRAMER_MAX:
+            raise ModelError(f"the expanded Cramer solution of {Ps.shape[1]} unknowns has "
+                             f"{math.factorial(Ps.shape[1])} products per determinant; use "
+                             f"cramer_program()")
         den = sp.expand(Ps.det(method="berkowitz"))
         nums = []
         for j in range(Ps.shape[1]):
@@ -210,6 +231,55 @@ class Derivation:
             Pj[:, j] = Qs
             nums.append(sp.expand(Pj.det(method="berkowitz")))
         return tuple(nums), den
+
+    def cramer_program(self):
+        """Cramer's rule as a straight-line program on the entries ``p_i_j``, ``q_i``.
+
+        Up to :data:`EXPANDED_CRAMER_MAX` unknowns there are no steps and the result is
+        :meth:`cramer`.  Beyond, the minors of ``[P | Q]`` on its first ``k`` rows are
+        computed level by level, each by expansion along its last row from the minors
+        of the level before (``m<k>_<columns as bits>``); the denominator and the
+        numerators are the minors of all ``n`` rows.  Every minor is computed once: about
+        ``(n + 1) 2**n`` products, where the expanded determinants have ``n! n``.  Only
+        ``+``, ``-`` and ``*``, as the expanded form.
+
+        Returns
+        -------
+        steps : tuple of (sympy.Symbol, sympy.Expr)
+            Assignments, in order.
+        numerators : tuple of sympy.Expr
+            One per parameter, in the entries and the symbols of ``steps``.
+        denominator : sympy.Expr
+            ``det P``.
+        """
+        Ps, Qs = self.entry_symbols()
+        n = Ps.shape[1]
+        if Ps.shape[0] != n:
+            raise ValueError("Cramer's rule needs as many equations as unknowns")
+        if n <= EXPANDED_CRAMER_MAX:
+            return ((), *self.cramer())
+
+        def entry(row, column):
+            return Ps[row, column] if column < n else Qs[row]
+
+        minors = {1 << c: entry(0, c) for c in range(n + 1)}
+        steps = []
+        for k in range(2, n + 1):
+            level = {}
+            for columns in itertools.combinations(range(n + 1), k):
+                bits = sum(1 << c for c in columns)
+                value = sp.Add(*(
+                    (-1) ** (k - 1 + i) * entry(k - 1, c) * minors[bits & ~(1 << c)]
+                    for i, c in enumerate(columns)))
+                symbol = sp.Symbol(f"m{k}_{bits}")
+                steps.append((symbol, value))
+                level[bits] = symbol
+            minors = level
+        every = (1 << (n + 1)) - 1
+        den = minors[every & ~(1 << n)]
+        # column j of P replaced by Q: Q moved from the last place to place j
+        nums = tuple((-1) ** (n - 1 - j) * minors[every & ~(1 << j)] for j in range(n))
+        return tuple(steps), nums, den
 
     def solution(self):
         """The closed-form estimate of each parameter in terms of the kernels.

@@ -12,30 +12,121 @@ affine in a set of unknown parameters ``theta``.  The engine in
 
 from __future__ import annotations
 
+import ast
+import math
 import re
 from dataclasses import dataclass, field
 
 import sympy as sp
 
 from algid.errors import ModelError
+from algid.expression import Signal
+from algid.grammar import (
+    LIMITS,
+    chain_operands,
+    check_name,
+    check_text,
+    parse_equation,
+    parse_expression,
+)
 
-__all__ = ["LinearODEModel", "TIME", "LAPLACE"]
+__all__ = ["LinearODEModel", "TIME", "LAPLACE", "exact_number"]
 
 #: The time variable of every model.
 TIME = sp.Symbol("t", nonnegative=True)
 #: The Laplace variable.
 LAPLACE = sp.Symbol("s")
 
-_NAME = re.compile(r"^[A-Za-z][A-Za-z0-9_]*$")
-_FUNCTIONS = {"sqrt", "exp", "log", "sin", "cos", "pi"}
-_PRIMES = re.compile(r"\b([A-Za-z][A-Za-z0-9_]*)('+)")
+_NAME = re.compile(r"[A-Za-z][A-Za-z0-9_]*")
+_DIFFERENTIATED = re.compile(r"\b([A-Za-z_][A-Za-z0-9_]*)\s*'")
+_OPERATIONS = {ast.Add: sp.Add, ast.Sub: lambda a, b: a - b, ast.Mult: sp.Mul,
+               ast.Div: lambda a, b: a / b}
+
+
+def exact_number(value: float):
+    """A finite float as an exact rational when it is one (0.5, 2, -3), else a Float.
+
+    Parameters
+    ----------
+    value : float
+
+    Returns
+    -------
+    sympy.Rational or sympy.Float
+    """
+    rational = sp.nsimplify(value, rational=True)
+    return rational if float(rational) == float(value) else sp.Float(value)
+
+
+def _check_finite(expr, where):
+    """Every number in ``expr`` is a finite real double."""
+    if expr.has(sp.I, sp.zoo, sp.oo, -sp.oo, sp.nan):
+        raise ModelError(f"{where} {expr} is not finite and real")
+    for number in expr.atoms(sp.Number, sp.NumberSymbol):
+        try:
+            value = float(number)
+        except (TypeError, OverflowError):
+            value = math.nan
+        if not math.isfinite(value):
+            raise ModelError(f"{where} {expr}: {number} is not a finite double")
+    return expr
+
+
+def _from_tree(node, where):
+    """A SymPy expression from a checked syntax tree: numbers, names, ``+ - * /``,
+    signs and powers by a number of magnitude at most ``LIMITS["exponent"]``."""
+    if isinstance(node, ast.Constant):
+        value = node.value
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            raise ModelError(f"{where}: {value!r} is not a real number")
+        try:
+            value = float(value)
+        except OverflowError:
+            value = math.inf
+        if not math.isfinite(value):
+            raise ModelError(f"{where}: a constant is not a finite double")
+        return exact_number(value)
+    if isinstance(node, ast.Name):
+        check_name(node.id, "name")
+        return sp.Symbol(node.id)
+    if isinstance(node, ast.UnaryOp) and isinstance(node.op, (ast.UAdd, ast.USub)):
+        operand = _from_tree(node.operand, where)
+        return -operand if isinstance(node.op, ast.USub) else operand
+    if isinstance(node, ast.BinOp) and type(node.op) in _OPERATIONS:
+        first, rest = chain_operands(node)
+        out = _from_tree(first, where)
+        for op, right in rest:
+            out = _OPERATIONS[type(op)](out, _from_tree(right, where))
+        return out
+    if isinstance(node, ast.BinOp) and isinstance(node.op, ast.Pow):
+        exponent = _from_tree(node.right, where)
+        if not exponent.is_Number or abs(exponent) > LIMITS["exponent"]:
+            raise ModelError(f"{where}: an exponent must be a number of magnitude at most "
+                             f"{LIMITS['exponent']}")
+        return _from_tree(node.left, where) ** exponent
+    raise ModelError(f"{where}: only numbers, names, + - * / and ** are allowed")
+
+
+def _mentions(equation, name):
+    """Whether ``name`` appears in ``equation`` as a whole word (a signal to pin as the
+    output; otherwise the grammar reports what is missing)."""
+    return isinstance(equation, str) and re.search(rf"\b{re.escape(name)}\b", equation) is not None
 
 
 def _as_expr(value, where):
-    try:
-        return sp.sympify(value)
-    except (sp.SympifyError, TypeError, SyntaxError) as exc:
-        raise ModelError(f"cannot read {where} {value!r}: {exc}") from None
+    """A coefficient as a SymPy expression; text is read with the restricted grammar."""
+    if isinstance(value, str):
+        expr = _from_tree(parse_expression(value).body, f"{where} {value!r}")
+    elif isinstance(value, sp.Basic):
+        expr = value
+    elif isinstance(value, (int, float)) and not isinstance(value, bool):
+        if not math.isfinite(value):
+            raise ModelError(f"{where} {value!r} is not a finite double")
+        expr = exact_number(value) if isinstance(value, float) else sp.Integer(value)
+    else:
+        raise ModelError(f"cannot read {where} {value!r}: give a number, a SymPy "
+                         f"expression or text")
+    return _check_finite(expr, where)
 
 
 @dataclass(frozen=True)
@@ -75,18 +166,25 @@ class LinearODEModel:
     _symbols: dict = field(default_factory=dict, compare=False, repr=False)
 
     def __post_init__(self):
-        if not _NAME.match(self.name or ""):
-            raise ModelError(f"model name {self.name!r} is not an identifier")
+        check_name(self.name, "model name")
         for sig in (self.output, self.input):
-            if not _NAME.match(sig or "") or sig in ("t", "s"):
+            if not isinstance(sig, str) or not _NAME.fullmatch(sig) or sig in ("t", "s"):
                 raise ModelError(f"signal name {sig!r} is not a usable identifier")
         if self.output == self.input:
             raise ModelError(f"input and output are both named {self.output!r}")
-        params = tuple(sp.Symbol(str(p)) for p in self.parameters)
+        params = tuple(sp.Symbol(check_name(str(p), "parameter name"))
+                       for p in self.parameters)
         if not params:
             raise ModelError(f"model {self.name!r} has no unknown parameters")
         if len(set(params)) != len(params):
             raise ModelError(f"model {self.name!r} lists a parameter twice")
+        if len(params) > LIMITS["parameters"]:
+            raise ModelError(f"model {self.name!r} has {len(params)} parameters (at most "
+                             f"{LIMITS['parameters']})")
+        if max(len(self.output_coefficients), len(self.input_coefficients)) > \
+                LIMITS["derivative"] + 1:
+            raise ModelError(f"model {self.name!r}: derivatives of order above "
+                             f"{LIMITS['derivative']}")
         a = tuple(_as_expr(c, "output coefficient") for c in self.output_coefficients)
         b = tuple(_as_expr(c, "input coefficient") for c in self.input_coefficients)
         if not a or a[0] == 0:
@@ -246,69 +344,45 @@ class LinearODEModel:
         >>> LinearODEModel.from_equation("x'' + B*x' + K*x = f", parameters="B K").order
         2
         """
-        if isinstance(parameters, str):
-            parameters = [p for p in re.split(r"[\s,]+", parameters) if p]
-        if equation.count("=") != 1:
-            raise ModelError(f"equation {equation!r} must have exactly one '='")
         for sig in (output, input):
-            if not _NAME.match(sig or ""):
+            if not isinstance(sig, str) or not _NAME.fullmatch(sig):
                 raise ModelError(f"signal name {sig!r} is not a usable identifier")
-        left, right = equation.split("=")
-
-        def derivative_symbol(match):
-            sig, primes = match.group(1), match.group(2)
+        # a derivative of another signal is the likely mistake: say so first
+        for sig in _DIFFERENTIATED.findall(check_text(equation)):
             if sig not in (output, input):
-                raise ModelError(f"equation {equation!r}: {sig!r} is differentiated but is not "
-                                 f"the output {output!r} or the input {input!r}")
-            return f"{sig}__d{len(primes)}"
-
-        lhs_text, rhs_text = (_PRIMES.sub(derivative_symbol, side) for side in (left, right))
-        expr_text = f"({lhs_text}) - ({rhs_text})"
-        names = {p: sp.Symbol(p) for p in parameters}
-        local = dict(names)
-        for sig in (output, input):
-            local[sig] = sp.Symbol(f"{sig}__d0")
-            for k in range(1, 10):
-                local[f"{sig}__d{k}"] = sp.Symbol(f"{sig}__d{k}")
-        # every other identifier is a plain symbol (not SymPy's Q, S, E, N, ...), so
-        # that an unknown name is reported as such
-        for ident in set(re.findall(r"\b[A-Za-z_][A-Za-z0-9_]*\b", expr_text)):
-            if ident not in local and ident not in _FUNCTIONS:
-                local[ident] = sp.Symbol(ident)
-        try:
-            expr = sp.expand(sp.sympify(expr_text, locals=local))
-        except (sp.SympifyError, TypeError, SyntaxError) as exc:
-            raise ModelError(f"cannot read equation {equation!r}: {exc}") from None
-        sig_syms = {sig: [local[f"{sig}__d{k}"] if k else local[sig] for k in range(10)]
-                    for sig in (output, input)}
-        all_sig = set(sig_syms[output] + sig_syms[input])
-        for u in all_sig:
-            for v in all_sig:
-                if sp.diff(expr, u, v) != 0:
-                    raise ModelError(f"equation {equation!r} is not linear in {output!r} and "
-                                     f"{input!r}")
-        stray = expr.free_symbols - all_sig - set(names.values())
+                raise ModelError(f"equation {' '.join(equation.split())[:80]!r}: {sig!r} "
+                                 f"is differentiated but is not the output {output!r} "
+                                 f"or the input {input!r}")
+        model = parse_equation(equation, parameters, name=name,
+                               output=output if _mentions(equation, output) else None)
+        shown = model.equation if len(model.equation) <= 80 else model.equation[:77] + "..."
+        stray = [sig for sig in model.signals if sig not in (output, input)]
         if stray:
-            raise ModelError(f"equation {equation!r} uses unknown names {sorted(map(str, stray))}")
+            raise ModelError(f"equation {shown!r} uses unknown names {sorted(stray)}")
+        coefficients = {output: {}, input: {}}
+        for term in model.terms:
+            factor = term.factor
+            if not isinstance(factor, Signal) or factor.derivative:
+                problem = (f"has a term {term} that is not proportional to {output!r}, "
+                           f"{input!r} or a derivative" if not factor.signals()
+                           else f"is not linear in {output!r} and {input!r}")
+                raise ModelError(f"equation {shown!r} {problem}")
+            value = exact_number(term.coefficient)
+            if term.parameter is not None:
+                value = value * sp.Symbol(term.parameter)
+            side = coefficients[factor.name]
+            side[term.derivative] = side.get(term.derivative, 0) + value
 
-        def coefficients(sig, sign):
-            coeffs = [sign * expr.coeff(sym) for sym in sig_syms[sig]]
-            while coeffs and coeffs[-1] == 0:
-                coeffs.pop()
-            return tuple(reversed(coeffs))
+        def highest_first(sig, sign):
+            side = coefficients[sig]
+            return tuple(sign * side.get(k, 0) for k in range(max(side), -1, -1)) if side else ()
 
-        a, b = coefficients(output, 1), coefficients(input, -1)
-        rest = expr - sum(expr.coeff(sym) * sym for sym in all_sig)
-        if sp.expand(rest) != 0:
-            raise ModelError(f"equation {equation!r} has a term {sp.expand(rest)} that is not "
-                             f"proportional to {output!r}, {input!r} or a derivative")
-        for coeff in a + b:
-            if coeff.free_symbols & all_sig:
-                raise ModelError(f"equation {equation!r} is not linear in {output!r} and {input!r}")
+        a, b = highest_first(output, 1), highest_first(input, -1)
         if not a:
-            raise ModelError(f"equation {equation!r} does not involve the output {output!r}")
+            raise ModelError(f"equation {shown!r} does not involve the output {output!r}")
         if not b:
-            raise ModelError(f"equation {equation!r} does not involve the input {input!r}")
+            raise ModelError(f"equation {shown!r} does not involve the input {input!r}")
+        names = {p: sp.Symbol(p) for p in model.parameters}
         return cls(name=name, output_coefficients=a, input_coefficients=b,
                    parameters=tuple(names.values()), output=output, input=input,
                    description=description)

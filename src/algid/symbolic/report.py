@@ -13,7 +13,7 @@ from dataclasses import dataclass
 import sympy as sp
 
 from algid.errors import ModelError
-from algid.symbolic.derivation import Derivation, derive
+from algid.symbolic.derivation import EXPANDED_CRAMER_MAX, Derivation, derive
 from algid.symbolic.model import LinearODEModel
 from algid.symbolic.models import builtin_model
 
@@ -127,7 +127,16 @@ def derivation_steps(d: Derivation) -> list:
     steps.append(Step("Linear system P theta = Q",
                       "Each equation is linear in the unknowns; P and Q are filtered signals "
                       "computed on-line from the measurements.", tuple(eqs) + entries))
-    if d.P.shape[0] == d.P.shape[1]:
+    if d.P.shape[0] == d.P.shape[1] and d.P.shape[0] > EXPANDED_CRAMER_MAX:
+        # the expanded determinants would have n! products: named, not written out
+        den = sp.Symbol("det(P)")
+        nums = [sp.Symbol(f"det(P_{j + 1})") for j in range(d.P.shape[1])]
+        steps.append(Step("Solution",
+                          "Cramer's rule: P_j is P with its column j replaced by Q (the "
+                          "generated code computes the determinants from shared minors); "
+                          "the estimate is defined wherever det P is not zero.",
+                          tuple((p, num / den) for p, num in zip(model.parameters, nums))))
+    elif d.P.shape[0] == d.P.shape[1]:
         nums, den = d.cramer()
         steps.append(Step("Solution",
                           "Cramer's rule; the estimate is defined wherever det P is not zero: "
