@@ -7,8 +7,9 @@ the same with 5 % of its rows missing, cubic spring, friction under a position l
 parameter, the fraction of realisations whose estimate lies within two reported
 standard errors of the truth (nominal 95.4 %; target at least 93 %), the same with the
 numerical error added in quadrature, and the number of standard errors that are exactly
-zero or not finite.  Per record also the windows chosen and the refusals (an
-``AlgidError``: none is expected on these records).
+zero or not finite.  Per record also the windows chosen, the refusals (an
+``AlgidError``) and the warnings (none is expected on these records, with their right
+models).
 
 The cubic spring's noise-free response is integrated once; each realisation adds the
 noise of the generator's seed (the same samples as the generator gives for that seed).
@@ -71,6 +72,7 @@ def coverage(name, truth, equation, noisy, runs):
     inside = Counter()
     inside_total = Counter()
     zero, refused, windows, z_scores = 0, [], Counter(), {p: [] for p in truth}
+    warned = Counter()
     start = time.perf_counter()
     done = 0
     for seed in range(runs):
@@ -81,6 +83,8 @@ def coverage(name, truth, equation, noisy, runs):
             continue
         done += 1
         windows[round(r.window, 6)] += 1
+        for line in r.warnings:
+            warned[line.split(":")[0]] += 1
         numerical = getattr(r, "numerical_error", None) or {}
         for p, value in truth.items():
             se = r.stderr[p]
@@ -101,6 +105,7 @@ def coverage(name, truth, equation, noisy, runs):
         "zero_or_nonfinite_stderr": zero,
         "refused": refused[:5],
         "refusals": len(refused),
+        "warnings": dict(warned),
         "windows": {str(k): v for k, v in sorted(windows.items())},
         "seconds": time.perf_counter() - start,
     }
@@ -130,7 +135,7 @@ def main(argv=None):
                   f"{z if z is not None else float('nan'):>7.2f}")
         print(f"{name:<16} zero or non-finite standard errors: "
               f"{row['zero_or_nonfinite_stderr']}, refused: {row['refusals']}, "
-              f"{row['seconds']:.0f} s")
+              f"warned: {sum(row['warnings'].values())}, {row['seconds']:.0f} s")
     worst = min((min(row["coverage"].values()) for row in results if row["identified"]),
                 default=float("nan"))
     zeros = sum(row["zero_or_nonfinite_stderr"] for row in results)

@@ -50,14 +50,13 @@ milliseconds or sample numbers, Unix-epoch times with a drift ``d0 + d1*t``, amp
 from 1e-300 to 1e300 give the same window and the same (converted) estimates, or a
 one-line refusal where an estimate or its variance leaves the floating-point range.
 
-Refusals: a parameter whose terms vanish on the records (a constant output: ``y' = 0``),
-a known side that vanishes, proportional terms (``K*y + K2*y``), a combination of the
-parameters that the window equations determine no better than their misfit or the
-output noise (a model of too high an order), with the parameters named
-(:func:`algid.window_basis.separability`); a barely separated combination, or nearly
-proportional terms, gives a line in the result's ``warnings``.  Windows too short for
-the kernels or leaving too few non-overlapping windows are refused, and the window rule
-looks at no such window (:mod:`algid.window_rule`).
+Refusals, naming the parameters: terms or a known side that vanish on the records (a
+constant output), proportional terms (``K*y + K2*y``), and, where the misfit is output
+noise (:mod:`algid.adequacy`), a combination determined no better than the misfit or
+the noise (a model of too high an order: :func:`algid.window_basis.separability`); a
+barely separated combination or nearly proportional terms give a line in ``warnings``.
+Windows too short for the kernels or leaving too few non-overlapping windows are
+refused, and the window rule looks at no such window (:mod:`algid.window_rule`).
 
 Standard errors come from a sandwich over the window index.  Its middle is the
 residuals' own covariance, a HAC (heteroscedasticity and autocorrelation consistent)
@@ -115,6 +114,7 @@ from algid.window_kernels import (
 )
 from algid.window_rule import (
     WindowFit,
+    check_multiplicities,
     choose_window,
     min_length,
     window_criterion,
@@ -510,17 +510,6 @@ def _derivative_estimate(y, t, order, step):
     return algebraic_derivative(y, time=t, derivative=order)
 
 
-def _check_multiplicities(model, multiplicities):
-    multiplicities = tuple(int(a) for a in multiplicities)
-    if not multiplicities:
-        raise ModelError("give at least one kernel multiplicity")
-    low = min(multiplicities)
-    if low < model.order:
-        raise ModelError(f"kernel multiplicity {low} is below the model order "
-                         f"{model.order}")
-    return multiplicities
-
-
 def _simulated_values(problem, theta, model):
     """Noise-free output of the current estimate on every segment (instruments)."""
     from algid.model_simulation import fit_initial_state, simulate_model
@@ -604,7 +593,7 @@ def identify(data, equation, parameters=None, *, time=None, rate=None, output=No
         equation, parameters, output=output, name=name)
     check_model_columns(model, time)
     check_memory(data, model)
-    multiplicities = _check_multiplicities(model, multiplicities)
+    multiplicities = check_multiplicities(model, multiplicities)
     segments, step, n_samples = prepare_records(data, model.signals, time=time, rate=rate,
                                                 min_length=min_length(multiplicities))
     _add_derivatives(model, segments, _derivative_estimate)
@@ -634,9 +623,10 @@ def identify(data, equation, parameters=None, *, time=None, rate=None, output=No
             fit = _solve(problem, length, multiplicities, instruments)
     adequacy = model_adequacy(problem, length, fit, _solve, method, min_length(multiplicities),
                               max(1, length // WINDOW_OVERLAP))
-    # where the model explains the data, a combination no better determined than the
-    # noise or the misfit is free; where it does not, the model's error is the cause
-    if adequacy.adequate and (fit.separation.free or fit.separation.misfit_free):
+    # where the misfit is output noise, a combination no better determined than the
+    # noise or the misfit is free; where it is more, the model's error may be the cause
+    noise_like = adequacy.misfit <= adequacy.misfit_limit
+    if noise_like and (fit.separation.free or fit.separation.misfit_free):
         raise ModelError(fit.separation.message(model.parameters))
     return IdentificationResult(
         model=model, values=dict(zip(model.parameters, fit.theta.tolist())),

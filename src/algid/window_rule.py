@@ -10,18 +10,20 @@ and the automatic rule (:func:`choose_window`) only looks at windows within them
 geometric grid of lengths (:func:`window_grid`, ratio 1.25, from :func:`min_length` up
 to a thirtieth of the data), it keeps the one minimising :func:`window_criterion`, among
 those on which the parameters are separable (:mod:`algid.window_basis`: within the
-output noise and the equations' misfit, else within the noise, where some window is).
+output noise and the equations' misfit); where no window is, the one that separates them
+best.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from algid.errors import InputDataError
+from algid.errors import InputDataError, ModelError
+from algid.window_basis import FREE_NOISE_RATIO
 
-__all__ = ["WindowFit", "window_grid", "window_criterion", "choose_window", "window_length",
-           "min_length", "longest_window", "independent_windows", "needed_windows",
-           "MIN_SPARE_WINDOWS", "NEGLIGIBLE_TERM"]
+__all__ = ["WindowFit", "check_multiplicities", "window_grid", "window_criterion",
+           "choose_window", "window_length", "min_length", "longest_window",
+           "independent_windows", "needed_windows", "MIN_SPARE_WINDOWS", "NEGLIGIBLE_TERM"]
 
 #: Non-overlapping windows needed beyond one per parameter.
 MIN_SPARE_WINDOWS = 8
@@ -219,6 +221,35 @@ def longest_window(problem, shortest):
     return longest - 1
 
 
+def check_multiplicities(model, multiplicities):
+    """The kernel multiplicities as a tuple of int, refused if none or below the order.
+
+    Parameters
+    ----------
+    model : algid.model.Model
+        The model (its ``order``).
+    multiplicities : sequence of int
+        Kernel multiplicities.
+
+    Returns
+    -------
+    tuple of int
+
+    Raises
+    ------
+    ModelError
+        No multiplicity, or one below the model order.
+    """
+    multiplicities = tuple(int(a) for a in multiplicities)
+    if not multiplicities:
+        raise ModelError("give at least one kernel multiplicity")
+    low = min(multiplicities)
+    if low < model.order:
+        raise ModelError(f"kernel multiplicity {low} is below the model order "
+                         f"{model.order}")
+    return multiplicities
+
+
 def min_length(multiplicities):
     """The fewest samples per window for the kernels of ``multiplicities``.
 
@@ -320,14 +351,17 @@ def choose_window(problem, multiplicities, solve, *, n_max=None, method="ls"):
             fits[length] = solve(problem, length, multiplicities, method=method)
         except np.linalg.LinAlgError:
             continue
-    # the windows that separate the parameters within the noise and the misfit, else
-    # within the noise, else any (the misfit may be the model's own error on every
-    # window: algid.identify decides once the model's adequacy is known)
-    separating = {n: f for n, f in fits.items() if not f.separation.free}
-    scores = window_criterion({n: f for n, f in separating.items()
-                               if not f.separation.misfit_free} or separating or fits) \
-        if fits else {}
+    scores = window_criterion(fits) if fits else {}
     if not scores:
         raise InputDataError("no window length gives a solvable system: the records are "
                              "too short or the signals do not excite the model")
-    return min(scores, key=scores.get), scores
+    # the windows that separate the parameters within the noise and the misfit; if none
+    # does, the one that separates them best (a model of too high an order, or one whose
+    # own error is the misfit on every window: algid.identify decides which, once it has
+    # tested the model's adequacy on that window)
+    separating = [n for n in scores if not (fits[n].separation.free
+                                            or fits[n].separation.misfit_free)]
+    if separating:
+        return min(separating, key=scores.get), scores
+    return max(scores, key=lambda n: (fits[n].separation.noise_ratio >= FREE_NOISE_RATIO,
+                                      fits[n].separation.ratio)), scores
