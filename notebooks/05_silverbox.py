@@ -177,6 +177,11 @@ for k, length in enumerate(lengths):
     rows.append("| " + " | ".join(cells) + " |")
 display(Markdown("\n".join(rows)))
 
+# %% tags=["remove-cell"]
+RESULTS["window_sweep"] = {
+    label: {"window_ms": window_ms.tolist(), "frequency_hz": [r[1] for r in sweep[label]],
+            "frequency_se": [r[2] for r in sweep[label]]} for label in MODELS}
+
 # %% [markdown]
 # The cubic model gives nearly the same natural frequency and damping on every window
 # up to a few periods of the resonance (its bars at the short windows are smaller than
@@ -278,8 +283,9 @@ for ax in (ax_t, ax_a):
 #
 # The same cubic model, simulated with the input interpolated by a cubic spline through
 # the samples instead of a band-limited interpolation, differs from the accurate
-# simulation by an amount that is not negligible next to the model error itself (most
-# of it where the amplitude, and the high-frequency content of the input, are largest):
+# simulation by a fraction of the model error itself, a fraction that grows with the
+# amplitude and the high-frequency content of the input (it is larger on the full arrow
+# part than on the short record of the quick run):
 
 # %%
 spline_run = cubic.simulate(arrow, interpolation="cubic")

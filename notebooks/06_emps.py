@@ -95,7 +95,8 @@ for p, reference in EMPS_PUBLISHED.items():
 display(Markdown("\n".join(rows)))
 for name, fit in fits.items():
     inside = [p for p, reference in EMPS_PUBLISHED.items()
-              if abs(fit.values[p] - reference) <= 2 * EMPS_PUBLISHED_RELATIVE_STD[p] * abs(reference)]
+              if abs(fit.values[p] - reference)
+              <= 2 * EMPS_PUBLISHED_RELATIVE_STD[p] * abs(reference)]
     print(f"{name} run, estimates inside the published ±2σ band: {', '.join(inside) or 'none'}")
 
 # %% tags=["remove-cell"]
