@@ -192,8 +192,13 @@ RESULTS["identities"]["paper_13"] = identity_13 == 0
 # %%
 print("multiply by s^-%d" % d.s_power)
 display(sp.Eq(d.multiplied, 0))
-powers = sorted({int(term.as_coeff_exponent(s)[1])
-                 for term in sp.Add.make_args(d.multiplied)})
+def power_of_s(term):
+    """The power of s multiplying a term c * s**k * (X, F or a derivative of them)."""
+    plain = [a for a in sp.Mul.make_args(term) if not (a.has(X) or a.has(F))]
+    return int(sp.Mul(*plain).as_coeff_exponent(s)[1])
+
+
+powers = sorted({power_of_s(term) for term in sp.Add.make_args(d.multiplied)})
 print("powers of s present:", powers)
 
 # %% tags=["remove-cell"]
@@ -617,7 +622,7 @@ for kern in d_custom.kernels:
     depth[(kern.signal, kern.power)] = max(depth.get((kern.signal, kern.power), 0), kern.order)
 numeric = {}
 for (sig, power), n_levels in depth.items():
-    levels = iterated_integrals(tau**power * samples[sig], h, n_levels, order=6)
+    levels = iterated_integrals(tau**power * samples[sig], h, n_levels, points=6)
     for order, values in enumerate(levels):
         numeric[Kernel(sig, power, order).name] = values
 

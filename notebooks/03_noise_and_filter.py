@@ -118,10 +118,9 @@ RESULTS["noise_free_max_error_after_0.5s"] = max(v for (_, _, a), v in noise_fre
                                                 if a == 0.5)
 
 # %% [markdown]
-# All orders agree with the true values to the accuracy of the integrals.  A higher
-# order keeps a trace of the early numerical error a little longer, because the filter
-# averages over the past (section 3.3 makes this precise), but after half a second
-# every order is at the level of round-off.
+# All orders agree with the true values to the accuracy of the integrals: the error is
+# largest in the first milliseconds, whatever the order, and after half a second every
+# order is at the level of round-off.
 
 # %% [markdown]
 # ## 3.2 One noisy realisation
@@ -171,7 +170,7 @@ axes[0].legend(ncol=3, fontsize="small");
 gen = load_model("msd")
 h = t[1] - t[0]
 sim = sims["step"]
-kern = kernel_values(gen, {gen.INPUT: sim.f, gen.OUTPUT: sim.x}, t, h, order=6)
+kern = kernel_values(gen, {gen.INPUT: sim.f, gen.OUTPUT: sim.x}, t, h, points=6)
 P, Q = gen.regressors(kern)
 _, D = gen.cramer(P, Q)
 late = t > 0.05
@@ -261,8 +260,9 @@ rmse_figure("step");
 # %% [markdown]
 # Three things stand out.
 #
-# * **No filter is a bad choice.**  At every noise level and instant, $p = 0$ has by
-#   far the largest error.
+# * **No filter is a bad choice.**  At every noise level and instant, $p = 0$ has a
+#   larger error than $p = 2$, often by an order of magnitude (the smallest ratio is
+#   printed below the table).
 # * **The error is proportional to the noise.**  The curves for the three noise levels
 #   are parallel on the log scale, a factor 10 apart between $\sigma = 0.001$ and
 #   $0.01$, except where the error is so large that the estimate is no longer in its
@@ -358,8 +358,9 @@ RESULTS["convergence_medians"] = {f"{k}/sigma={s:g}/p={p}": v["median"]
 # always the slowest; from the paper's noise level on
 # it settles at the very end of the record, if at all.  Among the filtered ones the
 # differences are modest; the fastest order is printed above for each case.  With
-# $\sigma = 0.05$ m five seconds are not enough for 1 % in most cases: a longer record
-# would be needed, since the error keeps decreasing with time (section 3.4).
+# $\sigma = 0.05$ m five seconds are at best just enough for 1 % (the crosses mark the
+# orders whose median never gets there): a longer record would be needed, since the
+# error keeps decreasing with time (section 3.4).
 #
 # ## 3.6 What to take away
 #

@@ -204,13 +204,13 @@ class SampleBySampleEstimator:
 
 # %% [markdown]
 # Run it on a noisy experiment (sine input, $\sigma = 0.01$ m, seed 1) in both layouts,
-# and run the batch estimator with the same integration rule (`quadrature_order=2`, the
+# and run the batch estimator with the same integration rule (`quadrature_points=2`, the
 # trapezoid) and the same filter on the same samples.
 
 # %%
 sim = algid.simulate("sine", m=1, c=2, k=3, duration=DURATION, rate=RATE, noise_std=0.01, seed=1)
 h = sim.t[1] - sim.t[0]
-batch_trap = algid.estimate(sim.t, sim.f, sim.x, quadrature_order=2, filter_order=2)
+batch_trap = algid.estimate(sim.t, sim.f, sim.x, quadrature_points=2, filter_order=2)
 
 stepped = {}
 for layout, form in (("entries", entries_form), ("chains", chains_form)):
@@ -245,7 +245,7 @@ RESULTS["state_space_vs_batch_max_rel_diff"] = {
 RESULTS["state_space_defined_where_batch_is"] = same_defined
 
 # %% [markdown]
-# The differences are a few units of the last digits: the two computations do the same
+# The differences are at the level of round-off: the two computations do the same
 # arithmetic in a different order.  For scale, the figure also shows how far the
 # estimate itself is from the true values (noise and trapezoid error together): many
 # orders of magnitude more.
