@@ -159,9 +159,9 @@ for ax, (name, view, fig_name) in zip(axes, (("step", 1.0, "Figure 4"), ("sine",
 
 # %% [markdown]
 # Both computations find $B = 2$ and $K = 3$.  They differ in *how soon* (the table
-# above): the toolkit's estimate is within 0.1 % a few milliseconds after its first
-# defined sample (sample 5: a 6-point rule is causal from there on), while the trapezoid
-# needs a sizeable fraction of a second.  The times the paper reports lie in between.
+# above): the toolkit's estimate is within 0.1 % at most a few milliseconds after its
+# first defined sample (sample 5: a 6-point rule is causal from there on), while the
+# trapezoid needs a sizeable fraction of a second.  The times the paper reports lie in between.
 # The next section explains the difference.
 
 # %% [markdown]
