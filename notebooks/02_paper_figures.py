@@ -65,7 +65,6 @@ TRUE = paper.TRUE_VALUES               # {"B": 2.0, "K": 3.0}
 TOOLKIT, PAPER_STYLE, PAPER_STYLE_NOISY = paper.TOOLKIT, paper.PAPER_STYLE, paper.PAPER_STYLE_NOISY
 Q = TOOLKIT["quadrature_order"]  # points of the toolkit's quadrature rule
 EXPERIMENTS = {e.name: e for e in paper.EXPERIMENTS}
-RESULTS = {}  # the key numbers of this notebook, collected for checking
 
 
 def show(fig):
@@ -80,6 +79,11 @@ print("toolkit:", TOOLKIT, "  paper-style:", PAPER_STYLE, "/ with noise:", PAPER
 for e in paper.EXPERIMENTS:
     print(f"{e.name:<11} {e.figure}: the paper reports good estimates at {e.claim_time:g} s "
           f"({e.claim})")
+
+# %% tags=["remove-cell"]
+# The numbers that tests/test_notebooks.py checks: collected in cells tagged
+# "remove-cell", which the documentation does not render.
+RESULTS = {}
 
 # %% [markdown]
 # ## 2.1 The experiments (Figures 3 and 5)
@@ -125,6 +129,7 @@ for name in ("step", "sine"):
     rows.append(f"| {name}, **paper** | {EXPERIMENTS[name].claim_time:g} (\"good\") | | | |")
 display(Markdown("\n".join(rows)))
 
+# %% tags=["remove-cell"]
 RESULTS["noise_free"] = {name: {"toolkit_t_0.1pct": v[2]["t_0.1pct"],
                                 "paper_style_t_0.1pct": v[3]["t_0.1pct"],
                                 "toolkit_final_rel_error": v[2]["final_rel_error"],
@@ -153,16 +158,11 @@ for ax, (name, view, fig_name) in zip(axes, (("step", 1.0, "Figure 4"), ("sine",
     ax.set_ylabel("B [N s/(m kg)], K [N/(m kg)]")
 
 # %% [markdown]
-# Both computations find $B = 2$ and $K = 3$.  They differ in *how soon*: the toolkit's
-# estimate is within 0.1 % a few milliseconds after its first defined sample (sample 5:
-# a 6-point rule is causal from there on), while the trapezoid needs a
-# sizeable fraction of a second.  The paper's times lie in between.  The next section
-# explains the difference.
-
-# %%
-for name, (r_tool, r_paper, acc_tool, acc_paper) in noise_free.items():
-    assert acc_tool["t_0.1pct"] < acc_paper["t_0.1pct"]
-    assert max(abs(v) for v in acc_tool["final_rel_error"].values()) < 1e-9
+# Both computations find $B = 2$ and $K = 3$.  They differ in *how soon* (the table
+# above): the toolkit's estimate is within 0.1 % at most a few milliseconds after its
+# first defined sample (sample 5: a 6-point rule is causal from there on), while the
+# trapezoid needs a sizeable fraction of a second.  The times the paper reports lie in between.
+# The next section explains the difference.
 
 # %% [markdown]
 # ## 2.3 Why the quadrature rule matters without noise
@@ -206,7 +206,6 @@ for rate in RATES:
 
 trap = [r for r in rate_rows if r["q"] == 2]
 slope = np.polyfit(np.log([1 / r["rate"] for r in trap]), np.log([r["t_1pct"] for r in trap]), 1)[0]
-RESULTS["trapezoid_t1pct_vs_step_exponent"] = float(slope)
 
 fig, ax = plt.subplots(figsize=(7, 4.2), layout="constrained")
 for q, marker, what in ((2, "o-", "trapezoid"), (Q, "s-", f"{Q}-point rule")):
@@ -220,19 +219,24 @@ ax.set_title(f"noise-free step, no filter (trapezoid: time ~ h^{slope:.2f})")
 ax.grid(alpha=0.3, which="both")
 ax.legend();
 
-# the toolkit's rule is within 1 % at its first defined sample, at every rate tried
-assert all(r["t_1pct"] == r["t_valid"] for r in rate_rows if r["q"] == Q)
-by_rate = {(r["rate"], r["q"]): r["t_1pct"] for r in rate_rows}
+by_rate = {(r["rate"], r["q"]): r for r in rate_rows}
 display(Markdown("\n".join(
-    [f"| rate [Hz] | trapezoid t(1 %) | {Q}-point t(1 %) |", "| --- | --- | --- |"]
-    + [f"| {rate:g} | {by_rate[(rate, 2)]:.3g} s | {by_rate[(rate, Q)]:.3g} s |"
-       for rate in RATES])))
+    [f"| rate [Hz] | trapezoid t(1 %) | {Q}-point t(1 %) | {Q}-point first defined estimate |",
+     "| --- | --- | --- | --- |"]
+    + [f"| {rate:g} | {by_rate[(rate, 2)]['t_1pct']:.3g} s | {by_rate[(rate, Q)]['t_1pct']:.3g} s "
+       f"| {by_rate[(rate, Q)]['t_valid']:.3g} s |" for rate in RATES])))
+
+# %% tags=["remove-cell"]
+RESULTS["trapezoid_t1pct_vs_step_exponent"] = float(slope)
+# the toolkit's rule is within 1 % at its first defined sample, at every rate tried
+RESULTS["toolkit_within_1pct_at_first_estimate"] = all(
+    r["t_1pct"] == r["t_valid"] for r in rate_rows if r["q"] == Q)
 
 # %% [markdown]
 # With the trapezoid, the time to 1 % falls as the step shrinks (the exponent is
 # printed in the title), so the paper's noise-free times are consistent with integrals
 # computed more accurately than a 1 kHz trapezoid.  The 8-point rule is within 1 % at
-# its very first defined sample at every rate (the assertion above checks it): its
+# its very first defined sample at every rate (the last two columns of the table): its
 # time is set by its start-up, five samples, not by its accuracy.
 #
 # ## 2.4 Noisy measurements (Figure 7)
@@ -241,10 +245,17 @@ display(Markdown("\n".join(
 # position (only to the position, as in the paper).  `algid.simulate(...,
 # noise_std=, seed=)` draws it with `numpy.random.default_rng(seed)`.  For the
 # statistics over many seeds we simulate the noise-free response once and add the noise
-# ourselves, in exactly the same way, which is much cheaper than simulating again; the
-# assertion checks that both give the same samples.
+# ourselves, in exactly the same way, which is much cheaper than simulating again, and
+# check that both give the same samples.
 
 # %%
+def estimate_keywords(settings):
+    """The keywords of ``algid.estimate`` for the settings of ``algid.paper`` (whose
+    ``quadrature_order`` is the number of points of the rule)."""
+    return {"quadrature_points" if key == "quadrature_order" else key: value
+            for key, value in settings.items()}
+
+
 def add_noise(sim, std, seed):
     """The measured position of ``sim`` with the noise that ``simulate(seed=seed)`` adds."""
     return sim.x_true + np.random.default_rng(seed).normal(0.0, std, size=sim.t.size)
@@ -252,14 +263,19 @@ def add_noise(sim, std, seed):
 
 noisy_sims = {name: paper.simulate_experiment(name, seed=SHOWN_SEED)
               for name in ("step_noise", "sine_noise")}
-for name, base in (("step_noise", "step"), ("sine_noise", "sine")):
-    assert np.array_equal(add_noise(sims[base], paper.NOISE_STD, SHOWN_SEED), noisy_sims[name].x)
+same_samples = {name: np.array_equal(add_noise(sims[base], paper.NOISE_STD, SHOWN_SEED),
+                                      noisy_sims[name].x)
+                for name, base in (("step_noise", "step"), ("sine_noise", "sine"))}
+print("noise added here equals the noise of simulate(seed=0), sample for sample:", same_samples)
 
 step, sine = noisy_sims["step_noise"], noisy_sims["sine_noise"]
 show(plotting.plot_responses(
     [(step.t, step.x, step.x_true, "(a) step input"),
      (sine.t, sine.x, sine.x_true, "(b) sinusoidal input")],
     title=f"Figure 7: measured position with noise (std {paper.NOISE_STD:g} m, seed {SHOWN_SEED})"))
+
+# %% tags=["remove-cell"]
+RESULTS["noise_shortcut_equals_simulate"] = {k: bool(v) for k, v in same_samples.items()}
 
 # %% [markdown]
 # ## 2.5 Noisy estimates (Figures 8 and 9)
@@ -316,7 +332,7 @@ for name, base in (("step_noise", "step"), ("sine_noise", "sine")):
         for seed in seeds:
             sim = sims[base]
             r = algid.estimate(sim.t, sim.f / sim.m, add_noise(sim, paper.NOISE_STD, seed),
-                               **settings)
+                               **estimate_keywords(settings))
             acc = paper.accuracy(r)
             times.append(acc["t_1pct"])
             errors.append([acc["final_rel_error"]["B"], acc["final_rel_error"]["K"]])
@@ -341,6 +357,8 @@ for (name, label), st in stats.items():
     rows.append(f"| {name}, {label} | {st['median_t_1pct']:.3g} | {st['reached_1pct']}/{N_SEEDS} | "
                 f"{100 * st['rmse_B']:.2f} % | {100 * st['rmse_K']:.2f} % |")
 display(Markdown("\n".join(rows).replace("nan", "never")))
+
+# %% tags=["remove-cell"]
 RESULTS["noisy_seeds"] = {f"{name}/{label}": st for (name, label), st in stats.items()}
 RESULTS["n_seeds"] = N_SEEDS
 
@@ -370,14 +388,10 @@ axes[0, 0].legend(fontsize="small", ncol=2, loc="upper right")
 fig.suptitle(f"spread of the estimates over {N_SEEDS} noise realisations "
              f"(std {paper.NOISE_STD:g} m)");
 
-# B is the harder parameter: its final relative error is the larger one
-assert all(stats[(name, "toolkit")]["rmse_B"] > stats[(name, "toolkit")]["rmse_K"]
-           for name in ("step_noise", "sine_noise"))
-
 # %% [markdown]
 # The band narrows as time goes on: the integrals average the noise over an ever longer
 # record.  The damping $B$ is the harder parameter: its relative RMSE at the end is the
-# larger one (table above; the assertion checks it).  The paper's 2.5 s is of the same
+# larger one (table above).  The paper's 2.5 s is of the same
 # order as the median times measured here; since the paper does not give its sampling
 # rate or filter order, and a single
 # noise realisation already moves the time by tenths of a second, closer agreement

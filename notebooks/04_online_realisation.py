@@ -57,9 +57,13 @@ from algid.symbolic.realization import realize
 TRUE = {"B": 2.0, "K": 3.0}
 DURATION = 2.0 if QUICK else 5.0
 RATE = 1000.0
-RESULTS = {}  # the key numbers of this notebook, collected for checking
 
 sp.init_printing()
+
+# %% tags=["remove-cell"]
+# The numbers that tests/test_notebooks.py checks: collected in cells tagged
+# "remove-cell", which the documentation does not render.
+RESULTS = {}
 
 # %% [markdown]
 # ## 4.1 The realisation, symbolically
@@ -101,19 +105,29 @@ display(sp.Eq(sp.Symbol("D(t)"), chains_form.D, evaluate=False))
 # the same functions of time as evaluating the entries directly.
 
 # %%
-assert np.all(np.array((chains_form.A ** len(chains_form.states)).tolist(), dtype=float) == 0)
-assert entries_form.check() and chains_form.check()
+A_power_n = chains_form.A ** len(chains_form.states)
+print(f"A^{len(chains_form.states)} is the zero matrix:", A_power_n.is_zero_matrix)
+print("integral forms reproduce P and Q, entries layout:", entries_form.check(),
+      "  chains layout:", chains_form.check())
 
 t = TIME
 signals = {"x": 1 + 2 * t - t**3, "f": 3 - t**2}        # any closed-form test signals
 kernel_subs = {k.expression(): evaluate_kernel(k, signals) for k in d.kernels}
 direct = {name: sp.expand(expr.xreplace(kernel_subs))
           for name, expr in zip(chains_form.outputs, list(d.P) + list(d.Q))}
-for form in (entries_form, chains_form):
+response_agrees = {}
+for layout, form in (("entries", entries_form), ("chains", chains_form)):
     response = form.response(signals)
-    assert all(sp.expand(response[name] - direct[name]) == 0 for name in form.outputs)
+    response_agrees[layout] = all(sp.expand(response[name] - direct[name]) == 0
+                                  for name in form.outputs)
 print("p11(t) for x = 1 + 2t - t^3:", direct["p11"])
-print("both layouts reproduce every entry of P and Q on the test signals")
+print("the integrated state equations reproduce every entry of P and Q on the test signals:",
+      response_agrees)
+
+# %% tags=["remove-cell"]
+RESULTS["A_nilpotent"] = bool(A_power_n.is_zero_matrix)
+RESULTS["layouts_check"] = bool(entries_form.check() and chains_form.check())
+RESULTS["layouts_response_agrees"] = response_agrees
 
 # %% [markdown]
 # ## 4.2 Stepping the realisation sample by sample
@@ -190,13 +204,13 @@ class SampleBySampleEstimator:
 
 # %% [markdown]
 # Run it on a noisy experiment (sine input, $\sigma = 0.01$ m, seed 1) in both layouts,
-# and run the batch estimator with the same integration rule (`quadrature_order=2`, the
+# and run the batch estimator with the same integration rule (`quadrature_points=2`, the
 # trapezoid) and the same filter on the same samples.
 
 # %%
 sim = algid.simulate("sine", m=1, c=2, k=3, duration=DURATION, rate=RATE, noise_std=0.01, seed=1)
 h = sim.t[1] - sim.t[0]
-batch_trap = algid.estimate(sim.t, sim.f, sim.x, quadrature_order=2, filter_order=2)
+batch_trap = algid.estimate(sim.t, sim.f, sim.x, quadrature_points=2, filter_order=2)
 
 stepped = {}
 for layout, form in (("entries", entries_form), ("chains", chains_form)):
@@ -216,20 +230,22 @@ def difference(a, b):
     return np.fmax(*(np.abs(a[k] - b[k]) / np.fmax(np.abs(b[k]), TRUE[k]) for k in ("B", "K")))
 
 
-state_space_diff = {}
+state_space_diff, same_defined = {}, {}
+defined = np.isfinite(batch_trap.B)
 for layout, est in stepped.items():
     diff = difference(est, batch_trap.estimates)
     state_space_diff[layout] = diff
-    defined = np.isfinite(batch_trap.B)
-    assert np.array_equal(np.isfinite(est["B"]), defined)
+    same_defined[layout] = bool(np.array_equal(np.isfinite(est["B"]), defined))
     print(f"{layout:>7}: largest difference from the batch estimate (relative): "
-          f"{np.max(diff[defined]):.1e}")
+          f"{np.max(diff[defined]):.1e}; defined at the same samples: {same_defined[layout]}")
+
+# %% tags=["remove-cell"]
 RESULTS["state_space_vs_batch_max_rel_diff"] = {
-    k: float(np.max(v[np.isfinite(batch_trap.B)])) for k, v in state_space_diff.items()}
-assert max(RESULTS["state_space_vs_batch_max_rel_diff"].values()) < 1e-10
+    k: float(np.max(v[defined])) for k, v in state_space_diff.items()}
+RESULTS["state_space_defined_where_batch_is"] = same_defined
 
 # %% [markdown]
-# The differences are a few units of the last digits: the two computations do the same
+# The differences are at the level of round-off: the two computations do the same
 # arithmetic in a different order.  For scale, the figure also shows how far the
 # estimate itself is from the true values (noise and trapezoid error together): many
 # orders of magnitude more.
@@ -278,7 +294,8 @@ online_diff = difference({"B": B_online, "K": K_online}, batch.estimates)
 max_online_diff = float(np.nanmax(online_diff))
 print("identical to the batch estimate, bit for bit:", identical)
 print(f"largest difference (relative): {max_online_diff:.1e}")
-assert max_online_diff < 1e-12
+
+# %% tags=["remove-cell"]
 RESULTS["online_chunk1_identical"] = bool(identical)
 RESULTS["online_chunk1_max_rel_diff"] = max_online_diff
 
@@ -306,7 +323,8 @@ chunks_identical = (np.array_equal(B_chunks, batch.B, equal_nan=True)
                     and np.array_equal(K_chunks, batch.K, equal_nan=True))
 print(f"{len(pieces)} chunks; identical to the batch estimate: {chunks_identical}; "
       f"largest difference (relative) {chunk_diff:.1e}")
-assert chunk_diff < 1e-12
+
+# %% tags=["remove-cell"]
 RESULTS["online_random_chunks_identical"] = bool(chunks_identical)
 RESULTS["online_random_chunks_max_rel_diff"] = chunk_diff
 RESULTS["n_chunks"] = len(pieces)
@@ -384,11 +402,10 @@ for case, x_meas in cases.items():
         print(f"{case:>13}, {label:<16}: K within 1 % of the new value "
               + (f"{1000 * settle:.0f} ms after the change" if np.isfinite(settle) else "never"))
 
+# %% tags=["remove-cell"]
 RESULTS["tracking_settle_s"] = {f"{case}/{label}": v["settle_after_change_s"]
                                 for (case, label), v in tracking.items()}
-assert np.isnan(tracking[("noise-free", "no re-anchoring")]["settle_after_change_s"])
-assert tracking[("noise-free", f"T = {TRACKING_RESET_PERIOD:g} s")]["settle_after_change_s"] \
-    <= TRACKING_RESET_PERIOD
+RESULTS["tracking_reset_period_s"] = TRACKING_RESET_PERIOD
 
 # %%
 fig, axes = plt.subplots(1, 2, figsize=(13, 4.5), sharey=True, layout="constrained")

@@ -91,6 +91,9 @@ def test_every_notebook_page_shows_its_figures(site):
         assert len(images) >= figures, f"{name}: {len(images)} <img> for {figures} figures"
         for src in images:
             assert (page.parent / src).exists(), f"{name}: missing image {src}"
+        # the checks live in cells tagged remove-cell: none of them reaches the page
+        text = page.read_text(encoding="utf-8")
+        assert "RESULTS" not in text and "assert" not in text, f"{name}: test code shown"
 
 
 def test_every_public_name_has_an_entry(site):

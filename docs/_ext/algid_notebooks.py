@@ -3,7 +3,8 @@
 Each ``notebooks/<name>.py`` (jupytext percent format) is run top to bottom by nbclient
 in a fresh kernel, with matplotlib's inline backend (figures become PNG outputs) and,
 in quick mode, ``ALGID_NOTEBOOK_QUICK=1`` (small Monte Carlo sizes and records).  Every
-notebook collects its key numbers in a dict ``RESULTS``: one extra cell prints it as
+notebook collects the numbers behind its claims in a dict ``RESULTS``, in cells tagged
+``remove-cell`` (myst-nb leaves them out of the page): one extra cell prints it as
 JSON, the numbers are read back and stored in the notebook's metadata
 (``metadata["algid"]["results"]``), and the extra cell is removed.  The executed notebook
 is written as ``<out_dir>/<name>.ipynb``, which the documentation renders as it is.
