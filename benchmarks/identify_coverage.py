@@ -111,6 +111,23 @@ def coverage(name, truth, equation, noisy, runs):
     }
 
 
+def markdown(results):
+    """The coverage table of a results file of this benchmark (``--out``), as Markdown."""
+    lines = [f"{results['runs']} realisations per record.", "",
+             "| record | parameter | ±2σ coverage | with the numerical error | rms of "
+             "error / σ | zero σ | refused | warned |",
+             "| --- | --- | --- | --- | --- | --- | --- | --- |"]
+    for row in results["results"]:
+        for p, cover in row["coverage"].items():
+            z = row["z_rms"][p]
+            lines.append(
+                f"| {row['record']} | {p} | {cover:.1%} | "
+                f"{row['coverage_with_numerical_error'][p]:.1%} | "
+                f"{'—' if z is None else f'{z:.2f}'} | {row['zero_or_nonfinite_stderr']} | "
+                f"{row['refusals']} | {sum(row['warnings'].values())} |")
+    return "\n".join(lines)
+
+
 def main(argv=None):
     """Run the coverage benchmark and print a table (and JSON with ``--out``)."""
     parser = argparse.ArgumentParser(prog="python -m benchmarks.identify_coverage")

@@ -92,7 +92,11 @@ html_theme_options = {
     "show_toc_level": 2,
     "secondary_sidebar_items": ["page-toc"],
 }
-html_static_path = []
+# pages without sub-pages: no empty section navigation beside them, a wider column
+html_sidebars = {page: [] for page in ("index", "getting_started", "method", "benchmarks",
+                                       "developer")}
+html_static_path = ["_static"]    # the overview figure and the stylesheet
+html_css_files = ["algid.css"]    # readable tables and long equations
 html_last_updated_fmt = None
 
 # ALGID_NOTEBOOK_QUICK=1: the small workload of the notebooks (what the tests build)

@@ -165,3 +165,19 @@ def test_a_wrong_exercise_solution_is_caught():
     problem = algid_docs.solution_disagreement("x' + a*x = b*f", ["a", "b"], ["f", "x"],
                                                wrong)
     assert problem is not None and "row 1" in problem
+
+
+def test_landing_page_opens_with_the_product(site):
+    page = site / "index.html"
+    text = page.read_text(encoding="utf-8")
+    images = [a.get("src", "") for tag, a in tags(page) if tag == "img"]
+    assert any("algid_overview" in src and (page.parent / src).exists() for src in images)
+    assert "EstimationResult model=" in text            # the example's printed output
+    assert "_static/algid.css" in text
+    # the path in order, the API reference last; its ~75 module pages are not listed here
+    body = text[text.find('id="where-to-go"'):]
+    path = ("getting_started.html", "method.html", "user_guide/index.html",
+            "examples/index.html", "benchmarks.html", "developer.html", "api/index.html")
+    positions = [body.find(f'href="{target}"') for target in path]
+    assert min(positions) >= 0 and positions == sorted(positions), positions
+    assert "api/algid.adequacy.html" not in text

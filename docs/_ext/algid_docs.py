@@ -13,14 +13,16 @@ Directives
     A solution written in the page (rows of ``P`` and ``Q``), checked against the
     derivation engine: a solution that disagrees fails the build.
 ``algid-benchmarks``
-    The tables of a benchmark results file (``benchmarks.report.markdown``).
+    The tables of a benchmark results file (``benchmarks.report.markdown``, and those
+    of ``benchmarks.identify_speed`` and ``benchmarks.adequacy``).
 
 Events
 ------
 ``config-inited`` writes the API pages (one per public module, from ``__all__``) and
 executes the notebooks into ``examples/`` (:mod:`algid_notebooks`);
 ``missing-reference`` resolves a re-exported name (``algid.estimate``) or a short name
-(``EstimationResult``) to the one page that documents the object.
+(``EstimationResult``) to the one page that documents the object;
+``doctree-resolved`` keeps each number of a result table on one line.
 """
 
 from __future__ import annotations
@@ -504,6 +506,10 @@ class ExerciseSolutionDirective(Directive):
 
 
 # --------------------------------------------------------------------- benchmarks
+#: Cells of a benchmark table up to this many characters are not wrapped.
+SHORT_CELL = 24
+
+
 def markdown_to_nodes(text):
     """Nodes for the Markdown of ``benchmarks.report.markdown``: headings, tables, text."""
     out, table_lines = [], []
@@ -527,7 +533,11 @@ def markdown_to_nodes(text):
             row = nodes.row()
             for cell in (cells + [""] * ncols)[:ncols]:
                 entry = nodes.entry()
-                entry += nodes.paragraph("", cell)
+                if k and len(cell) <= SHORT_CELL:  # a number, a pair of them: one line
+                    entry += nodes.paragraph("", "", nodes.inline(cell, cell,
+                                                                  classes=["algid-nowrap"]))
+                else:
+                    entry += nodes.paragraph("", cell)
                 row += entry
             (head if k == 0 else body).append(row)
         out.append(table)
@@ -539,21 +549,45 @@ def markdown_to_nodes(text):
         flush()
         if line.startswith("#"):
             out.append(nodes.rubric("", line.lstrip("#").strip()))
+        elif line.startswith("- "):
+            if not out or not isinstance(out[-1], nodes.bullet_list):
+                out.append(nodes.bullet_list())
+            out[-1] += nodes.list_item("", nodes.paragraph("", line[2:].replace("`", "")))
         elif line.strip():
             out.append(nodes.paragraph("", line.strip().replace("`", "")))
     flush()
     return out
 
 
+def adequacy_markdown(rows):
+    """The table of ``python -m benchmarks.adequacy --json`` (a list of rows), as Markdown."""
+    lines = ["| case | model | warned | misfit / noise, median (range) | "
+             "shift in standard errors, median (range) |", "| --- | --- | --- | --- | --- |"]
+    for row in rows:
+        lines.append(
+            f"| {row['case']} | {'wrong' if row['wrong'] else 'right'} | "
+            f"{row['warned']} of {row['runs']} | {row['misfit_median']:.3g} "
+            f"({row['misfit_min']:.3g}–{row['misfit_max']:.3g}) | {row['shift_median']:.3g} "
+            f"({row['shift_min']:.3g}–{row['shift_max']:.3g}) |")
+    return "\n".join(lines)
+
+
 class BenchmarksDirective(Directive):
     """The tables of a results file of ``python -m benchmarks`` (or, for a file named
-    ``identify...``, of ``python -m benchmarks.identify_speed --out``)."""
+    ``identify...``, of ``python -m benchmarks.identify_speed --out``; for one named
+    ``identify_coverage...``, of ``python -m benchmarks.identify_coverage --out``; for one
+    named ``adequacy...``, of ``python -m benchmarks.adequacy --json``)."""
 
     required_arguments = 1
 
     def run(self):
-        if "identify" in Path(self.arguments[0]).name:  # python -m benchmarks.identify_speed
+        name = Path(self.arguments[0]).name
+        if "coverage" in name:  # python -m benchmarks.identify_coverage --out
+            from benchmarks.identify_coverage import markdown
+        elif "identify" in name:  # python -m benchmarks.identify_speed
             from benchmarks.identify_speed import markdown
+        elif "adequacy" in name:  # python -m benchmarks.adequacy: a list of rows
+            markdown = adequacy_markdown
         else:
             from benchmarks.report import markdown
 
@@ -561,11 +595,45 @@ class BenchmarksDirective(Directive):
         env = self.state.document.settings.env
         env.note_dependency(str(path))
         results = json.loads(path.read_text(encoding="utf-8"))
+        if isinstance(results, list):  # rows without a header of facts
+            return markdown_to_nodes(markdown(results))
         meta = results.get("meta", {})
         facts = ", ".join(f"{k} {meta[k]}" for k in ("mode", "started", "python", "numpy",
                                                       "scipy", "algid") if k in meta)
-        out = [nodes.paragraph("", f"From {self.arguments[0]} ({facts}).")]
+        out = [nodes.paragraph("", f"From {self.arguments[0]}" + (f" ({facts})." if facts
+                                                                    else "."))]
         return out + markdown_to_nodes(markdown(results))
+
+
+#: A number as the result tables print it (``-3.2e-05``, ``1.66``, ``0.005 s``, ``82 %``,
+#: ``86×``): kept on one line, while the text around it may wrap.
+NUMBER = re.compile(r"[-+−]?\d[\d,]*(?:\.\d+)?(?:e[-+−]?\d+)?"
+                    r"(?:\s?(?:%|s\b|ms\b|µs\b|mV\b|mm\b|MB\b|×|x\b))?")
+NUMERIC_TABLES = ("algid-benchmark", "algid-results")
+
+
+def keep_numbers_whole(app, doctree, docname):
+    """In result tables, wrap every number in ``<span class="algid-nowrap">``.
+
+    A browser may break a line at the hyphen of ``4.9e-15`` or between a value and its
+    unit; the stylesheet keeps these spans whole.
+    """
+    for table in doctree.findall(nodes.table):
+        if not any(c in table["classes"] for c in NUMERIC_TABLES):
+            continue
+        for text in list(table.findall(nodes.Text)):
+            if isinstance(text.parent, (nodes.literal, nodes.math, nodes.inline)):
+                continue
+            pieces, last = [], 0
+            for match in NUMBER.finditer(text.astext()):
+                pieces.append(nodes.Text(text.astext()[last:match.start()]))
+                pieces.append(nodes.inline(match.group(), match.group(),
+                                           classes=["algid-nowrap"]))
+                last = match.end()
+            if not pieces:
+                continue
+            pieces.append(nodes.Text(text.astext()[last:]))
+            text.parent.replace(text, [p for p in pieces if p.astext()])
 
 
 def setup(app):
@@ -578,4 +646,5 @@ def setup(app):
     app.add_directive("algid-benchmarks", BenchmarksDirective)
     app.connect("config-inited", on_config_inited)
     app.connect("missing-reference", resolve_alias)
+    app.connect("doctree-resolved", keep_numbers_whole)
     return {"version": "1", "parallel_read_safe": True, "parallel_write_safe": True}

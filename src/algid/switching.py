@@ -170,10 +170,12 @@ def integrate_switched(equation, t, state, method, rtol, atol, tick):
         rhs, events, owners = pieces.piece(modes, sliding)
         solution = solve_ivp(rhs, (now, t[-1]), state, method=method, t_eval=t[filled:],
                              events=events or None, rtol=rtol, atol=atol)
-        reached = solution.y.shape[1]
-        out[:, filled:filled + reached] = solution.y
+        # an event before the first sample time leaves no sample: SciPy then gives a list
+        y = np.asarray(solution.y, dtype=float).reshape(equation.order, -1)
+        reached = y.shape[1]
+        out[:, filled:filled + reached] = y
         filled += reached
-        if solution.status != 1 or not all(math.isfinite(v) for v in solution.y[:, -1:].ravel()):
+        if solution.status != 1 or not np.isfinite(y[:, -1:]).all():
             break  # done, or failed (a diverging model): NaN from there on
         which = next(i for i, times in enumerate(solution.t_events) if times.size)
         now = float(solution.t_events[which][0])
