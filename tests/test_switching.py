@@ -116,3 +116,15 @@ def test_the_work_bound_stops_an_integration_that_does_not_advance(monkeypatch):
     with pytest.raises(model_simulation._Exhausted, match="without advancing"):
         for _ in range(200):
             budget.tick(0.1 + 1e-9)
+
+
+def test_a_switch_before_the_first_sample_time_is_crossed():
+    # sliding at 1e-3 m/s against Coulomb friction: the mass stops at t = 1e-3 s, before
+    # the second sample (the solver's first piece ends on an event without a sample)
+    t = np.arange(50) * 0.01
+    values = {"M": 1.0, "Fv": 0.0, "Fc": 1.0, "off": 0.0}
+    simulated = simulate_model(FRICTION, values, t, {"F": np.zeros_like(t)},
+                               initial_state=[0.0, 1e-3], interpolation="cubic")
+    # q = v0 t - t**2 / 2 until v0, then at rest at v0**2 / 2
+    np.testing.assert_allclose(simulated[1:], 0.5e-6, rtol=1e-9)
+    assert simulated[0] == 0.0
