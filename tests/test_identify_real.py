@@ -29,7 +29,7 @@ def emps_record(run, pulses=False):
     force = record.gtau * np.asarray(record["vir"])
     if pulses:
         force = force + np.asarray(record["pulses_N"])
-    return {"t": np.asarray(record["t"]), "q": np.asarray(record["qm"]), "F": force}
+    return {"t": np.asarray(record["t"]), "qm": np.asarray(record["qm"]), "F": force}
 
 
 @pytest.fixture(scope="module")
@@ -67,6 +67,11 @@ def test_emps_estimation_run_matches_the_published_values(emps):
     # relative error of the predicted force: measured 4.52 % (published 4.08 % with its
     # own filtering; the published values give 4.50 % with this measure)
     assert r.equation_error(emps) < 0.05
+
+
+def test_emps_record_reads_with_the_published_equation_as_it_is(emps):
+    r = algid.identify(datasets.emps(), EMPS_EQUATION, list(EMPS_PUBLISHED))
+    assert r.values == algid.identify(emps, EMPS_EQUATION, "M Fv Fc off").values
 
 
 def test_emps_published_values_are_keyed_by_the_equations_parameters():

@@ -63,8 +63,9 @@ EMPS_CITATION = (
     'A. Janot, M. Gautier, M. Brunot, "Data Set and Reference Models of EMPS", '
     'Workshop on Nonlinear System Identification Benchmarks, 2019.')
 
-#: The published reference model of the EMPS, as :func:`algid.identify` reads it.
-EMPS_EQUATION = "M*q'' + Fv*q' + Fc*sign(q') + off = F"
+#: The published reference model of the EMPS, as :func:`algid.identify` reads it, in the
+#: names of the record's columns: ``identify(emps(), EMPS_EQUATION, list(EMPS_PUBLISHED))``.
+EMPS_EQUATION = "M*qm'' + Fv*qm' + Fc*sign(qm') + off = F"
 
 #: Published IDIM-LS values (Janot et al. 2019) of the parameters of
 #: :data:`EMPS_EQUATION`, exactly its parameters: pass it wherever parameter values of
