@@ -11,7 +11,8 @@ Compiling the loop of a user model takes numba many seconds, so its source and t
 of its algebra are written once to files named by a hash of their text, in
 :func:`user_cache_dir`, and numba caches the machine code beside them: the next
 process that uses the same model loads it instead of compiling.  Where no cache
-directory is usable the loop is compiled in memory, as before.
+directory is usable the loop is compiled in memory.  A compilation to come is announced
+by one line on standard error.
 """
 
 from __future__ import annotations
@@ -31,7 +32,7 @@ from algid.quadrature import integrator_weights
 from algid.registry import module_from_source
 
 __all__ = ["advance", "bound_sample_pair", "pack_pair", "PAIR_ARRAYS", "compiled_loop",
-           "user_cache_dir"]
+           "user_cache_dir", "machine_code_cached"]
 
 
 def user_cache_dir():
@@ -107,9 +108,50 @@ def _cached_loop(module, directory):
     loop_name = f"{algebra}_numba_{_digest(loop_source)}"
     _write_once(os.path.join(directory, algebra + ".py"), source)
     _write_once(os.path.join(directory, loop_name + ".py"), loop_source)
+    if not machine_code_cached(directory, loop_name):
+        _announce_compilation(module, f"once: numba caches it in {directory}")
     if algebra not in sys.modules:
         _module_from_file(algebra, os.path.join(directory, algebra + ".py"))
     return _module_from_file(loop_name, os.path.join(directory, loop_name + ".py"))
+
+
+def machine_code_cached(directory, loop_name):
+    """Whether numba holds cached machine code of a user model's loop module.
+
+    It looks for numba's index files ``<loop_name>.*.nbi``, in ``__pycache__`` beside the
+    module or under ``$NUMBA_CACHE_DIR``.
+
+    Parameters
+    ----------
+    directory : str
+        The cache directory of user models (:func:`user_cache_dir`).
+    loop_name : str
+        Name of the loop module written there.
+
+    Returns
+    -------
+    bool
+    """
+    places = [os.path.join(directory, "__pycache__")]
+    if os.environ.get("NUMBA_CACHE_DIR"):  # numba mirrors the source's path there
+        places.append(os.path.join(os.environ["NUMBA_CACHE_DIR"],
+                                   os.path.abspath(directory).lstrip(os.sep)))
+    for place in places:
+        try:
+            names = os.listdir(place)
+        except OSError:
+            continue
+        if any(n.startswith(loop_name + ".") and n.endswith(".nbi") for n in names):
+            return True
+    return False
+
+
+def _announce_compilation(module, how):
+    # numba compiles a user model's loop at its first call, silently, for tens of
+    # seconds to minutes: say so on stderr, so that it is not taken for a hang
+    print(f"algid: compiling the numba loop of model {module.MODEL!r} at its first use "
+          f"({how}); this can take a minute or more; engine='numpy' starts at once",
+          file=sys.stderr, flush=True)
 
 
 @cache
@@ -125,6 +167,7 @@ def _loops_of(module):
             loops = None
         if loops is not None:
             return loops
+    _announce_compilation(module, "in memory: no cache directory is writable")
     return module_from_source(module.NUMBA_SOURCE, module.__name__ + "_numba")
 
 

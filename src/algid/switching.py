@@ -27,8 +27,6 @@ derivative of the output (``sign(q')``); otherwise a central difference along th
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 from scipy.integrate import solve_ivp
 
