@@ -125,15 +125,32 @@ RESULTS["warnings"] = {label: len(fit.warnings) for label, fit in fits.items()}
 # (`window=` in seconds) at the lengths of the grid the window rule searches, from the
 # shortest up, and draw the natural frequency and the damping ratio of each, and the
 # cubic coefficient, with ±2σ bars; the bottom-right panel is the window rule's
-# criterion (`result.window_scores`, smallest is best).
+# criterion (`result.window_scores`, smallest is best). Where `identify` refuses a
+# window (its equations do not separate the parameters there), a line says why and that
+# length is left out of the figure.
 
 # %%
 lengths = sorted(cubic.window_scores)[:9]  # window lengths in samples, from the rule's grid
-sweep = {label: [] for label in MODELS}
-for label, (equation, parameters) in MODELS.items():
-    for length in lengths:
-        fit = algid.identify(estimation, equation, parameters, rate=fs, window=(length - 1) / fs)
-        sweep[label].append((fit, *natural_frequency_and_damping(fit)))
+
+
+def identified_or_refused(equation, parameters, length):
+    """The fit on a window of ``length`` samples, or None where identify refuses it
+    (it does when the window's equations cannot separate the parameters)."""
+    try:
+        return algid.identify(estimation, equation, parameters, rate=fs,
+                              window=(length - 1) / fs)
+    except algid.AlgidError as refusal:
+        print(f"{equation}: window of {length} samples refused: {refusal}")
+        return None
+
+
+window_fits = {label: [identified_or_refused(*MODELS[label], n) for n in lengths]
+               for label in MODELS}
+kept = [i for i in range(len(lengths))
+        if all(window_fits[label][i] is not None for label in MODELS)]
+lengths = [lengths[i] for i in kept]
+sweep = {label: [(window_fits[label][i], *natural_frequency_and_damping(window_fits[label][i]))
+                 for i in kept] for label in MODELS}
 window_ms = 1e3 * (np.array(lengths) - 1) / fs
 chosen_ms = 1e3 * cubic.window
 

@@ -164,8 +164,7 @@ def test_results_table_shows_the_emps_estimates_against_the_published_values():
     from algid import datasets
 
     rec = datasets.emps()
-    fit = algid.identify({"t": rec.t, "q": rec.qm, "F": rec.F}, datasets.EMPS_EQUATION,
-                         "M Fv Fc off")
+    fit = algid.identify(rec, datasets.EMPS_EQUATION, list(datasets.EMPS_PUBLISHED))
     deviations = ", ".join(f"{100 * (fit.values[p] / value - 1):+.2f}".replace("-", "−")
                            for p, value in datasets.EMPS_PUBLISHED.items())
     assert results_table()["EMPS"].startswith(deviations + " %;"), deviations
