@@ -54,8 +54,54 @@ def test_right_cubic_model_is_not_flagged_and_a_linear_one_is(cubic_records):
         right = algid.identify(record, *CUBIC_EQUATION)
         assert right.warnings == [], right.adequacy
         wrong = algid.identify(record, *LINEAR_EQUATION)
-        assert len(wrong.warnings) == 1, wrong.adequacy
+        # one line for the term that explains the misfit, one for the shift
+        assert len(wrong.warnings) == 2, wrong.adequacy
         assert wrong.adequacy.misfit > MISFIT_LIMIT and wrong.adequacy.shift > SHIFT_LIMIT
+
+
+def multisine_cubic(coefficient, seed, noise=0.01):
+    """60 s at 100 Hz of ``y'' + 2y' + 3y + coefficient*y**3 = u`` (six-tone input)."""
+    from scipy.integrate import solve_ivp
+
+    rng = np.random.default_rng(seed)
+    t = np.arange(0, 60, 0.01)
+    u = sum(np.sin(2 * np.pi * f * t + rng.uniform(0, 2 * np.pi))
+            for f in (0.05, 0.13, 0.31, 0.7, 1.3, 2.9))
+    s = solve_ivp(lambda tt, x: [x[1], np.interp(tt, t, u) - 2 * x[1] - 3 * x[0]
+                                 - coefficient * x[0] ** 3],
+                  (0, 60), [0, 0], t_eval=t, max_step=0.005, rtol=1e-9, atol=1e-12)
+    return {"t": t, "u": u, "y": s.y[0] + noise * s.y[0].std() * rng.standard_normal(len(t))}
+
+
+@pytest.mark.parametrize("coefficient, seed", [(2, 1), (5, 2), (10, 3)])
+def test_a_missing_term_that_explains_the_misfit_is_named(coefficient, seed):
+    record = multisine_cubic(coefficient, seed)
+    # the estimates hardly move between window lengths: only the missing term tells
+    linear = algid.identify(record, "y'' + B*y' + K*y = u", "B K")
+    assert linear.adequacy.missing == ("y**3",), linear.adequacy
+    assert linear.adequacy.explained < 0.5 and not linear.adequacy.adequate
+    assert any("a term in y**3 would explain most of it" in w for w in linear.warnings)
+    # without the spring the output itself explains the misfit
+    no_spring = algid.identify(record, "y'' + B*y' = u", "B")
+    assert no_spring.adequacy.missing == ("y",), no_spring.adequacy
+    right = algid.identify(record, "y'' + B*y' + K*y + K3*y**3 = u", "B K K3")
+    assert right.warnings == [] and right.adequacy.missing == (), right.adequacy
+
+
+def test_missing_term_names_do_not_clash_with_the_models():
+    record = multisine_cubic(5, 2)
+    r = algid.identify({"t": record["t"], "u": record["u"], "_c1": record["y"]},
+                       "_c1'' + _c2*_c1' + _c3*_c1 = u", "_c2 _c3")
+    assert r.adequacy.missing == ("_c1**3",), r.adequacy
+
+
+def test_published_emps_model_is_not_flagged():
+    for run in ("estimation", "validation"):
+        r = algid.identify(algid.datasets.emps(run), algid.datasets.EMPS_EQUATION,
+                           list(algid.datasets.EMPS_PUBLISHED))
+        # force disturbances, not output noise: a large misfit no power of q explains
+        assert r.adequacy.misfit > r.adequacy.misfit_limit, run
+        assert r.warnings == [] and r.adequacy.missing == (), (run, r.adequacy)
 
 
 @pytest.mark.parametrize("wrong", ["derivative", "delay"])

@@ -94,7 +94,7 @@ from math import comb
 
 import numpy as np
 
-from algid.adequacy import model_adequacy
+from algid.adequacy import misfit_ratio, missing_terms, model_adequacy
 from algid.bias_compensation import bias_compensated, solve_equilibrated
 from algid.errors import InputDataError, ModelError
 from algid.expression import Call, Signal
@@ -535,6 +535,13 @@ def _simulated_values(problem, theta, model):
     return True
 
 
+def _least_squares_misfit(segments, step, equation, parameters, output, length, multiplicities):
+    """Misfit of another equation on the same signals, fitted by least squares."""
+    problem = _Problem(parse_equation(equation, parameters, output=output), segments, step)
+    fit = _solve(problem, length, multiplicities, method="ls")
+    return misfit_ratio(problem, length, max(fit.separate), problem.to_rows(fit.theta))
+
+
 def identify(data, equation, parameters=None, *, time=None, rate=None, output=None,
              window=None, method="bc", multiplicities=MULTIPLICITIES, name="custom",
              iterations=3):
@@ -626,6 +633,9 @@ def identify(data, equation, parameters=None, *, time=None, rate=None, output=No
     # where the misfit is output noise, a combination no better determined than the
     # noise or the misfit is free; where it is more, the model's error may be the cause
     noise_like = adequacy.misfit <= adequacy.misfit_limit
+    if not noise_like:  # would a term the model lacks explain most of the misfit?
+        adequacy = missing_terms(adequacy, model, lambda eq, names: _least_squares_misfit(
+            segments, step, eq, names, model.output, length, multiplicities))
     if noise_like and (fit.separation.free or fit.separation.misfit_free):
         raise ModelError(fit.separation.message(model.parameters))
     return IdentificationResult(
