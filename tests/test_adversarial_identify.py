@@ -326,3 +326,21 @@ def test_drifts_on_epoch_times_and_high_powers_of_time(exact):
         budget = np.hypot(sixth.stderr[p], sixth.numerical_error[p])
         assert abs(sixth.values[p] - truth[p]) <= 4 * budget, p
         assert sixth.stderr[p] > 1e-14 * abs(truth[p])
+
+
+@pytest.mark.parametrize("method", ["ls", "bc", "iv"])
+@pytest.mark.parametrize("equation, parameters, term", [
+    ("y'' + B*y' + K*y = 1e200*u + d", "B K d", "1e+200*u"),
+    ("y'' + B*y' + K*y = 1e200*G*u + d", "B K G d", "1e+200*G*u"),
+    ("1e300*y'' + B*y' + K*y = G*u + d", "B K G d", "1e+300*y''"),
+    ("y''/1e-300 + B*y' + K*y = G*u + d", "B K G d", "1e+300*y''"),
+])
+def test_a_coefficient_that_overflows_is_named(noisy, recwarn, method, equation,
+                                                parameters, term):
+    record, _ = noisy
+    with pytest.raises(InputDataError) as info:
+        algid.identify(record, equation, parameters, method=method)
+    message = str(info.value)
+    assert "\n" not in message
+    assert term in message and "overflows floating point" in message
+    assert not [w for w in recwarn if "overflow" in str(w.message)]
