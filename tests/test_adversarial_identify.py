@@ -6,6 +6,7 @@ import sys
 
 import numpy as np
 import pytest
+import scipy.signal
 from conftest import ROOT
 
 import algid
@@ -344,3 +345,44 @@ def test_a_coefficient_that_overflows_is_named(noisy, recwarn, method, equation,
     assert "\n" not in message
     assert term in message and "overflows floating point" in message
     assert not [w for w in recwarn if "overflow" in str(w.message)]
+
+
+@pytest.fixture(scope="module")
+def second_order():
+    t = np.arange(0, 20, 0.01)
+    u = np.sin(t) + np.sin(3.7 * t) + np.sin(11 * t)
+    system = scipy.signal.lti([1.0], [1.0, 2.0, 3.0])
+    y = scipy.signal.lsim(system, u, t)[1]
+    record = {"t": t, "u": u, "y": y}
+    return record, algid.identify(record, "y'' + B*y' + K*y = u", "B K")
+
+
+@pytest.mark.parametrize("values, scale, start", [
+    (None, 1e200, "t = 0 s"),              # the solver fails at once
+    ({"B": 1e308, "K": 3.0}, 1.0, "t = 0 s"),
+    ({"B": -50.0, "K": 3.0}, 1.0, "t = "),  # unstable: grows past floating point
+])
+def test_a_diverging_simulation_is_refused(second_order, recwarn, values, scale, start):
+    record, result = second_order
+    if values is not None:
+        result = result.with_parameters(values)
+    with pytest.raises(ModelError) as info:
+        result.simulate({**record, "u": record["u"] * scale})
+    message = str(info.value)
+    assert "\n" not in message and "simulated output diverges" in message
+    assert start in message
+    assert not [w for w in recwarn if issubclass(w.category, RuntimeWarning)]
+
+
+@pytest.mark.parametrize("fit_samples, fragment", [
+    (1999, "fit_samples must be in 3..1000"),
+    (5000, "fit_samples must be in 3..1000"),
+    (2, "fit_samples must be in 3..1000"),
+    ("5", "fit_samples must be an integer"),
+    (True, "fit_samples must be an integer"),
+])
+def test_fit_samples_is_checked(second_order, fit_samples, fragment):
+    record, result = second_order
+    with pytest.raises(InputDataError, match=fragment):
+        result.simulate(record, fit_samples=fit_samples)
+    assert np.isfinite(result.simulate(record, fit_samples=1000).fit_percent)

@@ -178,7 +178,7 @@ class IdentificationResult:
             raise InputDataError("simulate needs one record without gaps or NaN")
         return segments[0]
 
-    def simulate(self, data, *, time=None, rate=None, fit_samples=50, method="DOP853",
+    def simulate(self, data, *, time=None, rate=None, fit_samples=None, method="DOP853",
                  interpolation="bandlimited", substeps=4):
         """Simulate the identified model on a record, driven by its measured inputs.
 
@@ -197,8 +197,10 @@ class IdentificationResult:
             One record (column name -> samples).
         time, rate
             Time axis, as for :func:`algid.identify` (default: those of the fit).
-        fit_samples : int
-            Samples used to fit the initial state (and left out of the error).
+        fit_samples : int, optional
+            Samples used to fit the initial state (and left out of the error): from the
+            model order + 1 to half the record's samples (the rest measure the fit);
+            default 50, or half the record if it is shorter than 100 samples.
         method : str
             Integrator: a :func:`scipy.integrate.solve_ivp` method (default
             ``"DOP853"``) or ``"RK4"`` with ``substeps`` fixed steps per sample.
@@ -210,16 +212,29 @@ class IdentificationResult:
         Returns
         -------
         Validation
+
+        Raises
+        ------
+        ModelError
+            Where the simulated output diverges (is not finite from some time on).
         """
         seg = self._record(data, time, rate)
+        fit_samples = _check_fit_samples(fit_samples, self.model.order, len(seg))
         inputs = {name: seg.values[name] for name in self.model.inputs}
         y = seg.values[self.model.output]
         options = {"output": self.model.output, "method": method,
                    "interpolation": interpolation, "substeps": substeps}
-        x0 = fit_initial_state(self.model, self.values, seg.t, inputs, y,
-                               min(fit_samples, len(seg)), **options)
-        simulated = simulate_model(self.model, self.values, seg.t, inputs,
-                                   initial_state=x0, **options)
+        with np.errstate(over="ignore", invalid="ignore"):   # a diverging model: refused
+            x0 = fit_initial_state(self.model, self.values, seg.t, inputs, y, fit_samples,
+                                   **options)
+            simulated = simulate_model(self.model, self.values, seg.t, inputs,
+                                       initial_state=x0, **options)
+        bad = np.flatnonzero(~np.isfinite(simulated))
+        if bad.size or not np.all(np.isfinite(x0)):
+            start = seg.t[bad[0]] if bad.size else seg.t[0]
+            raise ModelError(f"the simulated output diverges: it is not finite from "
+                             f"t = {start:.6g} s on with parameters "
+                             f"{', '.join(f'{p}={v:.6g}' for p, v in self.values.items())}")
         return Validation(seg.t, y, simulated, x0, fit_samples)
 
     def fit_percent(self, data, **kwargs):
@@ -398,3 +413,17 @@ class IdentificationResult:
         states = [out + "'" * k for k in range(equation.order)]
         return ct.nlsys(update, output, inputs=names, outputs=[out], states=states,
                         name=self.model.name)
+
+
+def _check_fit_samples(fit_samples, order, n):
+    """``fit_samples`` of :meth:`IdentificationResult.simulate`, checked (default: 50,
+    or half a record shorter than 100 samples)."""
+    if fit_samples is None:
+        fit_samples = min(50, n // 2)
+    if isinstance(fit_samples, (bool, np.bool_)) or not isinstance(fit_samples,
+                                                                   (int, np.integer)):
+        raise InputDataError(f"fit_samples must be an integer, got {fit_samples!r:.40}")
+    if not order + 1 <= fit_samples <= n // 2:
+        raise InputDataError(f"fit_samples must be in {order + 1}..{n // 2} (at most half "
+                             f"the record's {n} samples), got {fit_samples}")
+    return int(fit_samples)
