@@ -386,3 +386,18 @@ def test_fit_samples_is_checked(second_order, fit_samples, fragment):
     with pytest.raises(InputDataError, match=fragment):
         result.simulate(record, fit_samples=fit_samples)
     assert np.isfinite(result.simulate(record, fit_samples=1000).fit_percent)
+
+
+@pytest.mark.parametrize("equation, parameters, kind, fragment", [
+    ("y'' + B*y' + K*y = 0", "B K", "tf", "has no input"),
+    ("y'' + B*y' + K*y = u", "B K", "nonsense", "kind must be 'tf' or 'ss'"),
+    ("y'' + B*y' + K*y = u + c*t", "B K c", "tf", "-c*t in time is not an offset"),
+])
+def test_to_control_refuses_what_it_cannot_export(second_order, equation, parameters, kind,
+                                                  fragment):
+    pytest.importorskip("control")
+    record, _ = second_order
+    result = algid.identify(record, equation, parameters)
+    with pytest.raises(ModelError) as info:
+        result.to_control(kind=kind)
+    assert "\n" not in str(info.value) and fragment in str(info.value)

@@ -354,12 +354,27 @@ class IdentificationResult:
         Returns
         -------
         control.TransferFunction or control.StateSpace
+
+        Raises
+        ------
+        ModelError
+            For a nonlinear model, a model without input, or one with a term in time
+            (``d*t``: not an offset, and no transfer function has it).
         """
         import control as ct
 
+        if kind not in ("tf", "ss"):
+            raise ModelError(f"to_control: kind must be 'tf' or 'ss', got {kind!r:.40}")
         model = self.model
         if not model.is_linear:
             raise ModelError("to_control needs a linear model; use to_nlsys()")
+        ramps = [str(t) for t in model.terms if isinstance(t.factor, Time)]
+        if ramps:
+            raise ModelError(f"to_control: the term {ramps[0]} in time is not an offset "
+                             f"and has no transfer function; identify without it to export")
+        if not model.inputs:
+            raise ModelError("to_control: the model has no input, so no transfer function "
+                             "(its output is driven by its initial state only)")
         output = model.output
         den, nums = {}, {}
         for term in model.terms:
