@@ -289,3 +289,11 @@ def test_estimate_warning_names_noise_or_resolution(capsys, files):
     lines = err.splitlines()
     assert code == 0 and len(lines) == 1
     assert "shows no noise floor" in lines[0] and "samples per period" in lines[0]
+
+
+@pytest.mark.parametrize("column", ["u", "y"])
+def test_integers_beyond_floating_point_are_refused_naming_the_column(record, column):
+    huge = [10**400] * len(record[column])
+    with pytest.raises(InputDataError) as info:
+        algid.identify(dict(record, **{column: huge}), EQUATION, PARAMETERS)
+    assert f"column {column!r} holds numbers too large for floating point" in one_line(info)
