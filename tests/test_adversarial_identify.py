@@ -2,6 +2,7 @@
 inseparable parameters, records that determine nothing, covariance that is never zero
 nor indefinite, the numerical error beside the standard error, units of any size."""
 
+import math
 import sys
 
 import numpy as np
@@ -401,3 +402,24 @@ def test_to_control_refuses_what_it_cannot_export(second_order, equation, parame
     with pytest.raises(ModelError) as info:
         result.to_control(kind=kind)
     assert "\n" not in str(info.value) and fragment in str(info.value)
+
+
+@pytest.mark.parametrize("values, fragment", [
+    ({"B": "abc", "K": 3.0}, "parameter B must be a finite real number"),
+    ({"B": "2", "K": 3.0}, "parameter B must be a finite real number"),
+    ({"B": True, "K": 3.0}, "parameter B must be a finite real number"),
+    ({"B": 2.0 + 1j, "K": 3.0}, "parameter B must be a finite real number"),
+    ({"B": np.ones(2), "K": 3.0}, "parameter B must be a finite real number"),
+    ({"B": None, "K": 3.0}, "parameter B must be a finite real number"),
+    ({"B": 2.0, "K": math.inf}, "parameter K must be a finite real number"),
+    ({"B": 2.0, "K": 3.0, "Z": 1.0}, "'Z' is not a parameter of the model"),
+    ({"B": 2.0}, "no value for parameter K"),
+    (None, "with_parameters needs a mapping"),
+])
+def test_with_parameters_takes_finite_real_numbers_only(second_order, values, fragment):
+    _, result = second_order
+    with pytest.raises(InputDataError) as info:
+        result.with_parameters(values)
+    assert "\n" not in str(info.value) and fragment in str(info.value)
+    kept = result.with_parameters({"B": np.float32(2.5), "K": np.int64(3)})
+    assert kept.values == {"B": 2.5, "K": 3.0}

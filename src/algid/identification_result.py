@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import math
+import numbers
+from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -161,9 +164,22 @@ class IdentificationResult:
         -------
         IdentificationResult
         """
+        if not isinstance(values, Mapping):
+            raise InputDataError(f"with_parameters needs a mapping of parameter name -> "
+                                 f"value, got {type(values).__name__}")
         missing = [p for p in self.model.parameters if p not in values]
         if missing:
             raise InputDataError(f"no value for parameter {missing[0]}")
+        unknown = [p for p in values if p not in self.model.parameters]
+        if unknown:
+            raise InputDataError(f"{unknown[0]!r:.40} is not a parameter of the model "
+                                 f"(its parameters: {', '.join(self.model.parameters)})")
+        for p in self.model.parameters:
+            v = values[p]
+            if isinstance(v, (bool, np.bool_)) or not isinstance(v, numbers.Real) \
+                    or not math.isfinite(v):
+                raise InputDataError(f"parameter {p} must be a finite real number, got "
+                                     f"{v!r:.40}")
         return replace(self, values={p: float(values[p]) for p in self.model.parameters},
                        adequacy=None, warnings=[])
 
