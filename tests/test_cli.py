@@ -554,3 +554,12 @@ def test_a_coefficient_that_overflows_is_one_line(capsys, tmp_path):
     code, out, err = run(capsys, "identify", path, "--equation", "y'' + B*y' + K*y = 1e200*u",
                          "--parameters", "B K")
     assert_one_line_error(code, err, "overflows floating point")
+
+
+def test_paper_bounds_the_number_of_seeds(capsys, tmp_path):
+    from algid.paper.reproduction import MAX_SEEDS
+
+    out = tmp_path / "figures"
+    code, _, err = run(capsys, "paper", "--out", out, "--n-seeds", 1_000_000_000)
+    assert_one_line_error(code, err, f"n_seeds must be an integer from 1 to {MAX_SEEDS}")
+    assert not out.exists()
