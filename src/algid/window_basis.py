@@ -456,7 +456,7 @@ def check_finite(problem, A, b):
     bad = {columns[i] for i in np.flatnonzero(~np.isfinite(squares))}
     terms = [t for t in problem.model.terms if t.parameter in bad]
     largest = max(abs(t.coefficient) for t in terms)
-    named = ", ".join(str(t) for t in terms if abs(t.coefficient) == largest)
+    named = ", ".join(str(t).lstrip("-") for t in terms if abs(t.coefficient) == largest)
     raise InputDataError(f"the term {named} of the equation overflows floating point: its "
                          f"constant coefficient {largest:g} is too large for these units "
                          f"(rescale the equation or the signals)")
