@@ -56,7 +56,9 @@ def test_an_outlier_of_1e308_is_named_in_batch(sine, signal, capsys, tmp_path):
 
 
 @pytest.mark.parametrize("mass, words", [(1e-308, "reaches 1e+308"),
-                                         (1e308, "is at most 1e-308")])
+                                         (1e308, "is at most 1e-308"),
+                                         (1e-300, "beyond 2**256"),
+                                         (1e300, "below 2**-256")])
 def test_an_extreme_mass_is_named(sine, mass, words, capsys, tmp_path):
     with warnings.catch_warnings():
         warnings.simplefilter("error")  # no overflow on the way

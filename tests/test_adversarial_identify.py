@@ -2,10 +2,12 @@
 inseparable parameters, records that determine nothing, covariance that is never zero
 nor indefinite, the numerical error beside the standard error, units of any size."""
 
+import math
 import sys
 
 import numpy as np
 import pytest
+import scipy.signal
 from conftest import ROOT
 
 import algid
@@ -326,3 +328,98 @@ def test_drifts_on_epoch_times_and_high_powers_of_time(exact):
         budget = np.hypot(sixth.stderr[p], sixth.numerical_error[p])
         assert abs(sixth.values[p] - truth[p]) <= 4 * budget, p
         assert sixth.stderr[p] > 1e-14 * abs(truth[p])
+
+
+@pytest.mark.parametrize("method", ["ls", "bc", "iv"])
+@pytest.mark.parametrize("equation, parameters, term", [
+    ("y'' + B*y' + K*y = 1e200*u + d", "B K d", "1e+200*u"),
+    ("y'' + B*y' + K*y = 1e200*G*u + d", "B K G d", "1e+200*G*u"),
+    ("1e300*y'' + B*y' + K*y = G*u + d", "B K G d", "1e+300*y''"),
+    ("y''/1e-300 + B*y' + K*y = G*u + d", "B K G d", "1e+300*y''"),
+])
+def test_a_coefficient_that_overflows_is_named(noisy, recwarn, method, equation,
+                                                parameters, term):
+    record, _ = noisy
+    with pytest.raises(InputDataError) as info:
+        algid.identify(record, equation, parameters, method=method)
+    message = str(info.value)
+    assert "\n" not in message
+    assert term in message and "overflows floating point" in message
+    assert not [w for w in recwarn if "overflow" in str(w.message)]
+
+
+@pytest.fixture(scope="module")
+def second_order():
+    t = np.arange(0, 20, 0.01)
+    u = np.sin(t) + np.sin(3.7 * t) + np.sin(11 * t)
+    system = scipy.signal.lti([1.0], [1.0, 2.0, 3.0])
+    y = scipy.signal.lsim(system, u, t)[1]
+    record = {"t": t, "u": u, "y": y}
+    return record, algid.identify(record, "y'' + B*y' + K*y = u", "B K")
+
+
+@pytest.mark.parametrize("values, scale, start", [
+    (None, 1e200, "t = 0 s"),              # the solver fails at once
+    ({"B": 1e308, "K": 3.0}, 1.0, "t = 0 s"),
+    ({"B": -50.0, "K": 3.0}, 1.0, "t = "),  # unstable: grows past floating point
+])
+def test_a_diverging_simulation_is_refused(second_order, recwarn, values, scale, start):
+    record, result = second_order
+    if values is not None:
+        result = result.with_parameters(values)
+    with pytest.raises(ModelError) as info:
+        result.simulate({**record, "u": record["u"] * scale})
+    message = str(info.value)
+    assert "\n" not in message and "simulated output diverges" in message
+    assert start in message
+    assert not [w for w in recwarn if issubclass(w.category, RuntimeWarning)]
+
+
+@pytest.mark.parametrize("fit_samples, fragment", [
+    (1999, "fit_samples must be in 3..1000"),
+    (5000, "fit_samples must be in 3..1000"),
+    (2, "fit_samples must be in 3..1000"),
+    ("5", "fit_samples must be an integer"),
+    (True, "fit_samples must be an integer"),
+])
+def test_fit_samples_is_checked(second_order, fit_samples, fragment):
+    record, result = second_order
+    with pytest.raises(InputDataError, match=fragment):
+        result.simulate(record, fit_samples=fit_samples)
+    assert np.isfinite(result.simulate(record, fit_samples=1000).fit_percent)
+
+
+@pytest.mark.parametrize("equation, parameters, kind, fragment", [
+    ("y'' + B*y' + K*y = 0", "B K", "tf", "has no input"),
+    ("y'' + B*y' + K*y = u", "B K", "nonsense", "kind must be 'tf' or 'ss'"),
+    ("y'' + B*y' + K*y = u + c*t", "B K c", "tf", "-c*t in time is not an offset"),
+])
+def test_to_control_refuses_what_it_cannot_export(second_order, equation, parameters, kind,
+                                                  fragment):
+    pytest.importorskip("control")
+    record, _ = second_order
+    result = algid.identify(record, equation, parameters)
+    with pytest.raises(ModelError) as info:
+        result.to_control(kind=kind)
+    assert "\n" not in str(info.value) and fragment in str(info.value)
+
+
+@pytest.mark.parametrize("values, fragment", [
+    ({"B": "abc", "K": 3.0}, "parameter B must be a finite real number"),
+    ({"B": "2", "K": 3.0}, "parameter B must be a finite real number"),
+    ({"B": True, "K": 3.0}, "parameter B must be a finite real number"),
+    ({"B": 2.0 + 1j, "K": 3.0}, "parameter B must be a finite real number"),
+    ({"B": np.ones(2), "K": 3.0}, "parameter B must be a finite real number"),
+    ({"B": None, "K": 3.0}, "parameter B must be a finite real number"),
+    ({"B": 2.0, "K": math.inf}, "parameter K must be a finite real number"),
+    ({"B": 2.0, "K": 3.0, "Z": 1.0}, "'Z' is not a parameter of the model"),
+    ({"B": 2.0}, "no value for parameter K"),
+    (None, "with_parameters needs a mapping"),
+])
+def test_with_parameters_takes_finite_real_numbers_only(second_order, values, fragment):
+    _, result = second_order
+    with pytest.raises(InputDataError) as info:
+        result.with_parameters(values)
+    assert "\n" not in str(info.value) and fragment in str(info.value)
+    kept = result.with_parameters({"B": np.float32(2.5), "K": np.int64(3)})
+    assert kept.values == {"B": 2.5, "K": 3.0}

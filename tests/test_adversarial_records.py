@@ -289,3 +289,25 @@ def test_estimate_warning_names_noise_or_resolution(capsys, files):
     lines = err.splitlines()
     assert code == 0 and len(lines) == 1
     assert "shows no noise floor" in lines[0] and "samples per period" in lines[0]
+
+
+@pytest.mark.parametrize("column", ["u", "y"])
+def test_integers_beyond_floating_point_are_refused_naming_the_column(record, column):
+    huge = [10**400] * len(record[column])
+    with pytest.raises(InputDataError) as info:
+        algid.identify(dict(record, **{column: huge}), EQUATION, PARAMETERS)
+    assert f"column {column!r} holds numbers too large for floating point" in one_line(info)
+
+
+def test_an_unreadable_equation_is_shown_as_written():
+    with pytest.raises(ModelError) as info:
+        parse_equation("y'' + " + "1" * 5000 + "*y + B*y' = u", "B")
+    message = one_line(info)
+    assert "cannot read \"y'' + 111" in message and "__d" not in message
+
+
+@pytest.mark.parametrize("name", ["if", "class", "lambda"])
+def test_a_keyword_is_refused_as_a_parameter_name(name):
+    with pytest.raises(ModelError) as info:
+        parse_equation(f"y'' + {name}*y' + K*y = u", f"{name} K")
+    assert f"parameter name {name} is a Python keyword" in one_line(info)

@@ -543,3 +543,23 @@ def test_datasets_export_into_an_unwritable_place_is_one_line(capsys, tmp_path):
     blocker.write_text("not a folder")
     code, _, err = run(capsys, "datasets", "export", "emps", blocker / "sub")
     assert_one_line_error(code, err, "cannot write")
+
+
+def test_a_coefficient_that_overflows_is_one_line(capsys, tmp_path):
+    t = np.arange(0, 5, 0.01)
+    u = np.sin(t) + np.sin(3.7 * t)
+    y = np.cos(t) + 0.1 * np.sin(5 * t)
+    path = tmp_path / "record.csv"
+    np.savetxt(path, np.column_stack([t, u, y]), delimiter=",", header="t,u,y", comments="")
+    code, out, err = run(capsys, "identify", path, "--equation", "y'' + B*y' + K*y = 1e200*u",
+                         "--parameters", "B K")
+    assert_one_line_error(code, err, "overflows floating point")
+
+
+def test_paper_bounds_the_number_of_seeds(capsys, tmp_path):
+    from algid.paper.reproduction import MAX_SEEDS
+
+    out = tmp_path / "figures"
+    code, _, err = run(capsys, "paper", "--out", out, "--n-seeds", 1_000_000_000)
+    assert_one_line_error(code, err, f"n_seeds must be an integer from 1 to {MAX_SEEDS}")
+    assert not out.exists()

@@ -23,6 +23,7 @@ or computed from other constants, must be a finite double.
 from __future__ import annotations
 
 import ast
+import keyword
 import math
 import re
 import string
@@ -407,7 +408,9 @@ def _syntax_tree(equation, text):
     try:
         tree = ast.parse(text, mode="eval")
     except (SyntaxError, ValueError):
-        _fail(equation, f"cannot read {_shown(text)!r} as an expression")
+        # shown as the user wrote it (y'' for its internal name)
+        written = _DERIVATIVE_NAME.sub(lambda m: m.group(2) + "'" * int(m.group(1)), text)
+        _fail(equation, f"cannot read {_shown(written)!r} as an expression")
     except (RecursionError, MemoryError):
         _fail(equation, f"expressions nested more than {LIMITS['nesting']} deep")
     _check_tree(equation, tree)
@@ -493,6 +496,9 @@ def _check_parameters(parameters, equation):
                             f"{LIMITS['name']} characters")
         if name in RESERVED_NAMES or name in FUNCTIONS or name.startswith("__"):
             _fail(equation, f"parameter name {name} is reserved")
+        if keyword.iskeyword(name):
+            _fail(equation, f"parameter name {name} is a Python keyword, which an equation "
+                            f"cannot hold: choose another name")
     if len(set(parameters)) != len(parameters):
         _fail(equation, "a parameter is listed twice")
     return parameters

@@ -103,7 +103,7 @@ from algid.identification_arguments import check_arguments, check_memory, check_
 from algid.model import Model
 from algid.records import Segment, check_factors, estimate_derivative, prepare_records
 from algid.sign_crossings import crossing_jumps, crossing_motion, sign_factor
-from algid.window_basis import WindowBasis, check_excited, exponent, separability
+from algid.window_basis import WindowBasis, check_excited, check_finite, exponent, separability
 from algid.window_covariance import hac_meat, noise_meat, sandwich
 from algid.window_kernels import (
     step_window_integrals,
@@ -287,7 +287,8 @@ class _Problem:
                 else:
                     w = window_integrals(z, seg.t, length, multiplicity, term.derivative,
                                          stride)
-                w = np.ldexp(term.coefficient * w, shifts[i])
+                with np.errstate(over="ignore"):   # refused by check_finite
+                    w = np.ldexp(term.coefficient * w, shifts[i])
                 if term.parameter is None:
                     b -= w
                 else:
@@ -422,6 +423,7 @@ def _solve(problem, length, multiplicities, instruments=None, method="ls"):
     separate = {}
     for a in multiplicities:
         A, b, ids = problem.rows(length, a)
+        check_finite(problem, A, b)
         if not problem.factors.get("excited"):  # once: a vanishing term does so at any window
             check_excited(problem, length, a, A, b)
             problem.factors["excited"] = True

@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import math
+import numbers
+from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -161,9 +164,22 @@ class IdentificationResult:
         -------
         IdentificationResult
         """
+        if not isinstance(values, Mapping):
+            raise InputDataError(f"with_parameters needs a mapping of parameter name -> "
+                                 f"value, got {type(values).__name__}")
         missing = [p for p in self.model.parameters if p not in values]
         if missing:
             raise InputDataError(f"no value for parameter {missing[0]}")
+        unknown = [p for p in values if p not in self.model.parameters]
+        if unknown:
+            raise InputDataError(f"{unknown[0]!r:.40} is not a parameter of the model "
+                                 f"(its parameters: {', '.join(self.model.parameters)})")
+        for p in self.model.parameters:
+            v = values[p]
+            if isinstance(v, (bool, np.bool_)) or not isinstance(v, numbers.Real) \
+                    or not math.isfinite(v):
+                raise InputDataError(f"parameter {p} must be a finite real number, got "
+                                     f"{v!r:.40}")
         return replace(self, values={p: float(values[p]) for p in self.model.parameters},
                        adequacy=None, warnings=[])
 
@@ -178,7 +194,7 @@ class IdentificationResult:
             raise InputDataError("simulate needs one record without gaps or NaN")
         return segments[0]
 
-    def simulate(self, data, *, time=None, rate=None, fit_samples=50, method="DOP853",
+    def simulate(self, data, *, time=None, rate=None, fit_samples=None, method="DOP853",
                  interpolation="bandlimited", substeps=4):
         """Simulate the identified model on a record, driven by its measured inputs.
 
@@ -197,8 +213,10 @@ class IdentificationResult:
             One record (column name -> samples).
         time, rate
             Time axis, as for :func:`algid.identify` (default: those of the fit).
-        fit_samples : int
-            Samples used to fit the initial state (and left out of the error).
+        fit_samples : int, optional
+            Samples used to fit the initial state (and left out of the error): from the
+            model order + 1 to half the record's samples (the rest measure the fit);
+            default 50, or half the record if it is shorter than 100 samples.
         method : str
             Integrator: a :func:`scipy.integrate.solve_ivp` method (default
             ``"DOP853"``) or ``"RK4"`` with ``substeps`` fixed steps per sample.
@@ -210,16 +228,29 @@ class IdentificationResult:
         Returns
         -------
         Validation
+
+        Raises
+        ------
+        ModelError
+            Where the simulated output diverges (is not finite from some time on).
         """
         seg = self._record(data, time, rate)
+        fit_samples = _check_fit_samples(fit_samples, self.model.order, len(seg))
         inputs = {name: seg.values[name] for name in self.model.inputs}
         y = seg.values[self.model.output]
         options = {"output": self.model.output, "method": method,
                    "interpolation": interpolation, "substeps": substeps}
-        x0 = fit_initial_state(self.model, self.values, seg.t, inputs, y,
-                               min(fit_samples, len(seg)), **options)
-        simulated = simulate_model(self.model, self.values, seg.t, inputs,
-                                   initial_state=x0, **options)
+        with np.errstate(over="ignore", invalid="ignore"):   # a diverging model: refused
+            x0 = fit_initial_state(self.model, self.values, seg.t, inputs, y, fit_samples,
+                                   **options)
+            simulated = simulate_model(self.model, self.values, seg.t, inputs,
+                                       initial_state=x0, **options)
+        bad = np.flatnonzero(~np.isfinite(simulated))
+        if bad.size or not np.all(np.isfinite(x0)):
+            start = seg.t[bad[0]] if bad.size else seg.t[0]
+            raise ModelError(f"the simulated output diverges: it is not finite from "
+                             f"t = {start:.6g} s on with parameters "
+                             f"{', '.join(f'{p}={v:.6g}' for p, v in self.values.items())}")
         return Validation(seg.t, y, simulated, x0, fit_samples)
 
     def fit_percent(self, data, **kwargs):
@@ -339,12 +370,27 @@ class IdentificationResult:
         Returns
         -------
         control.TransferFunction or control.StateSpace
+
+        Raises
+        ------
+        ModelError
+            For a nonlinear model, a model without input, or one with a term in time
+            (``d*t``: not an offset, and no transfer function has it).
         """
         import control as ct
 
+        if kind not in ("tf", "ss"):
+            raise ModelError(f"to_control: kind must be 'tf' or 'ss', got {kind!r:.40}")
         model = self.model
         if not model.is_linear:
             raise ModelError("to_control needs a linear model; use to_nlsys()")
+        ramps = [str(t) for t in model.terms if isinstance(t.factor, Time)]
+        if ramps:
+            raise ModelError(f"to_control: the term {ramps[0]} in time is not an offset "
+                             f"and has no transfer function; identify without it to export")
+        if not model.inputs:
+            raise ModelError("to_control: the model has no input, so no transfer function "
+                             "(its output is driven by its initial state only)")
         output = model.output
         den, nums = {}, {}
         for term in model.terms:
@@ -398,3 +444,17 @@ class IdentificationResult:
         states = [out + "'" * k for k in range(equation.order)]
         return ct.nlsys(update, output, inputs=names, outputs=[out], states=states,
                         name=self.model.name)
+
+
+def _check_fit_samples(fit_samples, order, n):
+    """``fit_samples`` of :meth:`IdentificationResult.simulate`, checked (default: 50,
+    or half a record shorter than 100 samples)."""
+    if fit_samples is None:
+        fit_samples = min(50, n // 2)
+    if isinstance(fit_samples, (bool, np.bool_)) or not isinstance(fit_samples,
+                                                                   (int, np.integer)):
+        raise InputDataError(f"fit_samples must be an integer, got {fit_samples!r:.40}")
+    if not order + 1 <= fit_samples <= n // 2:
+        raise InputDataError(f"fit_samples must be in {order + 1}..{n // 2} (at most half "
+                             f"the record's {n} samples), got {fit_samples}")
+    return int(fit_samples)

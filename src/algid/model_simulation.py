@@ -433,7 +433,9 @@ def _integrate(equation, t, initial_state, method, rtol, atol, substeps=4):
             f"too often for it; use method='RK4' (fixed steps) or a stiff method "
             f"('LSODA')") from None
     out = np.full((equation.order, len(t)), np.nan)
-    out[:, :solution.y.shape[1]] = solution.y  # a diverging model stops early: NaN after
+    # a diverging model stops early (SciPy gives a list when no sample was reached): NaN after
+    reached = np.asarray(solution.y, dtype=float).reshape(equation.order, -1)
+    out[:, :reached.shape[1]] = reached
     return out
 
 

@@ -117,6 +117,9 @@ def _column(record, name, index, label):
         return values.astype(float).reshape(-1)
     except (TypeError, ValueError):
         raise InputDataError(f"record {index}: column {name!r} is not numeric") from None
+    except OverflowError:   # Python integers beyond floating point
+        raise InputDataError(f"record {index}: column {name!r} holds numbers too large "
+                             f"for floating point (beyond 1.8e308)") from None
 
 
 def check_rate(rate, what="rate"):

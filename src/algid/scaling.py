@@ -93,9 +93,11 @@ def check_amplitude_range(names, channels, divisors, scale, n_parameters):
 
     After the rescaling (``scale``) and the division by a known mass (``divisors``),
     a channel that is not identically zero must reach neither beyond ``2**(AMPLITUDE_BITS
-    // n_parameters)`` (the products of its integrals would overflow) nor only into the
-    subnormal numbers (below ``2**-1022``: its samples would have lost their precision,
-    as a record's other samples do beside an outlier of ``1e308``).
+    // n_parameters)`` (the products of its integrals would overflow) nor, divided by a
+    known mass, only below ``2**-(AMPLITUDE_BITS // n_parameters)`` (it would vanish
+    beside the others), nor only into the subnormal numbers (below ``2**-1022``: its
+    samples would have lost their precision, as a record's other samples do beside an
+    outlier of ``1e308``).
 
     Parameters
     ----------
@@ -122,11 +124,19 @@ def check_amplitude_range(names, channels, divisors, scale, n_parameters):
     names = list(names)
     for name, c, size, divisor in zip(names, channels, largest, divisors):
         held = size * unit / divisor
-        if held == 0.0 or 2.0**-1022 <= held <= high:
+        # a known mass may shrink a channel as much as it may grow it (symmetric bounds)
+        low = 2.0**-1022 if divisor == 1.0 else 1.0 / high
+        if held == 0.0 or low <= held <= high:
             continue
         by = "" if divisor == 1.0 else f" divided by the mass {divisor:.6g}"
         remedy = ("express the force and the mass in other units" if by else
                   "remove the outlier or express the signals in other units")
+        if by and held < low:
+            raise InputDataError(
+                f"signal {name!r}{by} is at most {size / divisor:.6g}, below "
+                f"2**-{AMPLITUDE_BITS // n_parameters} times the other signals' unit: it "
+                f"vanishes beside them in the products of the estimator's integrals; "
+                f"{remedy}")
         if held > high:
             row = int(np.argmax(np.abs(c)))
             raise InputDataError(

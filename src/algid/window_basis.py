@@ -32,7 +32,8 @@ import numpy as np
 
 from algid.errors import InputDataError
 
-__all__ = ["WindowBasis", "Separability", "separability", "check_excited", "exponent",
+__all__ = ["WindowBasis", "Separability", "separability", "check_excited", "check_finite",
+           "exponent",
            "ROUNDOFF_SEPARABILITY", "FREE_RATIO", "WEAK_RATIO", "FREE_NOISE_RATIO",
            "WEAK_NOISE_RATIO", "COLLINEAR"]
 
@@ -429,6 +430,36 @@ def _noise_test(result, basis, noise):
     combination = second * first[p] - first * second[p]   # no known side in it
     direction = np.linalg.solve(basis.R[:p, :p], combination[:p])
     result.noise_weights = direction * np.linalg.norm(basis.R[:p, :p], axis=0)
+
+
+def check_finite(problem, A, b):
+    """Refuse window equations whose products overflow floating point.
+
+    Parameters
+    ----------
+    problem : object
+        The windowed problem of :func:`algid.identify`: its ``parameters`` and ``model``.
+    A, b : numpy.ndarray
+        The window equations.
+
+    Raises
+    ------
+    InputDataError
+        Naming the terms of the columns that overflow (a constant coefficient too large
+        for the units of the signals).
+    """
+    with np.errstate(over="ignore", invalid="ignore"):
+        squares = np.sum(np.column_stack([A, b]) ** 2, axis=0)
+    if np.all(np.isfinite(squares)):
+        return
+    columns = [*problem.parameters, None]
+    bad = {columns[i] for i in np.flatnonzero(~np.isfinite(squares))}
+    terms = [t for t in problem.model.terms if t.parameter in bad]
+    largest = max(abs(t.coefficient) for t in terms)
+    named = ", ".join(str(t).lstrip("-") for t in terms if abs(t.coefficient) == largest)
+    raise InputDataError(f"the term {named} of the equation overflows floating point: its "
+                         f"constant coefficient {largest:g} is too large for these units "
+                         f"(rescale the equation or the signals)")
 
 
 def check_excited(problem, length, multiplicity, A, b):

@@ -34,7 +34,7 @@ from algid.paper.experiments import (
 )
 from algid.paper.summary import format_summary
 
-__all__ = ["PaperReproduction", "reproduce"]
+__all__ = ["PaperReproduction", "reproduce", "MAX_SEEDS"]
 
 
 @dataclass
@@ -96,6 +96,11 @@ def _prepare_out(out):
     return path
 
 
+#: Most noise realisations :func:`reproduce` runs (each a few seconds of estimation per
+#: study: more would run for days, and the per-seed statistics grow with them).
+MAX_SEEDS = 10_000
+
+
 def reproduce(out=None, *, seed=0, n_seeds=20, figures=True, rates=(1000.0, 10000.0, 100000.0),
               filter_orders=(0, 1, 2, 3, 4), noisy_rates=(1000.0, 10000.0)):
     """Reproduce the experiments of the paper's Section 3 and measure the differences.
@@ -108,8 +113,9 @@ def reproduce(out=None, *, seed=0, n_seeds=20, figures=True, rates=(1000.0, 1000
     seed : int, optional
         Seed of the noise realisation shown in the figures and the single-seed rows.
     n_seeds : int, optional
-        Number of noise realisations (seeds ``0 .. n_seeds - 1``) for the medians and
-        RMSEs, and in the filter-order and sampling-rate studies with noise.
+        Number of noise realisations (seeds ``0 .. n_seeds - 1``, at most
+        :data:`MAX_SEEDS`) for the medians and RMSEs, and in the filter-order and
+        sampling-rate studies with noise.
     figures : bool, optional
         Write the figures (needs matplotlib) when ``out`` is given.
     rates : sequence of float, optional
@@ -138,8 +144,10 @@ def reproduce(out=None, *, seed=0, n_seeds=20, figures=True, rates=(1000.0, 1000
     started = time.perf_counter()
     if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
         raise AlgidError(f"seed must be an integer >= 0, got {seed!r}")
-    if isinstance(n_seeds, bool) or not isinstance(n_seeds, (int, np.integer)) or n_seeds < 1:
-        raise AlgidError(f"n_seeds must be an integer >= 1, got {n_seeds!r}")
+    if isinstance(n_seeds, bool) or not isinstance(n_seeds, (int, np.integer)) \
+            or not 1 <= n_seeds <= MAX_SEEDS:
+        raise AlgidError(f"n_seeds must be an integer from 1 to {MAX_SEEDS}, got "
+                         f"{n_seeds!r:.40}")
     out_path = _prepare_out(out) if out is not None else None
     seeds = range(int(n_seeds))
 
