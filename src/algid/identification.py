@@ -176,11 +176,10 @@ class _Problem:
         self._exponents = {}
         self.sign_jumps = {}   # sign factor -> jump of q'' (refined crossings)
         self.first_values = {}  # parameter -> first estimate (the crossings' local fits)
-        # (sign factor, segment) -> refined crossings: (time, step of the sign, first
-        # sample of the fit, derivative of the time with respect to those samples)
+        # (sign factor, segment) -> refined crossings: (time, step of the sign, first sample
+        # of the fit, derivative of the time with respect to those samples)
         self.crossings = {}
-        # (sign factor, which, segment) -> (first value, times and sizes of its steps)
-        self.steps = {}
+        self.steps = {}  # (sign factor, which, segment) -> (first value, its steps' times, sizes)
 
     @property
     def exact_columns(self):
@@ -262,6 +261,7 @@ class _Problem:
         """The power of two of a term within its column of :meth:`rows`."""
         return float(np.ldexp(1.0, self.exponents(which)[2][self.model.terms.index(term)]))
 
+    @np.errstate(over="ignore")  # equations that overflow are refused by check_finite
     def rows(self, length, multiplicity, which="measured"):
         """Regressors ``A``, known side ``b`` and window ids for one multiplicity (each
         column in its power of two, :meth:`exponents`)."""
@@ -287,8 +287,7 @@ class _Problem:
                 else:
                     w = window_integrals(z, seg.t, length, multiplicity, term.derivative,
                                          stride)
-                with np.errstate(over="ignore"):   # refused by check_finite
-                    w = np.ldexp(term.coefficient * w, shifts[i])
+                w = np.ldexp(term.coefficient * w, shifts[i])
                 if term.parameter is None:
                     b -= w
                 else:
@@ -517,8 +516,7 @@ def _simulated_values(problem, theta, model):
     from algid.model_simulation import fit_initial_state, simulate_model
 
     parameters = dict(zip(model.parameters, theta))
-    # fixed-step RK4 on cubic-spline inputs: instruments need not be accurate, only
-    # noise-free and correlated with the regressors
+    # fixed-step RK4 on cubic splines: instruments need only be noise-free and correlated
     options = {"method": "RK4", "substeps": 4, "interpolation": "cubic"}
     for seg in problem.user_segments:
         inputs = {name: seg.values[name] for name in model.inputs}
