@@ -386,3 +386,20 @@ def test_non_finite_and_complex_constants_never_reach_the_printers():
     with pytest.raises(ModelError) as info:
         compile_equation("y'' + B*y' + K*y = u*1e400", "B K")
     _one_line(info)
+
+
+@pytest.mark.parametrize("injected", [
+    '"""Estimator."""\n__import__("os").system("touch CANARY")\n',
+    '"""Estimator."""\nX = __import__("os").system("touch CANARY")\n',
+    '"""Estimator."""\nimport os\n',
+    '"""Estimator."""\n@print\ndef f():\n    pass\n',
+    '"""Estimator."""\nfor _ in ():\n    pass\n',
+])
+def test_generated_source_of_another_shape_is_refused_before_it_runs(injected, tmp_path,
+                                                                      monkeypatch):
+    from algid.registry import module_from_source
+
+    monkeypatch.chdir(tmp_path)
+    with pytest.raises(AlgidError):
+        module_from_source(injected, "algid_injected_module")
+    assert not (tmp_path / "CANARY").exists()
