@@ -10,7 +10,8 @@ wrong ones (a linear model on the cubic record, ``G*u'`` for ``G*u``, the output
 delayed by 5 samples) must be flagged.  The real records (EMPS with its friction model,
 the three parts of Silverbox with its cubic model) are run once.  Each row gives the
 warnings out of the runs and the median and extreme values of the test's two numbers
-(:mod:`algid.adequacy`: misfit over the output-noise bound, shift in standard errors).
+(:mod:`algid.identification._adequacy`: misfit over the output-noise bound, shift in standard
+errors).
 """
 
 from __future__ import annotations

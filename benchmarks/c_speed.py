@@ -1,6 +1,6 @@
 """Speed of the embedded C estimator (``python -m benchmarks.c_speed [--smoke|--quick]``).
 
-The C pair of model ``msd`` checked in under ``src/algid/generated/c`` (default options:
+The C pair of model ``msd`` checked in under ``src/algid/_generated/c`` (default options:
 filter ``1/s**2``, 8-point rule) is compiled with the system C compiler, ``-O2
 -std=c99`` (portable: SSE2 on x86-64) and ``-O2 -std=c99 -march=native`` (the host's
 vector instructions, as numba compiles for the host), into shared libraries loaded with
@@ -127,10 +127,10 @@ def _numba_runners(f, x):
     default rule), so that the two do the same arithmetic.
     """
     import algid
-    from algid import core
-    from algid.backends import numba_available
-    from algid.options import DEFAULT_QUADRATURE_POINTS
-    from algid.registry import load_model
+    from algid.estimation import _core as core
+    from algid.estimation._backends import numba_available
+    from algid.estimation._options import DEFAULT_QUADRATURE_POINTS
+    from algid.models._registry import load_model
 
     if not numba_available():
         return {}, "numba not installed"
@@ -259,7 +259,7 @@ def target(data):
 
 def markdown(data):
     """The section as Markdown (heading, table, figures)."""
-    from algid.symbolic.codegen_c import DEFAULT_FILTER_ORDER, DEFAULT_QUADRATURE_ORDER
+    from algid.symbolic._codegen_c import DEFAULT_FILTER_ORDER, DEFAULT_QUADRATURE_ORDER
 
     head = (f"### 6. Embedded C estimator (msd, p = {DEFAULT_FILTER_ORDER}, "
             f"q = {DEFAULT_QUADRATURE_ORDER})")

@@ -30,7 +30,7 @@ from pathlib import Path
 import numpy as np
 
 import algid
-from algid.window_kernels import uniform_window_integrals
+from algid.identification._window_kernels import uniform_window_integrals
 from benchmarks.synthetic_records import CUBIC_EQUATION, CUBIC_INPUT_SCALE, cubic_spring
 
 RESULTS = Path(__file__).with_name("identify_results.json")

@@ -7,9 +7,9 @@ Measures, in one process (the machine is shared: ratios are what to compare):
   (:func:`benchmarks.baselines.naive_algebraic`), of :func:`algid.estimate` with
   ``engine="numpy"`` and ``engine="numba"`` (validation and result included; with the
   numerical error, the default, and alone, ``numerical_error=False``), and of
-  the compiled loop alone (:func:`algid.core.advance` on one chunk), with the ratios
+  the compiled loop alone (:func:`algid.estimation._core.advance` on one chunk), with the ratios
   to the naive estimator;
-- streaming in chunks of 1000 samples through :func:`algid.core.advance`, as a
+- streaming in chunks of 1000 samples through :func:`algid.estimation._core.advance`, as a
   ratio to one chunk; the cost per call of chunks of one sample;
 - the peak of traced memory (:mod:`tracemalloc`) of each engine, and the growth of
   the peak resident set size of a fresh process, as ratios to the bytes of the input
@@ -35,9 +35,9 @@ import time
 import numpy as np
 
 import algid
-from algid import core
-from algid.options import DEFAULT_QUADRATURE_POINTS
-from algid.registry import load_model
+from algid.estimation import _core as core
+from algid.estimation._options import DEFAULT_QUADRATURE_POINTS
+from algid.models._registry import load_model
 from benchmarks.baselines import naive_algebraic
 from benchmarks.measure import peak_memory
 
@@ -70,7 +70,7 @@ def _compile_times(model, q):
     """(import of numba, compile with an empty cache, load from the cache) [s, wall],
     each in a fresh process."""
     code = ("import time; t0 = time.perf_counter(); import numba; t1 = time.perf_counter(); "
-            "from algid import core; from algid.registry import load_model; "
+            "from algid import core; from algid.models._registry import load_model; "
             f"gen = load_model({model!r}); t2 = time.perf_counter(); "
             f"s = core.new_state(gen, points={q}, filter_order=0, dt=1.0); "
             f"core.advance(s, [[0.0] * {q + 1}] * 2, backend='numba'); "

@@ -5,7 +5,7 @@ On the same records, in one process:
 1. Speed and simulation error.  :func:`algid.identify` (automatic window) against an
    output-error fit: ``scipy.optimize.least_squares`` over the parameters and the
    initial state, started from the algebraic estimate, each residual a simulation of
-   the model (:func:`algid.model_simulation.simulate_model` with ``method="RK4"``, 4
+   the model (:func:`algid.simulation.simulate_model` with ``method="RK4"``, 4
    sub-steps per sample), with a cubic-spline input on Silverbox and a
    band-limited one on the synthetic multisines: a spline of their 15 Hz lines at
    80 Hz sampling adds errors that the output-error fit absorbs into its parameters).
@@ -40,7 +40,7 @@ import numpy as np
 from scipy.optimize import least_squares
 
 import algid
-from algid.model_simulation import fit_initial_state, simulate_model
+from algid.simulation._model import fit_initial_state, simulate_model
 from benchmarks.synthetic_records import (
     CUBIC_EQUATION,
     FRICTION_EQUATION,

@@ -14,7 +14,7 @@ import tracemalloc
 
 import numpy as np
 
-from algid.result import convergence_time
+from algid.estimation._result import convergence_time
 from algid.simulation import simulate
 
 __all__ = ["best_time", "peak_memory", "both_converged", "relative_errors",

@@ -21,8 +21,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 import algid
-from algid.options import DEFAULT_QUADRATURE_POINTS
-from algid.result import convergence_time
+from algid.estimation._options import DEFAULT_QUADRATURE_POINTS
+from algid.estimation._result import convergence_time
 from algid.simulation import simulate
 from benchmarks import baselines as bl
 from benchmarks.c_speed import c_speed  # section 6, in a module of its own
@@ -113,7 +113,7 @@ CONFIGS = {
 
 def _study_function():
     """``crlb_study`` from whichever module of the toolkit holds it (or None)."""
-    for name in ("algid.cramer_rao", "algid.efficiency"):
+    for name in ("algid.estimation._cramer_rao", "algid.estimation._efficiency"):
         try:
             module = importlib.import_module(name)
         except ImportError:
@@ -126,7 +126,7 @@ def _study_function():
 
 def _online():
     try:
-        from algid import online
+        from algid.estimation import _online as online
     except ImportError:
         return None
     return online if hasattr(online, "OnlineEstimator") else None
@@ -156,7 +156,7 @@ def _numba_engine():
     """Whether ``algid.estimate(..., engine="numba")`` can run here, and why not."""
     if "engine" not in inspect.signature(algid.estimate).parameters:
         return False, "algid.estimate has no engine option"
-    from algid.backends import numba_available
+    from algid.estimation._backends import numba_available
     if not numba_available():
         return False, "numba not installed"
     return True, "available"
@@ -231,7 +231,7 @@ def _batch_fit(key, t, f, x):
     if key == "oe_nls":
         return bl.output_error_nls(t, f, x).final()
     if key == "algid_refined":
-        from algid.refinement import refine
+        from algid.estimation._refinement import refine
 
         r = refine(t, f, x)
         return {"B": r.B, "K": r.K}
@@ -348,7 +348,7 @@ def efficiency(config):
         algebraic RMSE at the longest horizon and the same RMSE recomputed here from
         the rebuilt records; round-off if the data are the same).
     """
-    from algid.cramer_rao import crlb
+    from algid.estimation._cramer_rao import crlb
 
     study, module = _study_function()
     horizons = tuple(float(T) for T in config.horizons)
@@ -411,7 +411,7 @@ def efficiency(config):
 
 def _batch_methods(n_oe):
     """key -> (label, function(t, f, x), samples used)."""
-    from algid.refinement import refine
+    from algid.estimation._refinement import refine
 
     numpy_engine = ({"engine": "numpy"}
                     if "engine" in inspect.signature(algid.estimate).parameters else {})
@@ -475,7 +475,7 @@ def _streamers(online):
         numba_online = False
     ok, _ = _numba_engine()
     if ok and not numba_online:
-        out["engine_numba"] = ("algid.core state + advance (numba)", _EngineStream)
+        out["engine_numba"] = ("algid.estimation._core state + advance (numba)", _EngineStream)
     out["svf_rls"] = ("SVF + RLS", bl.SVFRecursiveLeastSquares)
     return out
 
@@ -485,8 +485,8 @@ class _EngineStream:
     x)``."""
 
     def __init__(self):
-        from algid import core
-        from algid.registry import load_model
+        from algid.estimation import _core as core
+        from algid.models._registry import load_model
 
         self._core = core
         self._state = core.new_state(load_model("msd"), points=6, filter_order=2,
@@ -566,7 +566,8 @@ def performance(config):
                               "cost_per_sample": cost, "cost_ratio": cost / ref_cost})
     if online is None:
         streaming.append({"method": "online", "label": "OnlineEstimator",
-                          "not_available": "algid.online not available"})
+                          "not_available":
+                "algid.estimation._online not available"})
     return {"n_batch": n, "n_oe": config.n_oe, "repeats": config.repeats,
             "reference": {"method": "naive_numpy", "throughput": ref["throughput"],
                           "cost_per_sample": ref_cost},
@@ -681,7 +682,7 @@ def long_stream(config):
     online = _online()
     rows = []
     if online is None:
-        return {"n_samples": config.n_long, "not_available": "algid.online not available"}
+        return {"n_samples": config.n_long, "not_available": "algid.estimation._online not available"}
     period = getattr(online, "TRACKING_RESET_PERIOD", 0.05)
     exact_rate = 1024.0
     eng, kw = _online_fastest(online)
@@ -759,7 +760,7 @@ def tracking(config):
     """
     online = _online()
     if online is None:
-        return {"not_available": "algid.online not available"}
+        return {"not_available": "algid.estimation._online not available"}
     period = getattr(online, "TRACKING_RESET_PERIOD", 0.05)
     eng, kw = _online_fastest(online)
     setups = {

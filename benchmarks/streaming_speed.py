@@ -12,7 +12,7 @@ which other users of the machine disturb less than the wall time.  Options:
 ``--samples 1e6`` (record for the batch runs and the chunks of 1000),
 ``--single-samples 1e5`` (samples fed one at a time with the compiled engine; a
 tenth of it with NumPy), ``--reset-period 0.05`` [s] (at 1 kHz: the tracking
-setting ``algid.online.TRACKING_RESET_PERIOD``, a restart every 25 samples),
+setting ``algid.estimation._online.TRACKING_RESET_PERIOD``, a restart every 25 samples),
 ``--repeats 3``.
 """
 
@@ -24,7 +24,7 @@ import time
 import numpy as np
 
 import algid
-from algid.backends import numba_available
+from algid.estimation._backends import numba_available
 
 RATE = 1000.0
 

@@ -1,7 +1,7 @@
 """``python -m derivation [--out DIR]``: write every generated file, byte for byte.
 
 Run from the repository root.  Without ``--out`` the files go to
-``src/algid/generated/``; a test writes them to a temporary folder and compares.  For
+``src/algid/_generated/``; a test writes them to a temporary folder and compares.  For
 every built-in model: ``<model>.py``, the NumPy module (the model algebra), and
 ``<model>_numba.py``, the compiled loop of the numba backend.
 """
@@ -13,14 +13,14 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT / "src"))
 
-from algid.registry import module_from_source  # noqa: E402
-from algid.symbolic.codegen import HEADER, numpy_module_source, registry_source  # noqa: E402
-from algid.symbolic.codegen_c import c_sources  # noqa: E402
-from algid.symbolic.codegen_numba import numba_module_source  # noqa: E402
-from algid.symbolic.derivation import derive  # noqa: E402
-from algid.symbolic.differentiator import kernel_table_source  # noqa: E402
-from algid.symbolic.models import BUILTIN_MODELS, KNOWN_MASS, builtin_model  # noqa: E402
-from algid.symbolic.modulating import table_module_source  # noqa: E402
+from algid.models._registry import module_from_source  # noqa: E402
+from algid.symbolic._builtin_models import BUILTIN_MODELS, KNOWN_MASS, builtin_model  # noqa: E402
+from algid.symbolic._codegen import HEADER, numpy_module_source, registry_source  # noqa: E402
+from algid.symbolic._codegen_c import c_sources  # noqa: E402
+from algid.symbolic._codegen_numba import numba_module_source  # noqa: E402
+from algid.symbolic._derivation import derive  # noqa: E402
+from algid.symbolic._differentiator import kernel_table_source  # noqa: E402
+from algid.symbolic._modulating import table_module_source  # noqa: E402
 
 
 def generated_files():
@@ -32,11 +32,11 @@ def generated_files():
                                    mass_divided=mass_divided)
         files[f"{name}.py"] = text
         # the loop reads the model's tables from the module text just written
-        module = module_from_source(text, f"algid.generated.{name}")
+        module = module_from_source(text, f"algid._generated.{name}")
         try:
             files[f"{name}_numba.py"] = numba_module_source(module, header=HEADER)
         finally:
-            del sys.modules[f"algid.generated.{name}"]
+            del sys.modules[f"algid._generated.{name}"]
     files["__init__.py"] = registry_source(BUILTIN_MODELS)
     for name in BUILTIN_MODELS:  # the embedded C estimator, default options
         for rel, text in c_sources(derive(builtin_model(name))).items():
@@ -59,7 +59,7 @@ def write(out: Path) -> list:
 
 def main(argv=None):
     parser = argparse.ArgumentParser(prog="python -m derivation", description=__doc__)
-    parser.add_argument("--out", type=Path, default=ROOT / "src" / "algid" / "generated")
+    parser.add_argument("--out", type=Path, default=ROOT / "src" / "algid" / "_generated")
     args = parser.parse_args(argv)
     for path in write(args.out):
         print(f"wrote {path}")

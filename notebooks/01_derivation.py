@@ -50,12 +50,12 @@ import numpy as np
 import sympy as sp
 from IPython.display import Markdown, display
 
-from algid.quadrature import iterated_integrals, startup_samples
+from algid.signals._quadrature import iterated_integrals, startup_samples
 from algid.symbolic import LAPLACE as s
 from algid.symbolic import TIME as t
 from algid.symbolic import Kernel, LinearODEModel, derivation_report, derive
-from algid.symbolic.models import builtin_model
-from algid.symbolic.realization import from_kernel_terms, kernel_terms
+from algid.symbolic._builtin_models import builtin_model
+from algid.symbolic._realization import from_kernel_terms, kernel_terms
 
 sp.init_printing()
 
@@ -296,10 +296,10 @@ for i in range(2):
 # $p_{11}, p_{12}, q_1$ (equations 16-18), and its second row is the paper's
 # $p_{21} = \int p_{11}$, $p_{22} = \int p_{12}$, $q_2 = \int q_1$ (21-23).  The toolkit
 # also checks every printed equation of the paper against this derivation
-# (`algid.symbolic.errata`); here are the verdicts for the equations of this section:
+# (`algid.symbolic._errata`); here are the verdicts for the equations of this section:
 
 # %%
-from algid.symbolic.errata import PRINTED, check_equation
+from algid.symbolic._errata import PRINTED, check_equation
 
 rows = ["| eq. | as printed | verdict |", "| --- | --- | --- |"]
 verdicts = {}
@@ -603,7 +603,7 @@ RESULTS["custom_residual_is_zero"] = custom_residual == sp.zeros(2, 1)
 #
 # The entries of $P$ and $Q$ are fixed combinations of kernels
 # $\int^{(k)}(t^p\,\mathrm{signal})$.  Numerically, each kernel is a chain of
-# cumulative integrals of the sampled signal (`algid.quadrature.iterated_integrals`,
+# cumulative integrals of the sampled signal (`algid.signals.iterated_integrals`,
 # a causal 6-point rule), and the estimate is Cramer's quotient at every sample.  We
 # sample the exact trajectory at 1 kHz, as a measurement would be, and run the
 # estimator we just derived.

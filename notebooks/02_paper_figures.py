@@ -187,7 +187,7 @@ ax.set_ylabel(r"$\max(|\hat B/B - 1|,\ |\hat K/K - 1|)$")
 ax.set_title("relative error of the noise-free estimates, 1 kHz")
 ax.set_ylim(1e-16, 1e3)
 ax.grid(alpha=0.3, which="both")
-ax.legend(ncol=2, fontsize="small", loc="lower left");
+ax.legend(ncol=2, fontsize="small", loc="lower left")
 
 # %% [markdown]
 # The discretisation error of the trapezoid shrinks like $h^2$ ($h$ the sampling step),
@@ -217,7 +217,7 @@ ax.set_xlabel("sampling rate [Hz]")
 ax.set_ylabel("time to stay within 1 % [s]")
 ax.set_title(f"noise-free step, no filter (trapezoid: time ~ h^{slope:.2f})")
 ax.grid(alpha=0.3, which="both")
-ax.legend();
+ax.legend()
 
 by_rate = {(r["rate"], r["q"]): r for r in rate_rows}
 display(Markdown("\n".join(
@@ -386,7 +386,7 @@ for col, name in enumerate(("step_noise", "sine_noise")):
     axes[1, col].set_xlabel("time $t$ [s]")
 axes[0, 0].legend(fontsize="small", ncol=2, loc="upper right")
 fig.suptitle(f"spread of the estimates over {N_SEEDS} noise realisations "
-             f"(std {paper.NOISE_STD:g} m)");
+             f"(std {paper.NOISE_STD:g} m)")
 
 # %% [markdown]
 # The band narrows as time goes on: the integrals average the noise over an ever longer

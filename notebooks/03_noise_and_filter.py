@@ -52,7 +52,7 @@ import numpy as np
 from IPython.display import Markdown, display
 
 import algid
-from algid.estimator import kernel_values, load_model
+from algid.estimation._batch import kernel_values, load_model
 
 SYSTEM = {"m": 1.0, "c": 2.0, "k": 3.0}
 TRUE = {"B": SYSTEM["c"] / SYSTEM["m"], "K": SYSTEM["k"] / SYSTEM["m"]}
@@ -149,7 +149,7 @@ for ax, name in zip(axes, ("B", "K")):
     ax.set_ylabel(f"estimate of {name}")
     ax.set_title(f"{name}: step input, $\\sigma$ = {sigma:g} m, seed {seed}")
     ax.grid(alpha=0.3)
-axes[0].legend(ncol=3, fontsize="small");
+axes[0].legend(ncol=3, fontsize="small")
 
 # %% [markdown]
 # The unfiltered estimate is visibly noisier and is still wandering at the end of the
@@ -192,7 +192,7 @@ ax.set_ylabel(r"normalised weight $w_p(t,\tau)$ [1/s]")
 ax.set_title(f"weights of the unfiltered estimates in $\\hat\\theta_p(t)$ at $t$ = {t_eval:g} s "
              "(noise-free step)")
 ax.grid(alpha=0.3)
-ax.legend();
+ax.legend()
 
 # %% tags=["remove-cell"]
 RESULTS["weight_peaks_at_2.5s"] = peaks
@@ -255,7 +255,7 @@ def rmse_figure(kind):
     return fig
 
 
-rmse_figure("step");
+rmse_figure("step")
 
 # %% [markdown]
 # Three things stand out.
@@ -274,7 +274,7 @@ rmse_figure("step");
 # The same for the sine input:
 
 # %%
-rmse_figure("sine");
+rmse_figure("sine")
 
 # %%
 rows = ["| input | $p$ | " + " | ".join(f"RMSE(B)/σ at {w:g} s" for w in TIMES) + " |",
@@ -332,7 +332,7 @@ for ax, kind in zip(axes, ("step", "sine")):
     ax.set_title(f"{kind} input, {N_SEEDS} seeds", fontsize="medium")
     ax.grid(alpha=0.3)
 axes[0].set_ylabel("median time to stay within 1 % [s]")
-axes[0].legend(loc="lower left", fontsize="small");
+axes[0].legend(loc="lower left", fontsize="small")
 
 best = {}
 for kind in ("step", "sine"):

@@ -49,10 +49,10 @@ import sympy as sp
 from IPython.display import display
 
 import algid
-from algid.online import TRACKING_RESET_PERIOD, OnlineEstimator
+from algid.estimation._online import TRACKING_RESET_PERIOD, OnlineEstimator
 from algid.symbolic import TIME, derive, evaluate_kernel
-from algid.symbolic.models import builtin_model
-from algid.symbolic.realization import realize
+from algid.symbolic._builtin_models import builtin_model
+from algid.symbolic._realization import realize
 
 TRUE = {"B": 2.0, "K": 3.0}
 DURATION = 2.0 if QUICK else 5.0
@@ -265,7 +265,7 @@ ax.set_ylabel("relative difference (max over B, K)")
 ax.set_title("trapezoid rule, filter $1/s^2$, sine input, $\\sigma$ = 0.01 m")
 ax.set_ylim(1e-17, 1e3)
 ax.grid(alpha=0.3, which="both")
-ax.legend(fontsize="small");
+ax.legend(fontsize="small")
 
 # %% [markdown]
 # ## 4.3 The streaming estimator
@@ -352,7 +352,7 @@ ax_diff.set_ylabel("relative difference (max over B, K)")
 ax_diff.set_title("difference from the batch estimate "
                   + ("(zero: identical to the last bit)" if identical and chunks_identical else ""))
 ax_diff.legend(fontsize="small")
-ax_diff.grid(alpha=0.3);
+ax_diff.grid(alpha=0.3)
 
 # %% [markdown]
 # The streaming estimator performs the batch estimator's arithmetic in the same order,
@@ -421,7 +421,7 @@ for ax, case in zip(axes, cases):
     ax.set_title(f"estimate of K, {case}")
     ax.grid(alpha=0.3)
 axes[0].set_ylabel("estimate of K [N/(m kg)]")
-axes[0].legend(fontsize="small");
+axes[0].legend(fontsize="small")
 
 # %% [markdown]
 # Without re-anchoring the estimate moves only slowly towards the new value, dragged by

@@ -69,7 +69,7 @@ RESULTS = {}
 # ## Identification: linear and cubic models
 #
 # The window is chosen from the data (no `window=` given); the standard errors account
-# for the overlap of the windows (see `algid.identification`). A result warns when the
+# for the overlap of the windows (see `algid.identification._identify`). A result warns when the
 # model does not explain the data within the noise.
 
 # %%
@@ -181,7 +181,7 @@ for ax in (axes[0, 0], axes[0, 1], axes[1, 0]):
     ax.set_xticks([25, 50, 100, 150], ["25", "50", "100", "150"])
     ax.minorticks_off()
 axes[0, 0].legend(fontsize="small")
-fig.suptitle("Silverbox: estimates on windows of fixed length (±2σ)");
+fig.suptitle("Silverbox: estimates on windows of fixed length (±2σ)")
 
 # %%
 rows = ["| window (ms) | " + " | ".join(f"{label}: f₀ (Hz) | {label}: ζ" for label in MODELS)

@@ -51,9 +51,9 @@ from algid.datasets import (
     EMPS_PUBLISHED_RELATIVE_STD,
     emps,
 )
-from algid.differentiation import algebraic_derivative
-from algid.grammar import parse_equation
-from algid.model_simulation import simulate_model
+from algid.models._grammar import parse_equation
+from algid.signals._differentiation import algebraic_derivative
+from algid.simulation._model import simulate_model
 
 runs = {"estimation": emps("estimation"), "validation": emps("validation")}
 print(runs["estimation"])
@@ -123,7 +123,7 @@ for ax, (p, reference) in zip(axes, EMPS_PUBLISHED.items()):
     ax.set_title(f"{p} [{units[p]}]")
     ax.grid(alpha=0.3, axis="y")
 axes[0].legend(fontsize="small", loc="lower left")
-fig.suptitle("EMPS: identified parameters against the published IDIM-LS values");
+fig.suptitle("EMPS: identified parameters against the published IDIM-LS values")
 
 # %% [markdown]
 # The estimation run is the run the published values were identified on; the lines
@@ -293,7 +293,7 @@ for ax, (label, prediction) in zip(axes, (("with Coulomb friction", predicted),
     ax.set_xlabel("velocity q' (mm/s)")
     ax.set_title(f"residual against velocity, {label}")
     ax.grid(alpha=0.3)
-axes[0].set_ylabel("measured − predicted force (N)");
+axes[0].set_ylabel("measured − predicted force (N)")
 
 # %% [markdown]
 # ## Closed-loop simulation with the stored controller gains
@@ -304,7 +304,7 @@ axes[0].set_ylabel("measured − predicted force (N)");
 # loop is then one more model equation, driven by the reference position `qg`. The
 # Coulomb term keeps its `sign`: the simulator integrates from one velocity reversal to
 # the next and holds the mass at standstill while the force stays below the friction
-# (`algid.switching`). For comparison the same loop is also simulated with the friction
+# (`algid.simulation._switching`). For comparison the same loop is also simulated with the friction
 # smoothed to `tanh(q'/1 mm/s)`, and with the published values. The position follows the
 # reference closely whatever the model, so the comparison is on the force the controller
 # asks for.

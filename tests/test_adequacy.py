@@ -12,8 +12,8 @@ import pytest
 from conftest import ROOT
 
 import algid
-from algid.adequacy import MISFIT_LIMIT, SHIFT_LIMIT, Adequacy, misfit_limit
 from algid.cli import main
+from algid.identification._adequacy import MISFIT_LIMIT, SHIFT_LIMIT, Adequacy, misfit_limit
 
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))

@@ -1,7 +1,7 @@
 """Hostile equation text: nothing of it is executed, nothing hangs, every refusal is one line.
 
 Every entry point that takes an equation (``algid derive`` and ``algid codegen``,
-:func:`algid.user_models.compile_equation`, :func:`algid.identify`,
+:func:`algid.models.compile_equation`, :func:`algid.identify`,
 :meth:`algid.symbolic.LinearODEModel.from_equation`) reads it with the restricted
 grammar; injection attempts are checked for their side effect (a canary file that
 must not appear), hangs in a subprocess with a timeout, and the generated C of any
@@ -22,11 +22,11 @@ from conftest import ROOT, assert_one_line_error
 
 import algid
 from algid.errors import AlgidError, ModelError
-from algid.grammar import LIMITS, parse_equation
+from algid.models._compiled import compile_equation
+from algid.models._grammar import LIMITS, parse_equation
 from algid.symbolic import LinearODEModel, derive
-from algid.symbolic.codegen import compile_model
-from algid.symbolic.codegen_c import c_sources
-from algid.user_models import compile_equation
+from algid.symbolic._codegen import compile_model
+from algid.symbolic._codegen_c import c_sources
 
 CC = shutil.which("gcc") or shutil.which("cc")
 needs_cc = pytest.mark.skipif(CC is None, reason="no C compiler (gcc or cc) on PATH")
@@ -148,7 +148,7 @@ def test_no_evaluation_of_text_in_the_package():
                     func.value, ast.Name) and func.value.id in ("sp", "sympy") else None)
             if name in ("sympify", "parse_expr", "eval", "exec", "S"):
                 found.append(f"{path.relative_to(ROOT)}:{node.lineno} {name}")
-    assert len(found) == 1 and found[0].startswith("src/algid/registry.py:") \
+    assert len(found) == 1 and found[0].startswith("src/algid/models/_registry.py:") \
         and found[0].endswith(" exec"), found
 
 
@@ -158,7 +158,7 @@ _HANG_SCRIPT = textwrap.dedent("""
     import json, sys, time
     from algid.errors import AlgidError
     from algid.symbolic import LinearODEModel
-    from algid.user_models import compile_equation
+    from algid.models._compiled import compile_equation
     cases = json.loads(sys.argv[1])
     out = []
     for text in cases:
@@ -210,7 +210,7 @@ def test_ten_parameters_compile_in_seconds():
     30 s (its expanded Cramer rule, 10! products per determinant, never finished)."""
     script = textwrap.dedent(f"""
         import time
-        from algid.user_models import compile_equation
+        from algid.models._compiled import compile_equation
         start = time.perf_counter()
         module = compile_equation({TEN[0]!r}, {TEN[1]!r})
         print(time.perf_counter() - start, len(module.PARAMETERS))
@@ -248,7 +248,7 @@ def test_c_of_shared_minors_equals_python(tmp_path):
     import scipy.signal
     from test_codegen_c import CEstimator, compile_library
 
-    from algid.symbolic.codegen_c import write_c_sources
+    from algid.symbolic._codegen_c import write_c_sources
 
     model = LinearODEModel.from_equation("y''' + a*y'' + b*y' + c*y = g*u'' + h*u' + k*u",
                                          parameters="a b c g h k", input="u", output="y",
@@ -397,7 +397,7 @@ def test_non_finite_and_complex_constants_never_reach_the_printers():
 ])
 def test_generated_source_of_another_shape_is_refused_before_it_runs(injected, tmp_path,
                                                                       monkeypatch):
-    from algid.registry import module_from_source
+    from algid.models._registry import module_from_source
 
     monkeypatch.chdir(tmp_path)
     with pytest.raises(AlgidError):

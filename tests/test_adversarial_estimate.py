@@ -84,7 +84,7 @@ def test_time_units_out_of_range_are_refused_instead_of_nan(sine, scale):
 @pytest.fixture(scope="module")
 def log_model():
     pytest.importorskip("sympy")
-    from algid.user_models import compile_equation
+    from algid.models._compiled import compile_equation
     return compile_equation("y'' + B*y' + K*log(y) = u", "B K")
 
 
@@ -108,7 +108,7 @@ def test_a_nan_channel_is_named_with_its_expression(log_model):
 
 def test_a_derivative_window_beyond_the_record_or_memory_is_refused():
     pytest.importorskip("sympy")
-    from algid.user_models import compile_equation
+    from algid.models._compiled import compile_equation
     module = compile_equation("M*q'' + Fv*q' + Fc*tanh(q'/0.2) = F", "M Fv Fc")
     t = np.arange(2000) / 1000.0
     signals = {"q": np.sin(t), "F": np.cos(t)}
@@ -246,8 +246,8 @@ def test_the_large_error_warning_names_the_sampling_only_when_it_is_the_cause(
     ({"method": "RK4", "substeps": 10**12}, "of memory"),
 ])
 def test_simulate_model_refuses_bad_arguments_in_one_line(change, words):
-    from algid.grammar import parse_equation
-    from algid.model_simulation import simulate_model
+    from algid.models._grammar import parse_equation
+    from algid.simulation._model import simulate_model
     model = parse_equation("y'' + B*y' + K*y = G*u", "B K G")
     t = np.arange(200) / 100.0
     u = np.sin(t) * change.pop("scale", 1.0)

@@ -12,7 +12,7 @@ from conftest import ROOT
 
 import algid
 from algid.errors import InputDataError, ModelError
-from algid.window_covariance import hac_meat, sandwich
+from algid.identification._window_covariance import hac_meat, sandwich
 
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))

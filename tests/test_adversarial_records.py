@@ -12,11 +12,11 @@ import pytest
 from conftest import ROOT, assert_one_line_error
 
 import algid
-from algid import memory
+from algid import _memory as memory
 from algid.cli import main
 from algid.errors import InputDataError, ModelError
-from algid.grammar import parse_equation
-from algid.identification_arguments import identify_bytes
+from algid.identification._arguments import identify_bytes
+from algid.models._grammar import parse_equation
 
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
@@ -195,7 +195,7 @@ def test_the_memory_estimate_is_above_the_peak_allocation(make, equation):
 
 
 def test_an_address_space_limit_lowers_the_memory_available():
-    script = ("import resource; from algid.memory import available_memory; "
+    script = ("import resource; from algid._memory import available_memory; "
               "resource.setrlimit(resource.RLIMIT_AS, (3 * 2**30, resource.RLIM_INFINITY)); "
               "print(available_memory())")
     out = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
@@ -258,7 +258,7 @@ def test_identify_accepts_a_rate_that_agrees(capsys, files, reference):
 
 
 def test_identify_refuses_records_too_large_for_the_memory(capsys, files, monkeypatch):
-    import algid.identification_arguments as arguments
+    import algid.identification._arguments as arguments
 
     monkeypatch.setattr(arguments, "identify_bytes", lambda model: 1e15)
     code, _, err = run(capsys, "identify", files[0], "--equation", EQUATION,

@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 
 import algid
+from algid._scaling import AMPLITUDE_BITS
 from algid.errors import InputDataError
-from algid.scaling import AMPLITUDE_BITS
 
 ENGINES = ["numpy", "numba"]
 LIMIT = 2.0 ** (AMPLITUDE_BITS // 2)  # of msd (two parameters), in the stream's unit
@@ -108,7 +108,7 @@ def test_a_tiny_mass_is_named_and_the_first_chunk_changes_nothing(record, engine
 
 
 def _log_model():
-    from algid.user_models import compile_equation
+    from algid.models._compiled import compile_equation
     return compile_equation("y'' + B*y' + K*log(y) = u", "B K")
 
 
@@ -150,7 +150,7 @@ def test_a_user_model_channel_outside_its_domain_is_refused(log_record, engine, 
 def test_a_user_model_signal_or_channel_too_large_is_refused_also_in_the_warm_up():
     """A derivative inside a factor: the differentiator's state is restored too."""
     pytest.importorskip("sympy")
-    from algid.user_models import compile_equation
+    from algid.models._compiled import compile_equation
     module = compile_equation("y'' + B*y' + K*y + C*sign(y')*y**3 = u", "B K C")
     t = np.arange(3000) / 1000.0
     y, u = 0.5 * np.sin(2.0 * t), np.cos(3.0 * t)

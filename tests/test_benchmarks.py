@@ -120,7 +120,7 @@ def test_smoke_long_stream_and_tracking(smoke):
     assert reset["n_samples"] == ls["n_samples"]
     assert reset["n_undefined"] == 0
     assert max(reset["max_rel_error"].values()) < 1e-3
-    from algid.online import TRACKING_RESET_PERIOD
+    from algid.estimation._online import TRACKING_RESET_PERIOD
 
     # noise-free, a change is followed once the reported window starts after it: at the
     # latest one period later (with a persistently exciting input)

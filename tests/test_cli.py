@@ -14,9 +14,9 @@ import scipy.io
 from conftest import assert_one_line_error
 
 import algid
+from algid._signal_checks import check_experiment
 from algid.cli import main
 from algid.errors import InputDataError, ModelError
-from algid.validation import check_experiment
 
 
 def run(capsys, *argv):
@@ -77,7 +77,7 @@ class FakeResult:
 
 @pytest.fixture
 def fake_estimator(monkeypatch):
-    """Replace ``algid.estimator`` by a stand-in that records its calls."""
+    """Replace ``algid.estimation._batch`` by a stand-in that records its calls."""
     calls = []
 
     def estimate(t, f, x, *, model="msd", filter_order=2, mass=None):
@@ -337,7 +337,7 @@ def test_estimate_mat_file(capsys, tmp_path, fake_estimator):
 
 
 def test_estimate_with_real_estimator(capsys, tmp_path):
-    pytest.importorskip("algid.estimator")
+    pytest.importorskip("algid.estimation._batch")
     n, h = 3001, 1e-3
     t = np.arange(n) * h
     # closed-form step response of x'' + 2 x' + 3 x = 1 from rest
@@ -429,7 +429,7 @@ def test_simulate_bad_parameter_from_simulation(capsys, tmp_path, monkeypatch):
 
 def test_simulate_then_estimate_real(capsys, tmp_path):
     pytest.importorskip("algid.simulation")
-    pytest.importorskip("algid.estimator")
+    pytest.importorskip("algid.estimation._batch")
     path = tmp_path / "sim.csv"
     code, out, _ = run(capsys, "simulate", "--out", path, "--duration", 3)
     assert code == 0 and str(path) in out
@@ -487,8 +487,8 @@ def test_identify_reads_a_gzip_csv(capsys, tmp_path):
     t = np.arange(3000) * 1e-3
     u = np.sin(7 * t) + np.sin(31 * t)
     # y'' + 4 y' + 100 y = 100 u, simulated finely enough for 5 significant digits
-    from algid.grammar import parse_equation
-    from algid.model_simulation import simulate_model
+    from algid.models._grammar import parse_equation
+    from algid.simulation._model import simulate_model
 
     model = parse_equation("y'' + B*y' + K*y = G*u", "B K G")
     y = simulate_model(model, {"B": 4.0, "K": 100.0, "G": 100.0}, t, {"u": u}, rtol=1e-11)
@@ -557,7 +557,7 @@ def test_a_coefficient_that_overflows_is_one_line(capsys, tmp_path):
 
 
 def test_paper_bounds_the_number_of_seeds(capsys, tmp_path):
-    from algid.paper.reproduction import MAX_SEEDS
+    from algid.paper._reproduction import MAX_SEEDS
 
     out = tmp_path / "figures"
     code, _, err = run(capsys, "paper", "--out", out, "--n-seeds", 1_000_000_000)

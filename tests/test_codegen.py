@@ -11,10 +11,10 @@ import numpy as np
 import pytest
 import sympy as sp
 
-from algid.estimator import load_model
+from algid.estimation._batch import load_model
 from algid.symbolic import TIME as t
 from algid.symbolic import derive, evaluate_kernel
-from algid.symbolic.models import BUILTIN_MODELS, builtin_model
+from algid.symbolic._builtin_models import BUILTIN_MODELS, builtin_model
 
 from conftest import ROOT
 
@@ -27,7 +27,7 @@ def test_regeneration_is_byte_identical(tmp_path):
     assert names == sorted(p.name for p in generated.glob("*.py"))
     for name in names:
         assert filecmp.cmp(tmp_path / name, generated / name, shallow=False), (
-            f"src/algid/generated/{name} differs from the derivation: run `python -m derivation`")
+            f"src/algid/_generated/{name} differs from the derivation: run `python -m derivation`")
 
 
 def test_every_builtin_model_is_generated():
@@ -111,11 +111,11 @@ def test_generated_modules_declare_channels_and_mass_scaling():
 _USER_SCRIPT = """
 import json, sys
 import numpy as np
-from algid import core_numba
-from algid.estimator import estimate
+from algid.estimation import _core_numba as core_numba
+from algid.estimation._batch import estimate
 from algid.symbolic import derive
-from algid.symbolic.codegen import compile_model
-from algid.symbolic.model import LinearODEModel
+from algid.symbolic._codegen import compile_model
+from algid.symbolic._model import LinearODEModel
 user = compile_model(derive(LinearODEModel.from_equation(
     "x'' + a*x' + b*x = f", parameters="a b", name="user_msd")))
 t = np.arange(800) * 1e-3
@@ -130,9 +130,9 @@ def test_user_model_compiled_in_memory_runs_on_both_backends(request, monkeypatc
     the equation of "msd" it gives the built-in estimates bit for bit, on either
     backend.  Its compiled loop is cached on disk (here in pytest's cache, so that
     later runs of the suite load it): another process loads it instead of compiling."""
-    from algid.estimator import estimate
-    from algid.symbolic.codegen import compile_model
-    from algid.symbolic.model import LinearODEModel
+    from algid.estimation._batch import estimate
+    from algid.symbolic._codegen import compile_model
+    from algid.symbolic._model import LinearODEModel
 
     user = compile_model(derive(LinearODEModel.from_equation(
         "x'' + a*x' + b*x = f", parameters="a b", name="user_msd")))
@@ -165,10 +165,10 @@ def test_user_model_compiled_in_memory_runs_on_both_backends(request, monkeypatc
 def test_user_cache_dir_follows_the_environment(tmp_path, monkeypatch):
     """ALGID_CACHE_DIR, else NUMBA_CACHE_DIR/algid, else the user cache; empty turns
     the cache off, and an unusable directory means no cache (compiled in memory)."""
-    from algid.backends import numba_available
+    from algid.estimation._backends import numba_available
     if not numba_available():
         pytest.skip("numba is not installed")
-    from algid.core_numba import user_cache_dir
+    from algid.estimation._core_numba import user_cache_dir
     monkeypatch.setenv("ALGID_CACHE_DIR", str(tmp_path / "mine"))
     assert user_cache_dir() == str(tmp_path / "mine" / "user_models")
     monkeypatch.delenv("ALGID_CACHE_DIR")

@@ -1,4 +1,4 @@
-"""The embedded C estimator (algid.symbolic.codegen_c, ``algid codegen --lang c``).
+"""The embedded C estimator (algid.symbolic._codegen_c, ``algid codegen --lang c``).
 
 The generated code is compiled with the system C compiler (warnings are errors) into a
 shared library loaded with ctypes, fed the paper's experiments in several chunkings and
@@ -19,11 +19,12 @@ from conftest import ROOT, assert_one_line_error
 
 import algid
 from algid.cli import main as cli_main
-from algid.core import first_estimate
 from algid.errors import ModelError
+from algid.estimation._core import first_estimate
 from algid.symbolic import LinearODEModel, derive
-from algid.symbolic.codegen import numpy_module_source
-from algid.symbolic.codegen_c import (
+from algid.symbolic._builtin_models import BUILTIN_MODELS, builtin_model
+from algid.symbolic._codegen import numpy_module_source
+from algid.symbolic._codegen_c import (
     DEFAULT_FILTER_ORDER,
     DEFAULT_QUADRATURE_ORDER,
     QUADRATURE_ORDERS,
@@ -31,7 +32,6 @@ from algid.symbolic.codegen_c import (
     quadrature_weights,
     write_c_sources,
 )
-from algid.symbolic.models import BUILTIN_MODELS, builtin_model
 
 CC = shutil.which("gcc") or shutil.which("cc")
 needs_cc = pytest.mark.skipif(CC is None, reason="no C compiler (gcc or cc) on PATH")
@@ -141,11 +141,11 @@ def build(tmp_path_factory):
 def user_registered():
     """The user models' generated NumPy modules, registered under the names "user" and
     "third" so that algid.estimate and algid.OnlineEstimator run them."""
-    from algid.generated import MODULES
+    from algid._generated import MODULES
 
     names = {}
     for name in ("user", "third"):
-        module_name = f"algid.generated._test_{name}"
+        module_name = f"algid._generated._test_{name}"
         module = types.ModuleType(module_name)
         exec(compile(numpy_module_source(_derivation(name)), module_name, "exec"),
              module.__dict__)
@@ -181,8 +181,8 @@ def _max_rel(a, b):
 
 
 def test_defaults_are_those_of_the_python_estimator():
-    from algid.options import DEFAULT_FILTER_ORDER as estimator_filter_order
-    from algid.options import DEFAULT_QUADRATURE_POINTS
+    from algid.estimation._options import DEFAULT_FILTER_ORDER as estimator_filter_order
+    from algid.estimation._options import DEFAULT_QUADRATURE_POINTS
 
     params = inspect.signature(algid.estimate).parameters
     assert params["filter_order"].default == DEFAULT_FILTER_ORDER == estimator_filter_order
@@ -193,7 +193,7 @@ def test_defaults_are_those_of_the_python_estimator():
 
 @pytest.mark.parametrize("order", QUADRATURE_ORDERS)
 def test_weights_are_the_quadrature_rule(order):
-    from algid.quadrature import rule_weights
+    from algid.signals._quadrature import rule_weights
 
     regular, startup = rule_weights(order)
     exact_regular, exact_startup = quadrature_weights(order)
@@ -207,7 +207,7 @@ def test_checked_in_c_files_are_regenerated_byte_for_byte(name):
     generated = ROOT / "src" / "algid" / "generated" / "c"
     for rel, text in c_sources(derive(builtin_model(name))).items():
         assert (generated / rel).read_text(encoding="utf-8") == text, (
-            f"src/algid/generated/c/{rel} differs from the derivation: run "
+            f"src/algid/_generated/c/{rel} differs from the derivation: run "
             "`python -m derivation`")
 
 
@@ -377,7 +377,7 @@ def test_state_is_plain_data(build):
     t, u, y, _ = _experiment("msd", "sine", duration=1.0)
     state = c.state()
     assert ctypes.sizeof(state) == c._size() and c._size() % 8 == 0
-    header = (ROOT / "src/algid/generated/c/algid_msd.h").read_text()
+    header = (ROOT / "src/algid/_generated/c/algid_msd.h").read_text()
     doubles = int(re.search(r"#define ALGID_MSD_STATE_DOUBLES (\d+)", header).group(1))
     assert c._size() == 8 * doubles
     assert c.init(state, 1e-3, 0.2) == 0

@@ -1,4 +1,4 @@
-"""Tests of algid.sensitivity, algid.cramer_rao and algid.efficiency.
+"""Tests of the sensitivities, the Cramér–Rao bound and the efficiency study (algid.estimation).
 
 The Monte Carlo comparison of the bound with the efficient (refined) estimator is in
 tests/test_refine.py.
@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 from msd_reference import analytic_response
 
-from algid.cramer_rao import covariance_from_sensitivities, crlb, fisher_information
 from algid.errors import InputDataError
-from algid.sensitivity import SENSITIVITY_PARAMETERS, output_sensitivities
+from algid.estimation._cramer_rao import covariance_from_sensitivities, crlb, fisher_information
+from algid.estimation._sensitivity import SENSITIVITY_PARAMETERS, output_sensitivities
 
 EPS = np.finfo(float).eps
 TRUE = dict(B=2.0, K=3.0, x0=0.05, v0=-0.1)
@@ -131,7 +131,7 @@ def test_unidentifiable_data_are_rejected():
 
 
 def test_study_rows_are_consistent():
-    from algid.efficiency import crlb_study, format_study
+    from algid.estimation._efficiency import crlb_study, format_study
 
     rows = crlb_study(n_runs=3, horizons=(0.5, 1.0), inputs=("sine",), seed=5)
     assert [(r["horizon"], r["method"]) for r in rows] == [

@@ -7,16 +7,16 @@ import math
 import numpy as np
 import pytest
 
-from algid.differentiation import (
+from algid._generated.differentiator_kernels import KERNELS
+from algid.errors import InputDataError
+from algid.signals._differentiation import (
     algebraic_derivative,
     differentiator_delay,
     differentiator_response,
 )
-from algid.errors import InputDataError
-from algid.generated.differentiator_kernels import KERNELS
 
 sp = pytest.importorskip("sympy", reason="needs the 'derive' extra")
-from algid.symbolic.differentiator import differentiator_kernel, jacobi_kernel, u  # noqa: E402
+from algid.symbolic._differentiator import differentiator_kernel, jacobi_kernel, u  # noqa: E402
 
 SAMPLE = [(1, 2, 2, 1), (1, 0, 0, 1), (0, 3, 1, 2), (2, 1, 4, 3), (3, 6, 6, 5),
           (1, 4, 4, 3), (2, 0, 6, 2), (5, 2, 3, 7)]

@@ -8,8 +8,8 @@ import math
 import numpy as np
 import pytest
 
-from algid import differentiation
-from algid.differentiation import CausalDifferentiator, algebraic_derivative
+from algid.signals import _differentiation as differentiation
+from algid.signals._differentiation import CausalDifferentiator, algebraic_derivative
 
 
 def direct_taps(steps, n, kappa, mu, N, at):

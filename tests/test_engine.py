@@ -1,4 +1,4 @@
-"""The estimator core (algid.core): one state, the NumPy and numba backends, chunking.
+"""The estimator core (algid.estimation._core): one state, the NumPy and numba backends, chunking.
 
 The numba-specific tests are skipped when numba is not installed; the option handling
 of ``estimate(engine=...)`` is tested either way.
@@ -9,11 +9,13 @@ import sys
 import numpy as np
 import pytest
 
-from algid import backends, core
+from algid.estimation import _backends as backends
+
+from algid.estimation import _core as core
 from algid.errors import InputDataError
-from algid.estimator import estimate
-from algid.registry import load_model
-from algid.validation import check_experiment
+from algid.estimation._batch import estimate
+from algid.models._registry import load_model
+from algid._signal_checks import check_experiment
 
 from conftest import exact_response
 
@@ -152,7 +154,7 @@ def test_random_chunks_equal_one_chunk(data, model, backend):
 
 
 def test_numpy_blocks_do_not_change_the_numbers(data, monkeypatch):
-    from algid import core_numpy
+    from algid.estimation import _core_numpy as core_numpy
     t, f, x = data
     dt = t[1] - t[0]
     whole, _ = core.advance(_state("msd", 6, 2, dt), (f, x))
@@ -176,7 +178,7 @@ def test_numpy_small_chunks_are_bit_identical(monkeypatch, on_floats):
     performs correlate's and cumsum's operations in the same order, so any mixture of
     tiny and large chunks gives the numbers of one chunk, bit for bit, on random
     signals over 24 orders of magnitude (also with the model algebra on arrays)."""
-    from algid import core_numpy
+    from algid.estimation import _core_numpy as core_numpy
     if not on_floats:
         monkeypatch.setattr(core_numpy, "_algebra_on_floats", lambda module: False)
     rng = np.random.default_rng(11)
@@ -195,7 +197,7 @@ def test_numpy_small_chunks_are_bit_identical(monkeypatch, on_floats):
 def test_numpy_sample_step_matches_correlate_here():
     """The per-sample step is exact on this platform (else the backend would not use
     it, and the test above would still pass through the block path)."""
-    from algid import core_numpy
+    from algid.estimation import _core_numpy as core_numpy
     assert core_numpy.sample_step_is_exact()
 
 
@@ -331,7 +333,7 @@ def _bad_experiments(t, f, x):
 
 def test_compiled_check_agrees_with_check_experiment(data):
     _numba()
-    from algid.validation_numba import check_experiment_compiled
+    from algid._signal_checks_numba import check_experiment_compiled
     t, f, x = data
     ok = check_experiment_compiled(t, f, x, min_samples=12)
     assert ok[0] is t and ok[1] is f and ok[2] is x
@@ -377,9 +379,9 @@ def test_deprecated_engine_interface(data):
     from algid import engine
     t, f, x = data
     dt = t[1] - t[0]
-    with pytest.warns(DeprecationWarning, match="algid.core"):
+    with pytest.warns(DeprecationWarning, match="algid.estimation._core"):
         state = engine.make_state(load_model("msd"), 6, 2, step=dt, input_divisor=2.0)
-    with pytest.warns(DeprecationWarning, match="algid.core"):
+    with pytest.warns(DeprecationWarning, match="algid.estimation._core"):
         got = engine.run_chunk(state, 2.0 * f, x)
     np.testing.assert_array_equal(got, core.advance(_state("msd", 6, 2, dt), (f, x),
                                                     backend="numba")[0])

@@ -13,9 +13,10 @@ from scipy.integrate import quad
 from algid.cli import main
 from algid.symbolic import TIME as t
 from algid.symbolic import IteratedIntegral as I
-from algid.symbolic import derive, errata
-from algid.symbolic.models import builtin_model
-from algid.symbolic.realization import (
+from algid.symbolic import _errata as errata
+from algid.symbolic import derive
+from algid.symbolic._builtin_models import builtin_model
+from algid.symbolic._realization import (
     entries,
     integrate_from_zero,
     kernel_terms,
@@ -233,7 +234,7 @@ def test_realization_response_on_a_closed_form_trajectory(msd, closed_form, layo
 
 
 def test_chains_agree_with_the_generated_module(msd, closed_form):
-    from algid.generated import msd as generated
+    from algid._generated import msd as generated
 
     real = realize(msd, layout="chains")
     assert real.chains == generated.CHAINS

@@ -5,7 +5,7 @@ import pytest
 
 import algid
 from algid.errors import InputDataError, ModelError
-from algid.estimator import estimate
+from algid.estimation._batch import estimate
 from algid.simulation import simulate
 
 PAPER = dict(m=1.0, c=2.0, k=3.0)

@@ -1,4 +1,4 @@
-"""Tests of algid.filters and of the ``lowpass`` option of algid.estimate."""
+"""Tests of algid.signals._filters and of the ``lowpass`` option of algid.estimate."""
 
 import numpy as np
 import pytest
@@ -6,9 +6,9 @@ import scipy.signal
 from msd_reference import analytic_response
 
 from algid.errors import InputDataError
-from algid.estimator import estimate
-from algid.filters import as_lowpass, lti_response
-from algid.quadrature import cumulative_integral
+from algid.estimation._batch import estimate
+from algid.signals._filters import as_lowpass, lti_response
+from algid.signals._quadrature import cumulative_integral
 
 EPS = np.finfo(float).eps
 H = 1e-3

@@ -4,8 +4,8 @@ import numpy as np
 import pytest
 
 from algid.errors import ModelError
-from algid.expression import ONE, Call, Constant, Power, Product, Signal, Time
-from algid.grammar import parse_equation
+from algid.models._expression import ONE, Call, Constant, Power, Product, Signal, Time
+from algid.models._grammar import parse_equation
 
 
 def terms_of(model):

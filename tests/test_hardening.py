@@ -12,11 +12,11 @@ import scipy.sparse
 from conftest import assert_one_line_error
 
 import algid
-import algid.memory
+import algid._memory
 from algid.cli import main
 from algid.errors import AlgidError, DataFileError, InputDataError
+from algid.estimation._options import MAX_FILTER_ORDER
 from algid.io import read_experiment
-from algid.options import MAX_FILTER_ORDER
 
 TRUE = {"B": 2.0, "K": 3.0}
 
@@ -99,15 +99,15 @@ def test_data_file_too_large_for_memory(capsys, tmp_path, sine, monkeypatch):
     scipy.io.savemat(mat, {"t": sine.t, "f": sine.f, "x": sine.x})
     size = path.stat().st_size
     # the file is refused when reading it would need more than the memory available
-    monkeypatch.setattr(algid.memory, "available_memory", lambda: 4 * size)
+    monkeypatch.setattr(algid._memory, "available_memory", lambda: 4 * size)
     with pytest.raises(DataFileError, match="too large to read"):
         read_experiment(path)
     code, _, err = run(capsys, "estimate", str(path))
     assert_one_line_error(code, err, "d.csv", "too large to read", "available")
-    monkeypatch.setattr(algid.memory, "available_memory", lambda: mat.stat().st_size)
+    monkeypatch.setattr(algid._memory, "available_memory", lambda: mat.stat().st_size)
     with pytest.raises(DataFileError, match="too large to read"):
         read_experiment(mat)
-    monkeypatch.setattr(algid.memory, "available_memory", lambda: 7 * size)
+    monkeypatch.setattr(algid._memory, "available_memory", lambda: 7 * size)
     assert read_experiment(path)[0].size == sine.t.size
 
 
@@ -266,9 +266,9 @@ def test_legitimate_short_or_lightly_excited_records_are_accepted():
     settled = algid.simulate("step", duration=200.0)
     assert_close(algid.estimate(settled.t, settled.f, settled.x).final(), TRUE, 1e-6)
     # the moments (lowpass path) and the estimator's own integrals agree
-    from algid import core
-    from algid.identifiability import undetermined
-    from algid.registry import load_model
+    from algid.estimation import _core as core
+    from algid.estimation._identifiability import undetermined
+    from algid.models._registry import load_model
     module = load_model("msd_mass")
     state = core.new_state(module, points=6, filter_order=2, dt=1e-3)
     core.advance(state, (settled.f, settled.x))
@@ -303,7 +303,7 @@ def test_masked_samples_and_booleans_are_refused(sine):
 
 
 def test_masked_samples_are_missing_for_identify():
-    from algid.records import prepare_records
+    from algid.identification._records import prepare_records
 
     t = np.arange(400) * 1e-2
     y = np.ma.masked_array(np.sin(t))

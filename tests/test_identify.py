@@ -239,7 +239,7 @@ def test_output_drift_is_a_parameter_of_time():
 def test_noise_products_are_the_covariance_of_window_integrals():
     """window_noise_products gives sum_n g1[n] g2[n] s[n], where g are the weights the
     window integrals apply to the samples (read off by integrating unit impulses)."""
-    from algid.window_kernels import (
+    from algid.identification._window_kernels import (
         uniform_window_integrals,
         window_integrals,
         window_noise_products,
@@ -287,10 +287,10 @@ def test_noise_meat_is_the_covariance_of_the_window_equations_noise(uniform):
     """The analytic middle of the sandwich equals ``G M M^T G^T``, with ``M`` the map
     from output noise samples to the window equations built impulse by impulse (a cubic
     term: first order, through the sensitivity ``3 y^2``)."""
-    from algid.grammar import parse_equation
-    from algid.identification import WINDOW_OVERLAP, _Problem
-    from algid.records import prepare_records
-    from algid.window_covariance import noise_meat
+    from algid.identification._identify import WINDOW_OVERLAP, _Problem
+    from algid.identification._records import prepare_records
+    from algid.identification._window_covariance import noise_meat
+    from algid.models._grammar import parse_equation
 
     record, truth = cubic_spring(3, n=160)
     record = dict(record, y=10.0 * record["y"])   # noise in the output's power of two
@@ -336,7 +336,7 @@ def test_sign_samples_integrate_the_step_at_its_place():
     """Trapezoid sums of a smooth weight times ``sign(v)``: with the corrected samples
     the error at 10 samples per period of ``v`` is second order, far below the plain
     samples' first-order error (the step counted halfway between two samples)."""
-    from algid.window_kernels import sign_samples
+    from algid.identification._window_kernels import sign_samples
 
     def weighted_integral(t, z):
         g = np.exp(-t) * (1 + t)
@@ -367,7 +367,7 @@ def test_noise_covariance_only_where_the_residuals_agree_with_it(monkeypatch):
     noise model's is used."""
     from scipy.signal import lsim
 
-    from algid import identification
+    from algid.identification._identify import _identify as identification
 
     t = np.arange(4000) * 1e-3
     rng = np.random.default_rng(1)
@@ -393,9 +393,9 @@ def test_noise_meat_counts_the_noise_of_the_refined_crossings():
     the sandwich is ``sum_n G_n G_n^T`` with ``G_n`` built window by window: the
     direct weights of sample n, plus, for the samples of a crossing's fit, the score of
     every window holding the crossing times the move of its integral."""
-    from algid import identification
-    from algid.window_covariance import noise_meat
-    from algid.window_kernels import term_kernel, window_sample_weights
+    from algid.identification._identify import _identify as identification
+    from algid.identification._window_covariance import noise_meat
+    from algid.identification._window_kernels import term_kernel, window_sample_weights
 
     captured = {}
     solve = identification._solve

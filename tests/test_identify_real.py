@@ -8,7 +8,7 @@ import pytest
 
 import algid
 from algid import datasets
-from algid.grammar import parse_equation
+from algid.models._grammar import parse_equation
 
 SILVERBOX_RATE = 610.35
 SILVERBOX_EQUATION = "V2'' + B*V2' + K*V2 + K3*V2**3 = G*V1 + d"

@@ -298,14 +298,14 @@ def test_gzip_csv_too_large_for_memory_is_refused_by_its_decompressed_size(
         tmp_path, monkeypatch):
     import gzip
 
-    import algid.memory
+    import algid._memory
 
     text = "t,f,x\n" + "0.5,1,2\n" * 20000
     packed = tmp_path / "big.csv.gz"
     packed.write_bytes(gzip.compress(text.encode()))
     assert packed.stat().st_size * 100 < len(text)  # the file's own size would pass
-    monkeypatch.setattr(algid.memory, "available_memory", lambda: 6 * len(text) - 6)
+    monkeypatch.setattr(algid._memory, "available_memory", lambda: 6 * len(text) - 6)
     with pytest.raises(DataFileError, match="big.csv.gz: too large to read: its decompressed"):
         read_experiment(packed)
-    monkeypatch.setattr(algid.memory, "available_memory", lambda: 6 * len(text))
+    monkeypatch.setattr(algid._memory, "available_memory", lambda: 6 * len(text))
     assert read_experiment(packed)[0].size == 20000

@@ -2,8 +2,8 @@
 
 import pytest
 
-from algid.expression import ONE, Call, Constant, Power, Product, Signal, Sum, Time
-from algid.grammar import parse_equation
+from algid.models._expression import ONE, Call, Constant, Power, Product, Signal, Sum, Time
+from algid.models._grammar import parse_equation
 
 
 def test_model_properties_of_the_msd():
@@ -38,7 +38,7 @@ def test_models_are_immutable():
 
 
 def test_builtin_models_convert_to_a_model():
-    from algid.symbolic.models import builtin_model
+    from algid.symbolic._builtin_models import builtin_model
 
     m = builtin_model("msd_mass").to_model()
     assert m.parameters == ("m", "c", "k") and m.output == "x" and m.inputs == ("F",)

@@ -1,4 +1,4 @@
-"""Accurate simulation of user models (algid.model_simulation)."""
+"""Accurate simulation of user models (algid.simulation._model)."""
 
 from __future__ import annotations
 
@@ -7,8 +7,8 @@ import pytest
 from scipy.integrate import solve_ivp
 
 from algid.errors import InputDataError, ModelError
-from algid.grammar import parse_equation
-from algid.model_simulation import fit_initial_state, simulate_model
+from algid.models._grammar import parse_equation
+from algid.simulation._model import fit_initial_state, simulate_model
 
 LINEAR = parse_equation("x'' + B*x' + K*x = f", ["B", "K"])
 
@@ -200,7 +200,7 @@ def test_fixed_step_rk4_option():
 
 
 def test_deprecated_ode_simulation_aliases():
-    from algid import ode_simulation
+    from algid.simulation import _output_equation as ode_simulation
 
     t, f, x = exact_response("sine", B=2.0, K=3.0, duration=2.0, rate=200.0, omega=7.0)
     equation = ode_simulation.OutputEquation(LINEAR, {"B": 2.0, "K": 3.0})

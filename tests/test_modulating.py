@@ -5,8 +5,13 @@ import numpy as np
 import pytest
 import sympy as sp
 
-from algid.generated.modulating import MAX_MULTIPLICITY, TERM_KERNELS
-from algid.symbolic.modulating import (
+from algid._generated.modulating import MAX_MULTIPLICITY, TERM_KERNELS
+from algid.identification._window_kernels import (
+    term_kernel,
+    uniform_window_integrals,
+    window_integrals,
+)
+from algid.symbolic._modulating import (
     T,
     tau,
     term_kernel_from_laplace,
@@ -14,7 +19,6 @@ from algid.symbolic.modulating import (
     u,
     unit_term_kernel,
 )
-from algid.window_kernels import term_kernel, uniform_window_integrals, window_integrals
 
 
 @pytest.mark.parametrize("a", [1, 2, 4])

@@ -8,8 +8,8 @@ import pytest
 pytest.importorskip("numba")
 pytest.importorskip("sympy")
 
-from algid import core_numba  # noqa: E402
-from algid.user_models import compile_equation  # noqa: E402
+from algid.estimation import _core_numba as core_numba  # noqa: E402
+from algid.models._compiled import compile_equation  # noqa: E402
 
 
 def test_compilation_is_announced_unless_the_machine_code_is_cached(tmp_path, monkeypatch,

@@ -1,4 +1,4 @@
-"""The a-posteriori numerical error of the estimates (algid.numerical_error)."""
+"""The a-posteriori numerical error of the estimates (algid.estimation._numerical_error)."""
 
 import math
 import sys
@@ -8,9 +8,10 @@ import pytest
 from conftest import ROOT
 
 import algid
-from algid import backends, cli
-from algid.numerical_error import companion_options, relative_difference, with_companion
-from algid.registry import load_model
+from algid import cli
+from algid.estimation import _backends as backends
+from algid.estimation._numerical_error import companion_options, relative_difference, with_companion
+from algid.models._registry import load_model
 
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
@@ -135,7 +136,8 @@ def test_stream_gives_the_batch_numerical_error_bit_for_bit(engine, reset_period
 def test_one_sample_at_a_time_gives_the_whole_chunk_bit_for_bit(engine, reset_period,
                                                                   constant, options, amplitude):
     """The one-sample path (OnlineEstimator.update of floats, the steps of
-    algid.numerical_error.sample_stepper) gives the estimates, numerical errors and state
+    algid.estimation._numerical_error.sample_stepper) gives the estimates, numerical errors and
+    state
     of one chunk, across the start-up, the identifiability checks at 64 and 128 samples
     and the restarts of re-anchoring; with a known mass, and with samples scaled."""
     t = np.arange(300) * 1e-3
@@ -172,7 +174,7 @@ def test_one_sample_at_a_time_gives_the_whole_chunk_bit_for_bit(engine, reset_pe
 @pytest.mark.parametrize("name", list(CASES))
 def test_nan_before_the_first_estimate_and_honest_from_it(name):
     """The companion reports as early as the estimator (both from sample 5, by the
-    early rules of :func:`algid.core.first_estimate`), and the error it gives bounds
+    early rules of :func:`algid.estimation._core.first_estimate`), and the error it gives bounds
     the actual one within 10x at every sample from the first estimate on."""
     p = CASES[name]
     r = algid.estimate(*exact_response(p))
@@ -186,7 +188,7 @@ def test_nan_before_the_first_estimate_and_honest_from_it(name):
 
 @pytest.mark.parametrize("engine", ENGINES)
 def test_undetermined_parameters_are_nan_with_an_infinite_error_in_a_stream(engine):
-    """No dynamics to see: batch refuses the record (algid.identifiability); a stream
+    """No dynamics to see: batch refuses the record (algid.estimation._identifiability); a stream
     checks what its samples determine at 64, 128, ... samples from its origin and
     reports the undetermined parameters as NaN, with an infinite numerical error, from
     each check to the next, in any chunking."""
@@ -238,7 +240,7 @@ def test_a_stream_that_becomes_excited_is_judged_again(quiet, undetermined_until
 
 
 def test_next_check():
-    from algid.numerical_error import CHECK_EVERY, FIRST_CHECK, next_check
+    from algid.estimation._numerical_error import CHECK_EVERY, FIRST_CHECK, next_check
     assert (FIRST_CHECK, CHECK_EVERY) == (64, 65536)
     assert [next_check(n) for n in (0, 7, 63, 64, 65, 127, 128, 1000, 1024, 65535)] == \
         [64, 64, 64, 128, 128, 128, 256, 1024, 2048, 65536]
@@ -275,7 +277,7 @@ def test_options_and_paths():
 
 
 def test_user_model_has_a_numerical_error():
-    from algid.user_models import compile_equation
+    from algid.models._compiled import compile_equation
 
     p = CASES["moderate damping, 60 samples/period"]
     t, f, x = exact_response(p)
@@ -307,7 +309,7 @@ def test_cli_reports_it_and_warns_when_large(tmp_path, capsys):
 
 
 def test_window_maximum_is_exact_and_chunk_invariant():
-    from algid.numerical_error import WINDOW, window_maximum
+    from algid.estimation._numerical_error import WINDOW, window_maximum
 
     rng = np.random.default_rng(3)
     raw = rng.random(200)
@@ -358,7 +360,12 @@ def _error_cases():
 
 def test_scalar_numerical_error_equals_the_arrays():
     """Chunks of a few samples on the NumPy backend take a float path: same numbers."""
-    from algid.numerical_error import SCALAR_SAMPLES, WINDOW, _block_error, window_maximum
+    from algid.estimation._numerical_error import (
+        SCALAR_SAMPLES,
+        WINDOW,
+        _block_error,
+        window_maximum,
+    )
 
     est, comp = _error_cases()
     expected = np.empty(est.shape[1])
@@ -380,8 +387,8 @@ def test_scalar_numerical_error_equals_the_arrays():
 
 @pytest.mark.skipif(len(ENGINES) < 2, reason="needs numba")
 def test_compiled_numerical_error_equals_numpy():
-    from algid.numerical_error import WINDOW, window_maximum
-    from algid.numerical_error_numba import block_error as numerical_error
+    from algid.estimation._numerical_error import WINDOW, window_maximum
+    from algid.estimation._numerical_error_numba import block_error as numerical_error
 
     est, comp = _error_cases()
     expected = np.empty(300)
@@ -395,7 +402,7 @@ def test_compiled_numerical_error_equals_numpy():
             at += n
         np.testing.assert_array_equal(np.concatenate(got), expected)
     # one sample at a time, as the one-sample step of the generated loops computes it
-    from algid.numerical_error_numba import sample_error
+    from algid.estimation._numerical_error_numba import sample_error
     recent, got = np.zeros(WINDOW - 1), np.empty(300)
     for j in range(300):
         sample_error(est[:, j:j + 1], comp[:, j:j + 1], recent, got[j:j + 1])
@@ -404,12 +411,14 @@ def test_compiled_numerical_error_equals_numpy():
 
 @pytest.mark.skipif(len(ENGINES) < 2, reason="needs numba")
 def test_compiled_channel_extent_equals_numpy():
-    from algid.numerical_error import _track_channels
-    from algid.numerical_error_numba import sample_extent, track_extent
+    from algid.estimation._numerical_error import _track_channels
+    from algid.estimation._numerical_error_numba import sample_extent, track_extent
 
     rng = np.random.default_rng(5)
-    state = with_companion(algid.core.new_state(load_model("msd"), points=8, filter_order=2,
-                                                dt=1e-3, divisors=np.array([3.0, 1.0])))
+    from algid.estimation import _core as core
+
+    state = with_companion(core.new_state(load_model("msd"), points=8, filter_order=2,
+                                          dt=1e-3, divisors=np.array([3.0, 1.0])))
     compiled = state.copy()
     for size in (1, 5, 300, 2):
         rows = tuple(rng.standard_normal(size) * 10.0 ** rng.integers(-3, 3)

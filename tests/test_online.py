@@ -1,4 +1,4 @@
-"""Tests of algid.online: the streaming estimator and the re-anchoring of its origin.
+"""Tests of algid.estimation._online: the streaming estimator and the re-anchoring of its origin.
 
 Most tests run with both engines (the ``engine`` fixture); those of the compiled engine
 are skipped when numba is not installed.
@@ -9,11 +9,11 @@ import math
 import numpy as np
 import pytest
 
-from algid import backends
+from algid.estimation import _backends as backends
 from algid.errors import InputDataError, ModelError
-from algid.estimator import estimate, load_model
-from algid.online import TRACKING_RESET_PERIOD, OnlineEstimator, run_stream
-from algid.reanchoring import anchor_plan
+from algid.estimation._batch import estimate, load_model
+from algid.estimation._online import TRACKING_RESET_PERIOD, OnlineEstimator, run_stream
+from algid.estimation._reanchoring import anchor_plan
 from algid.simulation import simulate
 
 from conftest import exact_response
@@ -239,7 +239,7 @@ def test_restarted_estimators_skip_the_early_rules_they_do_not_report(engine, mo
     """A re-anchored estimator is reported only half a period after its restart, so it
     skips the early estimates of samples 5 .. q-2 (integrations by the rules of 6 and 7
     points): the reported estimates and errors are those computed with them."""
-    from algid import core
+    from algid.estimation import _core as core
 
     t, f, x = _record(duration=0.3)
     est = OnlineEstimator(rate=EXACT_RATE, reset_period=0.0488, engine=engine)

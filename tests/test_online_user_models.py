@@ -13,8 +13,8 @@ from scipy.integrate import solve_ivp
 
 import algid
 from algid.errors import InputDataError
-from algid.online import OnlineEstimator
-from algid.user_models import compile_equation
+from algid.estimation._online import OnlineEstimator
+from algid.models._compiled import compile_equation
 
 # a step exact in binary: the step the batch estimator infers from any part of a
 # record, (t[-1] - t[0]) / (n - 1), is the stream's step to the last bit
@@ -304,7 +304,7 @@ def test_empty_chunks_and_scalars_with_a_derivative_factor(friction):
 
 
 def test_causal_differentiator_carries_its_window_across_chunks():
-    from algid.differentiation import CausalDifferentiator, algebraic_derivative
+    from algid.signals._differentiation import CausalDifferentiator, algebraic_derivative
 
     rng = np.random.default_rng(3)
     y = np.sin(7e-3 * np.arange(700)) + 1e-3 * rng.standard_normal(700)
@@ -325,8 +325,9 @@ def test_run_stream_takes_signal_chunks(cubic):
     t, signals = _cubic_record(duration=2.0)
     chunks = ((t[i:i + 128], {n: v[i:i + 128] for n, v in signals.items()})
               for i in range(0, t.size, 128))
-    summary = algid.online.run_stream(OnlineEstimator(cubic, rate=RATE, engine=ENGINE), chunks,
-                                      true_values=CUBIC_TRUE, settle_time=1.0)
+    estimator = OnlineEstimator(cubic, rate=RATE, engine=ENGINE)
+    summary = algid.estimation._online.run_stream(estimator, chunks,
+                                                  true_values=CUBIC_TRUE, settle_time=1.0)
     assert summary["n_samples"] == t.size and summary["n_undefined"] == 0
     # noise-free, filter order 2, over t >= 1 s: measured 1.8e-7 (K3), 3e-9 (the others)
     assert max(summary["max_rel_error"].values()) < 1e-6

@@ -181,7 +181,7 @@ def test_convergence_helpers():
     # accuracy() on a hand-made result: B enters the 1 % band at 0.3 s and stays
     import numpy as np
 
-    from algid.result import EstimationResult
+    from algid.estimation._result import EstimationResult
 
     t = np.linspace(0.0, 1.0, 11)
     B = np.where(t < 0.25, 3.0, 2.01)

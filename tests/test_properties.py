@@ -25,11 +25,11 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 import algid
-from algid import error_diagnosis
 from algid.errors import AlgidError
-from algid.expression import FUNCTIONS
-from algid.grammar import parse_equation
-from algid.model import Model
+from algid.estimation import _error_diagnosis as error_diagnosis
+from algid.models._expression import FUNCTIONS
+from algid.models._grammar import parse_equation
+from algid.models._model import Model
 
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))

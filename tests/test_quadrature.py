@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from algid.quadrature import (QUADRATURE_POINTS, advance_integrators, cumulative_integral,
+from algid.signals._quadrature import (QUADRATURE_POINTS, advance_integrators, cumulative_integral,
                               integrator_weights, iterated_integrals, rule_weights,
                               startup_samples)
 

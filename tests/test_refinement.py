@@ -1,13 +1,13 @@
-"""Tests of algid.refinement (output-error Gauss–Newton refinement)."""
+"""Tests of algid.estimation._refinement (output-error Gauss–Newton refinement)."""
 
 import numpy as np
 import pytest
 import scipy.stats
 from msd_reference import analytic_response
 
-from algid.cramer_rao import crlb
 from algid.errors import InputDataError
-from algid.refinement import RefinementResult, refine
+from algid.estimation._cramer_rao import crlb
+from algid.estimation._refinement import RefinementResult, refine
 
 X0, V0 = 0.05, -0.1
 TRUE = {"B": 2.0, "K": 3.0, "x0": X0, "v0": V0}
@@ -94,7 +94,7 @@ def test_refined_rmse_attains_the_crlb(kind):
     # algebraic start.  For an efficient unbiased estimator with Gaussian errors,
     # n * (RMSE / CRLB)**2 is chi-square with n degrees of freedom; the band below
     # holds with probability 1 - 1e-3 per parameter.  (A study with 1000 runs puts
-    # the ratios at 0.97 .. 1.03, see algid.efficiency.crlb_study.)
+    # the ratios at 0.97 .. 1.03, see algid.estimation._efficiency.crlb_study.)
     n, sigma = 30, 0.01
     lo, hi = np.sqrt(scipy.stats.chi2.ppf([5e-4, 1 - 5e-4], n) / n)
     t, f, x_true = _data(kind, duration=2.5)

@@ -6,7 +6,7 @@ from matplotlib.mathtext import MathTextParser
 from algid.cli import main
 from algid.errors import ModelError
 from algid.symbolic import LinearODEModel
-from algid.symbolic.report import derivation_report, display_equations
+from algid.symbolic._report import derivation_report, display_equations
 
 USER_MODEL = LinearODEModel.from_equation("y'' + a*y' + b*y = u' + u", parameters="a b",
                                           input="u", output="y", name="user")

@@ -8,11 +8,11 @@ import pytest
 from conftest import ROOT
 
 import algid
-from algid.differentiation import algebraic_derivative
-from algid.expression import Call, Signal
-from algid.grammar import parse_equation
-from algid.sign_crossings import crossing_jumps, crossing_motion, refine_crossings
-from algid.window_kernels import sign_samples, step_window_integrals, term_kernel
+from algid.identification._sign_crossings import crossing_jumps, crossing_motion, refine_crossings
+from algid.identification._window_kernels import sign_samples, step_window_integrals, term_kernel
+from algid.models._expression import Call, Signal
+from algid.models._grammar import parse_equation
+from algid.signals._differentiation import algebraic_derivative
 
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))

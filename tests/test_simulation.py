@@ -254,7 +254,7 @@ def test_sine_near_resonance(duration):
 def test_transition_matrix_against_high_precision(B, K):
     from mpmath import mp
 
-    from algid.simulation.responses import transition_matrices
+    from algid.simulation._responses import transition_matrices
 
     mp.dps = 40
     A = np.array([[0.0, 1.0], [-K, -B]])

@@ -1,4 +1,4 @@
-"""Simulation across the switches of sign() of the simulated state (algid.switching):
+"""Simulation across the switches of sign() of the simulated state (algid.simulation._switching):
 stick-slip against its closed form, and the bound on the integrator's work."""
 
 from __future__ import annotations
@@ -7,10 +7,10 @@ import numpy as np
 import pytest
 from scipy.optimize import brentq
 
-from algid import model_simulation
 from algid.errors import ModelError
-from algid.grammar import parse_equation
-from algid.model_simulation import simulate_model
+from algid.models._grammar import parse_equation
+from algid.simulation import _model as model_simulation
+from algid.simulation._model import simulate_model
 
 FRICTION = parse_equation("M*q'' + Fv*q' + Fc*sign(q') + off = F", "M Fv Fc off")
 

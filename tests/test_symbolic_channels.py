@@ -7,10 +7,10 @@ whatever its initial conditions, and must not vanish for wrong parameters.
 
 import sympy as sp
 
-from algid.grammar import parse_equation
+from algid.models._grammar import parse_equation
 from algid.symbolic import TIME as t
 from algid.symbolic import derive, evaluate_kernel
-from algid.symbolic.channels import ChannelModel, channel_names
+from algid.symbolic._channels import ChannelModel, channel_names
 
 
 def _residual(derivation, signals, values):

@@ -7,7 +7,7 @@ import sympy as sp
 from algid.errors import ModelError
 from algid.symbolic import TIME as t
 from algid.symbolic import IteratedIntegral, LinearODEModel, derive, evaluate_kernel
-from algid.symbolic.models import builtin_model
+from algid.symbolic._builtin_models import builtin_model
 
 
 def _exact_trajectory(model, values, forcing, ics):

@@ -6,7 +6,7 @@ from scipy.integrate import solve_ivp
 
 import algid
 from algid.errors import InputDataError, ModelError
-from algid.user_models import compile_equation
+from algid.models._compiled import compile_equation
 
 TRUE = {"B": 0.8, "K": 9.0, "K3": 2.0, "G": 1.5, "d": 0.3}
 

@@ -1,10 +1,10 @@
-"""Tests of algid.validation: signal checks made before estimation."""
+"""Tests of algid._signal_checks: signal checks made before estimation."""
 
 import numpy as np
 import pytest
 
+from algid._signal_checks import as_signal, check_experiment
 from algid.errors import AlgidError, InputDataError
-from algid.validation import as_signal, check_experiment
 
 
 def experiment(n=100, h=1e-3):

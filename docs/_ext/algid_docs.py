@@ -46,7 +46,7 @@ ROOT = DOCS.parent
 
 #: Modules that are not API: the command line (its own page, from the parser),
 #: generated code and ``python -m algid``; the same as tests/test_docstrings.py.
-SKIPPED_MODULES = ("algid.cli", "algid.__main__", "algid.generated")
+SKIPPED_MODULES = ("algid.cli", "algid.__main__", "algid._generated")
 
 
 # --------------------------------------------------------------------------- the API
@@ -346,12 +346,12 @@ def latex_of(obj):
 
 
 class ErrataDirective(Directive):
-    """The errata of the paper, computed by :mod:`algid.symbolic.errata`."""
+    """The errata of the paper, computed by :mod:`algid.symbolic._errata`."""
 
     option_spec = {}
 
     def run(self):
-        from algid.symbolic.errata import PRINTED
+        from algid.symbolic._errata import PRINTED
 
         env = self.state.document.settings.env
         verdicts = [(entry, *entry.evaluate(PRINTED)) for entry in PRINTED]

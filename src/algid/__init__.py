@@ -1,24 +1,30 @@
 """algid: algebraic identification of continuous-time linear systems.
 
-The estimator (:func:`estimate`) needs only NumPy and SciPy.  Simulation needs
-python-control (``algid[simulate]``), the symbolic derivation SymPy (``algid[derive]``),
-figures matplotlib (``algid[plot]``).
+The names a user needs are here: :func:`estimate` and :class:`OnlineEstimator` (the
+paper's estimator), :func:`identify` (your own equation on measured records),
+:func:`compile_equation`, :func:`simulate` and :func:`simulate_model`, the errors.  The
+subpackages hold the rest by concept: :mod:`algid.models`, :mod:`algid.estimation`,
+:mod:`algid.identification`, :mod:`algid.simulation`, :mod:`algid.signals`,
+:mod:`algid.symbolic` (SymPy), :mod:`algid.paper`, with :mod:`algid.io`,
+:mod:`algid.datasets` and :mod:`algid.plotting`.
+
+The estimator needs only NumPy and SciPy.  The plant simulator needs python-control
+(``algid[simulate]``), the symbolic derivation SymPy (``algid[derive]``), figures
+matplotlib (``algid[plot]``).
 """
 
-from algid.cramer_rao import crlb
 from algid.errors import AlgidError, DataFileError, InputDataError, ModelError
-from algid.estimator import available_models, estimate
-from algid.identification import identify
-from algid.identification_result import IdentificationResult
-from algid.online import OnlineEstimator
-from algid.refinement import refine
-from algid.result import EstimationResult
+from algid.estimation import EstimationResult, OnlineEstimator, crlb, estimate, refine
+from algid.identification import IdentificationResult, identify
+from algid.models import available_models, compile_equation
+from algid.simulation import simulate_model
 
 __version__ = "0.1.0"
 
-__all__ = ["estimate", "simulate", "available_models", "EstimationResult", "OnlineEstimator",
-           "AlgidError", "InputDataError", "DataFileError", "ModelError", "__version__",
-           "refine", "crlb", "identify", "IdentificationResult"]
+__all__ = ["estimate", "OnlineEstimator", "EstimationResult", "identify",
+           "IdentificationResult", "compile_equation", "available_models", "simulate",
+           "simulate_model", "refine", "crlb", "AlgidError", "InputDataError",
+           "DataFileError", "ModelError", "__version__"]
 
 
 def __getattr__(name):

@@ -1,6 +1,6 @@
 """Run the algid command line: ``python -m algid``."""
 
-from .cli import main
+from algid.cli import main
 
 if __name__ == "__main__":
     raise SystemExit(main())

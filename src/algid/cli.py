@@ -18,8 +18,8 @@ import math
 import re
 import sys
 
-from .errors import AlgidError, InputDataError, ModelError
-from .options import DEFAULT_QUADRATURE_POINTS, MAX_FILTER_ORDER
+from algid.errors import AlgidError, InputDataError, ModelError
+from algid.estimation._options import DEFAULT_QUADRATURE_POINTS, MAX_FILTER_ORDER
 
 __all__ = ["main", "build_parser"]
 
@@ -369,9 +369,9 @@ def _finite_or_none(value):
 
 
 def _cmd_estimate(args) -> int:
-    from .error_diagnosis import numerical_error_warning
-    from .io import read_experiment
-    from .validation import check_experiment
+    from algid._signal_checks import check_experiment
+    from algid.estimation._error_diagnosis import numerical_error_warning
+    from algid.io import read_experiment
 
     time = "t" if args.time is None else args.time
     named = {"--input": args.input, "--output": args.output}
@@ -398,7 +398,7 @@ def _cmd_estimate(args) -> int:
     except InputDataError as exc:
         raise InputDataError(f"{args.file}: {exc}") from None
 
-    estimator = importlib.import_module("algid.estimator")
+    estimator = importlib.import_module("algid.estimation._batch")
     options = {"model": args.model, "mass": args.mass}
     if args.filter_order is not None:
         options["filter_order"] = args.filter_order
@@ -451,10 +451,10 @@ IDENTIFY_JSON_KEYS = ("stderr", "numerical_error", "window", "n_samples", "warni
 
 
 def _cmd_identify(args) -> int:
-    from .grammar import parse_equation
-    from .identification import identify
-    from .io import read_columns
-    from .records import TIME_COLUMNS
+    from algid.identification._identify import identify
+    from algid.identification._records import TIME_COLUMNS
+    from algid.io import read_columns
+    from algid.models._grammar import parse_equation
 
     model = parse_equation(args.equation, args.parameters, output=args.output)
     clash = [p for p in model.parameters if p in IDENTIFY_JSON_KEYS]
@@ -493,7 +493,7 @@ def _cmd_identify(args) -> int:
 
 
 def _cmd_datasets_list(args) -> int:
-    from . import datasets
+    from algid import datasets
 
     citations = {"silverbox": datasets.SILVERBOX_CITATION, "emps": datasets.EMPS_CITATION}
     for name, files in datasets.EXPORTS.items():
@@ -503,7 +503,7 @@ def _cmd_datasets_list(args) -> int:
 
 
 def _cmd_datasets_export(args) -> int:
-    from .datasets import export
+    from algid.datasets import export
 
     for path in export(args.name, args.folder):
         print(f"wrote {path}")
@@ -528,7 +528,7 @@ def _cmd_derive(args) -> int:
 def _cmd_codegen(args) -> int:
     _require("sympy", "algid codegen needs SymPy: pip install 'algid[derive]'")
     symbolic = importlib.import_module("algid.symbolic")
-    codegen_c = importlib.import_module("algid.symbolic.codegen_c")
+    codegen_c = importlib.import_module("algid.symbolic._codegen_c")
     if args.equation is not None or args.parameters is not None:
         if args.equation is None or args.parameters is None:
             raise ModelError("--equation and --parameters go together")
@@ -540,7 +540,7 @@ def _cmd_codegen(args) -> int:
     elif args.model is None:
         raise ModelError("give a MODEL (msd, msd_mass) or --equation and --parameters")
     else:
-        model = importlib.import_module("algid.symbolic.models").builtin_model(args.model)
+        model = importlib.import_module("algid.symbolic._builtin_models").builtin_model(args.model)
     try:
         paths = codegen_c.write_c_sources(symbolic.derive(model), args.out, name=args.name,
                                           filter_order=args.filter_order,
@@ -569,7 +569,7 @@ def _cmd_paper(args) -> int:
 
 def _cmd_errata(args) -> int:
     _require("sympy", "algid errata needs SymPy: pip install 'algid[derive]'")
-    errata = importlib.import_module("algid.symbolic.errata")
+    errata = importlib.import_module("algid.symbolic._errata")
     verdicts = errata.errata_report()
     print(errata.format_errata(verdicts, "json" if args.json else "text"))
     return 0

@@ -47,7 +47,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import AlgidError, InputDataError
+from algid.errors import AlgidError, InputDataError
 
 __all__ = ["BenchmarkRecord", "silverbox", "emps", "EMPS_EQUATION", "EMPS_PUBLISHED",
            "EMPS_PUBLISHED_RELATIVE_STD", "EMPS_PUBLISHED_FORCE_ERROR", "SILVERBOX_FILE",

@@ -1,9 +1,9 @@
-"""Deprecated: the compiled engine's state-carrying interface, now :mod:`algid.core`.
+"""Deprecated: the compiled engine's state-carrying interface, now :mod:`algid.estimation._core`.
 
 Kept for a release as a thin layer over the estimator core with the numba backend:
 ``make_state(module, quadrature_points, filter_order, step=dt)`` is
-``algid.core.new_state(module, points=..., filter_order=..., dt=...)`` and
-``run_chunk(state, f, x)`` is ``algid.core.advance(state, (f, x), backend="numba")``
+``algid.estimation._core.new_state(module, points=..., filter_order=..., dt=...)`` and
+``run_chunk(state, f, x)`` is ``algid.estimation._core.advance(state, (f, x), backend="numba")``
 (channels in the module's ``CHANNELS`` order).
 """
 
@@ -11,13 +11,13 @@ from __future__ import annotations
 
 import warnings
 
-from algid import core
-from algid.backends import INSTALL_HINT, choose_engine, numba_available
+from algid.estimation import _core as core
+from algid.estimation._backends import INSTALL_HINT, choose_engine, numba_available
 
 __all__ = ["available", "prepare", "EngineState", "make_state", "run_chunk",
            "estimate_arrays", "check_experiment", "INSTALL_HINT"]
 
-#: The state of the estimator core (:class:`algid.core.EstimatorState`).
+#: The state of the estimator core (:class:`algid.estimation._core.EstimatorState`).
 EngineState = core.EstimatorState
 
 
@@ -27,7 +27,7 @@ def _deprecated(name, instead):
 
 
 def available() -> bool:
-    """Whether numba is installed (see :func:`algid.backends.numba_available`).
+    """Whether numba is installed (see :func:`algid.estimation._backends.numba_available`).
 
     Returns
     -------
@@ -54,7 +54,7 @@ def prepare(module, quadrature_points):
 
 
 def make_state(module, quadrature_points, filter_order, *, step, input_divisor=1.0):
-    """Deprecated: :func:`algid.core.new_state` (``input_divisor`` divides the input).
+    """Deprecated: :func:`algid.estimation._core.new_state` (``input_divisor`` divides the input).
 
     Parameters
     ----------
@@ -74,7 +74,7 @@ def make_state(module, quadrature_points, filter_order, *, step, input_divisor=1
     EngineState
         A fresh state, with the time origin at the next sample.
     """
-    _deprecated("make_state", "algid.core.new_state")
+    _deprecated("make_state", "algid.estimation._core.new_state")
     choose_engine("numba", 0, None)
     divisors = [input_divisor if name == module.INPUT else 1.0 for name in module.CHANNELS]
     return core.new_state(module, points=quadrature_points, filter_order=filter_order,
@@ -82,7 +82,7 @@ def make_state(module, quadrature_points, filter_order, *, step, input_divisor=1
 
 
 def run_chunk(state, f, x, *, out=None):
-    """Deprecated: :func:`algid.core.advance` with ``backend="numba"``.
+    """Deprecated: :func:`algid.estimation._core.advance` with ``backend="numba"``.
 
     Parameters
     ----------
@@ -96,9 +96,9 @@ def run_chunk(state, f, x, *, out=None):
     Returns
     -------
     ndarray, shape (n_parameters, m)
-        Row ``i`` estimates ``PARAMETERS[i]`` (see :func:`algid.core.advance`).
+        Row ``i`` estimates ``PARAMETERS[i]`` (see :func:`algid.estimation._core.advance`).
     """
-    _deprecated("run_chunk", "algid.core.advance")
+    _deprecated("run_chunk", "algid.estimation._core.advance")
     signals = {state.model.INPUT: f, state.model.OUTPUT: x}
     return core.advance(state, [signals[name] for name in state.model.CHANNELS],
                         backend="numba", out=out)[0]
@@ -126,7 +126,7 @@ def estimate_arrays(module, f, x, *, step, quadrature_points, filter_order,
     Returns
     -------
     ndarray, shape (n_parameters, n)
-        Row ``i`` estimates ``PARAMETERS[i]`` (see :func:`algid.core.advance`).
+        Row ``i`` estimates ``PARAMETERS[i]`` (see :func:`algid.estimation._core.advance`).
     """
     _deprecated("estimate_arrays", "algid.estimate(engine='numba')")
     state = make_state(module, quadrature_points, filter_order, step=step,
@@ -135,7 +135,7 @@ def estimate_arrays(module, f, x, *, step, quadrature_points, filter_order,
 
 
 def check_experiment(t, f, x, *, min_samples=16):
-    """Deprecated: :func:`algid.validation_numba.check_experiment_compiled`.
+    """Deprecated: :func:`algid._signal_checks_numba.check_experiment_compiled`.
 
     Parameters
     ----------
@@ -151,6 +151,6 @@ def check_experiment(t, f, x, *, min_samples=16):
     dt : float
         The sampling step.
     """
-    _deprecated("check_experiment", "algid.validation.check_experiment")
-    from algid.validation_numba import check_experiment_compiled
+    _deprecated("check_experiment", "algid._signal_checks.check_experiment")
+    from algid._signal_checks_numba import check_experiment_compiled
     return check_experiment_compiled(t, f, x, min_samples=min_samples)

@@ -5,7 +5,7 @@ record ships in the package): it is decompressed while read.
 
 Only file-specific problems are reported here (missing file, unreadable format,
 missing or non-numeric column).  Checks on the signals themselves (NaN, lengths,
-time axis, excitation) are made by :func:`algid.validation.check_experiment`.
+time axis, excitation) are made by :func:`algid._signal_checks.check_experiment`.
 Every :class:`~algid.errors.DataFileError` message starts with the file name.
 """
 
@@ -20,10 +20,10 @@ from pathlib import Path
 
 import numpy as np
 
-from . import memory
-from .errors import DataFileError, InputDataError
-from .memory import check_fits
-from .records import check_rate, check_rate_agrees
+from algid import _memory as memory
+from algid._memory import check_fits
+from algid.errors import DataFileError, InputDataError
+from algid.identification._records import check_rate, check_rate_agrees
 
 __all__ = ["read_experiment", "read_columns", "CSV_SUFFIXES", "MAT_SUFFIXES",
            "GZIP_SUFFIXES"]
@@ -59,7 +59,7 @@ def read_experiment(path, *, time="t", input="f", output="x", rate=None):
     t, f, x : numpy.ndarray
         The time, input and output signals as 1-D ``float64`` arrays.  They are not
         checked for NaN, equal lengths or a valid time axis; use
-        :func:`algid.validation.check_experiment` for that.
+        :func:`algid._signal_checks.check_experiment` for that.
 
     Raises
     ------
@@ -70,7 +70,7 @@ def read_experiment(path, *, time="t", input="f", output="x", rate=None):
         number for CSV files).
     InputDataError
         If ``rate`` is not a positive finite number whose step lies in
-        :data:`algid.records.STEP_RANGE`, or contradicts the file's time column.
+        :data:`algid.identification._records.STEP_RANGE`, or contradicts the file's time column.
 
     Examples
     --------

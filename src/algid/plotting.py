@@ -169,7 +169,7 @@ def plot_estimates(result, *, true_values=None, parameters=None, t_max=None, yli
 
     Parameters
     ----------
-    result : algid.result.EstimationResult
+    result : algid.estimation._result.EstimationResult
         The estimates to show.
     true_values : dict, optional
         Parameter -> true value, drawn as dashed horizontal lines.
@@ -181,7 +181,7 @@ def plot_estimates(result, *, true_values=None, parameters=None, t_max=None, yli
         View limits of the estimates; default: :func:`estimate_ylim`, the range of the
         settled estimates and the true values (the ill-conditioned start-up, which
         would otherwise set the scale, is clipped).
-    reference : algid.result.EstimationResult, optional
+    reference : algid.estimation._result.EstimationResult, optional
         A second estimation drawn thin and dotted for comparison.
     label, reference_label : str, optional
         Legend text of the two estimations.

@@ -24,7 +24,7 @@ noise (equations (24)-(25) are unfiltered) and the smallest admissible filter ``
 with noise (equations (32)-(33)).
 """
 
-from algid.paper.experiments import (
+from algid.paper._experiments import (
                                      AMPLITUDE,
                                      DURATION,
                                      EXPERIMENTS,
@@ -44,8 +44,8 @@ from algid.paper.experiments import (
                                      seed_statistics,
                                      simulate_experiment,
 )
-from algid.paper.reproduction import PaperReproduction, reproduce
-from algid.paper.summary import format_summary
+from algid.paper._reproduction import PaperReproduction, reproduce
+from algid.paper._summary import format_summary
 
 __all__ = ["SYSTEM", "TRUE_VALUES", "DURATION", "RATE", "NOISE_STD", "TOLERANCES",
            "EXPERIMENTS", "Experiment", "PaperReproduction", "simulate_experiment",

@@ -1,12 +1,27 @@
-"""The SymPy side of algid: models, the algebraic derivation and code generation.
+"""Symbolic: the algebraic derivation with SymPy, and code generation from it.
+
+Public:
+
+- :class:`LinearODEModel` (with the symbols :data:`TIME` and :data:`LAPLACE`) and
+  :func:`builtin_model`: the model in the Laplace domain;
+- :func:`derive` takes it through ``d^n/ds^n`` and ``s^-N`` to the linear system
+  ``P(t) theta = Q(t)`` of a :class:`Derivation` (its :class:`Kernel`\\ s are sums of
+  :class:`IteratedIntegral`\\ s, evaluated by :func:`evaluate_kernel`);
+- :func:`derivation_report` writes the derivation out step by step (text, LaTeX, Markdown);
+- :func:`numpy_module_source` and :func:`c_sources` / :func:`write_c_sources` generate the
+  NumPy estimator module and a self-contained C99 estimator.
 
 Importing this package needs SymPy (``pip install 'algid[derive]'``); the estimator
 itself never does.
 """
 
-from algid.symbolic.derivation import Derivation, IteratedIntegral, Kernel, derive, evaluate_kernel
-from algid.symbolic.model import LAPLACE, TIME, LinearODEModel
-from algid.symbolic.report import derivation_report
+from algid.symbolic._builtin_models import builtin_model
+from algid.symbolic._codegen import numpy_module_source
+from algid.symbolic._codegen_c import c_sources, write_c_sources
+from algid.symbolic._derivation import Derivation, IteratedIntegral, Kernel, derive, evaluate_kernel
+from algid.symbolic._model import LAPLACE, TIME, LinearODEModel
+from algid.symbolic._report import derivation_report
 
-__all__ = ["Derivation", "IteratedIntegral", "Kernel", "LinearODEModel", "TIME", "LAPLACE",
-           "derive", "evaluate_kernel", "derivation_report"]
+__all__ = ["LinearODEModel", "TIME", "LAPLACE", "builtin_model", "derive", "Derivation",
+           "Kernel", "IteratedIntegral", "evaluate_kernel", "derivation_report",
+           "numpy_module_source", "c_sources", "write_c_sources"]

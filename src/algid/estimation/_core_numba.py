@@ -1,0 +1,322 @@
+"""The compiled backend of the estimator core (:mod:`algid.estimation._core`); needs numba.
+
+Runs the loop generated for the model at derivation time
+(``algid/_generated/<model>_numba.py``, written by ``python -m derivation``; numba
+caches its machine code beside it), or, for a model compiled in memory
+(:func:`algid.symbolic._codegen.compile_model`), the loop built from its
+``NUMBA_SOURCE``.  The loop performs the operations of the NumPy backend in the same
+order (see :mod:`algid.symbolic._codegen_numba`).
+
+Compiling the loop of a user model takes numba many seconds, so its source and that
+of its algebra are written once to files named by a hash of their text, in
+:func:`user_cache_dir`, and numba caches the machine code beside them: the next
+process that uses the same model loads it instead of compiling.  Where no cache
+directory is usable the loop is compiled in memory.  A compilation to come is announced
+by one line on standard error.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import importlib
+import importlib.util
+import os
+import sys
+from functools import cache, lru_cache
+
+import numba  # noqa: F401 - ImportError here: the backend is not available
+import numpy as np
+
+from algid._generated import MODULES, NUMBA_MODULES
+from algid.models._registry import module_from_source
+from algid.signals._quadrature import integrator_weights
+
+__all__ = ["advance", "bound_sample_pair", "pack_pair", "PAIR_ARRAYS", "compiled_loop",
+           "user_cache_dir", "machine_code_cached"]
+
+
+def user_cache_dir():
+    """Directory where the compiled loops of user models are cached, or None.
+
+    ``$ALGID_CACHE_DIR`` if it is set (set to an empty string, it turns the cache off);
+    else ``algid`` under ``$NUMBA_CACHE_DIR`` if that is set; else
+    ``$XDG_CACHE_HOME/algid`` (default ``~/.cache/algid``).  None if the directory
+    cannot be created or written.
+
+    Returns
+    -------
+    str or None
+        The directory of the cached sources (numba keeps its machine code beside them,
+        or under ``$NUMBA_CACHE_DIR``).
+    """
+    base = os.environ.get("ALGID_CACHE_DIR")
+    if base is None:
+        numba_dir = os.environ.get("NUMBA_CACHE_DIR")
+        base = os.path.join(numba_dir, "algid") if numba_dir else os.path.join(
+            os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"),
+                                                             ".cache"), "algid")
+    if not base:
+        return None
+    directory = os.path.join(base, "user_models")
+    try:
+        os.makedirs(directory, exist_ok=True)
+    except OSError:
+        return None
+    return directory if os.access(directory, os.W_OK | os.X_OK) else None
+
+
+def _digest(text):
+    return hashlib.sha256(text.encode()).hexdigest()[:16]
+
+
+def _write_once(path, text):
+    """Write ``text`` to ``path`` unless it already holds it (its date then stays, and
+    with it numba's cache of the functions it defines)."""
+    try:
+        with open(path, encoding="utf-8") as held:
+            if held.read() == text:
+                return
+    except FileNotFoundError:
+        pass
+    temporary = f"{path}.{os.getpid()}.tmp"
+    with open(temporary, "w", encoding="utf-8") as new:
+        new.write(text)
+    os.replace(temporary, path)  # atomic: a concurrent reader sees one text or the other
+
+
+def _module_from_file(name, path):
+    spec = importlib.util.spec_from_file_location(name, path)
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[name] = module
+    spec.loader.exec_module(module)
+    return module
+
+
+def _cached_loop(module, directory):
+    """The loops of a model compiled in memory, loaded from files in ``directory`` so
+    that numba caches its machine code; None if its texts are not as generated."""
+    source = getattr(module, "GENERATED_SOURCE", None)
+    loop_source = module.NUMBA_SOURCE
+    algebra_import = f"from {module.__name__} import cramer, regressors_packed\n"
+    if source is None or loop_source.count(algebra_import) != 1 or \
+            loop_source.count("\nCACHE = False\n") != 1:
+        return None
+    algebra = f"algid_user_{module.MODEL}_{_digest(source)}"
+    loop_source = loop_source.replace(algebra_import,
+                                      f"from {algebra} import cramer, regressors_packed\n")
+    loop_source = loop_source.replace("\nCACHE = False\n", "\nCACHE = True\n")
+    loop_name = f"{algebra}_numba_{_digest(loop_source)}"
+    _write_once(os.path.join(directory, algebra + ".py"), source)
+    _write_once(os.path.join(directory, loop_name + ".py"), loop_source)
+    if not machine_code_cached(directory, loop_name):
+        _announce_compilation(module, f"once: numba caches it in {directory}")
+    if algebra not in sys.modules:
+        _module_from_file(algebra, os.path.join(directory, algebra + ".py"))
+    return _module_from_file(loop_name, os.path.join(directory, loop_name + ".py"))
+
+
+def machine_code_cached(directory, loop_name):
+    """Whether numba holds cached machine code of a user model's loop module.
+
+    It looks for numba's index files ``<loop_name>.*.nbi``, in ``__pycache__`` beside the
+    module or under ``$NUMBA_CACHE_DIR``.
+
+    Parameters
+    ----------
+    directory : str
+        The cache directory of user models (:func:`user_cache_dir`).
+    loop_name : str
+        Name of the loop module written there.
+
+    Returns
+    -------
+    bool
+    """
+    places = [os.path.join(directory, "__pycache__")]
+    if os.environ.get("NUMBA_CACHE_DIR"):  # numba mirrors the source's path there
+        places.append(os.path.join(os.environ["NUMBA_CACHE_DIR"],
+                                   os.path.abspath(directory).lstrip(os.sep)))
+    for place in places:
+        try:
+            names = os.listdir(place)
+        except OSError:
+            continue
+        if any(n.startswith(loop_name + ".") and n.endswith(".nbi") for n in names):
+            return True
+    return False
+
+
+def _announce_compilation(module, how):
+    # numba compiles a user model's loop at its first call, silently, for tens of
+    # seconds to minutes: say so on stderr, so that it is not taken for a hang
+    print(f"algid: compiling the numba loop of model {module.MODEL!r} at its first use "
+          f"({how}); this can take a minute or more; engine='numpy' starts at once",
+          file=sys.stderr, flush=True)
+
+
+@cache
+def _loops_of(module):
+    """The module of the compiled loops of a generated module."""
+    if MODULES.get(module.MODEL) == module.__name__:
+        return importlib.import_module(NUMBA_MODULES[module.MODEL])
+    directory = user_cache_dir()
+    if directory is not None:
+        try:
+            loops = _cached_loop(module, directory)
+        except OSError:  # the directory went away or is full: compile in memory
+            loops = None
+        if loops is not None:
+            return loops
+    _announce_compilation(module, "in memory: no cache directory is writable")
+    return module_from_source(module.NUMBA_SOURCE, module.__name__ + "_numba")
+
+
+def compiled_loop(module):
+    """The compiled ``advance`` loop of a generated module.
+
+    Parameters
+    ----------
+    module : module
+        Generated estimator module: a built-in one, or one with ``NUMBA_SOURCE``
+        (:func:`algid.symbolic._codegen.compile_model`).
+
+    Returns
+    -------
+    callable
+        The numba-compiled loop (cached per module).
+    """
+    return _loops_of(module).advance
+
+
+@lru_cache(maxsize=64)
+def _weights(points, dt):
+    return integrator_weights(points, dt)
+
+
+def _fixed(state):
+    """The loop and the weights of ``state`` (kept with it while its step and model
+    stay)."""
+    fixed = state.__dict__.get("_numba_fixed")
+    if fixed is None or fixed[0] != state.dt or fixed[1] is not state.model:
+        fixed = state._numba_fixed = (state.dt, state.model, _loops_of(state.model).advance,
+                                      *_weights(state.points, state.dt))
+    return fixed
+
+
+def bound_sample_pair(state):
+    """One sample of a state and its companion, with the numerical error, in one call.
+
+    The generated ``advance_sample_pair`` and its bound arguments (the arrays of both
+    estimators in one buffer, :func:`pack_pair`), for a stream fed one sample at a
+    time: the same numbers as :func:`advance` of the estimator and of its companion
+    followed by :func:`algid.estimation._numerical_error_numba.block_error`, with the channels'
+    extent tracked (:mod:`algid.estimation._numerical_error`).
+
+    Parameters
+    ----------
+    state : EstimatorState
+        Past its start-up, with its companion
+        (:func:`algid.estimation._numerical_error.with_companion`).  The arguments hold their
+        arrays and
+        ``dt``: make a new one if ``state.dt`` changes.
+
+    Returns
+    -------
+    pair : callable
+        The compiled ``advance_sample_pair(*values, n_seen, dt, *arguments, out,
+        error_out)``: ``values`` the sample of every channel as floats, in the model's
+        ``CHANNELS`` order; ``out`` a float64 array of shape ``(n_parameters, 1)`` and
+        ``error_out`` one of shape ``(1,)`` receive the estimates and their numerical
+        error.  The caller adds one to ``n_seen`` of the state and of its companion.
+    arguments : tuple
+        The bound arguments.
+    """
+    companion = state.companion
+    buffer, offsets = pack_pair(state, _fixed(state)[3], _fixed(companion)[3])
+    return (_loops_of(state.model).advance_sample_pair,
+            (buffer, offsets, state.filter_order, companion.filter_order))
+
+
+#: The arrays of an estimator and its companion that the one-sample step reads and
+#: writes, in the order they sit in one buffer (:func:`pack_pair`): passed as one array,
+#: they cost numba's dispatch one argument instead of eleven.
+PAIR_ARRAYS = ("integrals", "history", "companion.integrals", "companion.history",
+               "weights", "companion weights", "divisors", "scratch of the companion's estimates",
+               "recent_errors", "channel_max", "channel_last")
+
+
+def pack_pair(state, weights, companion_weights):
+    """Put the arrays of a state and its companion into one buffer (:data:`PAIR_ARRAYS`).
+
+    The state's arrays become views into it, holding the same values (the state works
+    as before); a state already packed keeps its buffer.  The weights are written in.
+
+    Parameters
+    ----------
+    state : EstimatorState
+        With its companion (:func:`algid.estimation._numerical_error.with_companion`).
+    weights, companion_weights : ndarray
+        The quadrature weights of the state and of its companion.
+
+    Returns
+    -------
+    buffer : ndarray
+        Float64, 1-D.
+    offsets : ndarray
+        Int64: array ``i`` of :data:`PAIR_ARRAYS` is ``buffer[offsets[i]:offsets[i + 1]]``.
+    """
+    companion = state.companion
+    arrays = [state.integrals, state.history, companion.integrals, companion.history,
+              weights, companion_weights, state.divisors,
+              np.empty(len(state.model.PARAMETERS)), state.recent_errors,
+              state.channel_max, state.channel_last]
+    offsets = np.cumsum([0] + [a.size for a in arrays])
+    packed = state.__dict__.get("_pair_buffer")
+    if packed is None or packed.size != offsets[-1] or any(
+            a.base is not packed for a in arrays[:4] + arrays[6:7] + arrays[8:]):
+        packed = np.empty(offsets[-1])
+        views = [packed[a:b].reshape(array.shape) for a, b, array in
+                 zip(offsets[:-1], offsets[1:], arrays)]
+        for view, array in zip(views, arrays):
+            view[...] = array
+        (state.integrals, state.history, companion.integrals, companion.history, _, _,
+         state.divisors, _, state.recent_errors, state.channel_max, state.channel_last) = views
+        companion.divisors = state.divisors
+        for cache in ("_pair_buffer", "_sample_step", "_numpy_sample"):  # bound to the old
+            for holder in (state, companion):
+                holder.__dict__.pop(cache, None)
+        state._pair_buffer = packed
+    packed[offsets[4]:offsets[5]] = weights
+    packed[offsets[5]:offsets[6]] = companion_weights
+    return packed, offsets
+
+
+def advance(state, layout, channels, out, *, from_origin=False):
+    """Estimates of a chunk into ``out``, in one compiled pass.
+
+    The chunk continues the stream, or with ``from_origin`` it holds the first samples
+    after the time origin (at least ``points`` of them; the estimates of samples
+    ``0 .. points - 2`` are NaN).
+
+    Parameters
+    ----------
+    state : EstimatorState
+        The state (:func:`algid.estimation._core.new_state`); advanced in place.
+    layout : IntegratorLayout
+        Layout of the state's model (:func:`algid.estimation._core.integrator_layout`).
+    channels : tuple of ndarray
+        The chunk: one float64 1-D array per channel, all of length ``m``, in the
+        model's ``CHANNELS`` order.
+    out : ndarray, shape (n_parameters, m)
+        Float64 array the estimates are written into.
+    from_origin : bool, optional
+        The chunk starts at the time origin (the state holds no sample yet).
+    """
+    _, _, loop, weights, startup = _fixed(state)
+    if from_origin:
+        state.n_seen = 0
+    loop(*channels, out, state.integrals, state.history, state.n_seen, state.dt,
+         state.divisors, weights, startup, state.filter_order, bool(from_origin))
+    if from_origin:
+        out[:, :state.points - 1] = np.nan
+    state.n_seen += channels[0].size

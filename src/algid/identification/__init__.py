@@ -1,0 +1,20 @@
+"""Identification: the parameters of your own equation from whole measured records.
+
+Public:
+
+- :func:`identify` solves the window equations of the algebraic method (modulating
+  kernels on windows of one length, chosen by a rule on the record) by least squares or
+  instrumental variables, and returns an :class:`IdentificationResult`: the parameters,
+  their standard errors and numerical error, warnings on identifiability and on model
+  adequacy (:class:`Adequacy`), and a simulation-based :class:`Validation`;
+- :data:`METHODS` are the solvers ``identify`` offers.
+
+Records are mappings of named columns (``{"t": ..., "u": ..., "y": ...}``), with a time
+column or a sampling rate; several records are identified together.
+"""
+
+from algid.identification._adequacy import Adequacy
+from algid.identification._identify import METHODS, identify
+from algid.identification._result import IdentificationResult, Validation
+
+__all__ = ["identify", "IdentificationResult", "Validation", "Adequacy", "METHODS"]

@@ -1,0 +1,665 @@
+"""Identify the parameters of a user model on whole measured records.
+
+The algebraic method's equations hold on every window ``[t0, t0 + T]``, whatever the
+state at ``t0``: each window gives one linear equation in the parameters,
+
+    sum_p theta_p * (sum of c_i * W[D^k_i z_i] over the terms of p) = - (known terms),
+
+where ``W[D^k z]`` is the integral of ``z`` against the term kernel of multiplicity
+``a`` (:mod:`algid.identification._window_kernels`).  The windows slide over every record
+(overlapping,
+``length // 8`` samples apart, never across a gap), and the stacked equations are
+solved for one parameter set.  Two kernel multiplicities are used, as an embedded
+Runge-Kutta pair is: the estimate is that of the higher one (``a = 12``), the lower one
+(``a = 8``) gives its error estimate for the window rule.  (At the short windows that
+few samples per period call for, a high multiplicity is the more accurate: its kernel
+vanishes to higher order at the window ends, so its sampled sum is spectrally
+accurate on fewer samples; measured on the synthetic linear record at 8 samples per
+period, ``a = 4`` on 12-16 sample windows has quadrature errors of about 1e-3.)
+
+Solvers (``method``):
+
+- ``"bc"`` (default), bias-compensated least squares.  Output noise enters both sides
+  of the window equations through known kernels, so it biases least squares by
+  ``sigma^2`` times a matrix the kernels give (``_Problem.noise_grams``); the
+  estimate removes it (Koopmans' estimator, the generalised eigenvector of the normal
+  matrix and that noise matrix), with ``sigma^2`` from the equations' misfit, capped by
+  an upper bound on the output noise from the samples alone (so that a misfit that is
+  not output noise, e.g. a misestimated ``sign(q')``, is not "compensated").  It needs
+  no simulation, so it works in closed loop and on integrating plants.
+- ``"ls"``: plain least squares (biased by output noise: by 1.2 standard errors on the
+  stiffness of the synthetic linear record at 1 % noise, far more on longer windows).
+- ``"iv"``: instrumental variables, the instruments being the same window integrals of
+  the factors evaluated on the output simulated by the current estimate (noise-free),
+  iterated as SRIVC does; for open-loop stable plants only.
+
+A derivative inside a nonlinear factor (``sign(q')``) is estimated numerically: by
+the algebraic differentiator :func:`algid.signals.algebraic_derivative` when
+it is available, else by a local polynomial (Savitzky-Golay) derivative.  Its zeros
+come late where ``q''`` jumps (a Coulomb term), so for a model of second order in ``q``
+the crossings are then placed by fits of ``q`` with the motion the model gives it there
+(:mod:`algid.identification._sign_crossings`), the equations solved again, twice
+(:data:`CROSSING_PASSES`:
+each pass with the parameters of the one before), with the steps of ``sign(q')``
+integrated exactly (:func:`algid.identification._window_kernels.step_window_integrals`).
+
+Units: internally the time is counted in a power of two near the sampling step, from
+the first sample of each segment, and every factor's samples and every column of the
+equations are divided by powers of two (``_Problem``); the equations are then solved in
+an orthonormal basis of their regressors (:mod:`algid.identification._window_basis`).  Powers of two
+are exact and the basis conditions the equations whatever the units: seconds,
+milliseconds or sample numbers, Unix-epoch times with a drift ``d0 + d1*t``, amplitudes
+from 1e-300 to 1e300 give the same window and the same (converted) estimates, or a
+one-line refusal where an estimate or its variance leaves the floating-point range.
+
+Refusals, naming the parameters: terms or a known side that vanish on the records (a
+constant output), proportional terms (``K*y + K2*y``), and, where the misfit is output
+noise (:mod:`algid.identification._adequacy`), a combination determined no better than the misfit or
+the noise (a model of too high an order: :func:`algid.identification._window_basis.separability`); a
+barely separated combination or nearly proportional terms give a line in ``warnings``.
+Windows too short for the kernels or leaving too few non-overlapping windows are
+refused, and the window rule looks at no such window (:mod:`algid.identification._window_rule`).
+
+Standard errors come from a sandwich over the window index.  Its middle is the
+residuals' own covariance, a HAC (heteroscedasticity and autocorrelation consistent)
+estimate: the residuals of overlapping windows are correlated over ``length / stride``
+windows, and the lag weights are flat up to that lag and taper linearly to zero at twice
+it (a flat-top kernel: Newey-West's Bartlett weights underestimate such a correlation).
+The covariance that white output noise puts into the window equations is also computed:
+known from the kernels and the factors' sensitivities, including the correlation of
+overlapping windows (:func:`algid.identification._window_covariance.noise_meat`), times the noise
+variance (the misfit's, or where that exceeds it the bound that the samples alone put
+on the output noise, ``_Problem.noise_bound``).  It replaces the HAC one where the HAC
+variances are at most :data:`AGREEMENT` times its own for every parameter.  A misfit
+that does not change between noise realisations (the aliasing of a sampled ``y**3``)
+inflates the HAC estimate a little, and then counts only through the noise variance; a
+misfit that is not output noise at all (a force disturbance, noise on an input, a
+misestimated ``sign(q')``) inflates it more, and the HAC estimate is kept, unless it is
+indefinite (:func:`algid.identification._window_covariance.sandwich`).  The difference between the
+two
+multiplicities is the numerical (quadrature) error of each parameter, reported beside
+its standard error (``numerical_error``): the standard error is the misfit's scatter,
+which on a short noise-free record can be far below the quadrature error.
+
+Window rule (``window=None``, :mod:`algid.identification._window_rule`): on a geometric grid of
+window
+lengths (ratio 1.25, from ``a_max + 4`` samples up to a thirtieth of the data, so that
+the HAC covariance sees at least 30 independent windows), estimate with both
+multiplicities.  A parameter's error on a window is the larger of its standard error
+and of its numerical error, relative to the parameter (or, near zero, to the value
+whose term is 5 % of the known side), divided by the smallest such error that parameter
+reaches on the grid; among the windows that separate the parameters, the one minimising
+the worst parameter's ratio is kept (:func:`window_criterion`).
+"""
+
+from __future__ import annotations
+
+from math import comb
+
+import numpy as np
+
+from algid.errors import InputDataError, ModelError
+from algid.identification._adequacy import misfit_ratio, missing_terms, model_adequacy
+from algid.identification._arguments import check_arguments, check_memory, check_model_columns
+from algid.identification._bias_compensation import bias_compensated, solve_equilibrated
+from algid.identification._records import (
+    Segment,
+    check_factors,
+    estimate_derivative,
+    prepare_records,
+)
+from algid.identification._sign_crossings import crossing_jumps, crossing_motion, sign_factor
+from algid.identification._window_basis import (
+    WindowBasis,
+    check_excited,
+    check_finite,
+    exponent,
+    separability,
+)
+from algid.identification._window_covariance import hac_meat, noise_meat, sandwich
+from algid.identification._window_kernels import (
+    step_window_integrals,
+    uniform_window_integrals,
+    window_integrals,
+    window_noise_products,
+    window_sample_weights,
+)
+from algid.identification._window_rule import (
+    WindowFit,
+    check_multiplicities,
+    choose_window,
+    min_length,
+    window_criterion,
+    window_grid,
+    window_length,
+)
+from algid.models._expression import Call, Signal
+from algid.models._grammar import parse_equation
+from algid.models._model import Model
+
+__all__ = ["identify", "METHODS", "MULTIPLICITIES", "AGREEMENT", "CROSSING_PASSES",
+           "window_criterion", "window_grid"]
+
+#: Solvers: bias-compensated least squares (default), least squares, instrumental variables.
+METHODS = ("ls", "bc", "iv")
+
+#: Kernel multiplicities stacked in every estimate (their difference drives the window rule).
+MULTIPLICITIES = (8, 12)
+
+#: The covariance of output noise through the kernels replaces the residuals' own (HAC)
+#: where the latter's variances are at most this many times the former's.
+AGREEMENT = 4.0
+
+#: Solves with the crossings of ``sign(q')`` placed by the model's motion (the second
+#: with the first's parameters: noise-free friction loop, M 1.3e-6 -> 5.8e-7).
+CROSSING_PASSES = 2
+
+#: Windows overlap: a window starts every ``length // WINDOW_OVERLAP`` samples.
+WINDOW_OVERLAP = 8
+
+#: Round-off standard error of the solution, per sample of a window, relative to the
+#: known side (in the orthonormal basis of :mod:`algid.identification._window_basis`).
+ROUNDOFF = 4 * np.finfo(float).eps
+
+
+class _Problem:
+    """Channel samples of a model on the segments of the records.
+
+    Internally the time is counted in :attr:`time_unit`, a power of two near the median
+    sampling step, from the first sample of each segment (:attr:`segments`; the records'
+    own times are in :attr:`user_segments`), and the samples of every factor are divided
+    by a power of two bringing the largest into ``[1, 2)`` (the output's, the unit of the
+    output noise, is :attr:`output_unit`).  The columns of :meth:`rows` are then each in
+    a power of two of their own (:meth:`exponents`): ``theta_p`` is the solution for
+    column ``p`` times ``2**(E_b - E_p)``.  Powers of two are exact: the results do not
+    depend on the units of the records, and nothing overflows or underflows.
+    """
+
+    def __init__(self, model, segments, step):
+        self.model = model
+        self.time_unit = float(np.ldexp(1.0, int(np.round(np.log2(step)))))
+        self.user_segments = segments
+        self.segments = [Segment(s.record, s.rows, (s.t - s.t[0]) / self.time_unit, s.values,
+                                 None if s.step is None else s.step / self.time_unit)
+                         for s in segments]
+        self.step = step                        # the records' median step (s)
+        self.unit_step = step / self.time_unit  # the same in the internal time
+        self.parameters = model.parameters
+        self.output_exponent = exponent([s.values[model.output] for s in segments])
+        self.output_unit = float(np.ldexp(1.0, self.output_exponent))
+        self.factors = {}
+        self._exponents = {}
+        self.sign_jumps = {}   # sign factor -> jump of q'' (refined crossings)
+        self.first_values = {}  # parameter -> first estimate (the crossings' local fits)
+        # (sign factor, segment) -> refined crossings: (time, step of the sign, first sample
+        # of the fit, derivative of the time with respect to those samples)
+        self.crossings = {}
+        self.steps = {}  # (sign factor, which, segment) -> (first value, its steps' times, sizes)
+
+    @property
+    def exact_columns(self):
+        """Columns of :meth:`rows` whose terms do not read the output (inputs, offsets,
+        drifts): no output noise enters them."""
+        output = self.model.output
+        return [i for i, p in enumerate(self.parameters)
+                if not any(output in t.factor.signals()
+                           for t in self.model.terms if t.parameter == p)]
+
+    def factor_samples(self, factor, which="measured"):
+        """Samples of a factor per segment, over the power of two of its largest."""
+        key = (factor, which)
+        if key not in self.factors:
+            samples, steps, crossings = [], [], []
+            for seg in self.user_segments:
+                values = seg.values if which == "measured" else seg.simulated
+                if isinstance(factor, Call) and factor.function == "sign":
+                    refine = which == "measured" and factor in self.sign_jumps
+                    motion = crossing_motion(self.model, self.first_values, values,
+                                             seg.t) if refine else None
+                    z, step, crossing = sign_factor(
+                        factor.args[0].evaluate(values, seg.t), seg.t,
+                        position=values[self.model.output] if refine else None,
+                        jump=self.sign_jumps.get(factor), motion=motion)
+                    steps.append(step)
+                    crossings.append(crossing if refine else None)
+                else:
+                    with np.errstate(over="ignore", under="ignore", invalid="ignore"):
+                        z = np.asarray(factor.evaluate(values, seg.t), dtype=float) \
+                            * np.ones(len(seg))
+                    steps.append(None)
+                    crossings.append(None)
+                samples.append(z)
+            if not all(np.all(np.isfinite(z)) for z in samples):
+                raise InputDataError(f"the factor {factor} is not finite on these records "
+                                     f"(out of the floating-point range at these "
+                                     f"amplitudes?): express the signals in other units")
+            e = exponent(samples)
+            unit = self.time_unit
+            moves = np.ldexp(1.0, self.output_exponent) / unit
+            for s, seg in enumerate(self.user_segments):
+                samples[s] = np.ldexp(samples[s], -e)
+                if steps[s] is not None:   # in the internal time and the factor's unit
+                    level, times, sizes = steps[s]
+                    self.steps[(factor, which, s)] = (
+                        np.ldexp(level, -e), (np.asarray(times) - seg.t[0]) / unit,
+                        np.ldexp(np.asarray(sizes, dtype=float), -e))
+                if crossings[s] is not None:
+                    self.crossings[(factor, s)] = [
+                        ((time - seg.t[0]) / unit, np.ldexp(size, -e), first, fit * moves)
+                        for time, size, first, fit in crossings[s]]
+            self.factors[key] = samples
+            self.factors[(factor, which, "exponent")] = e
+        return self.factors[key]
+
+    def exponents(self, which="measured"):
+        """Powers of two of the columns of :meth:`rows` and of its known side, and of
+        every term within its column (``{term index: shift}``, at most 0)."""
+        unit = int(np.round(np.log2(self.time_unit)))
+        own = []
+        for term in self.model.terms:
+            if (term.factor, which, "exponent") not in self.factors:
+                self.factor_samples(term.factor, which)
+            own.append(self.factors[(term.factor, which, "exponent")] - term.derivative * unit)
+        key = (which, tuple(own))
+        if key in self._exponents:
+            return self._exponents[key]
+        columns = {}
+        for term, e in zip(self.model.terms, own):
+            columns[term.parameter] = max(columns.get(term.parameter, e), e)
+        shifts = {i: e - columns[term.parameter]
+                  for i, (term, e) in enumerate(zip(self.model.terms, own))}
+        self._exponents[key] = (np.array([columns[p] for p in self.parameters]),
+                                columns.get(None, 0), shifts)
+        return self._exponents[key]
+
+    def term_scale(self, term, which="measured"):
+        """The power of two of a term within its column of :meth:`rows`."""
+        return float(np.ldexp(1.0, self.exponents(which)[2][self.model.terms.index(term)]))
+
+    @np.errstate(over="ignore")  # equations that overflow are refused by check_finite
+    def rows(self, length, multiplicity, which="measured"):
+        """Regressors ``A``, known side ``b`` and window ids for one multiplicity (each
+        column in its power of two, :meth:`exponents`)."""
+        stride = max(1, length // WINDOW_OVERLAP)
+        index = {p: i for i, p in enumerate(self.parameters)}
+        shifts = self.exponents(which)[2]
+        blocks_a, blocks_b, ids = [], [], []
+        for s, seg in enumerate(self.segments):
+            if len(seg) < length:
+                continue
+            n_win = (len(seg) - length) // stride + 1
+            A = np.zeros((n_win, len(self.parameters)))
+            b = np.zeros(n_win)
+            for i, term in enumerate(self.model.terms):
+                z = self.factor_samples(term.factor, which)[s]
+                steps = self.steps.get((term.factor, which, s))
+                if steps is not None:
+                    w = step_window_integrals(seg.t, *steps, length, multiplicity,
+                                              term.derivative, stride)
+                elif seg.step is not None:
+                    w = uniform_window_integrals(z, seg.step, length, multiplicity,
+                                                 term.derivative, stride)
+                else:
+                    w = window_integrals(z, seg.t, length, multiplicity, term.derivative,
+                                         stride)
+                w = np.ldexp(term.coefficient * w, shifts[i])
+                if term.parameter is None:
+                    b -= w
+                else:
+                    A[:, index[term.parameter]] += w
+            blocks_a.append(A)
+            blocks_b.append(b)
+            ids.append(np.full(n_win, s))
+        if not blocks_a:
+            raise InputDataError(f"no segment holds a window of {length} samples")
+        return np.vstack(blocks_a), np.concatenate(blocks_b), np.concatenate(ids)
+
+    def to_parameters(self, theta, which="measured"):
+        """Parameter values from a solution of :meth:`rows`."""
+        columns, known, _ = self.exponents(which)
+        return np.ldexp(theta, known - columns)
+
+    def to_rows(self, theta, which="measured"):
+        """The solution of :meth:`rows` that parameter values make."""
+        columns, known, _ = self.exponents(which)
+        return np.ldexp(theta, columns - known)
+
+    def excitation(self, length, multiplicity, A, b):
+        """Per column of ``A`` and for ``b``, their rms over the largest they could be
+        for factors of the same largest samples (at most about 1; round-off for a term
+        that vanishes on the records)."""
+        shifts = self.exponents()[2]
+        bound = np.zeros(len(self.parameters) + 1)
+        index = {p: i for i, p in enumerate(self.parameters)}
+        for i, term in enumerate(self.model.terms):
+            z = self.factor_samples(term.factor)
+            largest = max(float(np.max(np.abs(v))) for v in z)
+            kernel = np.sum(np.abs(window_sample_weights(None, self.unit_step, length,
+                                                         multiplicity, term.derivative)))
+            column = len(self.parameters) if term.parameter is None else index[term.parameter]
+            bound[column] += abs(term.coefficient) * np.ldexp(kernel * largest, shifts[i])
+        rms = np.sqrt(np.mean(np.column_stack([A, b]) ** 2, axis=0))
+        return np.where(bound > 0, rms / np.where(bound > 0, bound, 1.0), 0.0)
+
+    def sensitivity(self, factor):
+        """Derivative of a factor with respect to the measured output, per segment
+        (``None`` where the factor does not read the output's plain samples), both in
+        their units (the powers of two of :meth:`factor_samples`)."""
+        key = (factor, "sensitivity")
+        if key not in self.factors:
+            output = self.model.output
+            self.factor_samples(factor)
+            shift = self.output_exponent - self.factors[(factor, "measured", "exponent")]
+            if output not in factor.signals():
+                self.factors[key] = None
+            elif factor == Signal(output):
+                self.factors[key] = [np.ones(len(seg)) for seg in self.segments]
+            else:
+                sensitivities = []
+                for seg in self.user_segments:
+                    y = seg.values[output]
+                    h = 1e-6 * max(float(np.max(np.abs(y))), 1e-300)
+                    up, down = dict(seg.values), dict(seg.values)
+                    up[output], down[output] = y + h, y - h
+                    difference = (np.asarray(factor.evaluate(up, seg.t), dtype=float)
+                                  - np.asarray(factor.evaluate(down, seg.t), dtype=float))
+                    sensitivities.append(np.ldexp(difference / (2 * h), shift)
+                                         * np.ones(len(seg)))
+                self.factors[key] = sensitivities
+        return self.factors[key]
+
+    def noise_bound(self):
+        """An upper bound on the variance of white noise on the output samples (in the
+        output's unit, :attr:`output_unit`).
+
+        The ``k``-th difference of the samples has the variance ``C(2k, k) sigma^2`` of
+        white noise plus that of the signal's difference (signal and noise being
+        uncorrelated, on any sample grid): each ``k`` bounds ``sigma^2`` from above, and
+        the smallest of ``k = 1 .. 8`` is kept.  Tight when the signal is smooth on the
+        sample grid; loose (harmless) at a few samples per period.
+        """
+        if "noise_bound" not in self.factors:
+            y = [np.ldexp(seg.values[self.model.output], -self.output_exponent)
+                 for seg in self.segments]
+            bounds = []
+            for k in range(1, 9):
+                d = [np.diff(v, k) for v in y if len(v) > k]
+                count = sum(len(v) for v in d)
+                if count:
+                    bounds.append(sum(float(v @ v) for v in d) / count / comb(2 * k, k))
+            self.factors["noise_bound"] = min(bounds) if bounds else np.inf
+        return self.factors["noise_bound"]
+
+    def noise_grams(self, length, multiplicity):
+        """Per-window covariance of the noise that unit white output noise puts into
+        the columns ``[A | b]`` of :meth:`rows` (shape ``(windows, p + 1, p + 1)``).
+
+        Output noise enters every term whose factor reads the output, linearly to first
+        order (through the factor's sensitivity), and then the window integral: the
+        covariance of two columns is a window sum of the product of sensitivities
+        against the product of the two term kernels' weights.
+        """
+        stride = max(1, length // WINDOW_OVERLAP)
+        p = len(self.parameters)
+        index = {q: i for i, q in enumerate(self.parameters)}
+        noisy = []   # (column, coefficient, derivative, factor)
+        for term in self.model.terms:
+            if self.sensitivity(term.factor) is None:
+                continue
+            weight = term.coefficient * self.term_scale(term)
+            if term.parameter is None:
+                noisy.append((p, -weight, term.derivative, term.factor))
+            else:
+                noisy.append((index[term.parameter], weight, term.derivative, term.factor))
+        blocks = []
+        for s, seg in enumerate(self.segments):
+            if len(seg) < length:
+                continue
+            n_win = (len(seg) - length) // stride + 1
+            grams = np.zeros((n_win, p + 1, p + 1))
+            for i, (c1, w1, k1, f1) in enumerate(noisy):
+                for j, (c2, w2, k2, f2) in enumerate(noisy[i:], start=i):
+                    product = self.sensitivity(f1)[s] * self.sensitivity(f2)[s]
+                    v = w1 * w2 * window_noise_products(
+                        product, seg.t, seg.step, length, (multiplicity, k1),
+                        (multiplicity, k2), stride)
+                    grams[:, c1, c2] += v
+                    if j != i:
+                        grams[:, c2, c1] += v
+            blocks.append(grams)
+        return np.concatenate(blocks)
+
+
+def _solve(problem, length, multiplicities, instruments=None, method="ls"):
+    """Estimates of every multiplicity on windows of ``length`` samples; the result is
+    that of the highest multiplicity (the most accurate quadrature), the others serve
+    as its error check."""
+    separate = {}
+    for a in multiplicities:
+        A, b, ids = problem.rows(length, a)
+        check_finite(problem, A, b)
+        if not problem.factors.get("excited"):  # once: a vanishing term does so at any window
+            check_excited(problem, length, a, A, b)
+            problem.factors["excited"] = True
+        basis = WindowBasis(A, b)
+        grams = basis.grams(problem.noise_grams(length, a))
+        separation = None
+        if a == max(multiplicities):
+            separation = separability(basis, problem.exact_columns, grams.sum(axis=0))
+            if separation.proportional:
+                raise ModelError(separation.message(problem.parameters))
+        variance, capped = None, False
+        weights = basis.A
+        if instruments is not None:
+            Z = weights = basis.instruments(instruments[a][0])
+            phi = solve_equilibrated(Z.T @ basis.A, Z.T @ basis.b)
+            scores, jacobian = Z * (basis.b - basis.A @ phi)[:, None], Z.T @ basis.A
+        elif method == "bc":
+            phi, scores, jacobian, variance, capped = bias_compensated(
+                basis.A, basis.b, grams, problem.noise_bound())
+        else:
+            phi = np.linalg.lstsq(basis.A, basis.b, rcond=None)[0]
+            scores, jacobian = basis.A * (basis.b - basis.A @ phi)[:, None], \
+                basis.A.T @ basis.A
+        separate[a] = basis.theta(phi)
+        if a == max(multiplicities):
+            kept = (phi, basis, ids, scores, jacobian, variance, capped, weights, separation,
+                    grams)
+    top = max(multiplicities)
+    phi, basis, ids, scores, jacobian, variance, capped, weights, separation, grams = kept
+    del kept
+    r = basis.b - basis.A @ phi
+    bread = np.linalg.pinv(jacobian)
+    theta_s = basis.theta(phi)
+    theta_bar = np.append(theta_s, -1.0)   # in the units of the rows (noise_meat)
+    stride = max(1, length // WINDOW_OVERLAP)
+    noise = None
+    if variance is None and not capped:  # least squares: misfit per unit noise variance
+        weight = float(np.einsum("i,wij,j->", np.append(phi, -1.0), grams,
+                                 np.append(phi, -1.0)))
+        variance = float(r @ r) / weight if weight > 0 else np.inf
+        if not variance <= problem.noise_bound():
+            variance, capped = problem.noise_bound(), True
+    del grams   # the per-window noise matrices: their memory for noise_meat's
+    if variance is not None and np.isfinite(variance) and variance > 0:
+        beta = np.ldexp(1.0, -basis.b_shift)
+        noise = variance * beta ** 2 * noise_meat(problem, length, top, theta_bar, weights,
+                                                  stride)
+    covariance = sandwich(bread, hac_meat(scores, ids, int(np.ceil(length / stride))),
+                          noise, AGREEMENT, floor=ROUNDOFF * length * np.linalg.norm(basis.b))
+    columns, known, _ = problem.exponents()
+    shift = known - columns
+    with np.errstate(over="ignore", under="ignore"):
+        theta = np.ldexp(theta_s, shift)
+        covariance = np.ldexp(basis.covariance(covariance), shift[:, None] + shift[None, :])
+    lost = ~np.isfinite(theta) | ((theta == 0) & (theta_s != 0)) \
+        | ~(np.diag(covariance) > 0) | ~np.isfinite(np.diag(covariance))
+    if np.any(lost):
+        name = problem.parameters[int(np.flatnonzero(lost)[0])]
+        raise InputDataError(f"the estimate of {name} or its variance is outside the "
+                             f"floating-point range in the units of these records (a "
+                             f"factor 2**{int(shift[np.flatnonzero(lost)[0]])} from the "
+                             f"signals'); express the time or the signals in other units")
+    A = basis.A @ basis.R[:-1, :-1]
+    scale = np.ldexp(np.sqrt(np.mean(A ** 2, axis=0)) / max(float(np.sqrt(np.mean(
+        basis.b ** 2))), 1e-300), basis.shifts - basis.b_shift - shift)
+    return WindowFit(theta, covariance,
+                {a: np.ldexp(v, shift) for a, v in separate.items()},
+                scale, r, len(ids), separation)
+
+
+def _add_derivatives(model, segments, estimator):
+    for seg in segments:
+        for name, k in model.needs_derivatives:
+            seg.values[(name, k)] = estimator(seg.values[name], seg.t, k, seg.step)
+
+
+def _derivative_estimate(y, t, order, step):
+    """Derivative inside a nonlinear factor: the algebraic differentiator when the
+    installed algid has it, else a local polynomial (Savitzky-Golay) derivative."""
+    try:
+        from algid.signals._differentiation import algebraic_derivative
+    except ImportError:
+        return estimate_derivative(y, t, order, step)
+    if step is not None:
+        return algebraic_derivative(y, step, derivative=order)
+    return algebraic_derivative(y, time=t, derivative=order)
+
+
+def _simulated_values(problem, theta, model):
+    """Noise-free output of the current estimate on every segment (instruments)."""
+    from algid.simulation._model import fit_initial_state, simulate_model
+
+    parameters = dict(zip(model.parameters, theta))
+    # fixed-step RK4 on cubic splines: instruments need only be noise-free and correlated
+    options = {"method": "RK4", "substeps": 4, "interpolation": "cubic"}
+    for seg in problem.user_segments:
+        inputs = {name: seg.values[name] for name in model.inputs}
+        x0 = fit_initial_state(model, parameters, seg.t, inputs, seg.values[model.output],
+                               min(50, len(seg)), **options)
+        y = simulate_model(model, parameters, seg.t, inputs, initial_state=x0, **options)
+        if not np.all(np.isfinite(y)):
+            return False
+        values = dict(seg.values)
+        values[model.output] = y
+        for name, k in model.needs_derivatives:
+            if name == model.output:
+                values[(name, k)] = estimate_derivative(y, seg.t, k, seg.step)
+        seg.simulated = values
+    problem.factors = {k: v for k, v in problem.factors.items() if k[1] == "measured"}
+    return True
+
+
+def _least_squares_misfit(segments, step, equation, parameters, output, length, multiplicities):
+    """Misfit of another equation on the same signals, fitted by least squares."""
+    problem = _Problem(parse_equation(equation, parameters, output=output), segments, step)
+    fit = _solve(problem, length, multiplicities, method="ls")
+    return misfit_ratio(problem, length, max(fit.separate), problem.to_rows(fit.theta))
+
+
+def identify(data, equation, parameters=None, *, time=None, rate=None, output=None,
+             window=None, method="bc", multiplicities=MULTIPLICITIES, name="custom",
+             iterations=3):
+    """Identify the parameters of a model equation on measured records.
+
+    Parameters
+    ----------
+    data : mapping or list of mappings
+        Column name -> samples; a list of records is identified together.  Rows may be
+        missing from a record with a time column (gaps), and NaN samples are dropped.
+    equation : str or Model
+        The model, e.g. ``"M*q'' + Fv*q' + Fc*sign(q') + off = F"``.
+    parameters : sequence of str or str
+        The unknown parameters (not needed when ``equation`` is a Model).
+    time : str, optional
+        Name of the time column; by default a column ``t`` or ``time``.
+    rate : float, optional
+        Sampling rate (Hz) of records without a time column (with one, it must agree
+        with it: :data:`algid.identification._records.RATE_TOLERANCE`).
+    output : str, optional
+        Output signal; by default the signal of highest derivative order.
+    window : float, optional
+        Window length (s); chosen from the data when omitted (see the module notes).
+    method : {"bc", "ls", "iv"}
+        Bias-compensated least squares (the default: it removes the bias that white
+        output noise causes and needs no simulation, so it also works in closed loop
+        and on integrating plants), plain least squares, or instrumental variables from
+        the output simulated by the current estimate (open-loop stable plants only;
+        about 10 to 20 times slower).  See the module notes.
+    multiplicities : tuple of int
+        Kernel multiplicities stacked (each at least the model order).
+    name : str
+        Label of the model.
+    iterations : int
+        Instrumental-variable iterations.
+
+    Returns
+    -------
+    IdentificationResult
+        With ``warnings`` when the model does not explain the data within the noise
+        (:mod:`algid.identification._adequacy`).
+
+    Raises
+    ------
+    ModelError, InputDataError
+        One-line messages for a bad equation, an argument of the wrong type, unusable
+        data, or records too large for the memory available.
+    """
+    from algid.identification._result import IdentificationResult
+
+    multiplicities = check_arguments(
+        equation, parameters, time=time, rate=rate, output=output, window=window,
+        method=method, methods=METHODS, multiplicities=multiplicities, name=name,
+        iterations=iterations)
+    model = equation if isinstance(equation, Model) else parse_equation(
+        equation, parameters, output=output, name=name)
+    check_model_columns(model, time)
+    check_memory(data, model)
+    multiplicities = check_multiplicities(model, multiplicities)
+    segments, step, n_samples = prepare_records(data, model.signals, time=time, rate=rate,
+                                                min_length=min_length(multiplicities))
+    _add_derivatives(model, segments, _derivative_estimate)
+    check_factors(model, segments)
+    problem = _Problem(model, segments, step)
+    length = window_length(window, step, problem, multiplicities)
+    scores = None
+    if length is None:
+        length, scores = choose_window(problem, multiplicities, _solve,
+                                       method="bc" if method == "iv" else method)
+    fit = _solve(problem, length, multiplicities, method="bc" if method == "iv" else method)
+    for _ in range(CROSSING_PASSES):  # again, crossings of sign(q') placed by the model
+        # (same window: re-chosen, it varied with the noise and so did its quadrature bias)
+        problem.first_values = dict(zip(model.parameters, fit.theta))
+        problem.sign_jumps = crossing_jumps(model, problem.first_values)
+        if not problem.sign_jumps:
+            break
+        problem.factors = {k: v for k, v in problem.factors.items()
+                           if not (isinstance(k, tuple) and k[0] in problem.sign_jumps)}
+        fit = _solve(problem, length, multiplicities, method="bc" if method == "iv" else method)
+    if method == "iv":
+        for _ in range(iterations):
+            if not _simulated_values(problem, fit.theta, model):
+                raise InputDataError("instrumental variables: the simulated output of the "
+                                     "first estimate diverges; use method='bc'")
+            instruments = {a: problem.rows(length, a, "simulated") for a in multiplicities}
+            fit = _solve(problem, length, multiplicities, instruments)
+    adequacy = model_adequacy(problem, length, fit, _solve, method, min_length(multiplicities),
+                              max(1, length // WINDOW_OVERLAP))
+    # where the misfit is output noise, a combination no better determined than the
+    # noise or the misfit is free; where it is more, the model's error may be the cause
+    noise_like = adequacy.misfit <= adequacy.misfit_limit
+    if not noise_like:  # would a term the model lacks explain most of the misfit?
+        adequacy = missing_terms(adequacy, model, lambda eq, names: _least_squares_misfit(
+            segments, step, eq, names, model.output, length, multiplicities))
+    if noise_like and (fit.separation.free or fit.separation.misfit_free):
+        raise ModelError(fit.separation.message(model.parameters))
+    return IdentificationResult(
+        model=model, values=dict(zip(model.parameters, fit.theta.tolist())),
+        covariance=fit.covariance, window=(length - 1) * step, n_samples=n_samples,
+        n_windows=fit.n_windows, method=method, multiplicities=multiplicities,
+        time=time, rate=rate, window_scores=scores,
+        separate={a: dict(zip(model.parameters, v.tolist())) for a, v in fit.separate.items()},
+        numerical_error=dict(zip(model.parameters, fit.numerical_error.tolist())),
+        adequacy=adequacy,
+        warnings=adequacy.warnings() + fit.separation.warnings(model.parameters,
+                                                               adequacy.adequate))

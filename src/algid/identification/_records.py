@@ -1,0 +1,410 @@
+"""Measured records for :func:`algid.identify`: checks, time axis, gaps, derivatives.
+
+A record is a mapping of signal name -> samples.  Its sample times come from a time
+column, from a sampling rate, or from a column named ``t`` or ``time``; a rate given
+with a time column must agree with it (:data:`RATE_TOLERANCE`), and the time column is
+used.  Times of type ``datetime64`` or ``timedelta64`` become seconds from the first
+sample (subtracted before the conversion, so that no precision is lost).  Complex,
+boolean and date-valued signals are refused.  A record is cut
+into *segments* of contiguous samples at every gap (a time step larger than 1.5 times
+the median step, i.e. missing rows) and at every row holding a NaN: windows never
+straddle a segment boundary.
+"""
+
+from __future__ import annotations
+
+import math
+import numbers
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.signal import savgol_filter
+
+from algid.errors import InputDataError
+
+__all__ = ["Segment", "prepare_records", "estimate_derivative", "check_rate",
+           "check_rate_agrees", "check_factors", "white_noise_floor", "TIME_COLUMNS",
+           "GAP_FACTOR", "RATE_TOLERANCE", "STEP_RANGE", "NOISE_ORDERS"]
+
+#: Column names taken as the time axis when neither ``time`` nor ``rate`` is given.
+TIME_COLUMNS = ("t", "time")
+
+#: A step longer than this many median steps is a gap (missing rows).
+GAP_FACTOR = 1.5
+
+#: A segment counts as uniformly sampled when no sample time is further than this
+#: fraction of a step from the uniform grid (times stored in single precision, as in
+#: the EMPS files, are off by about 3e-5 of a step).
+UNIFORM_TOLERANCE = 1e-4
+
+#: A rate and a time column agree when the rate's step is within this fraction of the
+#: column's median step.
+RATE_TOLERANCE = 1e-3
+
+#: Sampling steps (s) accepted: the window integrals divide by powers of the window's
+#: span up to the 2(k+1)-th (noise weights of a k-th derivative), which leave the
+#: floating-point range beyond about 1e-60 and 1e40 s (measured on a second-order
+#: model); this range keeps a wide margin and holds every physical record.
+STEP_RANGE = (1e-30, 1e30)
+
+
+@dataclass
+class Segment:
+    """Contiguous samples of one record.
+
+    Attributes
+    ----------
+    record : int
+        Index of the record it comes from.
+    rows : numpy.ndarray
+        Row indices in the record.
+    t : numpy.ndarray
+        Sample times (s).
+    values : dict
+        Signal name (or ``(name, k)`` for an estimated derivative) -> samples.
+    step : float or None
+        The sampling step when the segment is uniform, else ``None``.
+    """
+
+    record: int
+    rows: np.ndarray
+    t: np.ndarray
+    values: dict = field(default_factory=dict)
+    step: float | None = None
+
+    def __len__(self):
+        return len(self.t)
+
+
+def _as_records(data):
+    if isinstance(data, dict) or hasattr(data, "keys"):
+        return [data]
+    if isinstance(data, (list, tuple)) and data and all(hasattr(r, "keys") for r in data):
+        return list(data)
+    raise InputDataError("data must be a mapping of column name -> samples, or a list "
+                         "of such mappings")
+
+
+def _column(record, name, index, label):
+    if name not in record:
+        available = ", ".join(map(str, record.keys()))
+        raise InputDataError(f"record {index}: no column {name!r} for the {label} "
+                             f"(columns: {available})")
+    values = record[name]
+    if isinstance(values, np.ma.MaskedArray):  # masked samples are missing, as NaN are
+        values = np.ma.filled(values.astype(float), np.nan)
+    try:
+        values = np.asarray(values)
+    except (TypeError, ValueError):
+        raise InputDataError(f"record {index}: column {name!r} is not numeric") from None
+    kind = values.dtype.kind
+    if kind == "c":
+        raise InputDataError(f"record {index}: column {name!r} is complex; give real "
+                             f"measurements (e.g. its real part or its modulus)")
+    if kind == "b":
+        raise InputDataError(f"record {index}: column {name!r} holds booleans, not "
+                             f"measurements (convert with .astype(float))")
+    if kind in "mM":
+        if label != "time":
+            raise InputDataError(f"record {index}: column {name!r} holds dates or "
+                                 f"durations, not measurements")
+        values = values.reshape(-1)
+        # seconds from the first sample: the difference first, in the column's own
+        # integer unit, so that no precision is lost to the size of the epoch
+        return (values - values[0]) / np.timedelta64(1, "s") if len(values) else \
+            values.astype(float)
+    try:
+        return values.astype(float).reshape(-1)
+    except (TypeError, ValueError):
+        raise InputDataError(f"record {index}: column {name!r} is not numeric") from None
+    except OverflowError:   # Python integers beyond floating point
+        raise InputDataError(f"record {index}: column {name!r} holds numbers too large "
+                             f"for floating point (beyond 1.8e308)") from None
+
+
+def check_rate(rate, what="rate"):
+    """The sampling rate as a float, or a one-line error.
+
+    Parameters
+    ----------
+    rate : float
+        Sampling rate (Hz): a real number (not a boolean or a string), positive and
+        finite, whose step lies in :data:`STEP_RANGE`.
+    what : str
+        Name of the argument, for the message.
+
+    Returns
+    -------
+    float
+
+    Raises
+    ------
+    InputDataError
+    """
+    if isinstance(rate, (bool, np.bool_)) or not isinstance(rate, numbers.Real):
+        raise InputDataError(f"{what} must be a number of Hz, got {rate!r}")
+    value = float(rate)
+    if not (math.isfinite(value) and value > 0):
+        raise InputDataError(f"{what} must be a positive finite number of Hz, got {rate!r}")
+    low, high = STEP_RANGE
+    if not low <= 1.0 / value <= high:
+        raise InputDataError(
+            f"{what} {value:g} Hz gives a sampling step of {1.0 / value:.3g} s, outside "
+            f"{low:g} .. {high:g} s: the estimators' integrals would overflow or "
+            f"underflow; express the time in other units")
+    return value
+
+
+def check_rate_agrees(rate, t, name, where):
+    """Refuse a sampling rate that contradicts a time column.
+
+    Parameters
+    ----------
+    rate : float
+        The rate given (Hz).
+    t : numpy.ndarray
+        The time column (s), strictly increasing.
+    name : str
+        The time column's name.
+    where : str
+        Prefix of the message (a record or a file).
+
+    Raises
+    ------
+    InputDataError
+        If ``1 / rate`` differs from the column's median step by more than
+        :data:`RATE_TOLERANCE` of it.
+    """
+    if len(t) < 2:
+        return
+    step = float(np.median(np.diff(t)))
+    if not abs(step * rate - 1.0) <= RATE_TOLERANCE:
+        raise InputDataError(
+            f"{where}: rate {rate:g} Hz contradicts time column {name!r} (sampled at "
+            f"{1.0 / step:.6g} Hz); give the time column or a rate that agrees with it")
+
+
+def _time_axis(record, index, n, time, rate):
+    if rate is not None:
+        rate = check_rate(rate)
+    if time is None:
+        time = next((c for c in TIME_COLUMNS if c in record), None)
+        if time is None and rate is None:
+            raise InputDataError(f"record {index}: no time column ({' or '.join(TIME_COLUMNS)}); "
+                                 f"give time= (a column name) or rate= (Hz)")
+    if time is None:
+        return np.arange(n) / rate, None
+    t = _column(record, time, index, "time")
+    if len(t) != n:
+        raise InputDataError(f"record {index}: time column {time!r} has {len(t)} samples, "
+                             f"the signals {n}")
+    if not np.all(np.isfinite(t)):
+        row = int(np.flatnonzero(~np.isfinite(t))[0])
+        raise InputDataError(f"record {index}: time column {time!r} is not finite at row {row}")
+    steps = np.diff(t)
+    if np.any(steps <= 0):
+        row = int(np.flatnonzero(steps <= 0)[0]) + 1
+        raise InputDataError(f"record {index}: time column {time!r} does not increase at "
+                             f"row {row}")
+    if rate is not None:
+        check_rate_agrees(rate, t, time, f"record {index}")
+    if len(steps):
+        median, low, high = float(np.median(steps)), *STEP_RANGE
+        if not low <= median <= high:
+            raise InputDataError(
+                f"record {index}: time column {time!r} has a step of {median:.3g}, outside "
+                f"{low:g} .. {high:g} s: the window integrals would overflow or "
+                f"underflow; express the time in other units")
+    return t, time
+
+
+def _split(t, valid, min_length):
+    """Row ranges ``[start, stop)`` of contiguous valid samples without gaps."""
+    n = len(t)
+    steps = np.diff(t)
+    median = float(np.median(steps))
+    # a run breaks before an invalid row, after it, and across a gap
+    breaks = np.zeros(n + 1, dtype=bool)
+    breaks[0] = breaks[n] = True
+    breaks[1:n] |= steps > GAP_FACTOR * median
+    breaks[:n] |= ~valid
+    breaks[1:] |= ~valid
+    edges = np.flatnonzero(breaks)
+    ranges = []
+    for start, stop in zip(edges[:-1], edges[1:]):
+        if valid[start] and stop - start >= min_length:
+            ranges.append((int(start), int(stop)))
+    return ranges, median
+
+
+def prepare_records(data, signals, *, time=None, rate=None, min_length=8):
+    """Check the records and cut them into segments of contiguous samples.
+
+    Parameters
+    ----------
+    data : mapping or list of mappings
+        Column name -> samples, one mapping per record.
+    signals : sequence of str
+        Signals the model reads.
+    time : str, optional
+        Name of the time column.
+    rate : float, optional
+        Sampling rate (Hz) when there is no time column.
+    min_length : int
+        Segments shorter than this are dropped.
+
+    Returns
+    -------
+    segments : list of Segment
+    step : float
+        The median sampling step over all records (s).
+    n_samples : int
+        Usable samples (in the segments kept).
+
+    Raises
+    ------
+    InputDataError
+        Missing or non-numeric columns, bad time axis, or nothing usable left.
+    """
+    records = _as_records(data)
+    segments, steps = [], []
+    for index, record in enumerate(records):
+        columns = {name: _column(record, name, index, "signal") for name in signals}
+        lengths = {len(v) for v in columns.values()}
+        if len(lengths) != 1:
+            raise InputDataError(f"record {index}: signals have different lengths "
+                                 f"({', '.join(f'{k}: {len(v)}' for k, v in columns.items())})")
+        n = lengths.pop()
+        if n < 2:
+            raise InputDataError(f"record {index}: fewer than 2 samples")
+        t, _ = _time_axis(record, index, n, time, rate)
+        valid = np.all([np.isfinite(v) for v in columns.values()], axis=0)
+        ranges, median = _split(t, valid, min_length)
+        steps.append(median)
+        for start, stop in ranges:
+            seg_t = t[start:stop]
+            step = (seg_t[-1] - seg_t[0]) / (len(seg_t) - 1)
+            grid = seg_t[0] + step * np.arange(len(seg_t))
+            uniform = np.max(np.abs(seg_t - grid)) <= UNIFORM_TOLERANCE * step
+            segments.append(Segment(index, np.arange(start, stop), seg_t,
+                                    {k: v[start:stop] for k, v in columns.items()},
+                                    float(step) if uniform else None))
+    if not segments:
+        raise InputDataError(f"no run of {min_length} contiguous samples without gaps or "
+                             f"NaN in any record: nothing to identify on")
+    n_samples = sum(len(s) for s in segments)
+    return segments, float(np.median(steps)), n_samples
+
+
+def estimate_derivative(y, t, order, step=None, span=None):
+    """Numerical estimate of the ``order``-th derivative of ``y`` (a fallback).
+
+    A Savitzky-Golay derivative (local cubic least squares) on a uniform grid, finite
+    differences on the actual times otherwise.  Used for the derivatives inside
+    nonlinear factors (``sign(q')``).
+
+    Parameters
+    ----------
+    y, t : numpy.ndarray
+        Samples and times.
+    order : int
+        Derivative order.
+    step : float or None
+        Sampling step when uniform.
+    span : int, optional
+        Samples in the local fit (odd; default 2 * order + 7).
+
+    Returns
+    -------
+    numpy.ndarray
+    """
+    n = len(y)
+    if step is not None:
+        span = span or 2 * order + 7
+        span = min(span + (span % 2 == 0), n - (n % 2 == 0))
+        polyorder = min(max(3, order + 1), span - 1)
+        if span > polyorder >= order:
+            return savgol_filter(y, span, polyorder, deriv=order, delta=step)
+    out = np.asarray(y, dtype=float)
+    for _ in range(order):
+        out = np.gradient(out, t)
+    return out
+
+
+def check_factors(model, segments):
+    """Refuse a model whose terms are not finite on the records.
+
+    A term's factor may leave its domain on measured samples (``log(y)`` with
+    ``y <= 0``, ``C/y`` or ``1/t`` at zero, ``sqrt(y)`` with ``y < 0``); the window
+    integrals would then be NaN.
+
+    Parameters
+    ----------
+    model : algid.models._model.Model
+        The model (its ``terms``).
+    segments : list of Segment
+        The records' segments, with the derivatives the model's factors read.
+
+    Raises
+    ------
+    InputDataError
+        Naming the first such term, the time and the record's row.
+    """
+    for term in model.terms:
+        for seg in segments:
+            with np.errstate(all="ignore"):
+                z = np.asarray(term.factor.evaluate(seg.values, seg.t), dtype=float)
+            bad = ~np.isfinite(z)
+            if np.any(bad):
+                i = int(np.flatnonzero(np.broadcast_to(bad, seg.t.shape))[0])
+                value = float(np.broadcast_to(z, seg.t.shape)[i])
+                with np.errstate(all="ignore"):   # finite on signals of unit size: overflow
+                    small = np.asarray(term.factor.evaluate(
+                        {k: np.asarray(v, dtype=float) / np.max(np.abs(v), initial=1e-300)
+                         for k, v in seg.values.items()}, seg.t), dtype=float)
+                if np.isinf(value) and np.isfinite(np.broadcast_to(small, seg.t.shape)[i]):
+                    raise InputDataError(
+                        f"record {seg.record}: the term {term.factor} overflows at t = "
+                        f"{seg.t[i]:.6g} s (row {int(seg.rows[i])}): the signals are too "
+                        f"large for it in these units; express them in other units")
+                raise InputDataError(
+                    f"record {seg.record}: the term {term.factor} is {value} at t = "
+                    f"{seg.t[i]:.6g} s (row {int(seg.rows[i])}): the data leave its "
+                    f"domain (a division by zero, the log or square root of a "
+                    f"non-positive value)")
+
+
+#: Difference orders of :func:`white_noise_floor`.
+NOISE_ORDERS = (4, 8)
+
+
+def white_noise_floor(samples):
+    """Whether white noise shows in a signal's differences, and its variance.
+
+    The ``k``-th difference of white noise of variance ``sigma^2`` has the variance
+    ``C(2k, k) sigma^2`` for every ``k``; that of a sampled band-limited signal,
+    divided by ``C(2k, k)``, falls geometrically with ``k``.  When the normalised
+    variances of the 4th and 8th differences agree within a factor 2, the differences
+    have reached a noise floor; otherwise the signal itself dominates them (few
+    samples per period, or no visible noise).
+
+    Parameters
+    ----------
+    samples : array_like
+        The signal (uniformly sampled).
+
+    Returns
+    -------
+    visible : bool
+        True when the differences have reached a white-noise floor.
+    variance : float
+        The normalised variance of the 8th differences (an upper bound on the noise
+        variance).
+    """
+    x = np.asarray(samples, dtype=float)
+    low, high = NOISE_ORDERS
+    if len(x) <= 2 * high:
+        return False, float("nan")
+    normalised = [float(np.mean(np.diff(x, k) ** 2)) / math.comb(2 * k, k)
+                  for k in NOISE_ORDERS]
+    return bool(normalised[1] >= 0.5 * normalised[0]), normalised[1]
