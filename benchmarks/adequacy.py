@@ -87,7 +87,7 @@ def real_cases():
     """``(name, record, equation, parameters, options)`` of the shipped real records:
     the three parts of Silverbox with the cubic model, the EMPS runs with the friction
     model (the validation run also with the pulses added to the force once more, as
-    ``tests/test_identify_real.py`` does)."""
+    ``tests/identification/test_identify_real.py`` does)."""
     from algid import datasets
 
     silverbox = datasets.silverbox()

@@ -682,7 +682,7 @@ def long_stream(config):
     online = _online()
     rows = []
     if online is None:
-        return {"n_samples": config.n_long, "not_available": "algid.estimation._online not available"}
+        return {"n_samples": config.n_long, "not_available": "online estimator not available"}
     period = getattr(online, "TRACKING_RESET_PERIOD", 0.05)
     exact_rate = 1024.0
     eng, kw = _online_fastest(online)

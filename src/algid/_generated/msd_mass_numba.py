@@ -62,7 +62,7 @@ def _increments(src, dst, nb, weights):
 @numba.njit(cache=CACHE, nogil=True)
 def _startup_increments(src, dst, startup):
     """At the time origin (src[W + i] is sample i): dst[0] = 0 and dst[j], j < W,
-    the start-up rule over samples 0 .. W (algid.signals._quadrature.advance_integrators)."""
+    the start-up rule over samples 0 .. W (advance_integrators)."""
     W = startup.shape[1] - 1
     dst[0] = 0.0
     for j in range(1, W):
@@ -176,7 +176,7 @@ def advance(channel_0, channel_1, out, integrals, history, n0, dt, divisors,
             weights, startup, filter_order, from_origin):
     """Advance the state (integrals, history) over the chunk; estimates into out.
 
-    The state layout is that of algid.estimation._core.integrator_layout.  With from_origin
+    The state layout is that of estimation._core.integrator_layout.  With from_origin
     the chunk starts at the time origin and holds at least len(weights) samples.
     """
     W = max(weights.shape[0] - 1, 0)

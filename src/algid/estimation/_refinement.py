@@ -1,7 +1,7 @@
 """Output-error refinement of an algebraic estimate (Gauss–Newton): :func:`algid.refine`.
 
 The algebraic estimate weights the data by powers of ``t`` and by the invariant
-filter, so its variance stays above the Cramér–Rao bound (:mod:`algid.estimation._cramer_rao`). 
+filter, so its variance stays above the Cramér–Rao bound (:func:`algid.crlb`).
 With
 white Gaussian noise on ``x``, the least-squares output-error estimate
 

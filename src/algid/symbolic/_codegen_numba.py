@@ -54,7 +54,7 @@ def _startup_source():
     return ["@numba.njit(cache=CACHE, nogil=True)",
             "def _startup_increments(src, dst, startup):",
             '    """At the time origin (src[W + i] is sample i): dst[0] = 0 and dst[j], j < W,',
-            '    the start-up rule over samples 0 .. W (signals._quadrature.advance_integrators)."""',
+            '    the start-up rule over samples 0 .. W (advance_integrators)."""',
             "    W = startup.shape[1] - 1",
             "    dst[0] = 0.0",
             "    for j in range(1, W):",
