@@ -372,16 +372,3 @@ def test_numba_engine_without_numba(data, monkeypatch):
     r = estimate(t, f, x)  # auto -> numpy
     assert r.final()["B"] == pytest.approx(2.0, rel=1e-6)
 
-
-def test_deprecated_engine_interface(data):
-    """algid.engine stays for a release: the core with the numba backend, warning."""
-    _numba()
-    from algid import engine
-    t, f, x = data
-    dt = t[1] - t[0]
-    with pytest.warns(DeprecationWarning, match="algid.estimation._core"):
-        state = engine.make_state(load_model("msd"), 6, 2, step=dt, input_divisor=2.0)
-    with pytest.warns(DeprecationWarning, match="algid.estimation._core"):
-        got = engine.run_chunk(state, 2.0 * f, x)
-    np.testing.assert_array_equal(got, core.advance(_state("msd", 6, 2, dt), (f, x),
-                                                    backend="numba")[0])

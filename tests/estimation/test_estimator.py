@@ -117,7 +117,6 @@ def test_result_interface():
     (dict(filter_order=-1), InputDataError, "filter_order"),
     (dict(filter_order=1.5), InputDataError, "filter_order"),
     (dict(quadrature_points=11), InputDataError, "quadrature_points"),
-    (dict(quadrature_points=4, quadrature_order=6), InputDataError, "not both"),
 ])
 def test_bad_options(kwargs, error, match):
     sim = simulate("step", **PAPER, duration=0.1)
@@ -137,16 +136,6 @@ def test_bad_signals_are_refused():
     with pytest.raises(InputDataError, match="needs the input"):
         estimate(t)
 
-
-def test_quadrature_order_is_a_deprecated_alias():
-    sim = simulate("step", **PAPER, duration=0.2)
-    with pytest.warns(DeprecationWarning, match="quadrature_points"):
-        old = estimate(sim.t, sim.f, sim.x, quadrature_order=4)
-    new = estimate(sim.t, sim.f, sim.x, quadrature_points=4)
-    np.testing.assert_array_equal(old.B, new.B)
-    assert new.quadrature_points == 4
-    with pytest.warns(DeprecationWarning):
-        assert new.quadrature_order == 4
 
 
 def test_public_namespace():

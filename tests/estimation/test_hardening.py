@@ -198,9 +198,6 @@ def test_integral_floats_and_numpy_integers_are_accepted(sine):
         np.testing.assert_array_equal(algid.estimate(sine.t, sine.f, sine.x, **options).B,
                                       reference)
         algid.OnlineEstimator(**options)
-    with pytest.warns(DeprecationWarning):
-        r = algid.estimate(sine.t, sine.f, sine.x, quadrature_order=8.0)
-    np.testing.assert_array_equal(r.B, reference)
     for bad in ({"quadrature_points": 6.5}, {"quadrature_points": float("nan")},
                 {"filter_order": float("inf")}):
         with pytest.raises(InputDataError):

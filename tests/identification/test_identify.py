@@ -367,7 +367,7 @@ def test_noise_covariance_only_where_the_residuals_agree_with_it(monkeypatch):
     noise model's is used."""
     from scipy.signal import lsim
 
-    from algid.identification._identify import _identify as identification
+    from algid.identification import _identify as identification
 
     t = np.arange(4000) * 1e-3
     rng = np.random.default_rng(1)
@@ -393,7 +393,7 @@ def test_noise_meat_counts_the_noise_of_the_refined_crossings():
     the sandwich is ``sum_n G_n G_n^T`` with ``G_n`` built window by window: the
     direct weights of sample n, plus, for the samples of a crossing's fit, the score of
     every window holding the crossing times the move of its integral."""
-    from algid.identification._identify import _identify as identification
+    from algid.identification import _identify as identification
     from algid.identification._window_covariance import noise_meat
     from algid.identification._window_kernels import term_kernel, window_sample_weights
 

@@ -168,20 +168,3 @@ def test_estimate_rejects_a_bad_lowpass():
     with pytest.raises(InputDataError, match="lowpass is not stable"):
         estimate(t, f, x, lowpass=([1.0], [1.0, -2.0]))
 
-
-def test_deprecated_order_keyword_and_attribute():
-    """``order=`` (points of the interpolation) and ``LowpassFilter.order`` (its number
-    of poles) keep working for one release, with a warning; the new names say which."""
-    F = as_lowpass(([100.0], [1.0, 20.0, 100.0]))
-    y = np.sin(np.arange(200) * H)
-    with pytest.warns(DeprecationWarning, match="points"):
-        old = F.apply(y, H, order=4)
-    np.testing.assert_array_equal(old, F.apply(y, H, points=4))
-    with pytest.warns(DeprecationWarning, match="points"):
-        old = lti_response(F.A, F.b, y, H, order=3)
-    np.testing.assert_array_equal(old, lti_response(F.A, F.b, y, H, points=3))
-    with pytest.raises(InputDataError, match="not both"):
-        with pytest.warns(DeprecationWarning):
-            F.apply(y, H, points=4, order=6)
-    with pytest.warns(DeprecationWarning, match="filter_order"):
-        assert F.order == F.filter_order == 2

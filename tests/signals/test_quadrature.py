@@ -66,12 +66,6 @@ def test_rejects_bad_points_and_short_signal():
         cumulative_integral(np.ones(3), 0.1, points=6)
 
 
-def test_order_keyword_is_a_deprecated_alias_of_points():
-    y = np.sin(np.arange(30) * 0.1)
-    with pytest.warns(DeprecationWarning, match="points"):
-        old = cumulative_integral(y, 0.1, order=4)
-    np.testing.assert_array_equal(old, cumulative_integral(y, 0.1, points=4))
-
 
 @pytest.mark.parametrize("points", [2, 3, 6, 8])
 def test_integrators_continue_bit_for_bit_across_chunks(points):

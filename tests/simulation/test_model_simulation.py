@@ -198,17 +198,3 @@ def test_fixed_step_rk4_option():
     with pytest.raises(InputDataError, match="substeps"):
         simulate_model(LINEAR, {"B": 2.0, "K": 3.0}, t, {"f": f}, method="RK4", substeps=0)
 
-
-def test_deprecated_ode_simulation_aliases():
-    from algid.simulation import _output_equation as ode_simulation
-
-    t, f, x = exact_response("sine", B=2.0, K=3.0, duration=2.0, rate=200.0, omega=7.0)
-    equation = ode_simulation.OutputEquation(LINEAR, {"B": 2.0, "K": 3.0})
-    with pytest.warns(DeprecationWarning, match="simulate_model"):
-        old = ode_simulation.simulate_output(equation, t, {"f": f}, [0.0, 0.0])
-    new = simulate_model(LINEAR, {"B": 2.0, "K": 3.0}, t, {"f": f}, method="RK4",
-                         interpolation="cubic")
-    assert np.array_equal(old, new)
-    with pytest.warns(DeprecationWarning, match="fit_initial_state"):
-        state = ode_simulation.fit_initial_state(equation, t, {"f": f}, x)
-    assert np.allclose(state, [0.0, 0.0], atol=1e-6)

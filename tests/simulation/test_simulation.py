@@ -21,7 +21,8 @@ import pytest
 import sympy as sp
 
 from algid.errors import InputDataError
-from algid.simulation import INPUT_NAMES, SimulationResult, plant, simulate
+from algid.simulation import SimulationResult, plant, simulate
+from algid.simulation._plant import INPUT_NAMES
 
 SQ2 = np.sqrt(2.0)
 EXACT = 1e-13  # absolute tolerance for the round-off-exact paths (responses are O(1))

@@ -36,11 +36,9 @@ from algid.signals._filters import as_lowpass
 from algid.signals._quadrature import iterated_integrals, startup_samples
 
 __all__ = ["estimate", "available_models", "load_model", "kernel_values",
-           "DEFAULT_FILTER_ORDER", "DEFAULT_QUADRATURE_POINTS", "DEFAULT_QUADRATURE_ORDER",
+           "DEFAULT_FILTER_ORDER", "DEFAULT_QUADRATURE_POINTS",
            "ENGINES", "AUTO_ENGINE_MIN_SAMPLES"]  # noqa: F822 - served by __getattr__
 
-#: Deprecated spelling of :data:`DEFAULT_QUADRATURE_POINTS`.
-DEFAULT_QUADRATURE_ORDER = DEFAULT_QUADRATURE_POINTS
 #: Values of the ``engine`` option (see :mod:`algid.estimation._backends`).
 ENGINES = backends.ENGINES
 
@@ -52,7 +50,7 @@ def __getattr__(name):
     raise AttributeError(f"module 'algid.estimation._batch' has no attribute {name!r}")
 
 
-def kernel_values(module, signals, tau, dt, *, points=None, order=None):
+def kernel_values(module, signals, tau, dt, *, points=DEFAULT_QUADRATURE_POINTS):
     """Values of every kernel of a generated model on uniformly sampled signals.
 
     Parameters
@@ -66,21 +64,13 @@ def kernel_values(module, signals, tau, dt, *, points=None, order=None):
     dt : float
         Sampling step.
     points : int, optional
-        Points of the quadrature rule.  Default 6.
-    order : int, optional
-        Deprecated spelling of ``points``.
+        Points of the quadrature rule.  Default :data:`DEFAULT_QUADRATURE_POINTS` (8).
 
     Returns
     -------
     dict
         Kernel name -> array.
     """
-    if order is not None:
-        import warnings
-        warnings.warn("the keyword 'order' is deprecated: use 'points'", DeprecationWarning,
-                      stacklevel=2)
-        points = order
-    points = DEFAULT_QUADRATURE_POINTS if points is None else points
     values = {}
     for signal, power, depth in module.CHAINS:
         weighted = signals[signal] if power == 0 else tau**power * signals[signal]
@@ -101,7 +91,7 @@ def _unpack_timeresponse(data):
 
 
 def estimate(t, f=None, x=None, *, model="msd", filter_order=DEFAULT_FILTER_ORDER, mass=None,
-             quadrature_points=None, lowpass=None, engine="auto", quadrature_order=None,
+             quadrature_points=None, lowpass=None, engine="auto",
              signals=None, differentiator="centred", derivative_window=None,
              derivative_extra_orders=0, numerical_error=True, late_origin=False):
     """Estimate the parameters of a model from its input and output, algebraically.
@@ -133,7 +123,8 @@ def estimate(t, f=None, x=None, *, model="msd", filter_order=DEFAULT_FILTER_ORDE
         force, and the result also holds the quantities it scales (``c = B m`` and
         ``k = K m``).
     quadrature_points : int, optional
-        Points of the cumulative quadrature rule (2 = trapezoid).  Default 6.
+        Points of the cumulative quadrature rule (2 = trapezoid).  Default
+        :data:`DEFAULT_QUADRATURE_POINTS` (8).
     lowpass : tuple, scipy.signal.lti or python-control system, optional
         A strictly proper, stable, continuous-time SISO filter (e.g. ``([100], [1, 20,
         100])`` for ``100/(s + 10)**2``; see :func:`algid.signals._filters.as_lowpass`) applied,
@@ -148,8 +139,6 @@ def estimate(t, f=None, x=None, *, model="msd", filter_order=DEFAULT_FILTER_ORDE
         ``"numba"`` if numba is installed, there are at least
         :data:`~algid.estimation._backends.AUTO_ENGINE_MIN_SAMPLES` samples and no ``lowpass``,
         else ``"numpy"``.
-    quadrature_order : int, optional
-        Deprecated spelling of ``quadrature_points``.
     signals : mapping, optional
         For a model of several signals or nonlinear factors (a module from
         :func:`algid.models.compile_equation`): measured signal name -> samples
@@ -216,8 +205,7 @@ def estimate(t, f=None, x=None, *, model="msd", filter_order=DEFAULT_FILTER_ORDE
     """
     if signals is not None:
         return _estimate_signals(t, signals, model=model, filter_order=filter_order,
-                                 quadrature_points=quadrature_points,
-                                 quadrature_order=quadrature_order, engine=engine,
+                                 quadrature_points=quadrature_points, engine=engine,
                                  given=(f, x, mass, lowpass), differentiator=differentiator,
                                  derivative_window=derivative_window,
                                  derivative_extra_orders=derivative_extra_orders,
@@ -234,7 +222,7 @@ def estimate(t, f=None, x=None, *, model="msd", filter_order=DEFAULT_FILTER_ORDE
     module = load_model(model)
     _check_takes_pair(module)
     filter_order = check_filter_order(filter_order)
-    points = quadrature_points_option(quadrature_points, quadrature_order)
+    points = quadrature_points_option(quadrature_points)
     _check_late_origin(late_origin, numerical_error, lowpass)
     lowpass_filter = None if lowpass is None else as_lowpass(lowpass)
     backends.choose_engine(engine, 0, lowpass_filter)  # refuse a bad option before the data
@@ -379,7 +367,7 @@ def _check_channels_finite(module, channels, start, signals):
                                  f"of its function, or an overflow")
 
 
-def _estimate_signals(t, signals, *, model, filter_order, quadrature_points, quadrature_order,
+def _estimate_signals(t, signals, *, model, filter_order, quadrature_points,
                       engine, given, differentiator, derivative_window,
                       derivative_extra_orders, with_error, late_origin):
     """:func:`estimate` for a model of several signals or nonlinear factors (``signals=``)."""
@@ -392,7 +380,7 @@ def _estimate_signals(t, signals, *, model, filter_order, quadrature_points, qua
         raise InputDataError("signals must be a non-empty mapping of signal name -> samples")
     module = load_model(model)
     filter_order = check_filter_order(filter_order)
-    points = quadrature_points_option(quadrature_points, quadrature_order)
+    points = quadrature_points_option(quadrature_points)
     _check_late_origin(late_origin, with_error, None)
     # the time axis once (passed as its own companions: t is never identically zero,
     # so only the checks of the time axis can fail), then every signal

@@ -62,7 +62,6 @@ Examples
 from __future__ import annotations
 
 import math
-import warnings
 
 import numpy as np
 
@@ -136,7 +135,8 @@ class OnlineEstimator:
     filter_order : int, optional
         ``p`` of the invariant filter ``1/s**p`` (0 = none).  Default 2.
     quadrature_points : int, optional
-        Points of the quadrature rule (2 = trapezoid).  Default 6.
+        Points of the quadrature rule (2 = trapezoid).  Default
+        :data:`~algid.estimation._options.DEFAULT_QUADRATURE_POINTS` (8).
     mass : float, optional
         Known mass [kg] (models that declare it, e.g. ``"msd"``): ``f`` is then the
         force and the results also hold the quantities it scales (``c = B m``,
@@ -159,8 +159,6 @@ class OnlineEstimator:
         ``algid[fast]``; several times faster for chunks of any size).  Both give the
         same numbers (bit for bit on the platforms tested).  ``"auto"`` (default):
         ``"numba"`` if numba is installed, else ``"numpy"``.
-    quadrature_order : int, optional
-        Deprecated spelling of ``quadrature_points``.
     derivative_window : float, optional
         For a model with a derivative inside a nonlinear factor (``sign(q')``): the
         window ``T`` [s] of the causal algebraic differentiator that estimates it
@@ -231,12 +229,11 @@ class OnlineEstimator:
 
     def __init__(self, model="msd", *, filter_order=DEFAULT_FILTER_ORDER,
                  quadrature_points=None, mass=None, dt=None, rate=None, reset_period=None,
-                 engine="auto", quadrature_order=None, derivative_window=None,
+                 engine="auto", derivative_window=None,
                  derivative_extra_orders=0, late_origin=False):
         self._module = module = load_model(model)
         self.filter_order = check_filter_order(filter_order)
-        self.quadrature_points = quadrature_points_option(quadrature_points,
-                                                          quadrature_order)
+        self.quadrature_points = quadrature_points_option(quadrature_points)
         # a stream takes numba whenever it can: there the cost per call matters most
         self.engine = choose_engine(engine, 0, None, min_samples=0)
         self.mass = known_mass(module, mass)
@@ -293,11 +290,6 @@ class OnlineEstimator:
             mass_scaled=self._mass_scaled)
         self._discard_sample = (np.empty((self._n_parameters, 1)), np.empty(1))
         self.reset()
-
-    @property
-    def quadrature_order(self) -> int:
-        """Deprecated spelling of :attr:`quadrature_points`."""
-        return self.quadrature_points
 
     def reset(self):
         """Forget the stream: the next sample is the first (and the new time origin).
@@ -379,13 +371,6 @@ class OnlineEstimator:
         One, or two with re-anchoring; NaN for one not started yet.
         """
         return tuple(self._origins)
-
-    @property
-    def window_origins(self) -> tuple:
-        """Deprecated spelling of :attr:`anchor_origins`."""
-        warnings.warn("window_origins is deprecated: use anchor_origins",
-                      DeprecationWarning, stacklevel=2)
-        return self.anchor_origins
 
     @property
     def state_magnitude(self) -> float:

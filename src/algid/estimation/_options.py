@@ -3,8 +3,6 @@
 
 from __future__ import annotations
 
-import warnings
-
 from algid._signal_checks import integer_value, positive_number
 from algid.errors import InputDataError, ModelError
 from algid.signals._quadrature import check_quadrature_points
@@ -51,22 +49,13 @@ def check_filter_order(filter_order) -> int:
     return value
 
 
-def quadrature_points_option(quadrature_points, quadrature_order, *, stacklevel=3) -> int:
-    """The checked number of quadrature points from either spelling of the option.
-
-    The option is ``quadrature_points``, or its deprecated spelling
-    ``quadrature_order`` (which emits a :class:`DeprecationWarning`).
+def quadrature_points_option(quadrature_points) -> int:
+    """The checked number of quadrature points of the option ``quadrature_points``.
 
     Parameters
     ----------
     quadrature_points : int or None
-        Number of points of the rule; None means :data:`DEFAULT_QUADRATURE_POINTS`
-        (unless ``quadrature_order`` is given).
-    quadrature_order : int or None
-        Deprecated spelling of ``quadrature_points``; None if not given.
-    stacklevel : int, optional
-        ``stacklevel`` of the deprecation warning, so that it points at the caller's
-        caller.
+        Number of points of the rule; None means :data:`DEFAULT_QUADRATURE_POINTS`.
 
     Returns
     -------
@@ -76,17 +65,10 @@ def quadrature_points_option(quadrature_points, quadrature_order, *, stacklevel=
     Raises
     ------
     InputDataError
-        A bad value, or both spellings with different values.
+        A bad value.
     """
-    if quadrature_order is None:
-        return check_quadrature_points(
-            DEFAULT_QUADRATURE_POINTS if quadrature_points is None else quadrature_points)
-    warnings.warn("quadrature_order is deprecated: use quadrature_points (the number of "
-                  "points of the rule)", DeprecationWarning, stacklevel=stacklevel)
-    if quadrature_points is not None and quadrature_points != quadrature_order:
-        raise InputDataError("give quadrature_points, not both quadrature_points and "
-                             "quadrature_order")
-    return check_quadrature_points(quadrature_order, name="quadrature_order")
+    return check_quadrature_points(
+        DEFAULT_QUADRATURE_POINTS if quadrature_points is None else quadrature_points)
 
 
 def known_mass(module, mass):

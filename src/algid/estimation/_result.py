@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import warnings
 from functools import cached_property
 
 import numpy as np
@@ -57,9 +56,6 @@ class EstimationResult:
     filter_order : int
     quadrature_points : int
         Points of the quadrature rule.
-    quadrature_order : int
-        Deprecated spelling of ``quadrature_points`` (as a constructor keyword and as an
-        attribute; both warn).
     mass : float or None
     mass_scaled : tuple of str
         The estimates that are a model parameter times the known mass (``c``, ``k``).
@@ -71,12 +67,7 @@ class EstimationResult:
     """
 
     def __init__(self, *, t, estimates, model, filter_order, quadrature_points=None,
-                 mass=None, mass_scaled=(), quadrature_order=None, numerical_error=None):
-        if quadrature_order is not None:
-            warnings.warn("quadrature_order is deprecated: use quadrature_points",
-                          DeprecationWarning, stacklevel=2)
-            quadrature_points = quadrature_order if quadrature_points is None \
-                else quadrature_points
+                 mass=None, mass_scaled=(), numerical_error=None):
         self.t = t
         self.estimates = dict(estimates)
         self.parameters = tuple(self.estimates)
@@ -86,13 +77,6 @@ class EstimationResult:
         self.mass = mass
         self.mass_scaled = tuple(mass_scaled)
         self.numerical_error = numerical_error
-
-    @property
-    def quadrature_order(self) -> int:
-        """Deprecated spelling of :attr:`quadrature_points`."""
-        warnings.warn("quadrature_order is deprecated: use quadrature_points",
-                      DeprecationWarning, stacklevel=2)
-        return self.quadrature_points
 
     @cached_property
     def valid_index(self):

@@ -30,7 +30,6 @@ their relative accuracy.  NumPy and SciPy only.
 from __future__ import annotations
 
 import numbers
-import warnings
 from fractions import Fraction
 from functools import cache
 
@@ -42,17 +41,6 @@ from algid.signals._quadrature import check_quadrature_points
 
 __all__ = ["LowpassFilter", "as_lowpass", "lti_response", "interval_input_matrices",
            "expm_small"]
-
-
-def _points_keyword(points, order, *, stacklevel=3):
-    """``points``, or the deprecated keyword ``order`` that meant the same."""
-    if order is not None:
-        warnings.warn("the keyword 'order' is deprecated: use 'points' (points of the "
-                      "input interpolation)", DeprecationWarning, stacklevel=stacklevel)
-        if points is not None and points != order:
-            raise InputDataError("give points, not both points and order")
-        return order
-    return 6 if points is None else points
 
 
 # --------------------------------------------------------------------------------------
@@ -120,7 +108,7 @@ def _shifted_lagrange(order: int, lo: int) -> np.ndarray:
     return out
 
 
-def interval_input_matrices(A, b, h, *, points=None, order=None):
+def interval_input_matrices(A, b, h, *, points=6):
     """Exact one-step matrices of ``z' = A z + b u`` for a polynomially interpolated input.
 
     Parameters
@@ -131,8 +119,6 @@ def interval_input_matrices(A, b, h, *, points=None, order=None):
         Sampling step.
     points : int, optional
         Number ``q`` of samples the input polynomial passes through.  Default 6.
-    order : int, optional
-        Deprecated spelling of ``points``.
 
     Returns
     -------
@@ -143,7 +129,6 @@ def interval_input_matrices(A, b, h, *, points=None, order=None):
     startup : ndarray, shape (q - 2, n, q)
         ``z[j] = Phi z[j-1] + startup[j-1] @ u[0 : q]`` for ``j = 1, ..., q - 2``.
     """
-    points = _points_keyword(points, order)
     check_quadrature_points(points, name="points (of the interpolation)")
     A = np.atleast_2d(np.asarray(A, dtype=float))
     b = np.asarray(b, dtype=float).reshape(-1)
@@ -186,7 +171,7 @@ def _prefix_scan(Phi, w):
     return z
 
 
-def lti_response(A, b, u, h, *, initial_state=None, points=None, order=None):
+def lti_response(A, b, u, h, *, initial_state=None, points=6):
     """States of ``z' = A z + b u`` at the samples, for a sampled input ``u``.
 
     The input between samples is the local interpolating polynomial of degree
@@ -206,15 +191,12 @@ def lti_response(A, b, u, h, *, initial_state=None, points=None, order=None):
         State at the first sample (default zero).
     points : int, optional
         Number of points of the interpolation (2 = first-order hold).  Default 6.
-    order : int, optional
-        Deprecated spelling of ``points``.
 
     Returns
     -------
     ndarray, shape (N, n)
         State at each sample.
     """
-    points = _points_keyword(points, order)
     A = np.atleast_2d(np.asarray(A, dtype=float))
     u = np.asarray(u, dtype=float)
     n_samples, n = u.shape[0], A.shape[0]
@@ -286,13 +268,6 @@ class LowpassFilter:
         """Order of the filter: its number of states (poles)."""
         return self.A.shape[0]
 
-    @property
-    def order(self) -> int:
-        """Deprecated spelling of :attr:`filter_order`."""
-        warnings.warn("LowpassFilter.order is deprecated: use filter_order",
-                      DeprecationWarning, stacklevel=2)
-        return self.filter_order
-
     def dc_gain(self) -> float:
         """Static gain ``-c A^-1 b``.
 
@@ -303,7 +278,7 @@ class LowpassFilter:
         """
         return float(-self.c @ np.linalg.solve(self.A, self.b))
 
-    def apply(self, y, h, *, points=None, order=None):
+    def apply(self, y, h, *, points=6):
         """Filter a sampled signal, with zero initial state at the first sample.
 
         Parameters
@@ -314,15 +289,12 @@ class LowpassFilter:
             Sampling step.
         points : int, optional
             Points of the input interpolation (as the quadrature rule).  Default 6.
-        order : int, optional
-            Deprecated spelling of ``points``.
 
         Returns
         -------
         ndarray, shape (N,)
             The filter output at the samples (``0`` at the first one).
         """
-        points = _points_keyword(points, order)
         return lti_response(self.A, self.b, y, h, points=points) @ self.c
 
     def __repr__(self):

@@ -21,7 +21,6 @@ integral of a smooth signal is ``O(dt**q)``.
 
 from __future__ import annotations
 
-import warnings
 from fractions import Fraction
 from functools import cache
 
@@ -32,28 +31,14 @@ from algid.errors import InputDataError
 
 __all__ = ["check_quadrature_points", "cumulative_integral", "iterated_integrals",
            "startup_samples", "rule_weights",
-           "integrator_weights", "advance_integrators", "integrate_padded", "QUADRATURE_POINTS",
-           "QUADRATURE_ORDERS"]
+           "integrator_weights", "advance_integrators", "integrate_padded", "QUADRATURE_POINTS"]
 
 #: Numbers of points of the rule that are offered.
 QUADRATURE_POINTS = (2, 3, 4, 5, 6, 7, 8, 9)
-#: Deprecated spelling of :data:`QUADRATURE_POINTS`.
-QUADRATURE_ORDERS = QUADRATURE_POINTS
 
 def _check_points(points):
     if isinstance(points, bool) or points not in QUADRATURE_POINTS:
         raise ValueError(f"quadrature points {points!r} is not one of {QUADRATURE_POINTS}")
-
-
-def _points_keyword(points, order):
-    """``points``, or the deprecated keyword ``order`` that meant the same."""
-    if order is not None:
-        warnings.warn("the keyword 'order' is deprecated: use 'points'", DeprecationWarning,
-                      stacklevel=3)
-        if points is not None and points != order:
-            raise ValueError("give points, not both points and order")
-        return order
-    return 6 if points is None else points
 
 
 def startup_samples(points: int) -> int:
@@ -233,8 +218,7 @@ def advance_integrators(samples, integrals, history, weights, startup=None):
     return out
 
 
-def cumulative_integral(y, dt: float, *, points: int | None = None,
-                        order: int | None = None) -> np.ndarray:
+def cumulative_integral(y, dt: float, *, points: int = 6) -> np.ndarray:
     """Cumulative integral ``I[n] = int_{t[0]}^{t[n]} y``, with ``I[0] = 0``.
 
     Parameters
@@ -245,14 +229,11 @@ def cumulative_integral(y, dt: float, *, points: int | None = None,
         Sampling step.
     points : int, optional
         Number of points of the rule (2 = trapezoid).  Default 6.
-    order : int, optional
-        Deprecated spelling of ``points``.
 
     Returns
     -------
     ndarray, shape (n,)
     """
-    points = _points_keyword(points, order)
     y = np.asarray(y, dtype=float)
     n = y.shape[-1]
     weights, startup = integrator_weights(points, dt)
@@ -263,8 +244,7 @@ def cumulative_integral(y, dt: float, *, points: int | None = None,
                                startup)[0]
 
 
-def iterated_integrals(y, dt: float, depth: int, *, points: int | None = None,
-                       order: int | None = None) -> list:
+def iterated_integrals(y, dt: float, depth: int, *, points: int = 6) -> list:
     """``[y, int y, int int y, ...]``: the iterated integrals of ``y`` up to ``depth``.
 
     Each level integrates the previous one with :func:`cumulative_integral`, as the
@@ -280,14 +260,11 @@ def iterated_integrals(y, dt: float, depth: int, *, points: int | None = None,
         Number of integrations.
     points : int, optional
         Number of points of the rule.  Default 6.
-    order : int, optional
-        Deprecated spelling of ``points``.
 
     Returns
     -------
     list of ndarray
     """
-    points = _points_keyword(points, order)
     levels = [np.asarray(y, dtype=float)]
     for _ in range(depth):
         levels.append(cumulative_integral(levels[-1], dt, points=points))

@@ -6,22 +6,17 @@ code is generated or evaluated); :meth:`IdentificationResult.to_nlsys` exports i
 python-control.
 
 Simulation over sampled inputs is :mod:`algid.simulation._model` (the one simulator:
-DOP853 or fixed-step RK4, band-limited or cubic-spline input).  ``simulate_output`` and
-``fit_initial_state`` here are deprecated aliases of it.
+DOP853 or fixed-step RK4, band-limited or cubic-spline input).
 """
 
 from __future__ import annotations
 
 import math
-import warnings
 
 from algid.errors import ModelError
 from algid.models._expression import Call, Constant, Power, Product, Signal, Sum, Time
 
-__all__ = ["OutputEquation", "simulate_output", "fit_initial_state", "INTERPOLATION"]
-
-#: Default interpolation of the deprecated :func:`simulate_output` (kept for it).
-INTERPOLATION = "cubic"
+__all__ = ["OutputEquation"]
 
 _SCALAR_FUNCTIONS = {
     "sign": lambda v: (v > 0) - (v < 0),
@@ -148,76 +143,3 @@ class OutputEquation:
         """
         return list(x[1:]) + [self(x, u, t)]
 
-
-def _deprecated(old, new):
-    warnings.warn(f"algid.simulation._output_equation.{old} is deprecated; use "
-                  f"algid.simulation._model.{new}", DeprecationWarning, stacklevel=3)
-
-
-def simulate_output(equation, t, inputs, initial_state, *, substeps=4,
-                    interpolation=INTERPOLATION):
-    """Simulated output at the sample times ``t`` (deprecated).
-
-    Deprecated alias of :func:`algid.simulation.simulate_model` with
-    ``method="RK4"``.
-
-    Parameters
-    ----------
-    equation : OutputEquation
-        The model and its parameter values.
-    t : numpy.ndarray
-        Sample times.
-    inputs : mapping
-        Input signal name -> samples at ``t``.
-    initial_state : sequence of float
-        Output and its derivatives up to ``order - 1`` at ``t[0]``.
-    substeps : int
-        Runge-Kutta steps per sampling interval.
-    interpolation : {"bandlimited", "cubic"}
-        Input between samples.
-
-    Returns
-    -------
-    numpy.ndarray
-    """
-    from algid.simulation._model import simulate_model
-
-    _deprecated("simulate_output", "simulate_model(..., method='RK4')")
-    return simulate_model(equation.model, equation.parameters, t, inputs,
-                          initial_state=initial_state, method="RK4", substeps=substeps,
-                          interpolation=interpolation)
-
-
-def fit_initial_state(equation, t, inputs, y, *, samples=50, substeps=4,
-                      interpolation=INTERPOLATION):
-    """Initial state that best fits the first ``samples`` measured outputs (deprecated).
-
-    Deprecated alias of :func:`algid.simulation.fit_initial_state` with
-    ``method="RK4"``.
-
-    Parameters
-    ----------
-    equation : OutputEquation
-        The model and its parameter values.
-    t : numpy.ndarray
-        Sample times.
-    inputs : mapping
-        Input name -> samples.
-    y : numpy.ndarray
-        Measured output.
-    samples : int
-        Samples fitted.
-    substeps : int
-        Runge-Kutta steps per sampling interval.
-    interpolation : {"cubic", "bandlimited"}
-        Input interpolation.
-
-    Returns
-    -------
-    numpy.ndarray
-    """
-    from algid.simulation._model import fit_initial_state as fit
-
-    _deprecated("fit_initial_state", "fit_initial_state(..., method='RK4')")
-    return fit(equation.model, equation.parameters, t, inputs, y, min(samples, len(t)),
-               method="RK4", substeps=substeps, interpolation=interpolation)
