@@ -11,7 +11,7 @@ samples, it times
 
 - the naive NumPy trapezoid estimator of :mod:`benchmarks.baselines` (the reference,
   throughput ratio 1.0);
-- the numba engine (:mod:`algid.estimation._core`, ``backend="numba"``): its compiled loop on one chunk, and
+- the numba engine (the estimator core, ``backend="numba"``): its compiled loop on one chunk, and
   ``algid.estimate(engine="numba")`` (which checks the data first);
 - the C estimator on one chunk, and in chunks of 1000 and of 1 sample;
 - one ``numpy.cumsum`` pass over the same samples: the memory-bandwidth ceiling.

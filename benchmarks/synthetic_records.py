@@ -3,7 +3,8 @@
 Each generator computes the true continuous-time response to an analytic input (a
 multisine): exactly for the linear plant and the friction loop (piece by piece between
 the zeros of its velocity), by RK4 at 16 steps per sample for the cubic spring; noise
-is added to the measured output.  Used by ``tests/identification/test_identify.py`` and the identify benchmark.
+is added to the measured output.  Used by ``tests/identification/test_identify.py`` and
+the identify benchmark.
 
 - :func:`linear_offsets`: ``y'' + B y' + K y = G u`` at 8 samples per period of its
   resonance, with DC offsets on both measured channels (the model's ``d`` absorbs them).

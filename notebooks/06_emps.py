@@ -51,9 +51,9 @@ from algid.datasets import (
     EMPS_PUBLISHED_RELATIVE_STD,
     emps,
 )
-from algid.models._grammar import parse_equation
-from algid.signals._differentiation import algebraic_derivative
-from algid.simulation._model import simulate_model
+from algid.models import parse_equation
+from algid.signals import algebraic_derivative
+from algid.simulation import simulate_model
 
 runs = {"estimation": emps("estimation"), "validation": emps("validation")}
 print(runs["estimation"])

@@ -183,7 +183,7 @@ def refine(t, f, x, *, start=None, iterations=10, mass=None, filter_order=2,
 
     Examples
     --------
-    >>> from algid.estimation._refinement import refine
+    >>> from algid.estimation import refine
     >>> from algid.simulation import simulate
     >>> sim = simulate("step", initial_state=(0.1, -0.2), noise_std=0.01, seed=1)
     >>> r = refine(sim.t, sim.f, sim.x)

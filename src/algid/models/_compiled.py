@@ -56,7 +56,7 @@ def compile_equation(equation, parameters, *, output=None, name="custom"):
 
     Examples
     --------
-    >>> from algid.models._compiled import compile_equation
+    >>> from algid.models import compile_equation
     >>> module = compile_equation("y'' + B*y' + K*y + K3*y**3 = G*u + d", "B K K3 G d")
     >>> module.CHANNELS, module.FACTORS
     (('y', 'z1', 'u', 'one'), {'z1': 'y**3', 'one': '1'})
