@@ -47,7 +47,10 @@ nitpicky = True
 nitpick_ignore_regex = [
     # generated code is not API (tests/test_docstrings.py skips it too): a docstring may
     # name a generated module without a page to link to
-    ("py:mod", r"algid\.generated\..*"),
+    ("py:mod", r"algid\._generated\..*"),
+    # internals are private (a leading underscore) and out of the reference: a docstring
+    # may name one without a page to link to
+    ("py:.*", r"(.*\.)?_[a-z]\w*(\..*)?"),
 ]
 
 # The API: autosummary writes one page per public name (see algid_docs.write_api_pages).
