@@ -9,50 +9,21 @@ of explicit state::
 
 A batch estimate is a fresh state and one chunk; a stream is successive chunks, with
 the same numbers bit for bit however it is cut (within one backend).  The channels are
-the signals that drive the integrator chains of the generated module, in the order of
-its ``CHANNELS``.
+the signals that drive the generated module's integrator chains, in its ``CHANNELS``
+order.  At every sample the core steps every chain ``(signal, power, depth)`` with the
+causal rule of :mod:`algid.signals._quadrature`, evaluates ``P``, ``Q`` and Cramer's
+numerators and denominator with the generated algebra, integrates those
+``filter_order`` more times (the invariant filter ``1/s**p``) and divides (NaN where the
+denominator is zero or not finite).
 
-Realisation
------------
-The generated module lists in ``CHAINS`` the integrator chains ``(signal, power,
-depth)``: level ``l`` of a chain is the ``l``-fold integral of ``tau**power *
-signal``, where ``tau = n * dt`` is the time since the origin.  At every sample the
-core steps every chain with the causal rule of :mod:`algid.signals._quadrature`
-(:func:`~algid.signals._quadrature.advance_integrators`), evaluates ``P`` and ``Q`` and the
-Cramer numerators and denominator with the generated algebra, integrates those
-``filter_order`` more times (the invariant filter ``1/s**p``) and divides, reporting
-NaN where the denominator is zero or not finite.
-
-The state
----------
-Per integrator its integral and its last ``points - 1`` integrand samples
-(:class:`EstimatorState`; integrator order given by :func:`integrator_layout`), the
-number of samples since the origin and, before the first ``points`` samples have
-arrived, those samples (the start-up: the rule integrates the first ``points - 2``
-intervals with the polynomial through samples ``0 .. points - 1``, so its integrals
-are known from sample ``points - 1`` on).  The start-up is decided here, once, for
-every backend: when sample ``points - 1`` arrives, the backend integrates the buffered
-samples from the origin with the start-up rule, then continues with the regular one (a
-chunk that starts at the origin and holds at least ``points`` samples is integrated
-from the origin in one call, with the same numbers).
-
-A rule of more than :data:`EARLY_POINTS` points does not make the first estimate wait
-for its start-up: the estimate at a sample ``n`` from ``EARLY_POINTS - 1`` to
-``points - 2`` is that of the rule of ``n + 1`` points, integrated from the origin over
-the buffered samples, i.e. the integrals of the polynomial through every sample so far
-(:func:`first_estimate`).  So the first estimate comes at the same sample for 6, 7 and
-8 points, and from sample ``points - 1`` on the integrals are those of the rule's own
-start-up (the more accurate start: the start-up's error stays in the integrals for the
-whole record).  The estimates of samples ``0 .. first_estimate(points) - 1`` are NaN.
-
-Backends
---------
-``"numpy"`` (:mod:`algid.estimation._core_numpy`: one :func:`numpy.correlate` and one cumulative
-sum per level of integrators over blocks of samples, and a per-sample step with the same
-operations for chunks of a few samples) and ``"numba"`` (:mod:`algid.estimation._core_numba`, the
-compiled loop generated for the model, needs ``algid[fast]``).  Both perform the same
-operations in the same order: their numbers agree to round-off (bit for bit on the
-platforms tested).
+The state (:class:`EstimatorState`, laid out by :func:`integrator_layout`) holds per
+integrator its integral and its last ``points - 1`` integrand samples, the samples since
+the origin and, during the start-up, the first samples.  The start-up is decided here,
+once, for every backend; a rule of more than :data:`EARLY_POINTS` points gives its first
+estimate as early as that rule would (:func:`first_estimate`).  The backends, ``"numpy"``
+(:mod:`algid.estimation._core_numpy`) and ``"numba"`` (:mod:`algid.estimation._core_numba`,
+``algid[fast]``), perform the same operations in the same order.  The user guide, "How
+streaming works", has the start-up and the backends in full.
 """
 
 from __future__ import annotations

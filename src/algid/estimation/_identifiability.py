@@ -25,13 +25,10 @@ compared with the size its terms could have, ``sum |coefficient| * max|s| * T**(
   with its rows and then its columns normalised below the tolerance) leave a
   combination free; the parameters with the largest weights in it are named.
 
-The tolerances are far above round-off (at most ``3e-15`` relative on constant data of
-``10**2`` to ``10**7`` samples, ``4e-16`` for the smallest singular value on an exponential output
-with a proportional input) and below any record that the estimator can use: on the
-paper's step response (3 s transient) the column of ``B`` has a relative size of
-``1.5e-7`` after 2000 s, decreasing like ``1/T**2``, and the estimate of ``B`` is then
-already off by ``9e-6``; the smallest normalised singular value is at least ``1e-4`` on the
-paper's step and sine records of 12 samples to 2000 s, for ``msd`` and ``msd_mass``.
+The tolerances lie far above the round-off of constant or proportional data and far
+below the sizes of any record the estimator can use: long before the column of ``B``
+falls to the tolerance (a step response long settled), the estimate of ``B`` has lost
+its accuracy.
 """
 
 from __future__ import annotations

@@ -12,9 +12,8 @@ Beside the estimator from the first sample runs its twin from sample
 reported, with its error.  (The margin keeps noisy estimates, whose numerical error also
 holds part of the noise, from switching on a coin toss.)  The choice is made sample by
 sample from numbers that do not depend on how the stream is cut, so a stream gives the
-batch estimate bit for bit.  On the population of ``benchmarks/population.py`` it
-brings the share of plants with ζ ≥ 0.05 and at least 40 samples per period whose final
-estimate is within 1e-6 from 84 % to 97 %; it doubles the cost again.  It is an option
+batch estimate bit for bit.  It doubles the cost again, and ``python -m
+benchmarks.population --late-origin`` measures what it changes.  It is an option
 (``late_origin=True`` of :func:`algid.estimate` and :class:`algid.OnlineEstimator`): by
 default the estimate is that of the method from the first sample.
 """

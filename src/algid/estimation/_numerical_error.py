@@ -18,9 +18,8 @@ difference dips: the reported error is the largest difference over the last
 :data:`WINDOW` samples (:func:`window_maximum`).  Where the signals are resolved the
 companion's rule is the more accurate and the difference is the error itself; where they are not (an
 under-resolved transient at the time origin), no rule is accurate, but the error then
-depends strongly on the filter and the companion's differs.  On the population of
-random plants of ``benchmarks/population.py`` the estimate's error is at most ten
-times the reported one in every case.
+depends strongly on the filter and the companion's differs.  How well the reported
+error bounds the actual one is measured by ``python -m benchmarks.population``.
 
 The companion is advanced with the estimator, on the same samples, so the numerical
 error of a stream is that of the batch estimate, bit for bit; it costs about as much as

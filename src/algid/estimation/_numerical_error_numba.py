@@ -62,7 +62,7 @@ def block_error(estimates, companion, recent, out):  # pragma: no cover - compil
     level = np.empty(width + m)
     level[:width] = recent
     # the raw error (_raw_error's numbers) into out, parameter by parameter over every
-    # sample: the loops vectorise (6 -> 3.5 ns per sample)
+    # sample: the loops vectorise
     first = 0.0 if n_parameters else np.nan
     for j in range(m):
         out[j] = first

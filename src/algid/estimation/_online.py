@@ -1,52 +1,23 @@
 """On-line (streaming) algebraic estimation: ``algid.OnlineEstimator``.
 
-The batch estimator (:func:`algid.estimate`) computes every kernel over a whole record.
-:class:`OnlineEstimator` computes the same numbers from a stream of samples that
-arrives in chunks of any size (one sample or thousands), with a state whose size does
-not depend on the length of the stream.
+:class:`OnlineEstimator` computes the numbers of the batch estimator
+(:func:`algid.estimate`) from a stream of samples that arrives in chunks of any size,
+with a state whose size does not depend on the length of the stream.  Each estimator is
+a state of the estimator core (:mod:`algid.estimation._core`), advanced chunk by chunk
+by the backend ``engine`` chooses, so the estimates do not depend on how the stream is
+cut and equal those of :func:`algid.estimate`, bit for bit with the same step and
+backend.  The estimator is causal, with no delay; the first samples' estimates are NaN
+as in batch.
 
-Realisation
------------
-Each estimator is a state of the estimator core (:mod:`algid.estimation._core`): per integrator
-its integral and its last ``q - 1`` integrand samples (``q = quadrature_points``).
-Every chunk advances it with the backend chosen by ``engine`` (NumPy, or the compiled
-loop of ``algid[fast]``), so the estimates do not depend on how the stream is cut and
-equal those of :func:`algid.estimate`, bit for bit with the same step and backend.
-
-Start-up
---------
-The rule of ``q`` points needs samples ``0 .. q - 1`` before its first step (see
-:mod:`algid.signals._quadrature`): the estimates of samples ``0 .. q - 2`` are NaN, as in batch;
-afterwards every call returns the estimates of exactly the samples it was given (the
-estimator is causal, with no delay).
-
-Re-anchoring the time origin (``reset_period``)
------------------------------------------------
-The weights ``tau**k`` and the iterated integrals grow without bound, and an estimate
-that uses the whole past cannot follow a change of the parameters.  Because the method
-does not depend on the initial conditions, the time origin may be moved to any
-sample: the estimator restarts there, with all integrals zero, as if the stream began
-at that sample.  With ``reset_period=T`` two estimators run staggered by ``T/2``:
-estimator A restarts at samples ``0, N, 2N, ...`` and estimator B at ``N/2, 3N/2,
-...``, where ``N/2 = round(T / (2 dt))`` samples (the period actually used is ``N dt``,
-see :attr:`OnlineEstimator.reset_period`).  At every sample the estimate reported is
-that of the estimator whose origin is the older one, of age between ``N/2`` and
-``N - 1`` samples (before B starts, that of A); :func:`algid.estimation._reanchoring.anchor_plan`
-says which.  Hence
-
-- the estimate at time ``t`` uses only data from ``(t - T, t]``; a change of the
-  parameters is followed, exactly for noise-free data, once the reported estimator's
-  origin is after the change, at the latest ``T`` after it;
-- each restarted estimator has ``T/2`` to converge before it is reported, and its
-  integrals never span more than ``T``, so all internal magnitudes are bounded;
-- the estimates of an anchored estimator equal those of :func:`algid.estimate` on the
-  data from its origin on.
-
-The price is a second estimator (twice the arithmetic) and the loss of the averaging
-over the whole record, which matters with noisy data.  ``reset_period=None`` (the
-default) never restarts and reproduces the batch estimator.  For tracking changes in
-noise-free or nearly noise-free data at about 1 kHz, :data:`TRACKING_RESET_PERIOD` is a
-good choice; see its description.
+``reset_period=T`` re-anchors the time origin, which the method allows because it does
+not depend on the initial conditions: two estimators run staggered by ``T/2``, each
+restarting every ``T`` (:func:`algid.estimation._reanchoring.anchor_plan`), and the one
+with the older origin is reported.  The estimate at ``t`` then uses only data from
+``(t - T, t]``, follows a change of the parameters within ``T``, and keeps every
+internal magnitude bounded, at the price of twice the arithmetic and of the averaging
+over the whole record.  ``reset_period=None`` (the default) reproduces the batch
+estimator.  The user guide, "How streaming works", explains the state, the start-up and
+the re-anchoring in full.
 
 Examples
 --------

@@ -21,21 +21,16 @@ term it lacks explains the misfit.  The test asks three questions:
    a power of the output added (:data:`POWERS`: ``y``, ``y**2``, ``y**3``; fresh
    parameters), fitted by least squares on the same windows, against the model so
    fitted: a term that leaves less than :data:`EXPLAINED` of the misfit explains it
-   (:func:`missing_terms`).  A linear model of a cubic spring then warns although its
-   estimates hardly shift (multisine at 100 Hz, 1 % noise).
+   (:func:`missing_terms`), so that a linear model of a cubic spring warns even where
+   its estimates hardly shift.
 
 It warns when the misfit exceeds its limit and the shift does or a term explains it.
 The misfit alone warns of nothing: input noise or an unmodelled disturbance (the EMPS
 force) is not output noise either, but where it does not move the estimates their HAC
 standard errors already count it.  Nor the shift alone: with a loose noise bound (few
-samples per period, Silverbox) estimates that fit within it may still move.  Measured by
-``python -m benchmarks.adequacy`` (100 noise realisations per synthetic case): no
-warning on the synthetic records with their right equations nor on the EMPS (no
-power of the position explains its force disturbances) and Silverbox records with
-their documented models; a warning on every realisation of a linear model on the
-cubic record, of ``G*u'`` for ``G*u`` and of an output 5 samples late (``y'' + 2y'
-+ 3y = u`` at 100 Hz); none on a 5-sample delay at 8 samples per period, which the
-model refits (with a negative damping) alike on every window.
+samples per period, Silverbox) estimates that fit within it may still move.  Its hits
+and false alarms are measured by ``python -m benchmarks.adequacy`` (the user guide,
+"Real data: identify", sums them up).
 """
 
 from __future__ import annotations

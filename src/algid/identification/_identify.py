@@ -1,95 +1,32 @@
 """Identify the parameters of a user model on whole measured records.
 
 The algebraic method's equations hold on every window ``[t0, t0 + T]``, whatever the
-state at ``t0``: each window gives one linear equation in the parameters,
+state at ``t0``: each window turns every term ``D^k z`` into the integral of ``z``
+against a modulating kernel (:mod:`algid.identification._window_kernels`) and gives one
+linear equation in the parameters.  Windows of one length slide over every record
+(``length // 8`` samples apart, never across a gap) and the stacked equations are
+solved for one parameter set.  Two kernel multiplicities work as an embedded pair: the
+higher one (``a = 12``) gives the estimate, the lower one (``a = 8``) its numerical
+error.
 
-    sum_p theta_p * (sum of c_i * W[D^k_i z_i] over the terms of p) = - (known terms),
+Solvers (``method``): ``"bc"`` (default), least squares with the bias of output noise
+removed (Koopmans' estimator; no simulation, so closed loops and integrating plants
+are fine); ``"ls"``, plain least squares; ``"iv"``, instrumental variables from the
+output simulated by the current estimate (open-loop stable plants).
 
-where ``W[D^k z]`` is the integral of ``z`` against the term kernel of multiplicity
-``a`` (:mod:`algid.identification._window_kernels`).  The windows slide over every record
-(overlapping,
-``length // 8`` samples apart, never across a gap), and the stacked equations are
-solved for one parameter set.  Two kernel multiplicities are used, as an embedded
-Runge-Kutta pair is: the estimate is that of the higher one (``a = 12``), the lower one
-(``a = 8``) gives its error estimate for the window rule.  (At the short windows that
-few samples per period call for, a high multiplicity is the more accurate: its kernel
-vanishes to higher order at the window ends, so its sampled sum is spectrally
-accurate on fewer samples; measured on the synthetic linear record at 8 samples per
-period, ``a = 4`` on 12-16 sample windows has quadrature errors of about 1e-3.)
+The time and every column are scaled by powers of two and the equations solved in an
+orthonormal basis of their regressors (:mod:`algid.identification._window_basis`), so
+that any units give the same window and estimates.  Standard errors come from a
+sandwich over the window index: the residuals' own (HAC) covariance, or the covariance
+that white output noise puts into the equations where the two agree
+(:mod:`algid.identification._window_covariance`).  Without ``window`` the length is
+chosen on a grid by the worst parameter's error (:func:`window_criterion`).  The
+crossings of a ``sign(q')`` are placed by fits of ``q`` with the motion the model gives
+it (:mod:`algid.identification._sign_crossings`), and the equations solved again.
+What the records cannot determine is refused, naming the parameters.
 
-Solvers (``method``):
-
-- ``"bc"`` (default), bias-compensated least squares.  Output noise enters both sides
-  of the window equations through known kernels, so it biases least squares by
-  ``sigma^2`` times a matrix the kernels give (``_Problem.noise_grams``); the
-  estimate removes it (Koopmans' estimator, the generalised eigenvector of the normal
-  matrix and that noise matrix), with ``sigma^2`` from the equations' misfit, capped by
-  an upper bound on the output noise from the samples alone (so that a misfit that is
-  not output noise, e.g. a misestimated ``sign(q')``, is not "compensated").  It needs
-  no simulation, so it works in closed loop and on integrating plants.
-- ``"ls"``: plain least squares (biased by output noise: by 1.2 standard errors on the
-  stiffness of the synthetic linear record at 1 % noise, far more on longer windows).
-- ``"iv"``: instrumental variables, the instruments being the same window integrals of
-  the factors evaluated on the output simulated by the current estimate (noise-free),
-  iterated as SRIVC does; for open-loop stable plants only.
-
-A derivative inside a nonlinear factor (``sign(q')``) is estimated numerically: by
-the algebraic differentiator :func:`algid.signals.algebraic_derivative` when
-it is available, else by a local polynomial (Savitzky-Golay) derivative.  Its zeros
-come late where ``q''`` jumps (a Coulomb term), so for a model of second order in ``q``
-the crossings are then placed by fits of ``q`` with the motion the model gives it there
-(:mod:`algid.identification._sign_crossings`), the equations solved again, twice
-(:data:`CROSSING_PASSES`:
-each pass with the parameters of the one before), with the steps of ``sign(q')``
-integrated exactly (:func:`algid.identification._window_kernels.step_window_integrals`).
-
-Units: internally the time is counted in a power of two near the sampling step, from
-the first sample of each segment, and every factor's samples and every column of the
-equations are divided by powers of two (``_Problem``); the equations are then solved in
-an orthonormal basis of their regressors (:mod:`algid.identification._window_basis`).  Powers of two
-are exact and the basis conditions the equations whatever the units: seconds,
-milliseconds or sample numbers, Unix-epoch times with a drift ``d0 + d1*t``, amplitudes
-from 1e-300 to 1e300 give the same window and the same (converted) estimates, or a
-one-line refusal where an estimate or its variance leaves the floating-point range.
-
-Refusals, naming the parameters: terms or a known side that vanish on the records (a
-constant output), proportional terms (``K*y + K2*y``), and, where the misfit is output
-noise (:mod:`algid.identification._adequacy`), a combination determined no better than the misfit or
-the noise (a model of too high an order: :func:`algid.identification._window_basis.separability`); a
-barely separated combination or nearly proportional terms give a line in ``warnings``.
-Windows too short for the kernels or leaving too few non-overlapping windows are
-refused, and the window rule looks at no such window (:mod:`algid.identification._window_rule`).
-
-Standard errors come from a sandwich over the window index.  Its middle is the
-residuals' own covariance, a HAC (heteroscedasticity and autocorrelation consistent)
-estimate: the residuals of overlapping windows are correlated over ``length / stride``
-windows, and the lag weights are flat up to that lag and taper linearly to zero at twice
-it (a flat-top kernel: Newey-West's Bartlett weights underestimate such a correlation).
-The covariance that white output noise puts into the window equations is also computed:
-known from the kernels and the factors' sensitivities, including the correlation of
-overlapping windows (:func:`algid.identification._window_covariance.noise_meat`), times the noise
-variance (the misfit's, or where that exceeds it the bound that the samples alone put
-on the output noise, ``_Problem.noise_bound``).  It replaces the HAC one where the HAC
-variances are at most :data:`AGREEMENT` times its own for every parameter.  A misfit
-that does not change between noise realisations (the aliasing of a sampled ``y**3``)
-inflates the HAC estimate a little, and then counts only through the noise variance; a
-misfit that is not output noise at all (a force disturbance, noise on an input, a
-misestimated ``sign(q')``) inflates it more, and the HAC estimate is kept, unless it is
-indefinite (:func:`algid.identification._window_covariance.sandwich`).  The difference between the
-two
-multiplicities is the numerical (quadrature) error of each parameter, reported beside
-its standard error (``numerical_error``): the standard error is the misfit's scatter,
-which on a short noise-free record can be far below the quadrature error.
-
-Window rule (``window=None``, :mod:`algid.identification._window_rule`): on a geometric grid of
-window
-lengths (ratio 1.25, from ``a_max + 4`` samples up to a thirtieth of the data, so that
-the HAC covariance sees at least 30 independent windows), estimate with both
-multiplicities.  A parameter's error on a window is the larger of its standard error
-and of its numerical error, relative to the parameter (or, near zero, to the value
-whose term is 5 % of the known side), divided by the smallest such error that parameter
-reaches on the grid; among the windows that separate the parameters, the one minimising
-the worst parameter's ratio is kept (:func:`window_criterion`).
+The user guide, "How identify works", gives the equations, the solvers, the
+covariance, the window rule and the crossings in full.
 """
 
 from __future__ import annotations
@@ -579,13 +516,15 @@ def identify(data, equation, parameters=None, *, time=None, rate=None, output=No
     output : str, optional
         Output signal; by default the signal of highest derivative order.
     window : float, optional
-        Window length (s); chosen from the data when omitted (see the module notes).
+        Window length (s); chosen from the data when omitted (see the user guide,
+        "How identify works").
     method : {"bc", "ls", "iv"}
         Bias-compensated least squares (the default: it removes the bias that white
         output noise causes and needs no simulation, so it also works in closed loop
         and on integrating plants), plain least squares, or instrumental variables from
         the output simulated by the current estimate (open-loop stable plants only;
-        about 10 to 20 times slower).  See the module notes.
+        slower: it simulates the model at every iteration).  See the user guide, "How
+        identify works".
     multiplicities : tuple of int
         Kernel multiplicities stacked (each at least the model order).
     name : str

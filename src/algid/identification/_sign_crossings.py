@@ -2,57 +2,29 @@
 
 In a model such as ``M*q'' + Fv*q' + Fc*sign(q') + off = F`` the factor ``sign(q')``
 needs the times at which ``q'`` crosses zero.  The numerical derivative of ``q``
-(:func:`algid.signals.algebraic_derivative`) is a weighted average of ``q'``
-over its window, and at a crossing ``q'`` has a kink: the Coulomb term flips, so ``q''``
-jumps by ``J = -2 Fc / M`` (upwards crossing).  The average of a kinked function is not
-zero where the function is: on the synthetic friction loop (1 kHz, a 20-sample window)
-every crossing of the estimate came 0.1-0.6 ms late (0.37 ms on average), a shift of
-the same sign at every crossing that biased ``M`` by 3 standard errors.  A shorter
-window shrinks the shift and multiplies the noise.
+(:func:`algid.signals.algebraic_derivative`) is a weighted average of ``q'`` over its
+window, and at a crossing ``q'`` has a kink (the Coulomb term flips, so ``q''`` jumps by
+``J = -2 Fc / M``): the average crosses zero late, by the same sign at every crossing,
+which biases ``M``.  A shorter window shrinks the shift and multiplies the noise.
 
-The refinement fits the position itself around each crossing with the motion the
-model gives it there.  Written ``L q'' + a q' + S sign(q') + sum_k w_k z_k = 0`` with
-every other term free of derivatives (:func:`crossing_motion`), the model says that
-near a crossing at ``tc`` (where ``q' = 0``)
+So the position itself is fitted around each crossing with the motion the model gives
+it there.  Written ``L q'' + a q' + S sign(q') + sum_k w_k z_k = 0`` (:func:`crossing_motion`),
+near a crossing at ``tc`` the model says
 
     q(t) = c0 (1 + (a/L) s) + int_tc^t int_tc^tau g - (a/L) int_tc^t q + (J/4) sign(s) s^2,
 
-with ``s = t - tc``, ``g = -sum_k w_k z_k / L`` the forcing from the measured signals
-(through the controller, in a closed loop: the measured force already holds its
-reaction to the step of the friction) and ``J = -2 S / L`` the jump of ``q''``
-(:func:`crossing_jumps`), all from an estimate of the parameters.  For a given ``tc``
-this is linear in ``c0`` alone; ``tc`` minimises the residual sum of squares (a coarse
-and a fine grid around the first guess, then a parabola through the best three points).
-The running integrals use the trapezoid rule with its end correction and cubic Hermite
-interpolation at ``tc``.  Without the forcing (or where the model has the mass stick
-at the crossing: the forcing within the Coulomb term, ``|g(tc)| <= |J| / 2``) the
-position is fitted by a stationary point whose curvature jumps by ``J``,
+with ``s = t - tc``, ``g = -sum_k w_k z_k / L`` the forcing from the measured signals and
+``J = -2 S / L`` (:func:`crossing_jumps`), all from an estimate of the parameters.  For
+a given ``tc`` this is linear in ``c0``; ``tc`` minimises the residual sum of squares
+(coarse and fine grids, then a parabola).  Without forcing, or where the mass sticks
+(``|g(tc)| <= |J| / 2``), a stationary point whose curvature jumps by ``J`` is fitted
+instead.  A crossing is refined only where the fit can describe it (:data:`FIT_HALF_WIDTH`
+samples clear of the ends and of other sign changes, the best time within
+:data:`SEARCH_SPAN`, an acceleration that agrees with the crossing's direction);
+:func:`refine_crossings` also gives how each time moves with the position samples, which
+the covariance of the estimate carries.
 
-    q(t) = c0 + c2 s^2 + c3 s^3 + (J / 2) max(s, 0)^2,
-
-which leaves out how the rest of the motion reacts to the step (in the friction loop
-below the third derivative jumps too, through the controller's velocity feedback).
-
-Measured on the synthetic friction loop (exact, 1 kHz, 20 realisations of 1 um
-position noise, the 580 crossings that both fits refine): the differentiator's zeros
-are 375 us late on average (scatter 176 us), the polynomial fit's 11 us early (scatter
-13 us), the motion's 0.1 us early (scatter 4.5 us).  ``J`` and the forcing come from
-the model and an estimate of its parameters: fitted from the data instead (the median
-of free fits over the crossings) ``J`` was 3 % off under 1 um noise, an error that moves
-every crossing the same way.
-
-A crossing is refined only where the fit can describe it: at least
-:data:`FIT_HALF_WIDTH` samples from the record's ends and from any other change of
-sign of the estimate (a slow or chattering crossing keeps its first guess), with the
-best time inside the searched interval (:data:`SEARCH_SPAN`), and an acceleration
-before it that agrees with the direction of the crossing.  On the friction loop with
-three times its Coulomb force (the mass sticks for 1-3 ms at half of its crossings,
-the differentiator up to 3.8 ms late), the relative errors of ``M, Fv, Fc, off`` on the
-noise-free record are ``-1.0e-4, 1.7e-4, -6.6e-5, 3.2e-3`` (the model's ``sign(q')``
-does not describe sticking).  With the refined times, :func:`refine_crossings` also
-gives how each moves with the position samples (first order), which
-:func:`algid.identification._window_covariance.noise_meat` carries into the covariance of the
-estimate.
+The user guide, "How identify works", has the derivation and the fallbacks in full.
 """
 
 from __future__ import annotations

@@ -14,10 +14,10 @@ estimates of ``S``:
 
 :func:`sandwich` chooses between them and makes sure that no combination of the
 parameters gets a variance of zero or below: the flat-top lag weights of the HAC sum
-can make it indefinite, and its projection on the positive semi-definite matrices gave
-some realisations of ordinary noisy records a standard error of exactly 0 (which the
-window rule then preferred).  There the middle is the smallest one at least both
-estimates (:func:`upper_envelope`), and a round-off floor is added to every variance.
+can make it indefinite, and a projection on the positive semi-definite matrices can
+leave a combination a variance of exactly 0, which the window rule would then prefer.
+There the middle is the smallest one at least both estimates (:func:`upper_envelope`),
+and a round-off floor is added to every variance.
 """
 
 from __future__ import annotations

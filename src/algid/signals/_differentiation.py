@@ -11,49 +11,19 @@ kernels are read from the generated table :mod:`algid._generated.differentiator_
 ``h(u) = u**kappa (1 - u)**mu q(u)``: the integers ``kappa`` and ``mu`` set how fast the
 kernel vanishes at the window's ends.
 
-What the estimate is (``truncation = n``, the minimal estimator).  Integrating by parts,
-the estimate is exactly the weighted average of the true derivative over the window,
+The minimal estimator (``truncation = n``) is exactly a weighted average of the true
+derivative over the window (the weight a Beta density): a low-pass filter of ``y^(n)``,
+exact for polynomials of degree ``n + 1`` at its centre.  The causal form
+(``causal=True``, :class:`CausalDifferentiator` on a stream, in any chunking) uses past
+samples only and delays the derivative by a fixed fraction of ``T``; a truncation order
+``N > n`` removes the delay for polynomials of degree ``N`` at the price of more noise.
+Longer windows reject more noise and cut lower (:func:`differentiator_response` gives
+the response of any setting).  On a uniform grid the integral is a plain sum of samples
+times kernel (one :func:`numpy.correlate` with taps built once per setting); on a
+non-uniform grid, the trapezoid rule on the samples.
 
-    y^(n) estimate = int_0^1 w(u) y^(n)(t0 + u T) du,   w = Beta(kappa+n+1, mu+n+1),
-
-a low-pass filter of ``y^(n)``, centred at ``u = xi = (kappa+n+1) / (kappa+mu+2n+2)``.
-It is exact for polynomials of degree ``n + 1`` at the centre.
-
-Delay (``causal=True``).  Only past samples are used: the window is ``[t - T, t]`` with
-the kernel reversed, and the minimal estimate is the derivative delayed by
-
-    delay = T * (kappa + n + 1) / (kappa + mu + 2n + 2)
-
-(``T/2`` when ``kappa = mu``; smaller when ``mu > kappa``).  A truncation order ``N > n``
-removes the delay for polynomials of degree ``N`` (the estimate is then exact at ``t``)
-at the price of more noise and of a response that overshoots near the cut-off.
-:class:`CausalDifferentiator` is the same estimator on a stream: it carries the last
-``T`` seconds of samples from one chunk to the next, and gives the same numbers in any
-chunking (:class:`algid.OnlineEstimator` uses it for derivatives inside factors).
-
-Bandwidth.  On ``y = exp(i 2 pi f t)`` the minimal estimator returns the true derivative
-times ``Phi(2 pi f T)`` (and the delay above in the causal form), where ``Phi`` is the
-characteristic function of the centred ``Beta(a, b)`` law, ``a = kappa+n+1``,
-``b = mu+n+1``.  For small ``f T`` the relative amplitude error is::
-
-    1 - |Phi| ~= (2 pi f T)**2 * a b / (2 (a + b)**2 (a + b + 1)),
-
-and the -3 dB cut-off is ``f_c = c / T``.  For ``kappa = mu`` it depends only on
-``a = kappa + n + 1``: ``c`` = 0.443 (a = 1), 0.578 (2), 0.687 (3), 0.782 (4), 0.867 (5),
-0.944 (6), 1.016 (7), 1.083 (8), 1.146 (9).  The default (``n = 1``, ``kappa = mu = 2``,
-``T = 20 dt``) cuts at ``0.782 / T = 0.039 / dt``, i.e. 3.9 % of the sampling rate;
-the causal form has the same gain.
-:func:`differentiator_response` computes the response of any setting.  Longer windows
-reject more noise (the noise gain falls like ``T**-(n + 1/2)`` for white noise) and cut
-lower.
-
-Sampling.  On a uniform grid the integral is the plain sum of samples times kernel (the
-trapezoid rule; the kernel vanishes at both ends when ``kappa, mu >= 1``), whose error
-falls like ``(dt/T)**(min(kappa, mu) + 1)`` or faster.  The taps of a setting are built
-once and kept (read-only) for later calls; the samples are then combined with them by
-one correlation (:func:`numpy.correlate`), the record's ends by one matrix product.  On
-a non-uniform grid, the trapezoid rule on the samples, with the signal interpolated
-linearly at the window's ends (second order in the local step).
+The user guide, "Noise and filters", gives the delay, the cut-off frequencies and the
+sampling error in full.
 """
 
 from __future__ import annotations
@@ -190,8 +160,8 @@ def algebraic_derivative(y, dt=None, *, time=None, derivative=1, window=None,
         The window duration ``T`` in seconds.  Default ``20 * dt`` (the median step on
         a non-uniform grid).  On a uniform grid it is rounded to a whole number of
         steps (an even number when not ``causal``, so that the window is centred).
-        See the module docstring for the cut-off frequency, ``0.782 / T`` with the
-        default kernel for ``n = 1``.
+        The cut-off frequency is ``0.782 / T`` with the default kernel for ``n = 1``
+        (the user guide, "Noise and filters", gives it for other kernels).
     kappa, mu : int, optional
         Exponents of the kernel's zeros at the window's start and end, 0 to 6.
         Default 2 and 2.

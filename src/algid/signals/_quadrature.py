@@ -2,9 +2,9 @@
 
 The algebraic estimate is exact in continuous time, but ``det P(t)`` grows from zero
 like a high power of ``t``, so at early times the estimate amplifies the error of the
-numerical integrals enormously.  The plain trapezoid (2 points) needs about half a second
-at 1 kHz to bring the paper's system within 0.1 %; the Adams-Moulton rules below reach
-the same accuracy within a few samples.
+numerical integrals enormously.  The plain trapezoid (2 points) needs hundreds of
+samples to bring the paper's system within 0.1 %; the Adams-Moulton rules below reach
+the same accuracy within a few (``algid paper`` measures both).
 
 Rule of ``q`` points (``points=q``; 6 by default in these functions, while the
 estimators default to 8, see :func:`algid.estimation._core.first_estimate`): the integral over

@@ -8,46 +8,25 @@ its output ``y``: with the top terms ``c theta y^(n)``,
 where *forcing* gathers every term that does not read the output (inputs, their
 derivatives, constants, time).  The state ``(y, y', ..., y^(n-1))`` is integrated by
 :func:`scipy.integrate.solve_ivp` (DOP853 by default, relative tolerance 1e-8), so the
-integration error is negligible next to any model error (unlike the classical RK4 at the
-sampling step, which adds about 1 mV on Silverbox).  ``method="RK4"`` is the classical
-Runge-Kutta method with a fixed number of sub-steps per sample on the same interpolants,
-for loops that simulate many times (an output-error fit, instrumental variables).
-Nonlinear factors that read the output's derivatives (``sign(q')``) are evaluated on the
-simulated state.  A ``sign()`` of the simulated state is integrated piecewise, from
-switch to switch, sliding on the switching surface where the flows on both sides point
-to it (a mass held by Coulomb friction; :mod:`algid.simulation._switching`): the EMPS validation
-run simulates in seconds instead of crawling through the sticking phases.  Every
-solver but ``"RK4"`` is bounded in right-hand-side evaluations (:data:`MAX_EVALUATIONS`
-per sample on average, :data:`MAX_STALLED_EVALUATIONS` without advancing one sampling
-step): beyond, a :class:`~algid.errors.ModelError` suggests ``method="RK4"``.  This
-module is the one simulator of algid: :meth:`algid.IdentificationResult.simulate` uses
-it.
+integration error is negligible next to any model error; ``method="RK4"`` is the
+classical Runge-Kutta method with fixed sub-steps per sample, for loops that simulate
+many times.  A ``sign()`` of the simulated state is integrated from switch to switch,
+sliding on the switching surface where both flows point to it
+(:mod:`algid.simulation._switching`).  The adaptive solvers are bounded in right-hand-side
+evaluations (:data:`MAX_EVALUATIONS`, :data:`MAX_STALLED_EVALUATIONS`); beyond, a
+:class:`~algid.errors.ModelError` suggests ``method="RK4"``.  This is the one simulator
+of algid: :meth:`algid.IdentificationResult.simulate` uses it.
 
-Between the samples the forcing must be interpolated, and at few samples per period this
-matters more than the integrator:
+At few samples per period the interpolation of the forcing between samples matters more
+than the integrator.  ``interpolation="bandlimited"`` (default on uniform grids) treats
+it as a band-limited signal: upsampled 16 times by a long Kaiser-windowed sinc, the
+record continued beyond its ends by linear prediction, the fine samples joined by a
+cubic spline.  ``interpolation="cubic"`` is a spline through the samples (the only
+choice on non-uniform grids).  Derivatives of an input inside a nonlinear factor
+(``sign(u')``) come from the algebraic differentiator, as in identification.
 
-- ``interpolation="bandlimited"`` (default on uniform grids): the forcing is treated as
-  a band-limited signal, as a sampled physical input is (anti-alias and reconstruction
-  filters): it is upsampled 16 times with a long windowed-sinc filter (96 input samples
-  on each side, Kaiser beta = 13; :func:`scipy.signal.resample_poly`) and the fine samples
-  are joined by a cubic spline.  Measured on sines from 0.001 to 0.4 of the sampling
-  rate: interpolation error below 2e-7 of the amplitude (6e-8 at 0.33, i.e. 200 Hz at
-  Silverbox's 610.35 Hz), against 0.11 at 0.33 for a cubic spline through the samples.
-  On Silverbox (linear model, rows 30100-38100 of the arrow part, where its amplitude
-  is large) the two interpolations change the simulated output by 0.09 mV rms (0.3 mV
-  at most), a fifth of the error of a good model (0.45 mV rms): it matters.  Beyond its
-  ends the record is continued by linear prediction (a 32-tap least-squares
-  predictor), so that the first and last samples are interpolated nearly as well as
-  the rest (band-limited noise up to 0.3 of the sampling rate: 1e-2 of its rms at the
-  first 10 samples, 2e-5 from there on).
-- ``interpolation="cubic"``: a not-a-knot cubic spline through the samples, the only
-  choice on non-uniform grids; accurate when there are many samples per period (error
-  ``~ (2 pi f dt)**4 / 384`` of the amplitude at frequency ``f``).
-
-Derivatives of an input in a plain term (``G*u'``) are derivatives of this interpolant;
-derivatives of an input inside a nonlinear factor (``sign(u')``) are estimated on the
-samples by the algebraic differentiator (:func:`algid.signals.algebraic_derivative`,
-default settings), as in identification, then interpolated with the rest of the forcing.
+The user guide, "How identify works", describes the simulator and its interpolation in
+full.
 """
 
 from __future__ import annotations
@@ -498,15 +477,14 @@ def simulate_model(model, parameters, time, inputs, *, initial_state=None, outpu
         The :func:`scipy.integrate.solve_ivp` method: ``"DOP853"`` (default), or
         ``"Radau"``/``"BDF"``/``"LSODA"`` for a stiff model; or ``"RK4"``, the classical
         Runge-Kutta method with ``substeps`` fixed steps per sampling interval (faster,
-        for loops such as an output-error fit; on Silverbox, 4 sub-steps are within
-        10 uV of DOP853 with the same interpolation).
+        for loops such as an output-error fit).
     interpolation : {"bandlimited", "cubic"}, optional
-        How the inputs are interpolated between samples (see the module docstring);
-        ``"bandlimited"`` falls back to ``"cubic"`` on a non-uniform grid.
+        How the inputs are interpolated between samples (see the user guide, "How
+        identify works"); ``"bandlimited"`` falls back to ``"cubic"`` on a non-uniform
+        grid.
     rtol, atol : float, optional
-        Tolerances of the integrator.  The default ``rtol = 1e-8`` changes the Silverbox
-        output by about 1e-7 V from ``rtol = 1e-12`` (cost: about 1.5 ms per sample there,
-        some 35 right-hand-side evaluations per sample at 9 samples per period).
+        Tolerances of the integrator.  The default ``rtol = 1e-8`` keeps the
+        integration error far below a model's own error.
     return_states : bool, optional
         If true, return the whole state (``n`` x samples) instead of the output alone.
     substeps : int, optional

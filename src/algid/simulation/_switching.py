@@ -4,7 +4,7 @@ In ``M*q'' + Fv*q' + Fc*sign(q') + off = F`` the right-hand side jumps by ``2 Fc
 where the velocity crosses zero.  An adaptive integrator that meets the jump shrinks its
 step to rounding at every crossing; and where the jump points the state back towards
 ``q' = 0`` from both sides (the mass held by Coulomb friction, ``|F - off| < Fc``) the
-sign flips at every step and the integrator crawls (hours on the EMPS validation run).
+sign flips at every step and the integrator crawls.
 
 Here every ``sign(a)`` whose argument ``a`` reads the simulated state is a *mode*, +1
 or -1, held constant between switches, so that each piece is smooth and is integrated

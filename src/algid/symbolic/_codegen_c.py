@@ -13,34 +13,19 @@ microcontroller or a real-time loop.  Its three functions are
                                size_t n, double *theta);
 
 The arithmetic is that of the Python estimator (:func:`algid.estimate`,
-:class:`algid.OnlineEstimator`), sample by sample:
-
-1. level 0 of every integrator chain ``(signal, power, depth)`` is
-   ``tau**power * signal`` with ``tau = n * dt`` the time since the origin; level
-   ``l`` is the cumulative integral of level ``l - 1`` with the causal ``q``-point
-   Adams-Moulton rule: the increment ``w[0] v[n-q+1] + ... + w[q-1] v[n]`` is added to
-   a running sum, which times ``dt`` is the integral;
-2. ``P`` and ``Q`` from the kernels, then the Cramer numerators and the denominator,
-   printed by SymPy's C printer from the derivation;
-3. ``p`` more integrators on every numerator and on the denominator (the invariant
-   filter ``1/s**p``), then the quotient, NaN where the denominator is zero or not
-   finite.
-
-The first ``q - 1`` samples after an origin are buffered: when sample ``q - 1``
-arrives, samples ``0 .. q - 1`` are integrated with the start-up rule of
-:mod:`algid.signals._quadrature` (the polynomial through them), and their estimates are NaN
-except that of sample ``q - 1``.  Each sample is processed by the same code whatever
-the chunk it comes in, so chunks of any size give the same numbers bit for bit.
-
-With ``reset_period = T > 0`` two estimators run staggered by half a period, as in
-:class:`algid.OnlineEstimator`: ``N/2 = round(T / (2 dt))`` samples (half to even),
-estimator A restarts at samples ``0, N, 2N, ...``, B at ``N/2, 3N/2, ...``, and the
-one whose origin is older is reported.
+:class:`algid.OnlineEstimator`), sample by sample: the integrator chains with the
+causal ``q``-point Adams-Moulton rule, ``P``, ``Q`` and Cramer's rule printed by
+SymPy's C printer, the invariant filter ``1/s**p`` on the numerators and the
+denominator, the quotient (NaN where the denominator is zero or not finite).  The first
+samples after an origin use the start-up rule of :mod:`algid.signals._quadrature`.
+Each sample is processed by the same code whatever the chunk it comes in, so chunks of
+any size give the same numbers bit for bit; ``reset_period = T > 0`` re-anchors as
+:class:`algid.OnlineEstimator` does.
 
 The per-sample arithmetic is written by :mod:`algid.symbolic._c_arithmetic`.  The
-quadrature weights are computed exactly (rational integrals of the Lagrange
-basis, as :func:`algid.signals._quadrature.rule_weights` does) and written as ``repr`` of the
-nearest doubles.
+quadrature weights are computed exactly (rational integrals of the Lagrange basis, as
+:func:`algid.signals._quadrature.rule_weights` does) and written as ``repr`` of the
+nearest doubles.  The user guide, "How streaming works", details the generated C.
 """
 
 from __future__ import annotations
