@@ -46,7 +46,7 @@ __all__ = ["c_speed", "markdown", "target", "GENERATED", "FLAGS"]
 
 ROOT = pathlib.Path(__file__).resolve().parent.parent
 #: The checked-in C pairs (written by ``python -m derivation``).
-GENERATED = ROOT / "src" / "algid" / "generated" / "c"
+GENERATED = ROOT / "src" / "algid" / "_generated" / "c"
 #: Compiler flags of each build: label -> flags.
 FLAGS = {"O2": ["-O2", "-std=c99"], "O2_native": ["-O2", "-std=c99", "-march=native"]}
 STEP = 1e-3

@@ -91,7 +91,7 @@ def fake_estimator(monkeypatch):
             estimates.update(c=2.0 * mass, k=float("nan"))
         return FakeResult(t, estimates, model, filter_order)
 
-    install_module(monkeypatch, "estimator", estimate=estimate)
+    install_module(monkeypatch, "estimation._batch", estimate=estimate)
     return calls
 
 

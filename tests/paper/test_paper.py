@@ -187,7 +187,7 @@ def test_convergence_helpers():
     B = np.where(t < 0.25, 3.0, 2.01)
     K = np.full_like(t, 3.0)
     r = EstimationResult(t=t, estimates={"B": B, "K": K}, model="msd", filter_order=0,
-                         quadrature_order=2)
+                         quadrature_points=2)
     acc = paper.accuracy(r)
     assert acc["t_1pct_B"] == pytest.approx(0.3) and acc["t_1pct_K"] == 0.0
     assert acc["t_1pct"] == pytest.approx(0.3)

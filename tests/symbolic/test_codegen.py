@@ -22,7 +22,7 @@ from conftest import ROOT
 def test_regeneration_is_byte_identical(tmp_path):
     subprocess.run([sys.executable, "-m", "derivation", "--out", str(tmp_path)], cwd=ROOT,
                    check=True, capture_output=True)
-    generated = ROOT / "src" / "algid" / "generated"
+    generated = ROOT / "src" / "algid" / "_generated"
     names = sorted(p.name for p in tmp_path.glob("*.py"))
     assert names == sorted(p.name for p in generated.glob("*.py"))
     for name in names:

@@ -204,7 +204,7 @@ def test_weights_are_the_quadrature_rule(order):
 
 @pytest.mark.parametrize("name", sorted(BUILTIN_MODELS))
 def test_checked_in_c_files_are_regenerated_byte_for_byte(name):
-    generated = ROOT / "src" / "algid" / "generated" / "c"
+    generated = ROOT / "src" / "algid" / "_generated" / "c"
     for rel, text in c_sources(derive(builtin_model(name))).items():
         assert (generated / rel).read_text(encoding="utf-8") == text, (
             f"src/algid/_generated/c/{rel} differs from the derivation: run "
@@ -464,7 +464,7 @@ def test_example_program_builds_and_estimates(tmp_path):
     example = ROOT / "examples" / "c"
     for name in ("main.c", "Makefile"):
         shutil.copy(example / name, tmp_path / name)
-    proc = subprocess.run(["make", f"GENERATED={ROOT / 'src' / 'algid' / 'generated' / 'c'}",
+    proc = subprocess.run(["make", f"GENERATED={ROOT / 'src' / 'algid' / '_generated' / 'c'}",
                            f"CC={CC}"], cwd=tmp_path, capture_output=True, text=True,
                           timeout=120)
     assert proc.returncode == 0, proc.stdout + proc.stderr
