@@ -53,8 +53,7 @@ from IPython.display import Markdown, display
 from algid.signals._quadrature import iterated_integrals, startup_samples
 from algid.symbolic import LAPLACE as s
 from algid.symbolic import TIME as t
-from algid.symbolic import Kernel, LinearODEModel, derivation_report, derive
-from algid.symbolic import builtin_model
+from algid.symbolic import Kernel, LinearODEModel, builtin_model, derivation_report, derive
 from algid.symbolic._realization import from_kernel_terms, kernel_terms
 
 sp.init_printing()

@@ -50,8 +50,7 @@ from IPython.display import display
 
 import algid
 from algid.estimation._online import TRACKING_RESET_PERIOD, OnlineEstimator
-from algid.symbolic import TIME, derive, evaluate_kernel
-from algid.symbolic import builtin_model
+from algid.symbolic import TIME, builtin_model, derive, evaluate_kernel
 from algid.symbolic._realization import realize
 
 TRUE = {"B": 2.0, "K": 3.0}

@@ -31,6 +31,8 @@ from algid.estimation._options import (
     with_mass_scaled,
 )
 from algid.estimation._result import EstimationResult
+from algid.identification._records import record_columns
+from algid.models._argument import estimator_module, is_record, measured_signals, takes_pair
 from algid.models._registry import available_models, load_model
 from algid.signals._filters import as_lowpass
 from algid.signals._quadrature import iterated_integrals, startup_samples
@@ -93,11 +95,19 @@ def _unpack_timeresponse(data):
 def estimate(t, f=None, x=None, *, model="msd", filter_order=DEFAULT_FILTER_ORDER, mass=None,
              quadrature_points=None, lowpass=None, engine="auto",
              signals=None, differentiator="centred", derivative_window=None,
-             derivative_extra_orders=0, numerical_error=True, late_origin=False):
+             derivative_extra_orders=0, numerical_error=True, late_origin=False,
+             time=None, rate=None, output=None):
     """Estimate the parameters of a model from its input and output, algebraically.
 
     The estimate at each instant uses only the data up to that instant and does not
-    depend on the initial conditions.
+    depend on the initial conditions.  Two call forms:
+
+    - ``estimate(record, model, parameters=None, *, time=None, rate=None, ...)``, as
+      :func:`algid.identify` and :class:`algid.OnlineEstimator` take it: ``record`` a
+      mapping of named columns (a time column ``t``/``time`` or ``time=``, else
+      ``rate=``), ``model`` a built-in model's name, equation text with its
+      ``parameters``, or a compiled model;
+    - ``estimate(t, f, x, model=...)``: arrays, the paper's form.
 
     Parameters
     ----------
@@ -139,6 +149,13 @@ def estimate(t, f=None, x=None, *, model="msd", filter_order=DEFAULT_FILTER_ORDE
         ``"numba"`` if numba is installed, there are at least
         :data:`~algid.estimation._backends.AUTO_ENGINE_MIN_SAMPLES` samples and no ``lowpass``,
         else ``"numpy"``.
+    time : str, optional
+        With a record: the name of its time column (default ``t`` or ``time``).
+    rate : float, optional
+        With a record without a time column: the sampling rate [Hz].
+    output : str, optional
+        With equation text: the output signal (default: the signal of highest
+        derivative order).
     signals : mapping, optional
         For a model of several signals or nonlinear factors (a module from
         :func:`algid.models.compile_equation`): measured signal name -> samples
@@ -203,6 +220,19 @@ def estimate(t, f=None, x=None, *, model="msd", filter_order=DEFAULT_FILTER_ORDE
     >>> round(r.final()["B"], 6), round(r.final()["K"], 6)
     (2.0, 3.0)
     """
+    if is_record(t):
+        if signals is not None:
+            raise InputDataError("give a record or signals=, not both")
+        module = estimator_module(model if f is None else f, x, output=output)
+        t, columns = record_columns(t, measured_signals(module), time=time, rate=rate)
+        model, f, x = module, None, None
+        if takes_pair(module):
+            f, x = columns[module.INPUT], columns[module.OUTPUT]
+        else:
+            signals = columns
+    elif time is not None or rate is not None or output is not None:
+        raise InputDataError("time=, rate= and output= go with a record (a mapping of "
+                             "named columns)")
     if signals is not None:
         return _estimate_signals(t, signals, model=model, filter_order=filter_order,
                                  quadrature_points=quadrature_points, engine=engine,

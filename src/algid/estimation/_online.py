@@ -36,6 +36,8 @@ import math
 
 import numpy as np
 
+from algid.identification._records import record_columns
+from algid.models._argument import estimator_module, is_record, measured_signals, takes_pair
 from algid._scaling import amplitude_scale, scalable
 from algid._signal_checks import UNIFORM_RTOL, positive_number
 from algid.errors import InputDataError
@@ -71,7 +73,6 @@ from algid.estimation._stream_checks import (
     half_period,
 )
 from algid.models._compiled import ChannelStream
-from algid.models._registry import load_model
 
 __all__ = ["OnlineEstimator", "run_stream", "TRACKING_RESET_PERIOD"]
 
@@ -99,10 +100,12 @@ class OnlineEstimator:
     Parameters
     ----------
     model : str or module, optional
-        ``"msd"`` (default) or ``"msd_mass"``; see :func:`algid.available_models`.
-        Also a generated module, e.g. a user equation from
-        :func:`algid.models.compile_equation` (several signals, offsets, drifts,
-        nonlinear factors), fed with ``update(t, signals={...})``.
+        ``"msd"`` (default) or ``"msd_mass"`` (see :func:`algid.available_models`),
+        equation text with its ``parameters`` (several signals, offsets, drifts,
+        nonlinear factors), or a compiled model (:func:`algid.compile_equation`): the
+        same model argument as :func:`algid.estimate` and :func:`algid.identify`.
+    parameters : str or sequence of str, optional
+        The unknown parameters of equation text.
     filter_order : int, optional
         ``p`` of the invariant filter ``1/s**p`` (0 = none).  Default 2.
     quadrature_points : int, optional
@@ -139,6 +142,11 @@ class OnlineEstimator:
         0 (default): the minimal differentiator, the least noisy, which lags by half
         its window.  1 or 2: exact at the sample for polynomials of 1 or 2 more
         degrees, so without lag on smooth signals, but noisier.
+    time : str, optional
+        The time column of the records given to :meth:`update` (default ``t`` or
+        ``time``; without one, the times come from ``rate`` or ``dt``).
+    output : str, optional
+        With equation text: the output signal.
     late_origin : bool, optional
         As for :func:`algid.estimate`: a twin from an origin 64 samples later, reported
         where its numerical error is three times smaller (the same numbers as the batch
@@ -198,11 +206,12 @@ class OnlineEstimator:
     3.0
     """
 
-    def __init__(self, model="msd", *, filter_order=DEFAULT_FILTER_ORDER,
+    def __init__(self, model="msd", parameters=None, *, filter_order=DEFAULT_FILTER_ORDER,
                  quadrature_points=None, mass=None, dt=None, rate=None, reset_period=None,
                  engine="auto", derivative_window=None,
-                 derivative_extra_orders=0, late_origin=False):
-        self._module = module = load_model(model)
+                 derivative_extra_orders=0, late_origin=False, time=None, output=None):
+        self._module = module = estimator_module(model, parameters, output=output)
+        self._time_column = time
         self.filter_order = check_filter_order(filter_order)
         self.quadrature_points = quadrature_points_option(quadrature_points)
         # a stream takes numba whenever it can: there the cost per call matters most
@@ -249,8 +258,7 @@ class OnlineEstimator:
                                              derivative_window=derivative_window,
                                              derivative_extra_orders=derivative_extra_orders)
         self.signals = self._channel_stream.signals
-        self._takes_pair = (not getattr(module, "FACTORS", None)
-                            and set(module.CHANNELS) == {module.INPUT, module.OUTPUT})
+        self._takes_pair = takes_pair(module)
         # one sample as floats: the short path of update() (_update_sample)
         self._sample_path = self._takes_pair and self._twin is None
         self._steppers = None
@@ -363,8 +371,11 @@ class OnlineEstimator:
 
         Parameters
         ----------
-        t : float or array_like
+        t : float or array_like or mapping
             Sample times [s], continuing the stream (strictly increasing, uniform step).
+            Or a record chunk, as :func:`algid.identify` takes records: named columns,
+            with a time column or, without one, times following on from the previous
+            chunk at the estimator's ``rate`` (or ``dt``).
         f : float or array_like
             Input at those times (as for :func:`algid.estimate`), for a model of the
             two channels input and output (the built-in models).
@@ -400,6 +411,17 @@ class OnlineEstimator:
         a nonzero sample when their amplitude is extreme (:mod:`algid._scaling`); the
         estimates do not change, bit for bit, and stay equal to the batch ones.
         """
+        if is_record(t):
+            if f is not None or x is not None or signals is not None:
+                raise InputDataError("give a record chunk alone, without f, x or signals")
+            rate = None if self._given_dt is None else 1.0 / self._given_dt
+            t, columns = record_columns(t, measured_signals(self._module),
+                                        time=self._time_column, rate=rate,
+                                        first_sample=self.n_seen)
+            if self._takes_pair:
+                f, x = columns[self._module.INPUT], columns[self._module.OUTPUT]
+            else:
+                signals = columns
         sample = float_sample(t, f, x)
         result = None if sample is None else self._update_sample(*sample)
         if result is not None:

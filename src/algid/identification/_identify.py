@@ -31,6 +31,7 @@ covariance, the window rule and the crossings in full.
 
 from __future__ import annotations
 
+import types
 from math import comb
 
 import numpy as np
@@ -70,6 +71,8 @@ from algid.identification._window_rule import (
     window_grid,
     window_length,
 )
+from algid.models._argument import estimator_module
+from algid.models._compiled import model_of
 from algid.models._expression import Call, Signal
 from algid.models._grammar import parse_equation
 from algid.models._model import Model
@@ -504,8 +507,10 @@ def identify(data, equation, parameters=None, *, time=None, rate=None, output=No
     data : mapping or list of mappings
         Column name -> samples; a list of records is identified together.  Rows may be
         missing from a record with a time column (gaps), and NaN samples are dropped.
-    equation : str or Model
-        The model, e.g. ``"M*q'' + Fv*q' + Fc*sign(q') + off = F"``.
+    equation : str, Model or module
+        The model, e.g. ``"M*q'' + Fv*q' + Fc*sign(q') + off = F"``, or a compiled
+        model (:func:`algid.compile_equation`): the same model argument as
+        :func:`algid.estimate` and :class:`algid.OnlineEstimator`.
     parameters : sequence of str or str
         The unknown parameters (not needed when ``equation`` is a Model).
     time : str, optional
@@ -546,6 +551,8 @@ def identify(data, equation, parameters=None, *, time=None, rate=None, output=No
     """
     from algid.identification._result import IdentificationResult
 
+    if isinstance(equation, types.ModuleType):  # a compiled model: its own equation
+        equation = model_of(estimator_module(equation, parameters))
     multiplicities = check_arguments(
         equation, parameters, time=time, rate=rate, output=output, window=window,
         method=method, methods=METHODS, multiplicities=multiplicities, name=name,

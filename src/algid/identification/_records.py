@@ -22,7 +22,7 @@ from scipy.signal import savgol_filter
 
 from algid.errors import InputDataError
 
-__all__ = ["Segment", "prepare_records", "estimate_derivative", "check_rate",
+__all__ = ["record_columns", "Segment", "prepare_records", "estimate_derivative", "check_rate",
            "check_rate_agrees", "check_factors", "white_noise_floor", "TIME_COLUMNS",
            "GAP_FACTOR", "RATE_TOLERANCE", "STEP_RANGE", "NOISE_ORDERS"]
 
@@ -216,6 +216,48 @@ def _time_axis(record, index, n, time, rate):
                 f"{low:g} .. {high:g} s: the window integrals would overflow or "
                 f"underflow; express the time in other units")
     return t, time
+
+
+def record_columns(record, signals, *, time=None, rate=None, first_sample=0):
+    """The time axis and the named signals of one record, checked as :func:`algid.identify`
+    checks them (no gaps are cut: the estimator needs the record whole).
+
+    Parameters
+    ----------
+    record : mapping
+        Column name -> samples.
+    signals : sequence of str
+        Signals to read.
+    time : str, optional
+        Name of the time column; by default ``t`` or ``time`` if present.
+    rate : float, optional
+        Sampling rate (Hz) when there is no time column.
+    first_sample : int, optional
+        Index of the first sample when the times come from ``rate``: sample ``i`` is at
+        ``(first_sample + i) / rate`` (a stream's later chunk goes on where the previous
+        one ended, at the same times as the whole record).
+
+    Returns
+    -------
+    t : numpy.ndarray
+    columns : dict
+        Signal name -> samples (float arrays of the same length as ``t``).
+
+    Raises
+    ------
+    InputDataError
+        A missing or non-numeric column, signals of different lengths, a bad time axis.
+    """
+    columns = {name: _column(record, name, 0, "signal") for name in signals}
+    lengths = {len(v) for v in columns.values()}
+    if len(lengths) > 1:
+        raise InputDataError("signals have different lengths ("
+                             + ", ".join(f"{k}: {len(v)}" for k, v in columns.items()) + ")")
+    n = lengths.pop() if lengths else 0
+    t, _ = _time_axis(record, 0, n, time, rate)
+    if first_sample and time is None and not any(c in record for c in TIME_COLUMNS):
+        t = (first_sample + np.arange(n)) / check_rate(rate)
+    return t, columns
 
 
 def _split(t, valid, min_length):
