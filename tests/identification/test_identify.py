@@ -439,3 +439,19 @@ def test_noise_meat_counts_the_noise_of_the_refined_crossings():
     assert crossings >= 3
     meat = noise_meat(problem, length, a, theta_bar, A, stride)
     np.testing.assert_allclose(meat, G.T @ G, rtol=1e-10, atol=1e-12 * np.abs(meat).max())
+
+
+def test_values_of_your_choosing_simulate_as_identified_ones():
+    """from_values gives the validation of identify to any parameter set: the true values
+    of a noise-free record simulate it exactly; the identified ones give the same fit."""
+    record, truth = linear_offsets(0, noise=0.0)
+    given = algid.IdentificationResult.from_values(LINEAR_EQUATION[0], truth)
+    assert given.method == "given" and given.parameters == truth
+    assert given.fit_percent(record) > 99.99
+    fitted = algid.identify(record, *LINEAR_EQUATION, window=1.1)
+    assert fitted.fit_percent(record) == pytest.approx(given.fit_percent(record), abs=1e-6)
+    assert "given" in repr(given) and "±" not in repr(given)
+    with pytest.raises(InputDataError, match="not a parameter|no value"):
+        given.with_parameters({"nope": 1.0})
+    with pytest.raises(InputDataError, match="mapping"):
+        algid.IdentificationResult.from_values(LINEAR_EQUATION[0], [1.0, 2.0])

@@ -145,10 +145,62 @@ class IdentificationResult:
             extra = "" if numerical is None else f" (numerical {numerical:.2g})"
             return f"{p}={v:.6g} ± {self.stderr[p]:.2g}{extra}"
 
+        if self.method == "given":  # values of the user's choosing: nothing was measured
+            pieces = ", ".join(f"{p}={v:.6g}" for p, v in self.values.items())
+            return f"IdentificationResult({self.model.equation!r}: {pieces}; given)"
         pieces = ", ".join(piece(p, v) for p, v in self.values.items())
         warned = "".join(f"; warning: {w}" for w in self.warnings)
         return (f"IdentificationResult({self.model.equation!r}: {pieces}; window "
                 f"{self.window:.4g} s, {self.n_samples} samples, {self.method}{warned})")
+
+    @classmethod
+    def from_values(cls, equation, values, *, output=None, time=None, rate=None):
+        """A result holding parameter values of your choosing, to simulate and validate.
+
+        Everything a result of :func:`algid.identify` offers for validation
+        (:meth:`simulate`, :meth:`fit_percent`, :meth:`residuals`, :meth:`plot`,
+        :meth:`to_control`, :meth:`to_nlsys`) then works on any values: published ones,
+        a colleague's, a design target.  No uncertainty is known (NaN covariance).
+
+        Parameters
+        ----------
+        equation : str or Model
+            The model, as for :func:`algid.identify`; its parameters are the keys of
+            ``values`` (its other names are signals, read from the records).
+        values : mapping
+            Parameter name -> value, for every parameter of the model.
+        output : str, optional
+            The output signal (default: the signal of highest derivative order).
+        time : str, optional
+            Time column of the records it will be given.
+        rate : float, optional
+            Sampling rate of the records it will be given, without a time column.
+
+        Returns
+        -------
+        IdentificationResult
+            ``method`` is ``"given"``; ``window`` NaN, ``n_samples`` 0.
+
+        Raises
+        ------
+        ModelError
+            A bad equation.
+        InputDataError
+            Values missing, unknown or not finite real numbers.
+        """
+        from algid.models._grammar import parse_equation
+        from algid.models._model import Model
+
+        if not isinstance(values, Mapping):
+            raise InputDataError(f"values must be a mapping of parameter name -> value, "
+                                 f"got {type(values).__name__}")
+        model = equation if isinstance(equation, Model) else parse_equation(
+            equation, list(values), output=output)
+        n = len(model.parameters)
+        blank = cls(model=model, values=dict.fromkeys(model.parameters, math.nan),
+                    covariance=np.full((n, n), np.nan), window=math.nan, n_samples=0,
+                    n_windows=0, method="given", multiplicities=(), time=time, rate=rate)
+        return blank.with_parameters(values)
 
     def with_parameters(self, values):
         """Return a copy with other parameter values (e.g. published ones).
