@@ -111,6 +111,16 @@ class BenchmarkRecord(Mapping):
         What the signals are, with units.
     citation : str
         The reference to cite when using the record.
+
+    Examples
+    --------
+    >>> from algid.datasets import emps
+    >>> record = emps()
+    >>> record
+    BenchmarkRecord(name='emps/estimation', signals=[t, qm, vir, qg, F], n_samples=24841,
+                    rate=1000.0)
+    >>> list(record), record["F"] is record.F
+    (['t', 'qm', 'vir', 'qg', 'F'], True)
     """
 
     name: str

@@ -158,6 +158,17 @@ def read_columns(path, names, *, optional=()):
     DataFileError
         Missing file, unknown type, missing or non-numeric column (the message starts
         with the file name and lists the available columns).
+
+    Examples
+    --------
+    >>> import pathlib, tempfile
+    >>> from algid.io import read_columns
+    >>> with tempfile.TemporaryDirectory() as folder:
+    ...     path = pathlib.Path(folder, "record.csv")
+    ...     _ = path.write_text("t,u,y\\n0.0,1.0,0.0\\n0.1,1.0,0.5\\n")
+    ...     columns = read_columns(path, ["u", "y"], optional=["t", "z"])
+    >>> sorted(columns), columns["y"]
+    (['t', 'u', 'y'], array([0. , 0.5]))
     """
     p, label, suffix = _checked_path(path)
     found = _available(p, label, suffix)
