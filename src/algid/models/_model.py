@@ -39,9 +39,8 @@ class Term:
     >>> term = parse_equation("x'' + B*x' + K*x = f", "B K").terms[1]
     >>> term
     Term(parameter='B', coefficient=1.0, derivative=1, factor=Signal(name='x', derivative=0))
-    >>> print(term), term.is_known
-    B*x'
-    (None, False)
+    >>> str(term), term.is_known
+    ("B*x'", False)
     """
 
     parameter: str | None
