@@ -393,11 +393,13 @@ def export(name, folder) -> list:
 
     Examples
     --------
+    >>> import tempfile
     >>> from algid.datasets import export
-    >>> [p.name for p in export("emps", "records")]  # doctest: +SKIP
+    >>> with tempfile.TemporaryDirectory() as folder:
+    ...     print([path.name for path in export("emps", folder)])
     ['emps_estimation.csv', 'emps_validation.csv']
 
-    Then, on the command line::
+    Then, with the files written into a folder ``records``, on the command line::
 
         algid identify records/emps_estimation.csv --parameters "M Fv Fc off" \\
             --equation "M*qm'' + Fv*qm' + Fc*sign(qm') + off = F"

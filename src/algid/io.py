@@ -74,8 +74,14 @@ def read_experiment(path, *, time="t", input="f", output="x", rate=None):
 
     Examples
     --------
-    >>> t, f, x = read_experiment("silverbox.csv", input="V1", output="V2",
-    ...                           rate=610.35)  # doctest: +SKIP
+    >>> import pathlib, tempfile
+    >>> from algid.io import read_experiment
+    >>> with tempfile.TemporaryDirectory() as folder:
+    ...     path = pathlib.Path(folder, "step.csv")
+    ...     _ = path.write_text("f,x\\n1.0,0.0\\n1.0,0.5\\n1.0,1.5\\n")   # no time column
+    ...     t, f, x = read_experiment(path, rate=10.0)
+    >>> t, x
+    (array([0. , 0.1, 0.2]), array([0. , 0.5, 1.5]))
     """
     if rate is not None:
         rate = _check_rate(rate)
