@@ -3,8 +3,9 @@
 Every name in ``algid.__all__`` and in the ``__all__`` of each public module (functions,
 classes, and the public methods and properties a class defines) is validated with
 ``numpydoc.validate.validate``; the test fails listing each offender with the numpydoc
-codes it breaks.  The examples themselves run as doctests (``--doctest-modules`` in
-``pyproject.toml``).
+codes it breaks.  Every public function and class has an Examples section that runs
+(not skipped) and imports from public modules; the examples themselves run as doctests
+(``--doctest-modules`` in ``pyproject.toml``).
 """
 
 from __future__ import annotations
@@ -134,3 +135,64 @@ def test_public_docstrings_follow_numpydoc():
     report = "\n".join(f"{path}:\n    " + "\n    ".join(errs)
                        for path, errs in sorted(found.items()))
     assert not found, f"{len(found)} public objects with docstring problems:\n{report}"
+
+
+def example_problem(obj):
+    """What is wrong with the Examples section of a docstring, or None.
+
+    An example must run (a ``>>>`` line not skipped) and import from public modules
+    only, as a user would.
+    """
+    lines = NumpyDocString(inspect.getdoc(obj) or "")["Examples"]
+    code = [line.strip()[4:] for line in lines if line.strip().startswith((">>>", "..."))]
+    if not any("+SKIP" not in line for line in code if line):
+        return "no Examples section that runs"
+    private = [line for line in code if re.search(r"\balgid(\.\w+)*\._", line)]
+    if private:
+        return f"imports a private module: {private[0]}"
+    return None
+
+
+def test_the_example_check_catches_a_bad_example():
+    assert example_problem(half) == "no Examples section that runs"
+
+    def skipped():
+        """Do nothing.
+
+        Examples
+        --------
+        >>> skipped()  # doctest: +SKIP
+        """
+
+    def private():
+        """Do nothing.
+
+        Examples
+        --------
+        >>> from algid.models._grammar import parse_equation
+        """
+
+    def public():
+        """Do nothing.
+
+        Examples
+        --------
+        >>> from algid.estimation import convergence_time
+        >>> public()  # doctest: +SKIP
+        """
+
+    assert example_problem(skipped) == "no Examples section that runs"
+    assert example_problem(private).startswith("imports a private module")
+    assert example_problem(public) is None
+
+
+def test_every_public_function_and_class_has_examples():
+    found = {}
+    for path, obj in public_objects():
+        if path.count(".") != 2 or not (inspect.isfunction(obj) or inspect.isclass(obj)):
+            continue  # methods and properties are shown in their class's examples
+        problem = example_problem(obj)
+        if problem:
+            found[path] = problem
+    report = "\n".join(f"{path}: {problem}" for path, problem in sorted(found.items()))
+    assert not found, f"{len(found)} public functions and classes without examples:\n{report}"

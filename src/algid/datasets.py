@@ -111,6 +111,16 @@ class BenchmarkRecord(Mapping):
         What the signals are, with units.
     citation : str
         The reference to cite when using the record.
+
+    Examples
+    --------
+    >>> from algid.datasets import emps
+    >>> record = emps()
+    >>> record
+    BenchmarkRecord(name='emps/estimation', signals=[t, qm, vir, qg, F], n_samples=24841,
+                    rate=1000.0)
+    >>> list(record), record["F"] is record.F
+    (['t', 'qm', 'vir', 'qg', 'F'], True)
     """
 
     name: str
@@ -383,11 +393,13 @@ def export(name, folder) -> list:
 
     Examples
     --------
+    >>> import tempfile
     >>> from algid.datasets import export
-    >>> [p.name for p in export("emps", "records")]  # doctest: +SKIP
+    >>> with tempfile.TemporaryDirectory() as folder:
+    ...     print([path.name for path in export("emps", folder)])
     ['emps_estimation.csv', 'emps_validation.csv']
 
-    Then, on the command line::
+    Then, with the files written into a folder ``records``, on the command line::
 
         algid identify records/emps_estimation.csv --parameters "M Fv Fc off" \\
             --equation "M*qm'' + Fv*qm' + Fc*sign(qm') + off = F"

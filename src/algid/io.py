@@ -74,8 +74,14 @@ def read_experiment(path, *, time="t", input="f", output="x", rate=None):
 
     Examples
     --------
-    >>> t, f, x = read_experiment("silverbox.csv", input="V1", output="V2",
-    ...                           rate=610.35)  # doctest: +SKIP
+    >>> import pathlib, tempfile
+    >>> from algid.io import read_experiment
+    >>> with tempfile.TemporaryDirectory() as folder:
+    ...     path = pathlib.Path(folder, "step.csv")
+    ...     _ = path.write_text("f,x\\n1.0,0.0\\n1.0,0.5\\n1.0,1.5\\n")   # no time column
+    ...     t, f, x = read_experiment(path, rate=10.0)
+    >>> t, x
+    (array([0. , 0.1, 0.2]), array([0. , 0.5, 1.5]))
     """
     if rate is not None:
         rate = _check_rate(rate)
@@ -158,6 +164,17 @@ def read_columns(path, names, *, optional=()):
     DataFileError
         Missing file, unknown type, missing or non-numeric column (the message starts
         with the file name and lists the available columns).
+
+    Examples
+    --------
+    >>> import pathlib, tempfile
+    >>> from algid.io import read_columns
+    >>> with tempfile.TemporaryDirectory() as folder:
+    ...     path = pathlib.Path(folder, "record.csv")
+    ...     _ = path.write_text("t,u,y\\n0.0,1.0,0.0\\n0.1,1.0,0.5\\n")
+    ...     columns = read_columns(path, ["u", "y"], optional=["t", "z"])
+    >>> sorted(columns), columns["y"]
+    (['t', 'u', 'y'], array([0. , 0.5]))
     """
     p, label, suffix = _checked_path(path)
     found = _available(p, label, suffix)

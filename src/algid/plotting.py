@@ -37,6 +37,15 @@ def plot_input_response(t, f, x, *, title=None, force_label="Force (N)",
     Returns
     -------
     matplotlib.figure.Figure
+
+    Examples
+    --------
+    >>> from algid.plotting import plot_input_response
+    >>> from algid.simulation import simulate
+    >>> sim = simulate("step", duration=1.0, rate=100.0)
+    >>> fig = plot_input_response(sim.t, sim.f, sim.x, title="Step response")
+    >>> [ax.get_title(loc="left") for ax in fig.axes]
+    ['(a) input', '(b) response']
     """
     fig = Figure(figsize=figsize, layout="constrained")
     ax_f, ax_x = fig.subplots(2, 1, sharex=True)
@@ -80,6 +89,15 @@ def plot_responses(panels, *, title=None, position_label="Position (m)",
     Returns
     -------
     matplotlib.figure.Figure
+
+    Examples
+    --------
+    >>> from algid.plotting import plot_responses
+    >>> from algid.simulation import simulate
+    >>> runs = [simulate("step", duration=1.0, noise_std=std, seed=0) for std in (0.001, 0.01)]
+    >>> fig = plot_responses([(r.t, r.x, r.x_true, f"noise {r.noise_std} m") for r in runs])
+    >>> [ax.get_title(loc="left") for ax in fig.axes]
+    ['noise 0.001 m', 'noise 0.01 m']
     """
     fig = Figure(figsize=figsize, layout="constrained")
     axes = np.atleast_1d(fig.subplots(len(panels), 1, sharex=True))
@@ -198,6 +216,16 @@ def plot_estimates(result, *, true_values=None, parameters=None, t_max=None, yli
     -------
     matplotlib.figure.Figure
         The figure of the axes drawn into.
+
+    Examples
+    --------
+    >>> from algid.estimation import estimate
+    >>> from algid.plotting import plot_estimates
+    >>> from algid.simulation import simulate
+    >>> result = estimate(*simulate("step", duration=1.0), engine="numpy")
+    >>> fig = plot_estimates(result, true_values={"B": 2.0, "K": 3.0})
+    >>> [line.get_label() for line in fig.axes[0].lines]
+    ['B estimate', 'true B = 2', 'K estimate', 'true K = 3']
     """
     own = ax is None
     if own:
@@ -253,6 +281,18 @@ def save_figure(fig, path, *, dpi=120):
     -------
     pathlib.Path
         The path written.
+
+    Examples
+    --------
+    >>> import pathlib, tempfile
+    >>> from matplotlib.figure import Figure
+    >>> from algid.plotting import save_figure
+    >>> fig = Figure()
+    >>> _ = fig.subplots().plot([0, 1], [0, 1])
+    >>> with tempfile.TemporaryDirectory() as folder:
+    ...     path = save_figure(fig, pathlib.Path(folder, "line.png"), dpi=50)
+    ...     print(path.name, path.read_bytes()[1:4])
+    line.png b'PNG'
     """
     path = pathlib.Path(path)
     fig.savefig(path, dpi=dpi)

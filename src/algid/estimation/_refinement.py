@@ -62,6 +62,17 @@ class RefinementResult:
     mass : float or None
     c, k : float or None
         ``B m`` and ``K m`` when the mass was given.
+
+    Examples
+    --------
+    >>> from algid.estimation import refine
+    >>> from algid.simulation import simulate
+    >>> sim = simulate("step", initial_state=(0.1, -0.2), noise_std=0.01, seed=1)
+    >>> result = refine(sim.t, sim.f, sim.x)
+    >>> result.converged, sorted(result.std), round(result.noise_std, 3)
+    (True, ['B', 'K', 'v0', 'x0'], 0.01)
+    >>> abs(result.x0 - 0.1) < 4 * result.std["x0"]
+    True
     """
 
     B: float

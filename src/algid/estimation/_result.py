@@ -27,6 +27,14 @@ def convergence_time(t, estimate, true_value, rtol):
     -------
     float
         The time, or NaN if the estimate is outside the band at the last sample.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from algid.estimation import convergence_time
+    >>> t = np.linspace(0.0, 1.0, 11)
+    >>> convergence_time(t, 2.0 + np.exp(-10.0 * t), true_value=2.0, rtol=0.01)
+    0.4
     """
     err = np.abs(np.asarray(estimate) / true_value - 1.0)
     bad = ~(err <= rtol)
@@ -64,6 +72,18 @@ class EstimationResult:
         over the parameters (:mod:`algid.estimation._numerical_error`): NaN where the estimates
         are NaN, inf where the data do not determine them (those estimates are then
         NaN).  None if not computed.
+
+    Examples
+    --------
+    >>> from algid.estimation import estimate
+    >>> from algid.simulation import simulate
+    >>> result = estimate(*simulate("step", duration=1.0), engine="numpy")
+    >>> result
+    <EstimationResult model='msd' n_samples=1001 t_valid=0.005 final: B=2, K=3>
+    >>> result.parameters, result.B.shape
+    (('B', 'K'), (1001,))
+    >>> {name: round(value, 6) for name, value in result.final().items()}
+    {'B': 2.0, 'K': 3.0}
     """
 
     def __init__(self, *, t, estimates, model, filter_order, quadrature_points=None,

@@ -87,6 +87,17 @@ class Adequacy:
     explained : float
         The misfit with those terms over the model's (least squares, same window; NaN
         when not asked).
+
+    Examples
+    --------
+    >>> from algid.identification import identify
+    >>> from algid.simulation import simulate
+    >>> sim = simulate("sine", frequency=3.0, duration=10.0, rate=100.0, noise_std=1e-4, seed=0)
+    >>> record = {"t": sim.t, "f": sim.f, "x": sim.x}
+    >>> result = identify(record, "x'' + B*x' + K*x = f", "B K")
+    >>> adequacy = result.adequacy
+    >>> adequacy.adequate, adequacy.misfit < adequacy.misfit_limit, adequacy.warnings()
+    (True, True, [])
     """
 
     misfit: float

@@ -548,6 +548,16 @@ def identify(data, equation, parameters=None, *, time=None, rate=None, output=No
     ModelError, InputDataError
         One-line messages for a bad equation, an argument of the wrong type, unusable
         data, or records too large for the memory available.
+
+    Examples
+    --------
+    >>> from algid.identification import identify
+    >>> from algid.simulation import simulate
+    >>> sim = simulate("sine", frequency=3.0, duration=10.0, rate=100.0, noise_std=1e-4, seed=0)
+    >>> record = {"t": sim.t, "f": sim.f, "x": sim.x}
+    >>> result = identify(record, "x'' + B*x' + K*x = f", "B K")
+    >>> round(result.B, 3), round(result.K, 2), result.warnings
+    (2.0, 3.0, [])
     """
     from algid.identification._result import IdentificationResult
 

@@ -30,6 +30,17 @@ class Validation:
         Fitted initial state (output and its derivatives).
     skip : int
         Samples used to fit the initial state, left out of the error.
+
+    Examples
+    --------
+    >>> from algid.identification import identify
+    >>> from algid.simulation import simulate
+    >>> sim = simulate("sine", frequency=3.0, duration=10.0, rate=100.0, noise_std=1e-4, seed=0)
+    >>> record = {"t": sim.t, "f": sim.f, "x": sim.x}
+    >>> result = identify(record, "x'' + B*x' + K*x = f", "B K")
+    >>> validation = result.simulate(record, method="RK4")
+    >>> validation.skip, validation.simulated.shape, round(validation.fit_percent)
+    (50, (1001,), 100)
     """
 
     t: np.ndarray
@@ -99,6 +110,18 @@ class IdentificationResult:
     warnings : list of str
         One-line warnings about the result (an inadequate model, poorly separated or
         strongly correlated parameters).
+
+    Examples
+    --------
+    >>> from algid.identification import identify
+    >>> from algid.simulation import simulate
+    >>> sim = simulate("sine", frequency=3.0, duration=10.0, rate=100.0, noise_std=1e-4, seed=0)
+    >>> record = {"t": sim.t, "f": sim.f, "x": sim.x}
+    >>> result = identify(record, "x'' + B*x' + K*x = f", "B K")
+    >>> result.model.parameters, result.method, result.n_samples
+    (('B', 'K'), 'bc', 1001)
+    >>> round(result.values["K"], 2), result.stderr["K"] < 0.01
+    (3.0, True)
     """
 
     model: object

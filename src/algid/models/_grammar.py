@@ -603,6 +603,15 @@ def parse_equation(text, parameters, *, output=None, name="custom", signals=None
     ------
     ModelError
         One line naming the problem.
+
+    Examples
+    --------
+    >>> from algid.models import parse_equation
+    >>> model = parse_equation("V2'' + B*V2' + K*V2 + K3*V2**3 = G*V1 + d", "B K K3 G d")
+    >>> model.output, model.signals, model.parameters
+    ('V2', ('V2', 'V1'), ('B', 'K', 'K3', 'G', 'd'))
+    >>> [str(term) for term in model.terms]
+    ["V2''", "B*V2'", 'K*V2', 'K3*V2**3', '-G*V1', '-d']
     """
     equation = check_text(text)
     check_name(name, "model name")

@@ -32,6 +32,15 @@ class Term:
     factor : Expr
         The factor (channel): a signal, ``Constant(1)``, ``Time()`` or a nonlinear
         expression of signals.
+
+    Examples
+    --------
+    >>> from algid.models import parse_equation
+    >>> term = parse_equation("x'' + B*x' + K*x = f", "B K").terms[1]
+    >>> term
+    Term(parameter='B', coefficient=1.0, derivative=1, factor=Signal(name='x', derivative=0))
+    >>> str(term), term.is_known
+    ("B*x'", False)
     """
 
     parameter: str | None
@@ -80,6 +89,15 @@ class Model:
         Measured signals, in order of first appearance.
     output : str
         The output signal (simulation and instrumental variables need it).
+
+    Examples
+    --------
+    >>> from algid.models import parse_equation
+    >>> model = parse_equation("x'' + B*x' + K*x = f", "B K")
+    >>> print(model)
+    custom: x'' + B*x' + K*x = f
+    >>> model.parameters, model.inputs, model.output, model.order
+    (('B', 'K'), ('f',), 'x', 2)
     """
 
     name: str

@@ -20,6 +20,12 @@ def available_models():
     -------
     tuple of str
         The built-in model names.
+
+    Examples
+    --------
+    >>> from algid.models import available_models
+    >>> available_models()
+    ('msd', 'msd_mass')
     """
     return tuple(MODULES)
 

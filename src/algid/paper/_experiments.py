@@ -76,6 +76,14 @@ class Experiment:
         The paper's figure with the estimates.
     claim : str
         The paper's words, abridged.
+
+    Examples
+    --------
+    >>> from algid.paper import EXPERIMENTS
+    >>> [experiment.name for experiment in EXPERIMENTS]
+    ['step', 'sine', 'step_noise', 'sine_noise']
+    >>> EXPERIMENTS[2].noise_std, EXPERIMENTS[2].claim_time
+    (0.01, 2.5)
     """
 
     name: str
@@ -132,6 +140,12 @@ def simulate_experiment(experiment, *, seed=None, rate=RATE, duration=DURATION):
     Returns
     -------
     algid.simulation.SimulationResult
+
+    Examples
+    --------
+    >>> from algid.paper import simulate_experiment
+    >>> simulate_experiment("step_noise", seed=0)
+    SimulationResult(n=5001, m=1.0, c=2.0, k=3.0, noise_std=0.01, seed=0)
     """
     from algid.simulation import simulate
 
@@ -155,6 +169,13 @@ def estimate_experiment(sim, *, quadrature_order=DEFAULT_QUADRATURE_POINTS,
     Returns
     -------
     algid.estimation._result.EstimationResult
+
+    Examples
+    --------
+    >>> from algid.paper import estimate_experiment, simulate_experiment
+    >>> result = estimate_experiment(simulate_experiment("sine"))
+    >>> {name: round(value, 6) for name, value in result.final().items()}
+    {'B': 2.0, 'K': 3.0}
     """
     return estimate(sim.t, sim.f / sim.m, sim.x, quadrature_points=quadrature_order,
                     filter_order=filter_order)
@@ -178,6 +199,13 @@ def accuracy(result, true_values=None, tolerances=TOLERANCES):
         (NaN if not reached by the end of the record), ``"t_<tol>_<name>"`` per
         parameter, ``"final"``: final estimates, ``"final_rel_error"``: signed final
         relative errors, ``"t_valid"``: first defined estimate.
+
+    Examples
+    --------
+    >>> from algid.paper import accuracy, estimate_experiment, simulate_experiment
+    >>> numbers = accuracy(estimate_experiment(simulate_experiment("step")))
+    >>> numbers["t_valid"], numbers["t_1pct"], numbers["t_0.1pct"]
+    (0.005, 0.005, 0.005)
     """
     true_values = TRUE_VALUES if true_values is None else true_values
     out = {}
@@ -219,6 +247,15 @@ def seed_statistics(experiment, seeds, *, rate=RATE, true_values=None,
         (a seed that never converges counts as later than any time; NaN if more than
         half never converge) and ``"reached_<tol>"`` (how many seeds converged), and
         ``"rmse"`` / ``"mean"`` of the final relative errors per parameter.
+
+    Examples
+    --------
+    >>> from algid.paper import seed_statistics
+    >>> stats = seed_statistics("step_noise", range(3))
+    >>> stats["n"], stats["seeds"], stats["reached_1pct"]
+    (3, [0, 2], 3)
+    >>> stats["median_t_1pct"] < 2.5        # the paper's claim: 2.5 s
+    True
     """
     true_values = TRUE_VALUES if true_values is None else true_values
     seeds = list(seeds)

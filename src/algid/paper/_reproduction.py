@@ -52,6 +52,14 @@ class PaperReproduction:
     runs : dict
         Experiment name -> ``(SimulationResult, toolkit EstimationResult,
         paper-style EstimationResult)`` of the shown realisation.
+
+    Examples
+    --------
+    >>> from algid.paper import reproduce
+    >>> reproduction = reproduce(n_seeds=1, rates=(1000.0,), filter_orders=(2,),
+    ...                          noisy_rates=(1000.0,))   # a quick run, nothing written
+    >>> reproduction.out, reproduction.figures, list(reproduction.runs)
+    (None, {}, ['step', 'sine', 'step_noise', 'sine_noise'])
     """
 
     summary: dict
@@ -140,6 +148,15 @@ def reproduce(out=None, *, seed=0, n_seeds=20, figures=True, rates=(1000.0, 1000
     AlgidError
         ``out`` exists and is not a directory, or cannot be created; bad ``seed`` or
         ``n_seeds``.
+
+    Examples
+    --------
+    >>> from algid.paper import reproduce
+    >>> reproduction = reproduce(n_seeds=1, rates=(1000.0,), filter_orders=(2,),
+    ...                          noisy_rates=(1000.0,))   # a quick run, nothing written
+    >>> toolkit = reproduction.summary["experiments"]["step"]["toolkit"]
+    >>> toolkit["quadrature_order"], toolkit["t_1pct"]
+    (8, 0.005)
     """
     started = time.perf_counter()
     if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:

@@ -31,6 +31,17 @@ def format_summary(summary) -> str:
         The main table (paper claims beside toolkit and paper-style measurements), the
         quadrature/sampling-rate, filter-order and noisy-rate studies, and the
         explanations drawn from them.
+
+    Examples
+    --------
+    >>> from algid.paper import format_summary, reproduce
+    >>> reproduction = reproduce(n_seeds=1, rates=(1000.0,), filter_orders=(2,),
+    ...                          noisy_rates=(1000.0,))   # a quick run, nothing written
+    >>> lines = format_summary(reproduction.summary).splitlines()
+    >>> print(lines[0])
+    Becedas et al. (2007), Section 3: m=1 kg, c=2 N s/m, k=3 N/m -> B=2, K=3; ...
+    >>> print(lines[7])
+    step, no noise   0.04 s  toolkit   0.005   0.005 ...
     """
     sy, st = summary["system"], summary["settings"]
     tk, ps, psn = st["toolkit"], st["paper_style"], st["paper_style_noisy"]

@@ -196,6 +196,15 @@ def lti_response(A, b, u, h, *, initial_state=None, points=6):
     -------
     ndarray, shape (N, n)
         State at each sample.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from algid.signals import lti_response
+    >>> double_integrator = [[0.0, 1.0], [0.0, 0.0]], [0.0, 1.0]
+    >>> states = lti_response(*double_integrator, np.ones(101), 0.01)   # u = 1 for 1 s
+    >>> states.shape, states[-1]                                      # (t**2 / 2, t)
+    ((101, 2), array([0.5, 1. ]))
     """
     A = np.atleast_2d(np.asarray(A, dtype=float))
     u = np.asarray(u, dtype=float)
@@ -255,6 +264,17 @@ class LowpassFilter:
         State-space realisation ``z' = A z + b u``, ``y = c z`` (no feedthrough).
     poles : ndarray
         Eigenvalues of ``A``, all with negative real part.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from algid.signals import LowpassFilter
+    >>> lowpass = LowpassFilter([[-10.0]], [10.0], [1.0])    # 10 / (s + 10)
+    >>> lowpass, lowpass.dc_gain()
+    (<LowpassFilter filter_order=1 poles=[-10.0]>, 1.0)
+    >>> step = lowpass.apply(np.ones(1001), 1e-3)           # 1 - exp(-10 t)
+    >>> round(float(step[-1]), 6)
+    0.999955
     """
 
     def __init__(self, A, b, c):

@@ -233,6 +233,15 @@ def cumulative_integral(y, dt: float, *, points: int = 6) -> np.ndarray:
     Returns
     -------
     ndarray, shape (n,)
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from algid.signals import cumulative_integral
+    >>> t = np.linspace(0.0, 1.0, 11)
+    >>> area = cumulative_integral(t**2, 0.1)    # t**3 / 3, exact for a polynomial
+    >>> float(area[0]), round(float(area[-1]), 12)
+    (0.0, 0.333333333333)
     """
     y = np.asarray(y, dtype=float)
     n = y.shape[-1]
@@ -264,6 +273,14 @@ def iterated_integrals(y, dt: float, depth: int, *, points: int = 6) -> list:
     Returns
     -------
     list of ndarray
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from algid.signals import iterated_integrals
+    >>> levels = iterated_integrals(np.ones(11), 0.1, 2)    # 1, t, t**2 / 2
+    >>> [round(float(level[-1]), 12) for level in levels]
+    [1.0, 1.0, 0.5]
     """
     levels = [np.asarray(y, dtype=float)]
     for _ in range(depth):

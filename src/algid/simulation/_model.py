@@ -503,6 +503,17 @@ def simulate_model(model, parameters, time, inputs, *, initial_state=None, outpu
     ModelError
         A missing parameter, an output that is not differentiated, or the output's
         highest derivative inside a nonlinear factor.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from algid.models import parse_equation
+    >>> from algid.simulation import simulate_model
+    >>> model = parse_equation("x' + a*x = u", "a")
+    >>> t = np.linspace(0.0, 1.0, 101)
+    >>> x = simulate_model(model, {"a": 2.0}, t, {"u": np.ones_like(t)})
+    >>> round(float(x[-1]), 6)              # (1 - exp(-2)) / 2
+    0.432332
     """
     equation, t = _prepare(model, parameters, time, inputs, output, interpolation)
     states = _integrate(equation, t, initial_state, method, rtol, atol, substeps)
@@ -532,6 +543,18 @@ def fit_initial_state(model, parameters, time, inputs, measured_output, n_sample
     -------
     numpy.ndarray
         The output and its derivatives up to order ``n - 1`` at ``time[0]``.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from algid.models import parse_equation
+    >>> from algid.simulation import fit_initial_state, simulate_model
+    >>> model, values = parse_equation("x'' + B*x' + K*x = f", "B K"), {"B": 2.0, "K": 3.0}
+    >>> t = np.linspace(0.0, 1.0, 101)
+    >>> force = {"f": np.ones_like(t)}
+    >>> x = simulate_model(model, values, t, force, initial_state=[0.5, -1.0])
+    >>> np.round(fit_initial_state(model, values, t, force, x), 6)
+    array([ 0.5, -1. ])
     """
     equation, t = _prepare(model, parameters, time, inputs, output, interpolation)
     y = np.asarray(measured_output, dtype=float)

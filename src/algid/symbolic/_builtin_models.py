@@ -61,6 +61,15 @@ def builtin_model(name: str) -> LinearODEModel:
     ------
     ModelError
         If there is no such model (the message lists the known ones).
+
+    Examples
+    --------
+    >>> from algid.symbolic import builtin_model
+    >>> model = builtin_model("msd_mass")
+    >>> print(model.equation_text())
+    m*x'' + c*x' + k*x = F
+    >>> model.parameters
+    (m, c, k)
     """
     try:
         return BUILTIN_MODELS[name]()

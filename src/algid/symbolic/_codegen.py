@@ -90,6 +90,13 @@ def numpy_module_source(derivation: Derivation, *, mass_scaled=None, mass_divide
     Returns
     -------
     str
+
+    Examples
+    --------
+    >>> from algid.symbolic import builtin_model, derive, numpy_module_source
+    >>> source = numpy_module_source(derive(builtin_model("msd")))
+    >>> [line for line in source.splitlines() if line.startswith(("PARAMETERS", "CHANNELS"))]
+    ["PARAMETERS = ('B', 'K')", "CHANNELS = ('f', 'x')"]
     """
     model = derivation.model
     params = [str(p) for p in model.parameters]

@@ -174,6 +174,15 @@ def c_sources(derivation: Derivation, *, name=None, filter_order=DEFAULT_FILTER_
     ------
     ModelError
         A name that is not a C identifier, an unsupported order, a non-square system.
+
+    Examples
+    --------
+    >>> from algid.symbolic import builtin_model, c_sources, derive
+    >>> files = c_sources(derive(builtin_model("msd")), name="demo")
+    >>> sorted(files)
+    ['algid_demo.c', 'algid_demo.h']
+    >>> "#define ALGID_DEMO_N_PARAMETERS 2" in files["algid_demo.h"]
+    True
     """
     name = derivation.model.name if name is None and isinstance(derivation, Derivation) \
         else name
@@ -195,6 +204,15 @@ def write_c_sources(derivation: Derivation, out, **options) -> list:
     -------
     list of pathlib.Path
         The files written.
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> from algid.symbolic import builtin_model, derive, write_c_sources
+    >>> with tempfile.TemporaryDirectory() as folder:
+    ...     written = write_c_sources(derive(builtin_model("msd")), folder)
+    ...     print(sorted(path.name for path in written))
+    ['algid_msd.c', 'algid_msd.h']
     """
     files = c_sources(derivation, **options)
     out = Path(out)

@@ -49,6 +49,13 @@ class IteratedIntegral(sp.Function):
     ----------
     *args : sympy.Expr, int
         The integrand ``g`` and the number of integrations ``k``.
+
+    Examples
+    --------
+    >>> from algid.symbolic import TIME, IteratedIntegral
+    >>> integral = IteratedIntegral(TIME**2, 2)
+    >>> integral, integral.args, IteratedIntegral(TIME, 0)
+    (int^2(t**2), (t**2, 2), t)
     """
 
     nargs = 2
@@ -86,6 +93,13 @@ class Kernel:
         Power of ``t`` multiplying it.
     order : int
         Number of integrations from 0.
+
+    Examples
+    --------
+    >>> from algid.symbolic import Kernel
+    >>> kernel = Kernel("x", power=1, order=2)
+    >>> kernel.name, kernel.expression()
+    ('x_t1_i2', int^2(t*x(t)))
     """
 
     signal: str
@@ -136,6 +150,17 @@ class Derivation:
         The linear system ``P theta = Q``; entries are linear combinations of kernels.
     kernels : tuple of Kernel
         Every filtered signal that appears in ``P`` and ``Q``, sorted.
+
+    Examples
+    --------
+    >>> from algid.symbolic import builtin_model, derive
+    >>> derivation = derive(builtin_model("msd"))
+    >>> derivation.initial_conditions, derivation.n_derivatives, derivation.s_power
+    ((x0, x_d0), 2, 2)
+    >>> derivation.differentiated[-1].has(*derivation.initial_conditions)
+    False
+    >>> derivation.P[0, 1]
+    int^2(t**2*x(t))
     """
 
     model: LinearODEModel
@@ -337,6 +362,15 @@ def derive(model, *, extra_equations: int = 0) -> Derivation:
     Returns
     -------
     Derivation
+
+    Examples
+    --------
+    >>> from algid.symbolic import builtin_model, derive
+    >>> model = builtin_model("msd")
+    >>> derive(model).P.shape, derive(model, extra_equations=1).P.shape
+    ((2, 2), (3, 2))
+    >>> sorted({kernel.signal for kernel in derive(model).kernels})
+    ['f', 'x']
     """
     if extra_equations < 0:
         raise ValueError("extra_equations must be >= 0")
@@ -424,6 +458,12 @@ def evaluate_kernel(kernel: Kernel, signals: dict):
     -------
     sympy.Expr
         The ``kernel.order``-fold integral from 0 to ``t`` of ``t**power * signal``.
+
+    Examples
+    --------
+    >>> from algid.symbolic import TIME, Kernel, evaluate_kernel
+    >>> evaluate_kernel(Kernel("f", power=1, order=2), {"f": TIME})   # twice int of t * t
+    t**4/12
     """
     tau = sp.Dummy("tau", nonnegative=True)
     g = t**kernel.power * signals[kernel.signal]

@@ -154,6 +154,16 @@ class LinearODEModel:
         If a coefficient is not affine in the parameters, a parameter does not appear,
         or the equation is homogeneous in the parameters (no known coefficient fixes
         their scale).
+
+    Examples
+    --------
+    >>> import sympy as sp
+    >>> from algid.symbolic import LinearODEModel
+    >>> a, b = sp.symbols("a b")
+    >>> model = LinearODEModel("lag", output_coefficients=(1, a), input_coefficients=(b,),
+    ...                        parameters=(a, b), output="y", input="u")
+    >>> model.equation_text(), model.order
+    ("y' + a*y = b*u", 1)
     """
 
     name: str

@@ -217,6 +217,14 @@ def derivation_report(model="msd", fmt="text") -> str:
     Returns
     -------
     str
+
+    Examples
+    --------
+    >>> from algid.symbolic import derivation_report
+    >>> print(derivation_report("msd").splitlines()[0])
+    Algebraic estimator of model 'msd': x'' + B*x' + K*x = f
+    >>> derivation_report("msd", fmt="markdown").splitlines()[0]
+    '# Algebraic estimator of model `msd`'
     """
     if fmt not in FORMATS:
         raise ModelError(f"unknown format {fmt!r} (known: {', '.join(FORMATS)})")
