@@ -127,7 +127,7 @@ class OnlineEstimator:
         Re-anchor the time origin every ``reset_period`` seconds, with two estimators
         staggered by half a period (see :mod:`algid.estimation._online`); rounded to an even number
         of samples, each half at least ``quadrature_points`` and at most ``2**53``
-        samples.  ``None`` (default) never re-anchors.  :data:`TRACKING_RESET_PERIOD` suits tracking.
+        samples.  ``None`` (default) never re-anchors.  ``TRACKING_RESET_PERIOD`` (0.05 s) suits tracking.
     engine : {"auto", "numpy", "numba"}, optional
         The backend of the estimator core: ``"numpy"``, or ``"numba"`` (needs
         ``algid[fast]``; several times faster for chunks of any size).  Both give the

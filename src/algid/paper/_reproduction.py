@@ -122,7 +122,7 @@ def reproduce(out=None, *, seed=0, n_seeds=20, figures=True, rates=(1000.0, 1000
         Seed of the noise realisation shown in the figures and the single-seed rows.
     n_seeds : int, optional
         Number of noise realisations (seeds ``0 .. n_seeds - 1``, at most
-        :data:`MAX_SEEDS`) for the medians and RMSEs, and in the filter-order and
+        ``MAX_SEEDS``) for the medians and RMSEs, and in the filter-order and
         sampling-rate studies with noise.
     figures : bool, optional
         Write the figures (needs matplotlib) when ``out`` is given.

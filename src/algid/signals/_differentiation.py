@@ -282,7 +282,7 @@ class CausalDifferentiator:
     delay : float
         Delay [s] of the minimal estimator (``truncation = n``):
         ``T (kappa + n + 1) / (kappa + mu + 2n + 2)``, ``T / 2`` for ``kappa = mu``
-        (see :func:`differentiator_delay`); 0 for polynomials of degree ``truncation``
+        (see ``differentiator_delay``); 0 for polynomials of degree ``truncation``
         when ``truncation > n``.
 
     Raises

@@ -5,7 +5,7 @@ satisfy ``n_i(t) = theta_i d(t)`` for every ``t``.  Any linear filter ``F`` appl
 the numerators and to the denominator alike keeps that identity,
 ``F[n_i] = theta_i F[d]``, so the quotient of the filtered signals is still the exact
 parameter, while the filter attenuates the measurement noise.  Besides the invariant
-filter ``1/s**p`` (iterated integrals, :mod:`algid.signals._quadrature`), :func:`as_lowpass`
+filter ``1/s**p`` (iterated integrals, :mod:`algid.signals._quadrature`), ``as_lowpass``
 accepts any strictly proper, stable, continuous-time transfer function, and
 :meth:`LowpassFilter.apply` filters a sampled signal with zero initial state at the
 time origin (the first sample).
@@ -254,7 +254,7 @@ def _continuous(spec):
 class LowpassFilter:
     """A validated strictly proper, stable, continuous-time SISO filter.
 
-    Build it with :func:`as_lowpass`.
+    Build it with ``as_lowpass``.
 
     Attributes
     ----------

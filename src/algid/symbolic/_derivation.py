@@ -12,7 +12,7 @@ The steps are those of Fliess and Sira-Ramirez, each kept as a field of
    ``1/s -> integral from 0``; never through an inverse Laplace transform.
 5. Further integration of the equation until there are as many equations as unknowns.
 6. The linear system ``P theta = Q`` and its Cramer solution: for at most
-   :data:`EXPANDED_CRAMER_MAX` unknowns the numerators and the denominator are expanded
+   ``EXPANDED_CRAMER_MAX`` unknowns the numerators and the denominator are expanded
    polynomials of the entries of ``P`` and ``Q``; beyond, whose expansion grows as the
    factorial of the unknowns, a straight-line program computes them from the minors of
    ``[P | Q]`` on the first rows, each minor once (:meth:`Derivation.cramer_program`).
@@ -240,7 +240,7 @@ class Derivation:
         Raises
         ------
         ModelError
-            More than :data:`EXPANDED_CRAMER_MAX` unknowns (see :meth:`cramer_program`).
+            More than ``EXPANDED_CRAMER_MAX`` unknowns (see :meth:`cramer_program`).
         """
         Ps, Qs = self.entry_symbols()
         if Ps.shape[0] != Ps.shape[1]:
@@ -260,7 +260,7 @@ class Derivation:
     def cramer_program(self):
         """Cramer's rule as a straight-line program on the entries ``p_i_j``, ``q_i``.
 
-        Up to :data:`EXPANDED_CRAMER_MAX` unknowns there are no steps and the result is
+        Up to ``EXPANDED_CRAMER_MAX`` unknowns there are no steps and the result is
         :meth:`cramer`.  Beyond, the minors of ``[P | Q]`` on its first ``k`` rows are
         computed level by level, each by expansion along its last row from the minors
         of the level before (``m<k>_<columns as bits>``); the denominator and the
