@@ -99,7 +99,8 @@ def test_every_notebook_page_shows_its_figures(site):
 def test_every_public_name_has_an_entry(site):
     documented = inventory_names(site / "objects.inv")
     table = algid_docs.public_names()
-    assert "algid.estimation._batch.estimate" in documented
+    assert "algid.estimation.estimate" in documented
+    assert not [n for n in documented if "._" in n], "internals in the reference"
     missing = []
     for modname, names in table.items():
         assert modname in documented, modname  # the module's own page
