@@ -513,6 +513,11 @@ class Tracker:
         self.h_cusum = cusum_threshold(
             max(2.0, 1.0 / (self.config["false_alarm_rate"] * test_interval)), self.k_cusum)
         self.needed = len(self.parameters) + MIN_SPARE_WINDOWS
+        # k-th differences as dot products with the last k + 1 of 9 samples
+        self._differences = np.zeros((9, 8))
+        for k in range(1, 9):
+            self._differences[8 - k:, k - 1] = [(-1) ** (k - j) * math.comb(k, j)
+                                                for j in range(k + 1)]
         self._unit_weights = {(a, term.derivative): window_sample_weights(
             None, 1.0, length, a, term.derivative)
             for a in self.multiplicities for term in self.model.terms}
@@ -822,14 +827,14 @@ class Tracker:
         y = s[f"buf:{self.model.output}"]
         s["bound_sums"] *= decay
         s["bound_counts"] *= decay
-        for k in range(1, 9):
-            first = max(lo, k)
-            if end <= first:
-                continue
-            d = np.diff(y[first - k - s["seg_first"]:end - s["seg_first"]], k)
-            s["bound_sums"][k - 1] += float(d @ d)
-            s["bound_counts"][k - 1] += len(d)
-        s["bound_upto"] = end
+        first = max(lo, 8)
+        if end > first:   # differences of orders 1..8 ending at the new samples
+            block = np.lib.stride_tricks.sliding_window_view(
+                y[first - 8 - s["seg_first"]:end - s["seg_first"]], 9)
+            d = block @ self._differences
+            s["bound_sums"] += np.einsum("ij,ij->j", d, d)
+            s["bound_counts"] += len(d)
+        s["bound_upto"] = max(end, s["bound_upto"])
 
     def _bound(self):
         s = self.s
@@ -855,6 +860,7 @@ class Tracker:
         solved = self._solve_top(bound, method, top) if n_eff >= self.needed else None
         if solved is not None:
             theta, stderr, kappa = solved
+        if solved is not None and report:
             low = _solve(s[f"R{min(self.multiplicities)}"], s[f"G{min(self.multiplicities)}"],
                          bound, method)
             if low is not None:
