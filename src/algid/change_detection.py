@@ -12,9 +12,11 @@ window's regressors, which raises the variance of ``z``.
 The statistic is Page's CUSUM of the log-likelihood ratio of a variance ``rho`` times
 larger (:data:`VARIANCE_RATIO`) against the predicted one::
 
-    S_n = max(0, S_{n-1} + z_n**2 - k),   k = ln(rho) / (1 - 1/rho),
+    S_n = max(0, S_{n-1} + min(z_n**2, c) - k),   k = ln(rho) / (1 - 1/rho),
 
-and an alarm is raised where ``S_n`` exceeds ``h`` (then ``S`` restarts from 0).  ``h``
+each increment capped at ``c`` (:data:`INCREMENT_CAP`, a 3-sigma innovation) so that
+one outlier (a misplaced ``sign(q')`` crossing, a spike) cannot raise an alarm alone:
+it takes a run of large innovations, which a change of the parameters makes.  An alarm is raised where ``S_n`` exceeds ``h`` (then ``S`` restarts from 0).  ``h``
 is chosen so that the average run length between false alarms, computed for
 chi-square increments by the Markov chain of Brook and Evans (:func:`average_run_length`),
 is the design one (:func:`cusum_threshold`).  The design false-alarm rate holds where
@@ -31,10 +33,13 @@ from functools import lru_cache
 import numpy as np
 from scipy.special import erf
 
-__all__ = ["VARIANCE_RATIO", "cusum_reference", "average_run_length", "cusum_threshold"]
+__all__ = ["VARIANCE_RATIO", "INCREMENT_CAP", "cusum_reference", "average_run_length", "cusum_threshold"]
 
 #: Variance ratio of the innovations the CUSUM is tuned to detect.
 VARIANCE_RATIO = 4.0
+
+#: Largest increment ``z**2`` counted by the CUSUM.
+INCREMENT_CAP = 9.0
 
 #: States of the Markov chain approximating the CUSUM on ``[0, h]``.
 CHAIN_STATES = 400
@@ -56,8 +61,9 @@ def cusum_reference(rho=VARIANCE_RATIO):
 
 
 def _chi2_cdf(x):
-    """Distribution function of chi-square with one degree of freedom."""
-    return erf(np.sqrt(np.maximum(x, 0.0) / 2.0))
+    """Distribution function of chi-square with one degree of freedom, capped at
+    :data:`INCREMENT_CAP` (all the mass beyond it there)."""
+    return np.where(x >= INCREMENT_CAP, 1.0, erf(np.sqrt(np.maximum(x, 0.0) / 2.0)))
 
 
 @lru_cache(maxsize=64)

@@ -74,7 +74,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from algid.bias_compensation import koopmans
-from algid.change_detection import cusum_reference, cusum_threshold
+from algid.change_detection import INCREMENT_CAP, cusum_reference, cusum_threshold
 from algid.differentiation import algebraic_derivative
 from algid.errors import AlgidError, InputDataError, ModelError
 from algid.expression import Call, Signal
@@ -907,7 +907,8 @@ class Tracker:
             innovation = float(row @ bar)
             variance = previous[p] * (1.0 + p * previous[p + 1])
             if variance > 0:
-                s["cusum"] = max(0.0, s["cusum"] + innovation ** 2 / variance - self.k_cusum)
+                increment = min(innovation ** 2 / variance, INCREMENT_CAP)
+                s["cusum"] = max(0.0, s["cusum"] + increment - self.k_cusum)
                 if s["cusum"] > self.h_cusum:
                     s["cusum"] = 0.0
                     s["alarms"] += 1
