@@ -892,7 +892,10 @@ class Tracker:
         scale = full[:p, :p] * full[p, p]        # raw scores -> the basis
         middle = scale.T @ hac @ scale
         inverse = np.linalg.inv(jacobian)
-        covariance = mapping @ sandwich(inverse, middle) @ mapping.T
+        # degrees of freedom: the non-overlapping windows (as counted by the weights)
+        independent = s["W1"] ** 2 / s["W2"] / self.overlap
+        covariance = mapping @ sandwich(inverse, middle) @ mapping.T \
+            * (independent / max(independent - p, 1.0))
         long_run = float(np.trace(hac) / max(np.trace(lagged[0]), 1e-300))
         return theta, np.sqrt(np.maximum(np.diag(covariance), 0.0)), long_run
 
