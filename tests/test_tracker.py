@@ -2,11 +2,11 @@
 
 import numpy as np
 import pytest
+from benchmarks.synthetic_records import LINEAR_EQUATION, linear_gaps, linear_offsets
 
 import algid
 from algid.errors import InputDataError
 from algid.tracker import Tracker
-from benchmarks.synthetic_records import LINEAR_EQUATION, linear_gaps, linear_offsets
 
 EQUATION, NAMES = LINEAR_EQUATION
 PARAMETERS = NAMES.split()

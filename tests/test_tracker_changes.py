@@ -2,8 +2,6 @@
 coverage of the standard errors."""
 
 import numpy as np
-
-from algid.tracker import Tracker
 from benchmarks.change_records import cubic_change, friction_change
 from benchmarks.synthetic_records import (
     CUBIC_EQUATION,
@@ -11,6 +9,8 @@ from benchmarks.synthetic_records import (
     LINEAR_EQUATION,
     linear_offsets,
 )
+
+from algid.tracker import Tracker
 
 
 def at(out, name, time):

@@ -8,10 +8,10 @@ import subprocess
 import sys
 
 import numpy as np
+from benchmarks.synthetic_records import linear_offsets
 
 from algid.cli import main
 from algid.tracker import Tracker
-from benchmarks.synthetic_records import linear_offsets
 
 EQUATION, PARAMETERS = "y'' + B*y' + K*y = G*u + d", "B K G d"
 SRC = pathlib.Path(__file__).resolve().parents[1] / "src"

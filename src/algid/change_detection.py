@@ -16,11 +16,12 @@ larger (:data:`VARIANCE_RATIO`) against the predicted one::
 
 each increment capped at ``c`` (:data:`INCREMENT_CAP`, a 3-sigma innovation) so that
 one outlier (a misplaced ``sign(q')`` crossing, a spike) cannot raise an alarm alone:
-it takes a run of large innovations, which a change of the parameters makes.  An alarm is raised where ``S_n`` exceeds ``h`` (then ``S`` restarts from 0).  ``h``
-is chosen so that the average run length between false alarms, computed for
-chi-square increments by the Markov chain of Brook and Evans (:func:`average_run_length`),
-is the design one (:func:`cusum_threshold`).  The design false-alarm rate holds where
-the misfit of the equations is white output noise; a misfit that is the model's own error
+it takes a run of large innovations, which a change of the parameters makes.  An alarm
+is raised where ``S_n`` exceeds ``h`` (then ``S`` restarts from 0).  ``h`` is chosen
+so that the average run length between false alarms, computed for chi-square increments
+by the Markov chain of Brook and Evans (:func:`average_run_length`), is the design one
+(:func:`cusum_threshold`).  The design false-alarm rate holds where the misfit of the
+equations is white output noise; a misfit that is the model's own error
 (quadrature error at few samples per period, unmodelled dynamics) is correlated across
 windows and raises the false alarms.
 """
@@ -33,7 +34,8 @@ from functools import lru_cache
 import numpy as np
 from scipy.special import erf
 
-__all__ = ["VARIANCE_RATIO", "INCREMENT_CAP", "cusum_reference", "average_run_length", "cusum_threshold"]
+__all__ = ["VARIANCE_RATIO", "INCREMENT_CAP", "cusum_reference", "average_run_length",
+           "cusum_threshold"]
 
 #: Variance ratio of the innovations the CUSUM is tuned to detect.
 VARIANCE_RATIO = 4.0

@@ -76,7 +76,7 @@ import numpy as np
 from algid.bias_compensation import koopmans
 from algid.change_detection import INCREMENT_CAP, cusum_reference, cusum_threshold
 from algid.differentiation import algebraic_derivative
-from algid.errors import AlgidError, InputDataError, ModelError
+from algid.errors import AlgidError, InputDataError
 from algid.expression import Call, Signal
 from algid.grammar import parse_equation
 from algid.identification import WINDOW_OVERLAP, factor_sensitivity, term_rows
@@ -136,7 +136,13 @@ class TrackUpdate:
         return self.values[:, self.parameters.index(name)]
 
     def last(self):
-        """The last estimates as ``{parameter: value}`` (empty before any window end)."""
+        """The last estimates.
+
+        Returns
+        -------
+        dict
+            ``{parameter: value}`` (empty before any window end).
+        """
         return {} if not len(self.t) else dict(zip(self.parameters,
                                                    self.values[-1].tolist()))
 
@@ -228,16 +234,13 @@ class Tracker:
     Examples
     --------
     >>> import numpy as np
-    >>> t = np.arange(4000) / 100.0
-    >>> u = np.sin(t) + np.sin(3.1 * t)
-    >>> y = np.zeros_like(t)
-    >>> for i in range(1, len(t)):   # y' = -2 y + u, explicit Euler at 10 kHz
-    ...     for _ in range(100):
-    ...         y[i] = y[i - 1] if _ == 0 else y[i]
-    ...         y[i] += 1e-4 * (-2 * y[i] + u[i - 1])
+    >>> t = np.arange(3000) / 100.0            # y' + 2 y = u, in steady state
+    >>> w = np.array([1.0, 3.1])[:, None]
+    >>> u = np.sin(w * t).sum(axis=0)
+    >>> y = (np.sin(w * t - np.arctan(w / 2)) / np.hypot(2, w)).sum(axis=0)
     >>> tracker = Tracker("y' + a*y = b*u", "a b", rate=100, window=0.5)
     >>> out = tracker.update({"y": y, "u": u})
-    >>> [round(v, 1) for v in out.values[-1]]
+    >>> [round(float(v), 4) for v in out.values[-1]]
     [2.0, 1.0]
     """
 
@@ -524,7 +527,7 @@ class Tracker:
         # derivative taps of the centred algebraic differentiator, from its own function
         impulses = np.eye(DERIVATIVE_STEPS + 1)
         self._taps = {}
-        for name, k in self.model.needs_derivatives:
+        for _, k in self.model.needs_derivatives:
             rows = np.array([algebraic_derivative(e, 1.0, derivative=k) for e in impulses])
             self._taps[k] = np.ascontiguousarray(rows.T)   # row i: the estimate at sample i
 
