@@ -207,19 +207,22 @@ class FrictionLoop:
         """The force on a mass at rest at ``q``, friction aside."""
         return self.kp * (self.reference(t) - q) - self.off
 
-    def sample(self, t):
-        """Position, velocity and reference at the (increasing) times ``t``."""
+    def sample(self, t, state=None):
+        """Position, velocity and reference at the (increasing) times ``t``, from rest at
+        the reference or from ``state`` (position, velocity) at ``t[0]``."""
         from scipy.optimize import brentq
 
         q, v = np.empty(len(t)), np.empty(len(t))
         self.events = []
-        start, state = float(t[0]), (float(self.reference(t[0])[0]), 0.0)
+        start, state = float(t[0]), state or (float(self.reference(t[0])[0]), 0.0)
+        moving = np.sign(state[1])
         grid = np.diff(t).min() / 8
         done, released = 0, False
         while done < len(t):
             net = float(self._net(start, state[0])[0])
             # leaving rest, the net force is the Coulomb force itself (to round-off)
             mode = np.sign(net) if released or abs(net) > self.Fc else 0
+            mode, moving = (moving, 0) if moving else (mode, 0)
             released = mode == 0
             if mode == 0:   # stuck until the net force exceeds the Coulomb force
                 def excess(x):

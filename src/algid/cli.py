@@ -220,6 +220,10 @@ def build_parser() -> argparse.ArgumentParser:
                           "n_samples, warnings")
     ide.set_defaults(handler=_cmd_identify)
 
+    from algid._cli_track import add_track_parser
+
+    add_track_parser(commands, _positive)
+
     dat = commands.add_parser(
         "datasets",
         help="list or export the measured records shipped with algid (Silverbox, EMPS)",

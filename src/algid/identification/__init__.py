@@ -7,6 +7,9 @@ Public:
   instrumental variables, and returns an :class:`IdentificationResult`: the parameters,
   their standard errors and numerical error, warnings on identifiability and on model
   adequacy (:class:`Adequacy`), and a simulation-based :class:`Validation`;
+- :class:`Tracker` is the streaming form of ``identify``: the same window equations,
+  accumulated as the samples arrive (with exponential forgetting if asked), estimates
+  with standard errors at every window end, and alarms when the parameters change;
 - :data:`METHODS` are the solvers ``identify`` offers.
 
 Records are mappings of named columns (``{"t": ..., "u": ..., "y": ...}``), with a time
@@ -16,5 +19,7 @@ column or a sampling rate; several records are identified together.
 from algid.identification._adequacy import Adequacy
 from algid.identification._identify import METHODS, identify
 from algid.identification._result import IdentificationResult, Validation
+from algid.identification._tracker import Tracker, TrackUpdate
 
-__all__ = ["identify", "IdentificationResult", "Validation", "Adequacy", "METHODS"]
+__all__ = ["identify", "IdentificationResult", "Validation", "Adequacy", "Tracker",
+           "TrackUpdate", "METHODS"]

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["bias_compensated", "solve_equilibrated"]
+__all__ = ["bias_compensated", "koopmans", "solve_equilibrated"]
 
 
 def bias_compensated(A, b, grams, bound=np.inf):
@@ -55,38 +55,58 @@ def bias_compensated(A, b, grams, bound=np.inf):
     capped : bool
         Whether the variance is the cap ``bound``.
     """
-    from scipy.linalg import eigh
-
     p = A.shape[1]
     phi = np.column_stack([A, b])
-    normal = phi.T @ phi
     noise = grams.sum(axis=0)
-    d = np.sqrt(np.diag(normal))
-    d[d == 0] = 1.0
-    theta_bar = None
-    capped = False
-    if np.any(noise != 0) and bound > 0:
-        try:
-            mu, vectors = eigh(noise / d[:, None] / d[None, :],
-                               normal / d[:, None] / d[None, :])
-        except np.linalg.LinAlgError:     # exact equations (no noise): least squares
-            mu, vectors = np.zeros(1), np.zeros((p + 1, 1))
-        v = vectors[:, -1] / d
-        if mu[-1] > 0 and abs(v[-1]) * d[-1] > 1e-8 and 1.0 / mu[-1] <= bound:
-            theta_bar = -v / v[-1]
-            variance = 1.0 / mu[-1]
-        elif mu[-1] > 0 and np.isfinite(bound):
-            variance = bound
-            capped = True
-            theta = solve_equilibrated(normal[:p, :p] - variance * noise[:p, :p],
-                                  normal[:p, p] - variance * noise[:p, p])
-            theta_bar = np.append(theta, -1.0)
+    theta_bar, variance, capped = koopmans(phi.T @ phi, noise, bound)
     if theta_bar is None:
         theta = np.linalg.lstsq(A, b, rcond=None)[0]
         return theta, A * (b - A @ theta)[:, None], A.T @ A, None, False
     theta = theta_bar[:p]
     scores = A * (b - A @ theta)[:, None] + variance * (grams @ theta_bar)[:, :p]
     return theta, scores, A.T @ A - variance * noise[:p, :p], variance, capped
+
+
+def koopmans(normal, noise, bound=np.inf):
+    """The solve of :func:`bias_compensated` from the sums of its equations.
+
+    Parameters
+    ----------
+    normal : numpy.ndarray, shape (p + 1, p + 1)
+        ``Phi^T Phi`` of the window equations ``Phi = [A | b]``.
+    noise : numpy.ndarray, shape (p + 1, p + 1)
+        The sum of their per-window noise covariances.
+    bound : float
+        Upper bound on the output noise variance.
+
+    Returns
+    -------
+    theta_bar : numpy.ndarray or None
+        ``(theta, -1)``; None where no correction applies (plain least squares).
+    variance : float or None
+        As in :func:`bias_compensated`.
+    capped : bool
+        Whether the variance is the cap ``bound``.
+    """
+    from scipy.linalg import eigh
+
+    p = normal.shape[0] - 1
+    d = np.sqrt(np.diag(normal))
+    d[d == 0] = 1.0
+    if not (np.any(noise != 0) and bound > 0):
+        return None, None, False
+    try:
+        mu, vectors = eigh(noise / d[:, None] / d[None, :], normal / d[:, None] / d[None, :])
+    except np.linalg.LinAlgError:     # exact equations (no noise): least squares
+        return None, None, False
+    v = vectors[:, -1] / d
+    if mu[-1] > 0 and abs(v[-1]) * d[-1] > 1e-8 and 1.0 / mu[-1] <= bound:
+        return -v / v[-1], 1.0 / mu[-1], False
+    if mu[-1] > 0 and np.isfinite(bound):
+        theta = solve_equilibrated(normal[:p, :p] - bound * noise[:p, :p],
+                                   normal[:p, p] - bound * noise[:p, p])
+        return np.append(theta, -1.0), bound, True
+    return None, None, False
 
 
 def solve_equilibrated(H, g):

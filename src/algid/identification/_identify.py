@@ -221,16 +221,14 @@ class _Problem:
         """Regressors ``A``, known side ``b`` and window ids for one multiplicity (each
         column in its power of two, :meth:`exponents`)."""
         stride = max(1, length // WINDOW_OVERLAP)
-        index = {p: i for i, p in enumerate(self.parameters)}
         shifts = self.exponents(which)[2]
         blocks_a, blocks_b, ids = [], [], []
         for s, seg in enumerate(self.segments):
             if len(seg) < length:
                 continue
             n_win = (len(seg) - length) // stride + 1
-            A = np.zeros((n_win, len(self.parameters)))
-            b = np.zeros(n_win)
-            for i, term in enumerate(self.model.terms):
+            integrals = []
+            for term in self.model.terms:
                 z = self.factor_samples(term.factor, which)[s]
                 steps = self.steps.get((term.factor, which, s))
                 if steps is not None:
@@ -242,11 +240,8 @@ class _Problem:
                 else:
                     w = window_integrals(z, seg.t, length, multiplicity, term.derivative,
                                          stride)
-                w = np.ldexp(term.coefficient * w, shifts[i])
-                if term.parameter is None:
-                    b -= w
-                else:
-                    A[:, index[term.parameter]] += w
+                integrals.append(w)
+            A, b = term_rows(self.model, integrals, shifts, n_win)
             blocks_a.append(A)
             blocks_b.append(b)
             ids.append(np.full(n_win, s))
@@ -295,17 +290,9 @@ class _Problem:
             elif factor == Signal(output):
                 self.factors[key] = [np.ones(len(seg)) for seg in self.segments]
             else:
-                sensitivities = []
-                for seg in self.user_segments:
-                    y = seg.values[output]
-                    h = 1e-6 * max(float(np.max(np.abs(y))), 1e-300)
-                    up, down = dict(seg.values), dict(seg.values)
-                    up[output], down[output] = y + h, y - h
-                    difference = (np.asarray(factor.evaluate(up, seg.t), dtype=float)
-                                  - np.asarray(factor.evaluate(down, seg.t), dtype=float))
-                    sensitivities.append(np.ldexp(difference / (2 * h), shift)
-                                         * np.ones(len(seg)))
-                self.factors[key] = sensitivities
+                self.factors[key] = [np.ldexp(factor_sensitivity(factor, output, seg.values,
+                                                                 seg.t), shift)
+                                     for seg in self.user_segments]
         return self.factors[key]
 
     def noise_bound(self):
@@ -368,6 +355,33 @@ class _Problem:
                         grams[:, c2, c1] += v
             blocks.append(grams)
         return np.concatenate(blocks)
+
+
+def term_rows(model, integrals, shifts, n_win):
+    """Regressors ``A`` and known side ``b`` from every term's window integrals (in the
+    order of ``model.terms``), each term times its coefficient and its power of two
+    ``shifts[i]`` within its column (the window equations of the module notes)."""
+    index = {p: i for i, p in enumerate(model.parameters)}
+    A, b = np.zeros((n_win, len(model.parameters))), np.zeros(n_win)
+    for i, (term, w) in enumerate(zip(model.terms, integrals)):
+        w = np.ldexp(term.coefficient * w, shifts[i])
+        if term.parameter is None:
+            b -= w
+        else:
+            A[:, index[term.parameter]] += w
+    return A, b
+
+
+def factor_sensitivity(factor, output, values, t, h=None):
+    """Derivative of a factor's samples with respect to the output's (central differences
+    of step ``h``, by default 1e-6 of the largest output sample)."""
+    y = values[output]
+    h = 1e-6 * max(float(np.max(np.abs(y))), 1e-300) if h is None else h
+    up, down = dict(values), dict(values)
+    up[output], down[output] = y + h, y - h
+    difference = (np.asarray(factor.evaluate(up, t), dtype=float)
+                  - np.asarray(factor.evaluate(down, t), dtype=float))
+    return difference / (2 * h) * np.ones(len(t))
 
 
 def _solve(problem, length, multiplicities, instruments=None, method="ls"):

@@ -1,0 +1,218 @@
+"""The ``algid track`` command: :class:`algid.Tracker` on a file or on standard input.
+
+``algid track FILE ...`` streams the file in chunks of ``--chunk`` rows and prints the
+estimates every ``--every`` seconds of stream time (``--json``: one object with the
+lists).  ``algid track - ...`` reads CSV rows from standard input as they arrive (a
+header line first) and prints a report line per interval, flushed at once (``--json``:
+one object per line); a malformed row is reported on standard error and skipped, the
+tracker's state intact.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import sys
+
+import numpy as np
+
+from algid.errors import InputDataError, ModelError
+
+__all__ = ["add_track_parser", "track_command", "TRACK_JSON_KEYS"]
+
+#: Keys of the ``--json`` output that a parameter may not be named.
+TRACK_JSON_KEYS = ("t", "stderr", "alarms", "window", "half_life")
+
+
+def add_track_parser(commands, positive):
+    """Add the ``track`` command to the sub-parsers of the ``algid`` command line.
+
+    Parameters
+    ----------
+    commands : argparse._SubParsersAction
+        The sub-parsers.
+    positive : callable
+        The argument type of positive numbers.
+    """
+    track = commands.add_parser(
+        "track",
+        help="track the parameters of your model equation on a stream (a file or - for "
+             "standard input), with change alarms",
+        description=(
+            "Identify the parameters of a model equation on a stream, window after window "
+            "(the windows of identify, accumulated with exponential forgetting), with "
+            "standard errors and alarms when the parameters change. FILE - reads CSV rows "
+            "from standard input as they arrive (a header line first)."),
+    )
+    track.add_argument("file", metavar="FILE", help="data file, or - for standard input")
+    track.add_argument("--equation", required=True, metavar="EQ", help="the model equation")
+    track.add_argument("--parameters", required=True, metavar="\"P1 P2 ...\"",
+                       help="the unknown parameters, separated by spaces")
+    track.add_argument("--time", default=None, metavar="COL",
+                       help="time column (default: t or time when present)")
+    track.add_argument("--rate", type=positive, default=None, metavar="HZ",
+                       help="sampling rate in Hz, for a stream without a time column")
+    track.add_argument("--output", default=None, metavar="COL",
+                       help="output signal (default: the one of highest derivative order)")
+    track.add_argument("--window", type=positive, default=None, metavar="SECONDS",
+                       help="window length (default: chosen on the first seconds)")
+    track.add_argument("--half-life", type=positive, default=None, metavar="SECONDS",
+                       help="half-life of the forgetting (default: keep every window)")
+    track.add_argument("--chunk", type=int, default=1000, metavar="N",
+                       help="rows per chunk when reading a file (default 1000)")
+    track.add_argument("--every", type=positive, default=0.1, metavar="SECONDS",
+                       help="reporting interval in seconds of stream time (default 0.1)")
+    track.add_argument("--json", action="store_true",
+                       help="print JSON: one object (a file) or one per line (standard input)")
+    track.set_defaults(handler=track_command)
+
+
+def _value(x):
+    return float(x) if math.isfinite(x) else None
+
+
+def _tracker(args, model, time):
+    from algid.identification._tracker import Tracker
+
+    return Tracker(model, rate=args.rate, time=time, window=args.window,
+                   half_life=args.half_life, every=args.every)
+
+
+def track_command(args) -> int:
+    """Run ``algid track`` (see the module notes).
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+
+    Returns
+    -------
+    int
+        0.
+    """
+    from algid.models._grammar import parse_equation
+
+    model = parse_equation(args.equation, args.parameters, output=args.output)
+    clash = [p for p in model.parameters if p in TRACK_JSON_KEYS]
+    if clash:
+        raise ModelError(f"parameter name {clash[0]!r} is reserved by the output "
+                         f"({', '.join(TRACK_JSON_KEYS)}); rename it")
+    if args.chunk < 1:
+        raise InputDataError(f"--chunk must be a positive number of rows, got {args.chunk}")
+    if args.file == "-":
+        return _live(args, model)
+    return _file(args, model)
+
+
+def _file(args, model):
+    from algid.identification._records import TIME_COLUMNS
+    from algid.io import read_columns
+
+    names = list(model.signals) + ([args.time] if args.time else [])
+    optional = () if args.time or args.rate else TIME_COLUMNS
+    record = read_columns(args.file, names, optional=optional)
+    time = args.time or (None if args.rate else next(
+        (c for c in TIME_COLUMNS if c in record), None))
+    if time is None and args.rate is None:
+        raise InputDataError(f"{args.file}: no time column ({' or '.join(TIME_COLUMNS)}); "
+                             f"give --time COL or --rate HZ")
+    tracker = _tracker(args, model, time)
+    n = len(record[names[0]])
+    reports = []
+    for start in range(0, n, args.chunk):
+        reports.append(tracker.update({k: np.asarray(v)[start:start + args.chunk]
+                                       for k, v in record.items()}))
+    t = np.concatenate([r.t for r in reports])
+    values = np.concatenate([r.values for r in reports])
+    stderr = np.concatenate([r.stderr for r in reports])
+    alarms = np.concatenate([r.alarms for r in reports])
+    if args.json:
+        payload = {"t": t.tolist()}
+        for i, p in enumerate(model.parameters):
+            payload[p] = [_value(v) for v in values[:, i]]
+        payload["stderr"] = {p: [_value(v) for v in stderr[:, i]]
+                             for i, p in enumerate(model.parameters)}
+        payload["alarms"] = alarms.tolist()
+        payload["window"] = tracker.window
+        payload["half_life"] = args.half_life
+        print(json.dumps(payload, allow_nan=False))
+        return 0
+    print(model.equation)
+    print(f"{n} samples, window {tracker.window:.6g} s, half-life "
+          f"{'none' if args.half_life is None else f'{args.half_life:g} s'}, "
+          f"{len(alarms)} alarm(s)")
+    _header(model)
+    for i in range(len(t)):
+        print(_line(model, t[i], values[i], stderr[i]))
+    for when in alarms:
+        print(f"alarm at t = {when:.6g} s")
+    return 0
+
+
+def _header(model):
+    print("t (s)".rjust(10) + "".join(f"  {p:>13}  {'± ' + p:>10}" for p in model.parameters))
+
+
+def _line(model, t, values, stderr):
+    return f"{t:10.4f}" + "".join(f"  {v:>13.6g}  {s:>10.2g}" for v, s in zip(values, stderr))
+
+
+def _live(args, model):
+    """Rows from standard input, one report per interval, flushed at once."""
+    from algid.identification._records import TIME_COLUMNS
+
+    header = sys.stdin.readline()
+    if not header.strip():
+        raise InputDataError("standard input: no header line (the column names)")
+    delimiter = "," if "," in header else (";" if ";" in header else None)
+    columns = [c.strip() for c in header.strip().split(delimiter)]
+    time = args.time or (None if args.rate else next(
+        (c for c in TIME_COLUMNS if c in columns), None))
+    needed = list(model.signals) + ([time] if time else [])
+    missing = [c for c in needed if c not in columns]
+    if missing:
+        raise InputDataError(f"standard input: no column {missing[0]!r} (columns: "
+                             f"{', '.join(columns)})")
+    if time is None and args.rate is None:
+        raise InputDataError("standard input: no time column (t or time); give --time COL "
+                             "or --rate HZ")
+    where = [columns.index(c) for c in needed]
+    tracker = _tracker(args, model, time)
+    if not args.json:
+        _header(model)
+        sys.stdout.flush()
+    row = 1
+    while True:
+        line = sys.stdin.readline()
+        if not line:
+            break
+        row += 1
+        if not line.strip():
+            continue
+        fields = line.strip().split(delimiter)
+        try:
+            if len(fields) != len(columns):
+                raise InputDataError(f"{len(fields)} fields, the header has {len(columns)}")
+            values = [float(fields[i]) for i in where]
+            out = tracker.update({c: [v] for c, v in zip(needed, values)})
+        except (ValueError, InputDataError) as exc:
+            message = " ".join(str(exc).split())
+            print(f"algid: warning: standard input row {row} skipped: {message}",
+                  file=sys.stderr, flush=True)
+            continue
+        for i in range(len(out)):
+            if args.json:
+                payload = {"t": float(out.t[i])}
+                payload.update({p: _value(v) for p, v in zip(model.parameters, out.values[i])})
+                payload["stderr"] = {p: _value(v)
+                                     for p, v in zip(model.parameters, out.stderr[i])}
+                payload["alarms"] = out.alarms.tolist()
+                print(json.dumps(payload, allow_nan=False))
+            else:
+                print(_line(model, out.t[i], out.values[i], out.stderr[i]))
+        if not args.json:
+            for when in out.alarms:
+                print(f"alarm at t = {when:.6g} s")
+        if len(out) or len(out.alarms):
+            sys.stdout.flush()
+    return 0

@@ -1,0 +1,127 @@
+"""A CUSUM test that the parameters of a tracked model changed (:class:`algid.Tracker`).
+
+The test looks at *innovations*: the residual of a window equation at the estimate made
+before the window's first sample.  Only windows that share no sample are tested (one
+window in every ``ceil(length / stride)``), so that under white output noise the
+innovations are independent; each is divided by its predicted standard deviation (the
+residual scatter of the windows so far, inflated by the uncertainty of the estimate),
+which makes ``z**2`` a chi-square variable of one degree of freedom while nothing
+changes.  A change of the parameters adds to every innovation the change times the
+window's regressors, which raises the variance of ``z``.
+
+The statistic is Page's CUSUM of the log-likelihood ratio of a variance ``rho`` times
+larger (:data:`VARIANCE_RATIO`) against the predicted one::
+
+    S_n = max(0, S_{n-1} + min(z_n**2, c) - k),   k = ln(rho) / (1 - 1/rho),
+
+each increment capped at ``c`` (:data:`INCREMENT_CAP`, a 3-sigma innovation) so that
+one outlier (a misplaced ``sign(q')`` crossing, a spike) cannot raise an alarm alone:
+it takes a run of large innovations, which a change of the parameters makes.  An alarm
+is raised where ``S_n`` exceeds ``h`` (then ``S`` restarts from 0).  ``h`` is chosen
+so that the average run length between false alarms, computed for chi-square increments
+by the Markov chain of Brook and Evans (:func:`average_run_length`), is the design one
+(:func:`cusum_threshold`).  The design false-alarm rate holds where the misfit of the
+equations is white output noise; a misfit that is the model's own error
+(quadrature error at few samples per period, unmodelled dynamics) is correlated across
+windows and raises the false alarms.
+"""
+
+from __future__ import annotations
+
+import math
+from functools import lru_cache
+
+import numpy as np
+from scipy.special import erf
+
+__all__ = ["VARIANCE_RATIO", "INCREMENT_CAP", "cusum_reference", "average_run_length",
+           "cusum_threshold"]
+
+#: Variance ratio of the innovations the CUSUM is tuned to detect.
+VARIANCE_RATIO = 4.0
+
+#: Largest increment ``z**2`` counted by the CUSUM.
+INCREMENT_CAP = 9.0
+
+#: States of the Markov chain approximating the CUSUM on ``[0, h]``.
+CHAIN_STATES = 400
+
+
+def cusum_reference(rho=VARIANCE_RATIO):
+    """The drift ``k`` of the CUSUM for a variance ratio ``rho`` (log-likelihood ratio).
+
+    Parameters
+    ----------
+    rho : float
+        Variance ratio to detect (above 1).
+
+    Returns
+    -------
+    float
+    """
+    return math.log(rho) / (1.0 - 1.0 / rho)
+
+
+def _chi2_cdf(x):
+    """Distribution function of chi-square with one degree of freedom, capped at
+    :data:`INCREMENT_CAP` (all the mass beyond it there)."""
+    return np.where(x >= INCREMENT_CAP, 1.0, erf(np.sqrt(np.maximum(x, 0.0) / 2.0)))
+
+
+@lru_cache(maxsize=64)
+def average_run_length(h, k):
+    """Average number of tests before ``S`` exceeds ``h`` with chi-square(1) increments.
+
+    Brook and Evans' Markov chain: ``[0, h]`` cut into :data:`CHAIN_STATES` cells, the
+    transition from a cell's centre by the law of ``z**2 - k``, absorbed above ``h``.
+
+    Parameters
+    ----------
+    h : float
+        Threshold.
+    k : float
+        Drift of the CUSUM.
+
+    Returns
+    -------
+    float
+    """
+    n = CHAIN_STATES
+    width = h / n
+    centres = (np.arange(n) + 0.5) * width
+    edges = np.arange(n + 1) * width
+    # from state i to cell j: z**2 in [edges[j] - c_i + k, edges[j+1] - c_i + k];
+    # to state 0 also everything that falls below 0
+    upper = _chi2_cdf(edges[None, 1:] - centres[:, None] + k)
+    lower = _chi2_cdf(edges[None, :-1] - centres[:, None] + k)
+    transition = upper - lower
+    transition[:, 0] = upper[:, 0]
+    # start at 0: the first cell's centre stands for it
+    runs = np.linalg.solve(np.eye(n) - transition, np.ones(n))
+    return float(runs[0])
+
+
+def cusum_threshold(run_length, k):
+    """The threshold ``h`` whose average run length is ``run_length`` tests.
+
+    Parameters
+    ----------
+    run_length : float
+        Average number of tests between false alarms (at least 2).
+    k : float
+        Drift of the CUSUM.
+
+    Returns
+    -------
+    float
+    """
+    low, high = 1e-3, 1.0
+    while average_run_length(round(high, 12), k) < run_length:
+        low, high = high, 2 * high
+    for _ in range(30):
+        middle = (low + high) / 2
+        if average_run_length(round(middle, 12), k) < run_length:
+            low = middle
+        else:
+            high = middle
+    return high

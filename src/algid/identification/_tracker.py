@@ -1,0 +1,892 @@
+"""On-line identification: the window equations of :func:`algid.identify` on a stream.
+
+:class:`Tracker` forms each window equation of ``identify`` as soon as the window's last
+sample has arrived (the same term kernels and assembly, ``term_rows``), and accumulates
+the equations: the triangular factor of the stacked ``[A | b]`` (a QR update per window,
+never the normal equations), the noise covariance terms of the bias compensation, and
+the lagged products that the standard errors need.  With ``half_life=h`` every sum is
+weighted by ``2**(-age / h)``; ``None`` keeps every window, and the last estimate then
+equals ``identify`` on the samples so far at the same window and method (to round-off),
+for models without derivatives inside factors.
+
+Causality makes the only differences: a derivative inside a factor (``sign(q')``) comes
+from the centred algebraic differentiator, final :attr:`Tracker.lag` samples after its
+sample, and ``sign(v)`` steps where linear interpolation puts the zero of ``v``, where
+``identify`` places the crossings with its final estimate.
+
+Standard errors are a sandwich whose middle counts the overlap of the windows (their
+lagged correlations, with identify's flat-top weights) and the forgetting (the
+effective number of windows ``(sum w)**2 / sum w**2``).  Alarms come from a CUSUM of
+the innovations of windows that share no sample (:mod:`algid.identification`'s
+``_change_detection``), tuned to a false-alarm rate per second of stream time.
+
+The state is bounded by the window and the number of parameters, whatever the stream's
+length; :meth:`Tracker.save` writes it to a NumPy ``.npz`` file (arrays and a JSON
+header, no pickled object) and :meth:`Tracker.load` continues it bit for bit.  See the
+user guide, "Tracking on a stream", for the details and the measured figures.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from algid.errors import AlgidError, InputDataError
+from algid.identification._arguments import check_arguments, check_model_columns
+from algid.identification._bias_compensation import koopmans
+from algid.identification._change_detection import INCREMENT_CAP, cusum_reference, cusum_threshold
+from algid.identification._identify import WINDOW_OVERLAP, factor_sensitivity, term_rows
+from algid.identification._records import GAP_FACTOR, TIME_COLUMNS, UNIFORM_TOLERANCE, check_rate
+from algid.identification._window_basis import ROUNDOFF_SEPARABILITY
+from algid.identification._window_covariance import sandwich
+from algid.identification._window_kernels import step_window_integrals, window_sample_weights
+from algid.identification._window_rule import MIN_SPARE_WINDOWS, check_multiplicities, min_length
+from algid.models._expression import Call, Signal
+from algid.models._grammar import parse_equation
+from algid.models._model import Model
+from algid.signals._differentiation import algebraic_derivative
+
+__all__ = ["Tracker", "TrackUpdate", "DEFAULT_WARMUP", "DEFAULT_FALSE_ALARM_RATE",
+           "DERIVATIVE_STEPS"]
+
+#: Seconds of stream on which the window is chosen when none is given.
+DEFAULT_WARMUP = 2.0
+
+#: Design false alarms per second of stream time.
+DEFAULT_FALSE_ALARM_RATE = 1e-3
+
+#: Steps of the (centred) differentiator of derivatives inside factors.
+DERIVATIVE_STEPS = 20
+
+#: Steps seen before the sampling step of a time column is fixed (their median).
+STEP_SAMPLES = 16
+
+_FORMAT = "algid.Tracker/1"
+
+
+@dataclass
+class TrackUpdate:
+    """What :meth:`Tracker.update` reports for one chunk.
+
+    Attributes
+    ----------
+    parameters : tuple of str
+    t : numpy.ndarray
+        Times of the window ends reported (the stream's time of their last sample).
+    values, stderr, numerical_error : numpy.ndarray
+        Shape ``(len(t), p)``: estimates, standard errors and numerical errors (NaN
+        until the parameters are determined).
+    alarms : numpy.ndarray
+        Times of the alarms raised in the chunk.
+    """
+
+    parameters: tuple
+    t: np.ndarray
+    values: np.ndarray
+    stderr: np.ndarray
+    numerical_error: np.ndarray
+    alarms: np.ndarray = field(default_factory=lambda: np.empty(0))
+
+    def __len__(self):
+        return len(self.t)
+
+    def __getitem__(self, name):
+        return self.values[:, self.parameters.index(name)]
+
+    def last(self):
+        """The last estimates.
+
+        Returns
+        -------
+        dict
+            ``{parameter: value}`` (empty before any window end).
+        """
+        return {} if not len(self.t) else dict(zip(self.parameters,
+                                                   self.values[-1].tolist()))
+
+
+def _exponent(x):
+    return np.where(x > 0, np.frexp(np.where(x > 0, x, 1.0))[1] - 1, 0)
+
+
+def _solve(R, G, bound, method):
+    """identify's solve on the accumulated factor ``R`` of ``[A | b]`` and noise sum ``G``.
+
+    Returns the estimate, the basis quantities the covariance needs, or None where the
+    equations do not determine the parameters.
+    """
+    p = R.shape[0] - 1
+    norms = np.linalg.norm(R, axis=0)
+    if not np.all(norms[:p] > 0):
+        return None
+    shifts = _exponent(norms) + 1             # the column scaling of WindowBasis
+    Rs = np.ldexp(R, -shifts)
+    unit = Rs[:, :p] / np.linalg.norm(Rs[:, :p], axis=0)
+    if np.linalg.svd(unit, compute_uv=False)[-1] < ROUNDOFF_SEPARABILITY:
+        return None
+    inverse = np.linalg.inv(Rs[:p, :p])
+    c = Rs[:p, p]
+    normal = np.eye(p + 1)
+    normal[:p, p] = normal[p, :p] = c
+    normal[p, p] = float(Rs[:, p] @ Rs[:, p])
+    full = np.zeros((p + 1, p + 1))          # [A | b] -> the orthonormal basis
+    full[:p, :p] = np.ldexp(inverse, -shifts[:p, None])
+    full[p, p] = np.ldexp(1.0, -int(shifts[p]))
+    noise = full.T @ G @ full
+    variance = None
+    if method == "bc":
+        theta_bar, variance, _ = koopmans(normal, noise, bound)
+    if variance is None:
+        phi = c.copy()
+    else:
+        phi = theta_bar[:p]
+    jacobian = np.eye(p) - (variance or 0.0) * noise[:p, :p]
+    mapping = np.ldexp(inverse, (shifts[p] - shifts[:p])[:, None])
+    return mapping @ phi, phi, full, jacobian, mapping
+
+
+def _lag_weights(overlap):
+    lags = 2 * overlap
+    return np.array([1.0 if lag <= overlap else 1.0 - (lag - overlap) / (lags - overlap + 1.0)
+                     for lag in range(lags + 1)])
+
+
+class Tracker:
+    """The streaming form of :func:`algid.identify`, with forgetting and change alarms.
+
+    See the module notes for the method, its differences with :func:`algid.identify`,
+    the standard errors and the alarms.
+
+    Parameters
+    ----------
+    equation : str or Model
+        The model, as for :func:`algid.identify`.
+    parameters : sequence of str or str
+        The unknown parameters.
+    rate : float, optional
+        Sampling rate (Hz) of a stream without a time column.
+    time : str, optional
+        Name of the time column (default ``t`` or ``time`` when no rate is given).
+    output : str, optional
+        Output signal (by default the one of highest derivative order).
+    window : float, optional
+        Window length (s); chosen by identify's rule on the first ``warmup`` seconds
+        when omitted.
+    half_life : float, optional
+        Half-life (s of stream time) of the forgetting; None keeps every window.
+    method : {"bc", "ls"}
+        Bias-compensated or plain least squares (as in :func:`algid.identify`).
+    warmup : float
+        Seconds of stream on which to choose the window.
+    false_alarm_rate : float
+        Design false alarms per second of stream time (see the user guide, "Tracking on a
+        stream").
+    every : float, optional
+        Report only the window ends that cross a multiple of ``every`` seconds of stream
+        time (every window end by default).
+
+    Raises
+    ------
+    ModelError, InputDataError
+        One-line messages, as :func:`algid.identify`'s.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> t = np.arange(3000) / 100.0            # y' + 2 y = u, in steady state
+    >>> w = np.array([1.0, 3.1])[:, None]
+    >>> u = np.sin(w * t).sum(axis=0)
+    >>> y = (np.sin(w * t - np.arctan(w / 2)) / np.hypot(2, w)).sum(axis=0)
+    >>> tracker = Tracker("y' + a*y = b*u", "a b", rate=100, window=0.5)
+    >>> out = tracker.update({"y": y, "u": u})
+    >>> [round(float(v), 4) for v in out.values[-1]]
+    [2.0, 1.0]
+    """
+
+    def __init__(self, equation, parameters=None, *, rate=None, time=None, output=None,
+                 window=None, half_life=None, method="bc", warmup=DEFAULT_WARMUP,
+                 false_alarm_rate=DEFAULT_FALSE_ALARM_RATE, every=None):
+        if method not in ("bc", "ls"):
+            raise InputDataError(f"method must be 'bc' or 'ls' for a tracker, got {method!r} "
+                                 f"(instrumental variables need the whole record)")
+        check_arguments(equation, parameters, time=time, rate=rate, output=output,
+                        window=window, method=method, methods=("bc", "ls"),
+                        multiplicities=(8, 12), name="custom", iterations=1)
+        for name, value, allow_none in (("half_life", half_life, True), ("warmup", warmup,
+                                        False), ("false_alarm_rate", false_alarm_rate, False),
+                                        ("every", every, True)):
+            if value is None and allow_none:
+                continue
+            if isinstance(value, (bool, str)) or not isinstance(value, (int, float)) \
+                    or not (math.isfinite(value) and value > 0):
+                raise InputDataError(f"{name} must be a positive number of seconds"
+                                     f"{' or None' if allow_none else ''}, got {value!r}")
+        model = equation if isinstance(equation, Model) else parse_equation(
+            equation, parameters, output=output)
+        check_model_columns(model, time)
+        self.model = model
+        self.multiplicities = check_multiplicities(model, (8, 12))
+        self.config = {"equation": model.equation, "parameters": list(model.parameters),
+                       "output": model.output, "rate": None if rate is None else
+                       check_rate(rate), "time": time, "window": window,
+                       "half_life": half_life, "method": method, "warmup": float(warmup),
+                       "false_alarm_rate": float(false_alarm_rate), "every": every}
+        if rate is None and time is None:
+            self.config["time"] = None   # found in the first chunk (t or time)
+        self.parameters = tuple(model.parameters)
+        self._signals = list(model.signals)
+        self._sign_terms = [i for i, term in enumerate(model.terms)
+                            if isinstance(term.factor, Call) and term.factor.function == "sign"]
+        self._noisy = [i for i, term in enumerate(model.terms)
+                       if model.output in term.factor.signals() and i not in self._sign_terms]
+        self.lag = DERIVATIVE_STEPS // 2 if model.needs_derivatives else 0
+        self.s = {"seen": 0, "last_time": -np.inf, "configured": False, "alarms": 0,
+                  "warm_t": np.empty(0), **{f"warm:{n}": np.empty(0) for n in self._signals}}
+
+    # ------------------------------------------------------------------ public
+    @property
+    def window(self):
+        """The window length (s), or None before it is chosen."""
+        return self.s.get("window")
+
+    @property
+    def half_life(self):
+        """The forgetting half-life (s), or None."""
+        return self.config["half_life"]
+
+    @property
+    def alarm_count(self):
+        """Alarms raised since the start of the stream."""
+        return int(self.s["alarms"])
+
+    def state_size(self):
+        """Floating-point numbers in the state (bounded whatever the stream's length).
+
+        Returns
+        -------
+        int
+        """
+        return int(sum(np.size(v) for v in self.s.values()))
+
+    def update(self, chunk):
+        """Stream the next samples.
+
+        Parameters
+        ----------
+        chunk : mapping
+            Column name -> samples (any number, from one), as a record of
+            :func:`algid.identify`: the model's signals and the time column (or none,
+            with ``rate``).  Rows holding a NaN break the stream as gaps do.
+
+        Returns
+        -------
+        TrackUpdate
+            Estimates at the window ends completed by these samples.
+
+        Raises
+        ------
+        InputDataError
+            Missing or non-numeric columns, columns of different lengths, times that do
+            not increase.
+        """
+        t, columns = self._read(chunk)
+        self._out = {"t": [], "values": [], "stderr": [], "error": [], "alarms": []}
+        if not self.s["configured"]:
+            self.s["warm_t"] = np.concatenate([self.s["warm_t"], t])
+            for name in self._signals:
+                self.s[f"warm:{name}"] = np.concatenate([self.s[f"warm:{name}"],
+                                                         columns[name]])
+            self._configure()
+        else:
+            self._samples(t, columns)
+        p = len(self.parameters)
+        out = self._out
+        shape = (len(out["t"]), p)
+        return TrackUpdate(self.parameters, np.array(out["t"], dtype=float),
+                           np.array(out["values"], dtype=float).reshape(shape),
+                           np.array(out["stderr"], dtype=float).reshape(shape),
+                           np.array(out["error"], dtype=float).reshape(shape),
+                           np.array(out["alarms"], dtype=float))
+
+    def save(self, path):
+        """Write the whole state to a NumPy ``.npz`` file (arrays and a JSON header).
+
+        Parameters
+        ----------
+        path : str or path-like
+        """
+        arrays, scalars = {}, {}
+        for key, value in self.s.items():
+            if isinstance(value, np.ndarray):
+                arrays[f"s/{key}"] = value
+            else:
+                value = value.item() if isinstance(value, np.generic) else value
+                scalars[key] = float(value) if isinstance(value, float) else value
+        header = {"format": _FORMAT, "config": self.config, "scalars": {
+            k: (repr(v) if isinstance(v, float) else v) for k, v in scalars.items()},
+            "floats": [k for k, v in scalars.items() if isinstance(v, float)]}
+        with open(path, "wb") as f:
+            np.savez(f, header=np.array(json.dumps(header)), **arrays)
+
+    @classmethod
+    def load(cls, path):
+        """A tracker continuing the stream saved by :meth:`save`.
+
+        Parameters
+        ----------
+        path : str or path-like
+
+        Returns
+        -------
+        Tracker
+
+        Raises
+        ------
+        InputDataError
+            A file that is not a saved tracker.
+        """
+        try:
+            with np.load(path, allow_pickle=False) as data:
+                header = json.loads(str(data["header"]))
+                arrays = {k[2:]: data[k] for k in data.files if k.startswith("s/")}
+        except (OSError, ValueError, KeyError) as exc:
+            raise InputDataError(f"{path}: not a saved tracker ({exc})") from None
+        if header.get("format") != _FORMAT:
+            raise InputDataError(f"{path}: not a saved tracker (format "
+                                 f"{header.get('format')!r})")
+        config = header["config"]
+        tracker = cls(config["equation"], config["parameters"], rate=config["rate"],
+                      time=config["time"], output=config["output"], window=config["window"],
+                      half_life=config["half_life"], method=config["method"],
+                      warmup=config["warmup"], false_alarm_rate=config["false_alarm_rate"],
+                      every=config["every"])
+        tracker.config = config
+        scalars = {k: (float(v) if k in header["floats"] else v)
+                   for k, v in header["scalars"].items()}
+        tracker.s = {**scalars, **arrays}
+        if tracker.s["configured"]:
+            tracker._derive()
+        return tracker
+
+    # ------------------------------------------------------------------ input
+    def _read(self, chunk):
+        if not hasattr(chunk, "keys"):
+            raise InputDataError("a chunk must be a mapping of column name -> samples")
+        time = self.config["time"]
+        if time is None and self.config["rate"] is None:
+            time = next((c for c in TIME_COLUMNS if c in chunk), None)
+            if time is None:
+                raise InputDataError(f"no time column ({' or '.join(TIME_COLUMNS)}) in the "
+                                     f"stream; give time= (a column name) or rate= (Hz)")
+            self.config["time"] = time
+        columns = {}
+        for name in self._signals + ([time] if time is not None else []):
+            if name not in chunk:
+                raise InputDataError(f"no column {name!r} in the chunk (columns: "
+                                     f"{', '.join(map(str, chunk.keys()))})")
+            try:
+                values = np.asarray(chunk[name], dtype=float).reshape(-1)
+            except (TypeError, ValueError):
+                raise InputDataError(f"column {name!r} is not numeric") from None
+            columns[name] = values
+        lengths = {len(v) for v in columns.values()}
+        if len(lengths) != 1:
+            raise InputDataError("the columns of the chunk have different lengths (" + ", ".join(
+                f"{k}: {len(v)}" for k, v in columns.items()) + ")")
+        n = lengths.pop()
+        if time is None:
+            t = (self.s["seen"] + np.arange(n)) / self.config["rate"]
+        else:
+            t = columns.pop(time)
+            if not np.all(np.isfinite(t)):
+                raise InputDataError(f"time column {time!r} is not finite in the chunk")
+            previous = np.concatenate([[self.s["last_time"]], t])
+            if np.any(np.diff(previous) <= 0):
+                row = int(np.flatnonzero(np.diff(previous) <= 0)[0])
+                raise InputDataError(f"time column {time!r} does not increase at t = "
+                                     f"{t[row]:.9g} (row {self.s['seen'] + row} of the stream)")
+        self.s["seen"] += n
+        if n:
+            self.s["last_time"] = float(t[-1])
+        return t, columns
+
+    # ------------------------------------------------------------------ configuration
+    def _configure(self):
+        """Fix the step and the window once enough samples arrived; replay them."""
+        t = self.s["warm_t"]
+        if self.config["rate"] is not None:
+            step = 1.0 / self.config["rate"]
+        elif len(t) > STEP_SAMPLES:
+            step = float(np.median(np.diff(t[:STEP_SAMPLES + 1])))
+        else:
+            return
+        window = self.config["window"]
+        cut = len(t)
+        if window is None:
+            tried = int(self.s.get("warm_tries", 0))
+            while True:
+                span = self.config["warmup"] * 2 ** tried
+                if t[-1] - t[0] < span:
+                    self.s["warm_tries"] = tried
+                    return
+                cut = int(np.searchsorted(t, t[0] + span, side="left")) + 1
+                window = self._choose_window(t[:cut], step)
+                if window is not None:
+                    break
+                tried += 1
+                if tried > 3:
+                    raise InputDataError(
+                        f"no window could be chosen on the first {span:g} s of the stream "
+                        f"(identify refuses them); give window=")
+        length = int(round(window / step)) + 1
+        shortest = min_length(self.multiplicities)
+        if length < shortest:
+            raise InputDataError(f"window {window:g} s ({length} samples) is shorter than the "
+                                 f"kernels of multiplicity {max(self.multiplicities)} need; "
+                                 f"use at least {(shortest - 1) * step:.4g} s")
+        self.s.update(configured=True, step=step, window=(length - 1) * step, length=length)
+        self._start_state()
+        warm = {n: self.s.pop(f"warm:{n}") for n in self._signals}
+        times = self.s.pop("warm_t")
+        self._samples(times[:cut], {n: v[:cut] for n, v in warm.items()})
+        if cut < len(times):
+            self._samples(times[cut:], {n: v[cut:] for n, v in warm.items()})
+
+    def _choose_window(self, t, step):
+        from algid.identification._identify import identify
+
+        record = {name: self.s[f"warm:{name}"][:len(t)] for name in self._signals}
+        record["__t"] = t
+        try:
+            return identify(record, self.model, time="__t", method=self.config["method"]).window
+        except AlgidError:
+            return None
+
+    def _derive(self):
+        """Constants that follow from the configuration."""
+        length = int(self.s["length"])
+        self.length = length
+        self.stride = max(1, length // WINDOW_OVERLAP)
+        self.overlap = -(-length // self.stride)
+        self.lag_weights = _lag_weights(self.overlap)
+        self.keep = length + self.lag + 2 * DERIVATIVE_STEPS
+        self.k_cusum = cusum_reference()
+        test_interval = self.overlap * self.stride * self.s["step"]
+        self.h_cusum = cusum_threshold(
+            max(2.0, 1.0 / (self.config["false_alarm_rate"] * test_interval)), self.k_cusum)
+        self.needed = len(self.parameters) + MIN_SPARE_WINDOWS
+        # k-th differences as dot products with the last k + 1 of 9 samples
+        self._differences = np.zeros((9, 8))
+        for k in range(1, 9):
+            self._differences[8 - k:, k - 1] = [(-1) ** (k - j) * math.comb(k, j)
+                                                for j in range(k + 1)]
+        self._unit_weights = {(a, term.derivative): window_sample_weights(
+            None, 1.0, length, a, term.derivative)
+            for a in self.multiplicities for term in self.model.terms}
+        # derivative taps of the centred algebraic differentiator, from its own function
+        impulses = np.eye(DERIVATIVE_STEPS + 1)
+        self._taps = {}
+        for _, k in self.model.needs_derivatives:
+            rows = np.array([algebraic_derivative(e, 1.0, derivative=k) for e in impulses])
+            self._taps[k] = np.ascontiguousarray(rows.T)   # row i: the estimate at sample i
+
+    def _start_state(self):
+        self._derive()
+        p = len(self.parameters)
+        lags = 2 * self.overlap
+        s = self.s
+        for a in self.multiplicities:
+            s[f"R{a}"] = np.zeros((p + 1, p + 1))
+            s[f"G{a}"] = np.zeros((p + 1, p + 1))
+        q = p * (p + 1)
+        s.update(U=np.zeros((lags + 1, q, q)), W1=0.0, W2=0.0,
+                 bound_sums=np.zeros(8), bound_counts=np.zeros(8), last_end=np.nan,
+                 cusum=0.0, previous_test=np.full(p + 2, np.nan), last_report=-np.inf,
+                 ring_rows=np.zeros((lags, q)), ring_times=np.zeros(lags), ring_count=0,
+                 row_time=-np.inf, row_valid=True)
+        self._new_segment()
+
+    def _new_segment(self):
+        s = self.s
+        s.update(seg_n=0, seg_first=0, seg_ready=0, next_window=0, bound_upto=0,
+                 buf_t=np.empty(0), ring_count=0, previous_test=np.full(len(self.parameters)
+                                                                        + 2, np.nan))
+        for name in self._signals:
+            s[f"buf:{name}"] = np.empty(0)
+        for name, k in self.model.needs_derivatives:
+            s[f"der:{name}:{k}"] = np.empty(0)
+        for i in range(len(self.model.terms)):
+            s[f"fac:{i}"] = np.empty(0)
+            s[f"sen:{i}"] = np.empty(0)
+            if i in self._sign_terms:
+                s[f"steps_t:{i}"] = np.empty(0)
+                s[f"steps_s:{i}"] = np.empty(0)
+
+    # ------------------------------------------------------------------ samples
+    def _samples(self, t, columns):
+        """Cut the samples at gaps and NaN rows (as identify's records are cut); feed each
+        run of valid rows to its segment."""
+        s = self.s
+        n = len(t)
+        if not n:
+            return
+        valid = np.all([np.isfinite(columns[name]) for name in self._signals], axis=0)
+        rows_before = np.concatenate([[s["row_time"]], t[:-1]])
+        valid_before = np.concatenate([[s["row_valid"]], valid[:-1]])
+        cut = (t - rows_before > GAP_FACTOR * s["step"]) | ~valid_before
+        s["row_time"], s["row_valid"] = float(t[-1]), bool(valid[-1])
+        edges = np.flatnonzero(np.diff(np.concatenate([[0], valid.astype(int), [0]])))
+        for start, stop in zip(edges[::2], edges[1::2]):
+            pieces = [start, *(start + 1 + np.flatnonzero(cut[start + 1:stop])), stop]
+            for a, b in zip(pieces[:-1], pieces[1:]):
+                if cut[a] and s["seg_n"]:
+                    self._new_segment()
+                self._extend(t[a:b], {name: columns[name][a:b] for name in self._signals})
+
+    def _extend(self, t, columns):
+        s = self.s
+        s["buf_t"] = np.concatenate([s["buf_t"], t])
+        for name in self._signals:
+            s[f"buf:{name}"] = np.concatenate([s[f"buf:{name}"], columns[name]])
+        s["seg_n"] += len(t)
+        self._derivatives()
+        self._factors()
+        self._windows()
+        self._trim()
+
+    def _derivatives(self):
+        """Derivatives inside factors, for the samples whose centred window arrived."""
+        s = self.s
+        n, first = s["seg_n"], s["seg_first"]
+        half = DERIVATIVE_STEPS // 2
+        for name, k in self.model.needs_derivatives:
+            key = f"der:{name}:{k}"
+            done = first + len(s[key])
+            final = n - half if n > DERIVATIVE_STEPS else 0   # samples with a final estimate
+            if final <= done:
+                continue
+            y, t = s[f"buf:{name}"], s["buf_t"]
+            values = np.empty(final - done)
+            width = DERIVATIVE_STEPS + 1
+            for i in range(done, min(final, half)):   # the first window's edge taps
+                values[i - done] = self._taps[k][i] @ y[:width] \
+                    / ((t[DERIVATIVE_STEPS] - t[0]) / DERIVATIVE_STEPS) ** k
+            interior = np.arange(max(done, half), final)
+            if interior.size:
+                lo = interior - half - first
+                yw = np.lib.stride_tricks.sliding_window_view(y, width)[lo]
+                step = (t[lo + DERIVATIVE_STEPS] - t[lo]) / DERIVATIVE_STEPS
+                values[interior - done] = np.einsum("ij,j->i", yw, self._taps[k][half]) \
+                    / step ** k
+            s[key] = np.concatenate([s[key], values])
+
+    def _factors(self):
+        """Factor values (and output sensitivities) of the samples ready for windows."""
+        s = self.s
+        first = s["seg_first"]
+        ready = s["seg_n"] - self.lag if self.lag else s["seg_n"]
+        if self.lag and s["seg_n"] <= DERIVATIVE_STEPS:
+            ready = 0
+        done = s["seg_ready"]
+        if ready <= done:
+            return
+        lo, hi = done - first, ready - first
+        t = s["buf_t"][lo:hi]
+        values = {name: s[f"buf:{name}"][lo:hi] for name in self._signals}
+        for name, k in self.model.needs_derivatives:
+            key = f"der:{name}:{k}"
+            values[(name, k)] = s[key][lo:hi]
+        output = self.model.output
+        h = 1e-6 * np.maximum(np.abs(values[output]), 1e-300)
+        for i, term in enumerate(self.model.terms):
+            factor = term.factor.args[0] if i in self._sign_terms else term.factor
+            with np.errstate(all="ignore"):
+                z = np.asarray(factor.evaluate(values, t), dtype=float) * np.ones(len(t))
+            if not np.all(np.isfinite(z)):
+                row = int(np.flatnonzero(~np.isfinite(z))[0])
+                raise InputDataError(f"the term {term.factor} is {z[row]} at t = "
+                                     f"{t[row]:.6g} s: the data leave its domain")
+            if i in self._sign_terms:
+                self._sign_steps(i, z, t, lo)
+            s[f"fac:{i}"] = np.concatenate([s[f"fac:{i}"], z])
+            if i in self._noisy:
+                sens = np.ones(len(t)) if term.factor == Signal(output) else \
+                    factor_sensitivity(term.factor, output, values, t, h)
+                s[f"sen:{i}"] = np.concatenate([s[f"sen:{i}"], sens])
+        s["seg_ready"] = ready
+
+    def _sign_steps(self, i, v, t, lo):
+        """Steps of ``sign(v)`` between the new samples and the one before them."""
+        s = self.s
+        if lo > 0:
+            v = np.concatenate([s[f"fac:{i}"][lo - 1:lo], v])
+            t = np.concatenate([s["buf_t"][lo - 1:lo], t])
+        z = np.sign(v)
+        at = np.flatnonzero(z[1:] != z[:-1])
+        fraction = v[at] / (v[at] - v[at + 1])
+        s[f"steps_t:{i}"] = np.concatenate([s[f"steps_t:{i}"],
+                                            t[at] + fraction * (t[at + 1] - t[at])])
+        s[f"steps_s:{i}"] = np.concatenate([s[f"steps_s:{i}"], z[at + 1] - z[at]])
+
+    def _trim(self):
+        """Drop the samples no window or derivative will read again (bounded state)."""
+        s = self.s
+        start = min(s["next_window"] * self.stride, s["bound_upto"] - 8,
+                    s["seg_n"] - self.keep)
+        drop = max(0, start - s["seg_first"])
+        if drop < 4 * self.keep:   # in blocks: fewer copies
+            return
+        t0 = s["buf_t"][drop]
+        s["buf_t"] = s["buf_t"][drop:]
+        for name in self._signals:
+            s[f"buf:{name}"] = s[f"buf:{name}"][drop:]
+        for name, k in self.model.needs_derivatives:
+            key = f"der:{name}:{k}"
+            s[key] = s[key][drop:]
+        for i in range(len(self.model.terms)):
+            s[f"fac:{i}"] = s[f"fac:{i}"][drop:]
+            if i in self._noisy:
+                s[f"sen:{i}"] = s[f"sen:{i}"][drop:]
+            if i in self._sign_terms:
+                keep = s[f"steps_t:{i}"] >= t0
+                s[f"steps_t:{i}"] = s[f"steps_t:{i}"][keep]
+                s[f"steps_s:{i}"] = s[f"steps_s:{i}"][keep]
+        s["seg_first"] += drop
+
+    # ------------------------------------------------------------------ windows
+    def _windows(self):
+        s = self.s
+        L, stride = self.length, self.stride
+        count = (s["seg_ready"] - L) // stride + 1 if s["seg_ready"] >= L else 0
+        first_window = s["next_window"]
+        if count <= first_window:
+            return
+        starts = np.arange(first_window, count) * stride - s["seg_first"]
+        rows = {a: self._rows(starts, a) for a in self.multiplicities}
+        top = max(self.multiplicities)
+        grams = {a: self._grams(starts, a) for a in self.multiplicities}
+        ends = s["buf_t"][starts + L - 1]
+        for w in range(len(starts)):
+            self._accumulate(first_window + w, ends[w], starts[w],
+                             {a: rows[a][w] for a in rows}, {a: grams[a][w] for a in grams},
+                             top)
+        s["next_window"] = count
+
+    def _window_steps(self, starts):
+        """Per window: its step (span / (length - 1)), and whether it is uniform."""
+        L = self.length
+        t = self.s["buf_t"]
+        tw = np.lib.stride_tricks.sliding_window_view(t, L)[starts]
+        step = (tw[:, -1] - tw[:, 0]) / (L - 1)
+        if self.config["rate"] is not None:
+            return step, np.ones(len(starts), bool), tw
+        grid = tw[:, :1] + step[:, None] * np.arange(L)
+        uniform = np.max(np.abs(tw - grid), axis=1) <= UNIFORM_TOLERANCE * step
+        return step, uniform, tw
+
+    def _rows(self, starts, a):
+        s = self.s
+        L = self.length
+        step, uniform, tw = self._window_steps(starts)
+        integrals = []
+        for i, term in enumerate(self.model.terms):
+            k = term.derivative
+            if i in self._sign_terms:
+                w = np.empty(len(starts))
+                times, sizes = s[f"steps_t:{i}"], s[f"steps_s:{i}"]
+                v = s[f"fac:{i}"]
+                for j, st in enumerate(starts):   # one window at a time: any chunking
+                    inside = (times > tw[j, 0]) & (times < tw[j, -1])
+                    before = np.sign(v[st])
+                    w[j] = step_window_integrals(tw[j], before, times[inside], sizes[inside],
+                                                 L, a, k)[0]
+                integrals.append(w)
+                continue
+            zw = np.lib.stride_tricks.sliding_window_view(s[f"fac:{i}"], L)[starts]
+            w = np.einsum("ij,j->i", zw, self._unit_weights[(a, k)]) / step ** k
+            for j in np.flatnonzero(~uniform):
+                w[j] = float(window_sample_weights(tw[j], None, L, a, k)[0] @ zw[j])
+            integrals.append(w)
+        return np.column_stack(term_rows(self.model, integrals, [0] * len(self.model.terms),
+                                         len(starts)))
+
+    def _grams(self, starts, a):
+        """Per window, the covariance unit white output noise puts into ``[A | b]``."""
+        s = self.s
+        p = len(self.parameters)
+        L = self.length
+        index = {q: i for i, q in enumerate(self.parameters)}
+        grams = np.zeros((len(starts), p + 1, p + 1))
+        noisy = []
+        for i in self._noisy:
+            term = self.model.terms[i]
+            column = p if term.parameter is None else index[term.parameter]
+            sign = -1.0 if term.parameter is None else 1.0
+            noisy.append((column, sign * term.coefficient, term.derivative, i))
+        if not noisy:
+            return grams
+        step, uniform, tw = self._window_steps(starts)
+        for x, (c1, w1, k1, i1) in enumerate(noisy):
+            for c2, w2, k2, i2 in noisy[x:]:
+                product = s[f"sen:{i1}"] * s[f"sen:{i2}"]
+                pw = np.lib.stride_tricks.sliding_window_view(product, L)[starts]
+                g = self._unit_weights[(a, k1)] * self._unit_weights[(a, k2)]
+                v = np.einsum("ij,j->i", pw, g) * step ** -(k1 + k2) * (w1 * w2)
+                for j in np.flatnonzero(~uniform):
+                    g = window_sample_weights(tw[j], None, L, a, k1) \
+                        * window_sample_weights(tw[j], None, L, a, k2)
+                    v[j] = float(g[0] @ pw[j]) * (w1 * w2)
+                grams[:, c1, c2] += v
+                if (c1, k1, i1) != (c2, k2, i2):
+                    grams[:, c2, c1] += v
+        return grams
+
+    def _accumulate(self, index, end, start, rows, grams, top):
+        """Add one window to the sums (forgetting the old ones), and report."""
+        s = self.s
+        half_life = self.config["half_life"]
+        decay = 1.0
+        if half_life is not None and np.isfinite(s["last_end"]):
+            decay = 2.0 ** (-(end - s["last_end"]) / half_life)
+        s["last_end"] = end
+        self._noise_bound(start, decay)
+        for a in self.multiplicities:
+            stacked = np.vstack([math.sqrt(decay) * s[f"R{a}"], rows[a][None, :]])
+            s[f"R{a}"] = np.linalg.qr(stacked, mode="r")
+            s[f"G{a}"] = decay * s[f"G{a}"] + grams[a]
+        row = rows[top]
+        p = len(self.parameters)
+        decay2 = decay * decay
+        s["W1"] = decay * s["W1"] + 1.0
+        s["W2"] = decay2 * s["W2"] + 1.0
+        # the scores' products: a_j r_j = -(a_j [A|b]_j^T) theta_bar, lag by lag
+        score = np.outer(row[:p], row).reshape(-1)
+        U = s["U"]
+        U *= decay2
+        U[0] += np.outer(score, score)
+        count = int(s["ring_count"])
+        lags = len(s["ring_times"])
+        if count:
+            back = np.arange(1, min(count, lags) + 1)
+            slots = (count - back) % lags
+            weights = np.ones(len(back)) if half_life is None else \
+                2.0 ** (-(end - s["ring_times"][slots]) / half_life)
+            U[back] += (weights[:, None] * s["ring_rows"][slots])[:, :, None] * score
+        s["ring_rows"][count % lags] = score
+        s["ring_times"][count % lags] = end
+        s["ring_count"] = count + 1
+        tested = index % self.overlap == 0
+        every = self.config["every"]
+        report = every is None or np.floor(end / every) > np.floor(s["last_report"] / every)
+        if tested or report:
+            self._estimate(index, end, row, tested, report)
+
+    def _noise_bound(self, start, decay):
+        """Squared differences of the output up to the window's end (identify's bound)."""
+        s = self.s
+        end = start + self.length + s["seg_first"]   # in the segment's samples
+        lo = max(s["bound_upto"], 0)
+        y = s[f"buf:{self.model.output}"]
+        s["bound_sums"] *= decay
+        s["bound_counts"] *= decay
+        first = max(lo, 8)
+        if end > first:   # differences of orders 1..8 ending at the new samples
+            block = np.lib.stride_tricks.sliding_window_view(
+                y[first - 8 - s["seg_first"]:end - s["seg_first"]], 9)
+            d = block @ self._differences
+            s["bound_sums"] += np.einsum("ij,ij->j", d, d)
+            s["bound_counts"] += len(d)
+        s["bound_upto"] = max(end, s["bound_upto"])
+
+    def _bound(self):
+        s = self.s
+        counts = s["bound_counts"]
+        use = counts > 0
+        if not np.any(use):
+            return np.inf
+        ratios = s["bound_sums"][use] / counts[use] / np.array(
+            [math.comb(2 * k, k) for k in range(1, 9)])[use]
+        return float(np.min(ratios))
+
+    def _estimate(self, index, end, row, tested, report):
+        s = self.s
+        p = len(self.parameters)
+        method = self.config["method"]
+        bound = self._bound()
+        top = max(self.multiplicities)
+        theta = np.full(p, np.nan)
+        stderr = np.full(p, np.nan)
+        error = np.full(p, np.nan)
+        n_eff = s["W1"] ** 2 / s["W2"] / self.overlap
+        kappa = np.nan
+        solved = self._solve_top(bound, method, top) if n_eff >= self.needed else None
+        if solved is not None:
+            theta, stderr, kappa = solved
+        if solved is not None and report:
+            low = _solve(s[f"R{min(self.multiplicities)}"], s[f"G{min(self.multiplicities)}"],
+                         bound, method)
+            if low is not None:
+                error = np.abs(theta - low[0])
+        if tested:
+            self._test(end, row, theta, kappa, n_eff)
+        if report:
+            s["last_report"] = end
+            self._out["t"].append(end)
+            self._out["values"].append(theta)
+            self._out["stderr"].append(stderr)
+            self._out["error"].append(error)
+
+    def _solve_top(self, bound, method, top):
+        s = self.s
+        solved = _solve(s[f"R{top}"], s[f"G{top}"], bound, method)
+        if solved is None:
+            return None
+        theta, phi, full, jacobian, mapping = solved
+        p = len(phi)
+        bar = np.append(theta, -1.0)             # in the units of the rows
+        U = s["U"].reshape(len(s["U"]), p, p + 1, p, p + 1)
+        lagged = np.einsum("lacbd,c,d->lab", U, bar, bar)
+        hac = lagged[0] + np.einsum("l,lab->ab", self.lag_weights[1:],
+                                    lagged[1:] + lagged[1:].transpose(0, 2, 1))
+        # centred: the scores' mean (the bias correction's share) is no scatter
+        mean = -(s[f"R{top}"].T @ (s[f"R{top}"] @ bar))[:p] / s["W1"]
+        hac -= (2.0 * self.lag_weights.sum() - 1.0) * s["W2"] * np.outer(mean, mean)
+        scale = full[:p, :p] * full[p, p]        # raw scores -> the basis
+        middle = scale.T @ hac @ scale
+        inverse = np.linalg.inv(jacobian)
+        # degrees of freedom: the non-overlapping windows (as counted by the weights)
+        independent = s["W1"] ** 2 / s["W2"] / self.overlap
+        covariance = mapping @ sandwich(inverse, middle) @ mapping.T \
+            * (independent / max(independent - p, 1.0))
+        long_run = float(np.trace(hac) / max(np.trace(lagged[0]), 1e-300))
+        return theta, np.sqrt(np.maximum(np.diag(covariance), 0.0)), long_run
+
+    def _test(self, end, row, theta, kappa, n_eff):
+        """The CUSUM step of a window that shares no sample with the last tested one."""
+        s = self.s
+        p = len(self.parameters)
+        previous = s["previous_test"]
+        if np.all(np.isfinite(previous)):
+            bar = np.append(previous[:p], -1.0)
+            R = s[f"R{max(self.multiplicities)}"]
+            innovation = float(row @ bar)
+            variance = previous[p] * (1.0 + p * previous[p + 1])
+            if variance > 0:
+                increment = min(innovation ** 2 / variance, INCREMENT_CAP)
+                s["cusum"] = max(0.0, s["cusum"] + increment - self.k_cusum)
+                if s["cusum"] > self.h_cusum:
+                    s["cusum"] = 0.0
+                    s["alarms"] += 1
+                    self._out["alarms"].append(end)
+            del R
+        if np.all(np.isfinite(theta)):
+            bar = np.append(theta, -1.0)
+            R = s[f"R{max(self.multiplicities)}"]
+            residual = float(np.sum((R @ bar) ** 2)) / s["W1"]
+            s["previous_test"] = np.concatenate([theta, [residual, kappa / max(n_eff, 1e-300)
+                                                         / self.overlap]])
+        else:
+            s["previous_test"] = np.full(p + 2, np.nan)

@@ -1,0 +1,108 @@
+"""algid.Tracker: identify's window equations on a stream."""
+
+import numpy as np
+import pytest
+from benchmarks.synthetic_records import LINEAR_EQUATION, linear_gaps, linear_offsets
+
+import algid
+from algid.errors import InputDataError
+from algid.identification._tracker import Tracker
+
+EQUATION, NAMES = LINEAR_EQUATION
+PARAMETERS = NAMES.split()
+WINDOW = 0.1875   # identify's choice on the linear record (16 samples at 80 Hz)
+
+
+def stream(tracker, record, sizes):
+    """Feed ``record`` in chunks of the given sizes (cycled); concatenate the outputs."""
+    n = len(next(iter(record.values())))
+    outputs, start, k = [], 0, 0
+    while start < n:
+        size = sizes[k % len(sizes)]
+        outputs.append(tracker.update({c: v[start:start + size] for c, v in record.items()}))
+        start, k = start + size, k + 1
+    return {key: np.concatenate([getattr(o, key) for o in outputs])
+            for key in ("t", "values", "stderr", "numerical_error", "alarms")}
+
+
+def test_last_estimate_equals_identify_without_forgetting():
+    record, truth = linear_offsets(0, n=1500)
+    out = stream(Tracker(EQUATION, PARAMETERS, time="t", window=WINDOW), record, [1000])
+    reference = algid.identify(record, EQUATION, PARAMETERS, window=WINDOW)
+    expected = np.array([reference.values[p] for p in PARAMETERS])
+    assert np.max(np.abs(out["values"][-1] / expected - 1)) < 1e-9
+    truth = np.array([truth[p] for p in PARAMETERS])
+    assert np.all(np.abs(out["values"][-1] - truth) < 3 * out["stderr"][-1])
+    # the numerical error is that of identify: the two multiplicities' difference
+    numerical = np.array([reference.numerical_error[p] for p in PARAMETERS])
+    np.testing.assert_allclose(out["numerical_error"][-1], numerical, rtol=1e-6)
+
+
+def test_gaps_as_identify():
+    record, _ = linear_gaps(1, n=1500)
+    out = stream(Tracker(EQUATION, PARAMETERS, time="t", window=WINDOW), record, [333])
+    reference = algid.identify(record, EQUATION, PARAMETERS, window=WINDOW)
+    expected = np.array([reference.values[p] for p in PARAMETERS])
+    assert np.max(np.abs(out["values"][-1] / expected - 1)) < 1e-9
+
+
+def test_same_output_whatever_the_chunking():
+    record, _ = linear_offsets(2, n=700)
+    outputs = [stream(Tracker(EQUATION, PARAMETERS, rate=80.0, window=WINDOW, half_life=2.0),
+                      {k: v for k, v in record.items() if k != "t"}, sizes)
+               for sizes in ([1000], [1], [7], [3, 50, 1, 400])]
+    assert np.isfinite(outputs[0]["values"][-1]).all()
+    for other in outputs[1:]:
+        for key, value in outputs[0].items():
+            assert np.array_equal(value, other[key], equal_nan=True), key
+
+
+def test_save_and_load_continue_bit_for_bit(tmp_path):
+    record, _ = linear_offsets(3, n=700)
+    whole = stream(Tracker(EQUATION, PARAMETERS, time="t", window=WINDOW, half_life=1.0),
+                   record, [100])
+    tracker = Tracker(EQUATION, PARAMETERS, time="t", window=WINDOW, half_life=1.0)
+    first = stream(tracker, {k: v[:333] for k, v in record.items()}, [100])
+    tracker.save(tmp_path / "state.npz")
+    restored = Tracker.load(tmp_path / "state.npz")
+    second = stream(restored, {k: v[333:] for k, v in record.items()}, [67])
+    for key in ("t", "values", "stderr"):
+        joined = np.concatenate([first[key], second[key]])
+        assert np.array_equal(joined, whole[key], equal_nan=True), key
+    with pytest.raises(InputDataError, match="not a saved tracker"):
+        Tracker.load(tmp_path / "missing.npz")
+
+
+def test_window_chosen_on_the_warmup_and_state_bounded():
+    record, truth = linear_offsets(4, n=4000)
+    tracker = Tracker(EQUATION, PARAMETERS, time="t", warmup=10.0, half_life=5.0)
+    sizes = []
+    for start in range(0, 4000, 100):
+        tracker.update({k: v[start:start + 100] for k, v in record.items()})
+        sizes.append(tracker.state_size())
+    assert tracker.window == pytest.approx(algid.identify(
+        {k: v[:801] for k, v in record.items()}, EQUATION, PARAMETERS).window)
+    # nothing grows with the stream once the window is chosen
+    assert max(sizes[20:]) <= max(sizes[8:20])
+
+
+def test_estimates_nan_until_determined():
+    record, _ = linear_offsets(0, n=400)
+    out = Tracker(EQUATION, PARAMETERS, time="t", window=WINDOW).update(record)
+    assert np.isnan(out.values[0]).all()
+    assert np.isfinite(out.values[-1]).all()
+
+
+@pytest.mark.parametrize("kwargs, chunk, message", [
+    ({"method": "iv"}, None, "method must be 'bc' or 'ls'"),
+    ({"half_life": -1.0}, None, "half_life must be a positive"),
+    ({}, {"y": [1.0, 2.0]}, "no column 'u'"),
+    ({}, {"y": [1.0, 2.0], "u": [1.0]}, "different lengths"),
+    ({"time": "t"}, {"y": [1.0, 2.0], "u": [1.0, 2.0], "t": [0.0, 0.0]}, "does not increase"),
+])
+def test_bad_input_one_line(kwargs, chunk, message):
+    with pytest.raises(InputDataError, match=message) as info:
+        tracker = Tracker(EQUATION, PARAMETERS, **({"rate": 80.0} | kwargs
+                                                   if "time" not in kwargs else kwargs))
+        tracker.update(chunk)
+    assert "\n" not in str(info.value)

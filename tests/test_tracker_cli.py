@@ -1,0 +1,90 @@
+"""The ``algid track`` command line."""
+
+import json
+import os
+import pathlib
+import selectors
+import subprocess
+import sys
+
+import numpy as np
+from benchmarks.synthetic_records import linear_offsets
+
+from algid.cli import main
+from algid.identification._tracker import Tracker
+
+EQUATION, PARAMETERS = "y'' + B*y' + K*y = G*u + d", "B K G d"
+SRC = pathlib.Path(__file__).resolve().parents[1] / "src"
+
+
+def write_record(path, n=900):
+    record, _ = linear_offsets(0, n=n)
+    np.savetxt(path, np.column_stack([record["t"], record["u"], record["y"]]), delimiter=",",
+               header="t,u,y", comments="")
+    return record
+
+
+def test_file_json_equals_the_tracker(tmp_path, capsys):
+    record = write_record(tmp_path / "lin.csv")
+    code = main(["track", str(tmp_path / "lin.csv"), "--equation", EQUATION, "--parameters",
+                 PARAMETERS, "--window", "0.1875", "--half-life", "3", "--chunk", "77",
+                 "--every", "1", "--json"])
+    assert code == 0
+    payload = json.loads(capsys.readouterr().out)
+    assert set(payload) == {"t", "B", "K", "G", "d", "stderr", "alarms", "window", "half_life"}
+    expected = Tracker(EQUATION, PARAMETERS, time="t", window=0.1875, half_life=3.0,
+                       every=1.0).update(record)
+    assert payload["t"] == expected.t.tolist()
+    assert payload["K"][-1] == expected["K"][-1]
+    assert payload["stderr"]["K"][-1] == expected.stderr[-1, 1]
+    assert payload["half_life"] == 3.0 and abs(payload["window"] - 0.1875) < 1e-12
+
+
+def test_bad_input_one_line_exit_2(tmp_path, capsys):
+    write_record(tmp_path / "lin.csv", n=100)
+    for argv in (["track", str(tmp_path / "none.csv")],
+                 ["track", str(tmp_path / "lin.csv"), "--parameters", "B K G t"],
+                 ["track", str(tmp_path / "lin.csv"), "--parameters", PARAMETERS,
+                  "--window", "-1"],
+                 ["track", str(tmp_path / "lin.csv"), "--parameters", "B K G d Q"]):
+        code = main(argv[:2] + ["--equation", EQUATION] + (argv[2:] or
+                                                           ["--parameters", PARAMETERS]))
+        err = capsys.readouterr().err
+        assert code == 2
+        assert err.count("\n") == 1 and err.startswith("algid: error:")
+
+
+def test_standard_input_live(tmp_path):
+    """Reports come while the stream is still open; a malformed row is skipped."""
+    record, _ = linear_offsets(0, n=900)
+    rows = [f"{float(t)!r},{float(u)!r},{float(y)!r}\n"
+            for t, u, y in zip(record["t"], record["u"], record["y"])]
+    env = dict(os.environ, PYTHONPATH=str(SRC), OPENBLAS_NUM_THREADS="1")
+    process = subprocess.Popen(
+        [sys.executable, "-m", "algid", "track", "-", "--equation", EQUATION,
+         "--parameters", PARAMETERS, "--window", "0.1875", "--every", "1", "--json"],
+        stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+        bufsize=1, env=env)
+    try:
+        process.stdin.write("t,u,y\n" + "".join(rows[:500]) + "oops,1\n")
+        process.stdin.flush()
+        selector = selectors.DefaultSelector()
+        selector.register(process.stdout, selectors.EVENT_READ)
+        assert selector.select(timeout=60), "no report while the stream is open"
+        first = json.loads(process.stdout.readline())
+        assert set(first) == {"t", "B", "K", "G", "d", "stderr", "alarms"}
+        process.stdin.write("".join(rows[500:]))
+        process.stdin.close()
+        rest = [json.loads(line) for line in process.stdout.read().splitlines()]
+        err = process.stderr.read()
+        assert process.wait(timeout=60) == 0
+    finally:
+        process.kill()
+    assert err.count("\n") == 1 and "row 502 skipped" in err
+    # the skipped row left the state intact: the same reports as the clean stream
+    expected = Tracker(EQUATION, PARAMETERS, time="t", window=0.1875, every=1.0).update(
+        {k: np.array([float(r.split(",")[i]) for r in rows]) for i, k in
+         enumerate(("t", "u", "y"))})
+    reports = [first] + rest
+    assert [r["t"] for r in reports] == expected.t.tolist()
+    assert reports[-1]["K"] == expected["K"][-1]
