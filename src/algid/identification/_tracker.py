@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import json
 import math
+import types
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -44,6 +45,8 @@ from algid.identification._window_basis import ROUNDOFF_SEPARABILITY
 from algid.identification._window_covariance import sandwich
 from algid.identification._window_kernels import step_window_integrals, window_sample_weights
 from algid.identification._window_rule import MIN_SPARE_WINDOWS, check_multiplicities, min_length
+from algid.models._argument import estimator_module
+from algid.models._compiled import model_of
 from algid.models._expression import Call, Signal
 from algid.models._grammar import parse_equation
 from algid.models._model import Model
@@ -81,6 +84,18 @@ class TrackUpdate:
         until the parameters are determined).
     alarms : numpy.ndarray
         Times of the alarms raised in the chunk.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from algid import Tracker
+    >>> t = np.arange(2000) / 100.0
+    >>> u = np.sin(t) + np.sin(3.1 * t)
+    >>> y = (np.sin(t - np.arctan(0.5)) / np.hypot(2, 1)
+    ...      + np.sin(3.1 * t - np.arctan(1.55)) / np.hypot(2, 3.1))
+    >>> out = Tracker("y' + a*y = b*u", "a b", rate=100, window=0.5).update({"y": y, "u": u})
+    >>> len(out) == len(out.t), out.parameters, round(float(out["a"][-1]), 4)
+    (True, ('a', 'b'), 2.0)
     """
 
     parameters: tuple
@@ -157,15 +172,15 @@ def _lag_weights(overlap):
 class Tracker:
     """The streaming form of :func:`algid.identify`, with forgetting and change alarms.
 
-    See the module notes for the method, its differences with :func:`algid.identify`,
-    the standard errors and the alarms.
+    The method, its differences with :func:`algid.identify`, the standard errors and the
+    alarms: the user guide, "Tracking on a stream".
 
     Parameters
     ----------
-    equation : str or Model
-        The model, as for :func:`algid.identify`.
+    equation : str, Model or module
+        The model, as for :func:`algid.identify` (equation text, or a compiled model).
     parameters : sequence of str or str
-        The unknown parameters.
+        The unknown parameters (not needed for a Model or a compiled model).
     rate : float, optional
         Sampling rate (Hz) of a stream without a time column.
     time : str, optional
@@ -196,6 +211,7 @@ class Tracker:
     Examples
     --------
     >>> import numpy as np
+    >>> from algid import Tracker
     >>> t = np.arange(3000) / 100.0            # y' + 2 y = u, in steady state
     >>> w = np.array([1.0, 3.1])[:, None]
     >>> u = np.sin(w * t).sum(axis=0)
@@ -212,6 +228,8 @@ class Tracker:
         if method not in ("bc", "ls"):
             raise InputDataError(f"method must be 'bc' or 'ls' for a tracker, got {method!r} "
                                  f"(instrumental variables need the whole record)")
+        if isinstance(equation, types.ModuleType):  # a compiled model: its own equation
+            equation = model_of(estimator_module(equation, parameters))
         check_arguments(equation, parameters, time=time, rate=rate, output=output,
                         window=window, method=method, methods=("bc", "ls"),
                         multiplicities=(8, 12), name="custom", iterations=1)
