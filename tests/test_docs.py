@@ -100,7 +100,12 @@ def test_every_public_name_has_an_entry(site):
     documented = inventory_names(site / "objects.inv")
     table = algid_docs.public_names()
     assert "algid.estimation.estimate" in documented
-    assert not [n for n in documented if "._" in n], "internals in the reference"
+    # a class defined in a private module is also listed under its canonical (private)
+    # name: only as an alias of its public entry
+    private = re.compile(r"\._[a-z]")
+    public_tails = {n.rsplit(".", 1)[-1] for n in documented if not private.search(n)}
+    assert not [n for n in documented if private.search(n) and n.rsplit(".", 1)[-1]
+                not in public_tails], "internals in the reference"
     missing = []
     for modname, names in table.items():
         assert modname in documented, modname  # the module's own page
