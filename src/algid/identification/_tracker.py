@@ -37,13 +37,14 @@ import numpy as np
 
 from algid.errors import AlgidError, InputDataError
 from algid.identification._arguments import check_arguments, check_model_columns
-from algid.identification._bias_compensation import koopmans
+from algid.identification._bias_compensation import koopmans_stack
 from algid.identification._change_detection import INCREMENT_CAP, cusum_reference, cusum_threshold
 from algid.identification._identify import WINDOW_OVERLAP, factor_sensitivity, term_rows
 from algid.identification._records import GAP_FACTOR, TIME_COLUMNS, UNIFORM_TOLERANCE, check_rate
 from algid.identification._window_basis import ROUNDOFF_SEPARABILITY
-from algid.identification._window_covariance import sandwich
+from algid.identification._window_covariance import sandwich_stack
 from algid.identification._window_kernels import step_window_integrals, window_sample_weights
+from algid.identification._tracker_kernels import kernels
 from algid.identification._window_rule import MIN_SPARE_WINDOWS, check_multiplicities, min_length
 from algid.models._argument import estimator_module
 from algid.models._compiled import model_of
@@ -67,7 +68,7 @@ DERIVATIVE_STEPS = 20
 #: Steps seen before the sampling step of a time column is fixed (their median).
 STEP_SAMPLES = 16
 
-_FORMAT = "algid.Tracker/1"
+_FORMAT = "algid.Tracker/2"
 
 
 @dataclass
@@ -127,40 +128,51 @@ def _exponent(x):
     return np.where(x > 0, np.frexp(np.where(x > 0, x, 1.0))[1] - 1, 0)
 
 
-def _solve(R, G, bound, method):
-    """identify's solve on the accumulated factor ``R`` of ``[A | b]`` and noise sum ``G``.
+def _solve_stack(R, G, bound, method):
+    """identify's solve on accumulated factors ``R`` of ``[A | b]`` and noise sums ``G``
+    (a stack, one batched call per step).
 
-    Returns the estimate, the basis quantities the covariance needs, or None where the
-    equations do not determine the parameters.
+    Returns the estimates, the basis quantities the covariance needs and ``ok``, False
+    where the equations do not determine the parameters.
     """
-    p = R.shape[0] - 1
-    norms = np.linalg.norm(R, axis=0)
-    if not np.all(norms[:p] > 0):
-        return None
+    k, q1, _ = R.shape
+    p = q1 - 1
+    norms = np.sqrt(np.sum(R * R, axis=1))
+    ok = np.all(norms[:, :p] > 0, axis=1)
     shifts = _exponent(norms) + 1             # the column scaling of WindowBasis
-    Rs = np.ldexp(R, -shifts)
-    unit = Rs[:, :p] / np.linalg.norm(Rs[:, :p], axis=0)
-    if np.linalg.svd(unit, compute_uv=False)[-1] < ROUNDOFF_SEPARABILITY:
-        return None
-    inverse = np.linalg.inv(Rs[:p, :p])
-    c = Rs[:p, p]
-    normal = np.eye(p + 1)
-    normal[:p, p] = normal[p, :p] = c
-    normal[p, p] = float(Rs[:, p] @ Rs[:, p])
-    full = np.zeros((p + 1, p + 1))          # [A | b] -> the orthonormal basis
-    full[:p, :p] = np.ldexp(inverse, -shifts[:p, None])
-    full[p, p] = np.ldexp(1.0, -int(shifts[p]))
-    noise = full.T @ G @ full
-    variance = None
-    if method == "bc":
-        theta_bar, variance, _ = koopmans(normal, noise, bound)
-    if variance is None:
-        phi = c.copy()
-    else:
-        phi = theta_bar[:p]
-    jacobian = np.eye(p) - (variance or 0.0) * noise[:p, :p]
-    mapping = np.ldexp(inverse, (shifts[p] - shifts[:p])[:, None])
-    return mapping @ phi, phi, full, jacobian, mapping
+    Rs = np.ldexp(R, -shifts[:, None, :])
+    with np.errstate(divide="ignore", invalid="ignore"):
+        unit = Rs[:, :, :p] / np.sqrt(np.sum(Rs[:, :, :p] ** 2, axis=1))[:, None, :]
+    unit[~ok] = np.eye(q1, p)
+    ok &= np.linalg.svd(unit, compute_uv=False)[:, -1] >= ROUNDOFF_SEPARABILITY
+    square = np.where(ok[:, None, None], Rs[:, :p, :p], np.eye(p))
+    inverse = np.linalg.inv(square)
+    c = Rs[:, :p, p]
+    normal = np.broadcast_to(np.eye(q1), (k, q1, q1)).copy()
+    normal[:, :p, p] = normal[:, p, :p] = c
+    normal[:, p, p] = np.sum(Rs[:, :, p] ** 2, axis=1)
+    full = np.zeros((k, q1, q1))          # [A | b] -> the orthonormal basis
+    full[:, :p, :p] = np.ldexp(inverse, -shifts[:, :p, None])
+    full[:, p, p] = np.ldexp(1.0, -shifts[:, p])
+    noise = np.swapaxes(full, 1, 2) @ G @ full
+    variance = np.full(k, np.nan)
+    phi = c.copy()
+    if method == "bc" and np.any(ok):
+        theta_bar, variance = koopmans_stack(normal[ok], noise[ok], bound[ok])
+        corrected = np.isfinite(variance)
+        rows = np.flatnonzero(ok)[corrected]
+        phi[rows] = theta_bar[corrected, :p]
+        variance = np.where(ok, _scatter(variance, ok, k), np.nan)
+    jacobian = np.eye(p) - np.nan_to_num(variance)[:, None, None] * noise[:, :p, :p]
+    mapping = np.ldexp(inverse, (shifts[:, p:] - shifts[:, :p])[:, :, None])
+    theta = (mapping @ phi[:, :, None])[:, :, 0]
+    return {"ok": ok, "theta": theta, "full": full, "jacobian": jacobian, "mapping": mapping}
+
+
+def _scatter(values, mask, size):
+    out = np.full(size, np.nan)
+    out[mask] = values
+    return out
 
 
 def _lag_weights(overlap):
@@ -496,11 +508,10 @@ class Tracker:
         self.h_cusum = cusum_threshold(
             max(2.0, 1.0 / (self.config["false_alarm_rate"] * test_interval)), self.k_cusum)
         self.needed = len(self.parameters) + MIN_SPARE_WINDOWS
-        # k-th differences as dot products with the last k + 1 of 9 samples
-        self._differences = np.zeros((9, 8))
-        for k in range(1, 9):
-            self._differences[8 - k:, k - 1] = [(-1) ** (k - j) * math.comb(k, j)
-                                                for j in range(k + 1)]
+        # the variance of k-th differences of white noise, per unit variance
+        self._central = np.array([math.comb(2 * k, k) for k in range(1, 9)], dtype=float)
+        self._half_life = np.inf if self.config["half_life"] is None \
+            else float(self.config["half_life"])
         self._unit_weights = {(a, term.derivative): window_sample_weights(
             None, 1.0, length, a, term.derivative)
             for a in self.multiplicities for term in self.model.terms}
@@ -516,12 +527,11 @@ class Tracker:
         p = len(self.parameters)
         lags = 2 * self.overlap
         s = self.s
-        for a in self.multiplicities:
-            s[f"R{a}"] = np.zeros((p + 1, p + 1))
-            s[f"G{a}"] = np.zeros((p + 1, p + 1))
+        m = len(self.multiplicities)
         q = p * (p + 1)
-        s.update(U=np.zeros((lags + 1, q, q)), W1=0.0, W2=0.0,
-                 bound_sums=np.zeros(8), bound_counts=np.zeros(8), last_end=np.nan,
+        s.update(R=np.zeros((m, p + 1, p + 1)), G=np.zeros((m, p + 1, p + 1)),
+                 U=np.zeros((lags + 1, q, q)), W=np.zeros(2), bound=np.zeros((2, 8)),
+                 last_end=np.nan,
                  cusum=0.0, previous_test=np.full(p + 2, np.nan), last_report=-np.inf,
                  ring_rows=np.zeros((lags, q)), ring_times=np.zeros(lags), ring_count=0,
                  row_time=-np.inf, row_valid=True)
@@ -683,15 +693,150 @@ class Tracker:
         if count <= first_window:
             return
         starts = np.arange(first_window, count) * stride - s["seg_first"]
-        rows = {a: self._rows(starts, a) for a in self.multiplicities}
-        top = max(self.multiplicities)
-        grams = {a: self._grams(starts, a) for a in self.multiplicities}
+        n = len(starts)
+        rows = np.stack([self._rows(starts, a) for a in self.multiplicities])
+        grams = np.stack([self._grams(starts, a) for a in self.multiplicities])
         ends = s["buf_t"][starts + L - 1]
-        for w in range(len(starts)):
-            self._accumulate(first_window + w, ends[w], starts[w],
-                             {a: rows[a][w] for a in rows}, {a: grams[a][w] for a in grams},
-                             top)
+        squares, ranges = self._bound_squares(starts)
+        m, q1 = len(self.multiplicities), len(self.parameters) + 1
+        sums = {"R": np.empty((n, m, q1, q1)), "G": np.empty((n, m, q1, q1)),
+                "W": np.empty((n, 2)), "bound": np.empty((n, 2, 8)), "decay": np.empty(n)}
+        window_sums, window_scores = kernels()
+        window_sums(rows, grams, ends, float(s["last_end"]), self._half_life, squares, ranges,
+                    s["R"], s["G"], s["W"], s["bound"], sums["R"], sums["G"], sums["W"],
+                    sums["bound"], sums["decay"])
+        s["last_end"] = float(ends[-1])
+        indices = first_window + np.arange(n)
+        tested = indices % self.overlap == 0
+        every = self.config["every"]
+        if every is None:
+            report = np.ones(n, bool)
+        else:   # a window end that crosses a multiple of ``every`` since the last report
+            crossed = np.floor(ends / every)
+            report = crossed > np.concatenate([[np.floor(s["last_report"] / every)],
+                                               crossed[:-1]])
+        n_eff = sums["W"][:, 0] ** 2 / sums["W"][:, 1] / self.overlap
+        wanted = (tested | report) & (n_eff >= self.needed)
+        bounds = self._bounds(sums["bound"])
+        top = self.multiplicities.index(max(self.multiplicities))
+        low = self.multiplicities.index(min(self.multiplicities))
+        p = q1 - 1
+        theta = np.full((n, p), np.nan)
+        full, jacobian, mapping = (np.full((n, q1, q1), np.nan), np.full((n, p, p), np.nan),
+                                   np.full((n, p, p), np.nan))
+        where = np.flatnonzero(wanted)
+        if where.size:
+            solved = _solve_stack(sums["R"][where, top], sums["G"][where, top],
+                                  bounds[where], self.config["method"])
+            ok = where[solved["ok"]]
+            theta[ok] = solved["theta"][solved["ok"]]
+            for key, array in (("full", full), ("jacobian", jacobian), ("mapping", mapping)):
+                array[ok] = solved[key][solved["ok"]]
+        bars = np.concatenate([theta, -np.ones((n, 1))], axis=1)
+        hac, trace = np.zeros((n, p, p)), np.zeros(n)
+        ring = np.array([s["ring_count"]], dtype=np.int64)
+        window_scores(np.ascontiguousarray(rows[top]), ends, sums["decay"], self._half_life,
+                      bars, self.lag_weights, s["U"], s["ring_rows"], s["ring_times"], ring,
+                      hac, trace)
+        s["ring_count"] = int(ring[0])
+        solved = np.flatnonzero(np.isfinite(theta[:, 0]))
+        stderr = np.full((n, p), np.nan)
+        kappa = np.full(n, np.nan)
+        if solved.size:
+            stderr[solved], kappa[solved] = self._stderr(
+                sums["R"][solved, top], sums["W"][solved], bars[solved], hac[solved],
+                trace[solved], full[solved], jacobian[solved], mapping[solved])
+        error = np.full((n, p), np.nan)
+        check = np.flatnonzero(report & np.isfinite(theta[:, 0]))
+        if check.size:
+            lower = _solve_stack(sums["R"][check, low], sums["G"][check, low], bounds[check],
+                                 self.config["method"])
+            error[check[lower["ok"]]] = np.abs(theta[check[lower["ok"]]]
+                                               - lower["theta"][lower["ok"]])
+        residual = np.full(n, np.nan)
+        if solved.size:
+            R = sums["R"][solved, top]
+            residual[solved] = np.sum((R @ bars[solved, :, None])[:, :, 0] ** 2, axis=1) \
+                / sums["W"][solved, 0]
+        for w in np.flatnonzero(tested):
+            self._test(ends[w], rows[top, w], theta[w], residual[w], kappa[w], n_eff[w])
+        if np.any(report):
+            s["last_report"] = float(ends[report][-1])
+        self._out["t"].extend(ends[report].tolist())
+        self._out["values"].extend(theta[report])
+        self._out["stderr"].extend(stderr[report])
+        self._out["error"].extend(error[report])
         s["next_window"] = count
+
+    def _bound_squares(self, starts):
+        """Squared output differences (orders 1 to 8) at the samples the windows add to
+        the noise bound (identify's), and each window's range of them."""
+        s = self.s
+        ends = starts + self.length + s["seg_first"]   # in the segment's samples
+        upto = np.maximum.accumulate(np.concatenate([[max(s["bound_upto"], 0)], ends]))
+        first = np.maximum(upto[:-1], 8)
+        lo = int(first[0])
+        hi = max(int(ends[-1]), lo)
+        s["bound_upto"] = int(upto[-1])
+        ranges = np.stack([np.minimum(first, np.maximum(ends, first)) - lo,
+                           np.maximum(ends, first) - lo], axis=1).astype(np.int64)
+        y = s[f"buf:{self.model.output}"]
+        base = lo - 8 - s["seg_first"]
+        squares = np.zeros((hi - lo, 8))
+        if hi > lo:
+            for k in range(1, 9):   # elementwise, in a fixed order: any chunking
+                d = np.zeros(hi - lo)
+                for j in range(k + 1):
+                    d = d + ((-1) ** (k - j) * math.comb(k, j)) \
+                        * y[base + 8 - k + j:base + 8 - k + j + hi - lo]
+                squares[:, k - 1] = d * d
+        return squares, ranges
+
+    def _bounds(self, sums):
+        """identify's bound on the output noise variance, per window (from its sums)."""
+        counts = sums[:, 1]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            ratios = np.where(counts > 0, sums[:, 0] / counts / self._central, np.inf)
+        return np.min(ratios, axis=1)
+
+    def _stderr(self, R, W, bars, hac, trace, full, jacobian, mapping):
+        """Standard errors and long-run variance factors of solved windows (stacked)."""
+        p = hac.shape[1]
+        # centred: the scores' mean (the bias correction's share) is no scatter
+        mean = -(np.swapaxes(R, 1, 2) @ (R @ bars[:, :, None]))[:, :p, 0] / W[:, :1]
+        hac = hac - ((2.0 * self.lag_weights.sum() - 1.0) * W[:, 1])[:, None, None] \
+            * (mean[:, :, None] * mean[:, None, :])
+        scale = full[:, :p, :p] * full[:, p:, p:]        # raw scores -> the basis
+        middle = np.swapaxes(scale, 1, 2) @ hac @ scale
+        # degrees of freedom: the non-overlapping windows (as counted by the weights)
+        independent = W[:, 0] ** 2 / W[:, 1] / self.overlap
+        covariance = mapping @ sandwich_stack(np.linalg.inv(jacobian), middle) \
+            @ np.swapaxes(mapping, 1, 2)
+        covariance *= (independent / np.maximum(independent - p, 1.0))[:, None, None]
+        variances = np.maximum(np.einsum("kii->ki", covariance), 0.0)
+        long_run = np.einsum("kii->k", hac) / np.maximum(trace, 1e-300)
+        return np.sqrt(variances), long_run
+
+    def _test(self, end, row, theta, residual, kappa, n_eff):
+        """The CUSUM step of a window that shares no sample with the last tested one."""
+        s = self.s
+        p = len(self.parameters)
+        previous = s["previous_test"]
+        if np.all(np.isfinite(previous)):
+            innovation = float(row @ np.append(previous[:p], -1.0))
+            variance = previous[p] * (1.0 + p * previous[p + 1])
+            if variance > 0:
+                increment = min(innovation ** 2 / variance, INCREMENT_CAP)
+                s["cusum"] = max(0.0, s["cusum"] + increment - self.k_cusum)
+                if s["cusum"] > self.h_cusum:
+                    s["cusum"] = 0.0
+                    s["alarms"] += 1
+                    self._out["alarms"].append(float(end))
+        if np.all(np.isfinite(theta)):
+            s["previous_test"] = np.concatenate([theta, [residual, kappa / max(n_eff, 1e-300)
+                                                         / self.overlap]])
+        else:
+            s["previous_test"] = np.full(p + 2, np.nan)
 
     def _window_steps(self, starts):
         """Per window: its step (span / (length - 1)), and whether it is uniform."""
@@ -712,16 +857,11 @@ class Tracker:
         integrals = []
         for i, term in enumerate(self.model.terms):
             k = term.derivative
-            if i in self._sign_terms:
-                w = np.empty(len(starts))
-                times, sizes = s[f"steps_t:{i}"], s[f"steps_s:{i}"]
-                v = s[f"fac:{i}"]
-                for j, st in enumerate(starts):   # one window at a time: any chunking
-                    inside = (times > tw[j, 0]) & (times < tw[j, -1])
-                    before = np.sign(v[st])
-                    w[j] = step_window_integrals(tw[j], before, times[inside], sizes[inside],
-                                                 L, a, k)[0]
-                integrals.append(w)
+            if i in self._sign_terms:   # each window from its own start: any chunking
+                integrals.append(step_window_integrals(
+                    s["buf_t"][starts[0]:starts[-1] + L], 0.0, s[f"steps_t:{i}"],
+                    s[f"steps_s:{i}"], L, a, k, self.stride,
+                    levels=np.sign(s[f"fac:{i}"][starts])))
                 continue
             zw = np.lib.stride_tricks.sliding_window_view(s[f"fac:{i}"], L)[starts]
             w = np.einsum("ij,j->i", zw, self._unit_weights[(a, k)]) / step ** k
@@ -761,150 +901,3 @@ class Tracker:
                 if (c1, k1, i1) != (c2, k2, i2):
                     grams[:, c2, c1] += v
         return grams
-
-    def _accumulate(self, index, end, start, rows, grams, top):
-        """Add one window to the sums (forgetting the old ones), and report."""
-        s = self.s
-        half_life = self.config["half_life"]
-        decay = 1.0
-        if half_life is not None and np.isfinite(s["last_end"]):
-            decay = 2.0 ** (-(end - s["last_end"]) / half_life)
-        s["last_end"] = end
-        self._noise_bound(start, decay)
-        for a in self.multiplicities:
-            stacked = np.vstack([math.sqrt(decay) * s[f"R{a}"], rows[a][None, :]])
-            s[f"R{a}"] = np.linalg.qr(stacked, mode="r")
-            s[f"G{a}"] = decay * s[f"G{a}"] + grams[a]
-        row = rows[top]
-        p = len(self.parameters)
-        decay2 = decay * decay
-        s["W1"] = decay * s["W1"] + 1.0
-        s["W2"] = decay2 * s["W2"] + 1.0
-        # the scores' products: a_j r_j = -(a_j [A|b]_j^T) theta_bar, lag by lag
-        score = np.outer(row[:p], row).reshape(-1)
-        U = s["U"]
-        U *= decay2
-        U[0] += np.outer(score, score)
-        count = int(s["ring_count"])
-        lags = len(s["ring_times"])
-        if count:
-            back = np.arange(1, min(count, lags) + 1)
-            slots = (count - back) % lags
-            weights = np.ones(len(back)) if half_life is None else \
-                2.0 ** (-(end - s["ring_times"][slots]) / half_life)
-            U[back] += (weights[:, None] * s["ring_rows"][slots])[:, :, None] * score
-        s["ring_rows"][count % lags] = score
-        s["ring_times"][count % lags] = end
-        s["ring_count"] = count + 1
-        tested = index % self.overlap == 0
-        every = self.config["every"]
-        report = every is None or np.floor(end / every) > np.floor(s["last_report"] / every)
-        if tested or report:
-            self._estimate(index, end, row, tested, report)
-
-    def _noise_bound(self, start, decay):
-        """Squared differences of the output up to the window's end (identify's bound)."""
-        s = self.s
-        end = start + self.length + s["seg_first"]   # in the segment's samples
-        lo = max(s["bound_upto"], 0)
-        y = s[f"buf:{self.model.output}"]
-        s["bound_sums"] *= decay
-        s["bound_counts"] *= decay
-        first = max(lo, 8)
-        if end > first:   # differences of orders 1..8 ending at the new samples
-            block = np.lib.stride_tricks.sliding_window_view(
-                y[first - 8 - s["seg_first"]:end - s["seg_first"]], 9)
-            d = block @ self._differences
-            s["bound_sums"] += np.einsum("ij,ij->j", d, d)
-            s["bound_counts"] += len(d)
-        s["bound_upto"] = max(end, s["bound_upto"])
-
-    def _bound(self):
-        s = self.s
-        counts = s["bound_counts"]
-        use = counts > 0
-        if not np.any(use):
-            return np.inf
-        ratios = s["bound_sums"][use] / counts[use] / np.array(
-            [math.comb(2 * k, k) for k in range(1, 9)])[use]
-        return float(np.min(ratios))
-
-    def _estimate(self, index, end, row, tested, report):
-        s = self.s
-        p = len(self.parameters)
-        method = self.config["method"]
-        bound = self._bound()
-        top = max(self.multiplicities)
-        theta = np.full(p, np.nan)
-        stderr = np.full(p, np.nan)
-        error = np.full(p, np.nan)
-        n_eff = s["W1"] ** 2 / s["W2"] / self.overlap
-        kappa = np.nan
-        solved = self._solve_top(bound, method, top) if n_eff >= self.needed else None
-        if solved is not None:
-            theta, stderr, kappa = solved
-        if solved is not None and report:
-            low = _solve(s[f"R{min(self.multiplicities)}"], s[f"G{min(self.multiplicities)}"],
-                         bound, method)
-            if low is not None:
-                error = np.abs(theta - low[0])
-        if tested:
-            self._test(end, row, theta, kappa, n_eff)
-        if report:
-            s["last_report"] = end
-            self._out["t"].append(end)
-            self._out["values"].append(theta)
-            self._out["stderr"].append(stderr)
-            self._out["error"].append(error)
-
-    def _solve_top(self, bound, method, top):
-        s = self.s
-        solved = _solve(s[f"R{top}"], s[f"G{top}"], bound, method)
-        if solved is None:
-            return None
-        theta, phi, full, jacobian, mapping = solved
-        p = len(phi)
-        bar = np.append(theta, -1.0)             # in the units of the rows
-        U = s["U"].reshape(len(s["U"]), p, p + 1, p, p + 1)
-        lagged = np.einsum("lacbd,c,d->lab", U, bar, bar)
-        hac = lagged[0] + np.einsum("l,lab->ab", self.lag_weights[1:],
-                                    lagged[1:] + lagged[1:].transpose(0, 2, 1))
-        # centred: the scores' mean (the bias correction's share) is no scatter
-        mean = -(s[f"R{top}"].T @ (s[f"R{top}"] @ bar))[:p] / s["W1"]
-        hac -= (2.0 * self.lag_weights.sum() - 1.0) * s["W2"] * np.outer(mean, mean)
-        scale = full[:p, :p] * full[p, p]        # raw scores -> the basis
-        middle = scale.T @ hac @ scale
-        inverse = np.linalg.inv(jacobian)
-        # degrees of freedom: the non-overlapping windows (as counted by the weights)
-        independent = s["W1"] ** 2 / s["W2"] / self.overlap
-        covariance = mapping @ sandwich(inverse, middle) @ mapping.T \
-            * (independent / max(independent - p, 1.0))
-        long_run = float(np.trace(hac) / max(np.trace(lagged[0]), 1e-300))
-        return theta, np.sqrt(np.maximum(np.diag(covariance), 0.0)), long_run
-
-    def _test(self, end, row, theta, kappa, n_eff):
-        """The CUSUM step of a window that shares no sample with the last tested one."""
-        s = self.s
-        p = len(self.parameters)
-        previous = s["previous_test"]
-        if np.all(np.isfinite(previous)):
-            bar = np.append(previous[:p], -1.0)
-            R = s[f"R{max(self.multiplicities)}"]
-            innovation = float(row @ bar)
-            variance = previous[p] * (1.0 + p * previous[p + 1])
-            if variance > 0:
-                increment = min(innovation ** 2 / variance, INCREMENT_CAP)
-                s["cusum"] = max(0.0, s["cusum"] + increment - self.k_cusum)
-                if s["cusum"] > self.h_cusum:
-                    s["cusum"] = 0.0
-                    s["alarms"] += 1
-                    self._out["alarms"].append(end)
-            del R
-        if np.all(np.isfinite(theta)):
-            bar = np.append(theta, -1.0)
-            R = s[f"R{max(self.multiplicities)}"]
-            residual = float(np.sum((R @ bar) ** 2)) / s["W1"]
-            s["previous_test"] = np.concatenate([theta, [residual, kappa / max(n_eff, 1e-300)
-                                                         / self.overlap]])
-        else:
-            s["previous_test"] = np.full(p + 2, np.nan)
