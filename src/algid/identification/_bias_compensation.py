@@ -161,15 +161,22 @@ def koopmans_stack(normal, noise, bound):
             & (1.0 / top <= bound)
         theta_bar[eigen] = -v[eigen] / v[eigen, -1:]
         variance[eigen] = 1.0 / top[eigen]
-    capped = eligible & ~eigen & (top > 0) & np.isfinite(bound)
-    for i in np.flatnonzero(capped):   # rare: the eigenvalue exceeds the bound
-        H = normal[i, :p, :p] - bound[i] * noise[i, :p, :p]
-        g = normal[i, :p, p] - bound[i] * noise[i, :p, p]
-        try:
-            theta_bar[i] = np.append(solve_equilibrated(H, g), -1.0)
-            variance[i] = bound[i]
-        except np.linalg.LinAlgError:
-            pass
+    capped = np.flatnonzero(eligible & ~eigen & (top > 0) & np.isfinite(bound))
+    if capped.size:   # the eigenvalue exceeds the bound: the correction of the bound
+        cap = bound[capped, None, None]
+        H = normal[capped, :p, :p] - cap * noise[capped, :p, :p]
+        g = normal[capped, :p, p] - cap[:, :, 0] * noise[capped, :p, p]
+        d = np.sqrt(np.abs(np.einsum("kii->ki", H)))
+        d[d == 0] = 1.0
+        H = H / d[:, :, None] / d[:, None, :]
+        solvable = np.isfinite(H).all(axis=(1, 2)) \
+            & (np.linalg.svd(np.where(np.isfinite(H), H, 0.0), compute_uv=False)[:, -1] > 0)
+        H[~solvable] = np.eye(p)
+        theta = np.linalg.solve(H, (g / d)[:, :, None])[:, :, 0] / d
+        keep = capped[solvable]
+        theta_bar[keep, :p] = theta[solvable]
+        theta_bar[keep, p] = -1.0
+        variance[keep] = bound[keep]
     return theta_bar, variance
 
 
