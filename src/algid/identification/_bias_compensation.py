@@ -169,10 +169,18 @@ def koopmans_stack(normal, noise, bound):
         d = np.sqrt(np.abs(np.einsum("kii->ki", H)))
         d[d == 0] = 1.0
         H = H / d[:, :, None] / d[:, None, :]
-        solvable = np.isfinite(H).all(axis=(1, 2)) \
-            & (np.linalg.svd(np.where(np.isfinite(H), H, 0.0), compute_uv=False)[:, -1] > 0)
+        solvable = np.isfinite(H).all(axis=(1, 2)) & np.isfinite(g).all(axis=1)
         H[~solvable] = np.eye(p)
-        theta = np.linalg.solve(H, (g / d)[:, :, None])[:, :, 0] / d
+        rhs = np.where(solvable[:, None], g / d, 0.0)[:, :, None]
+        try:
+            theta = np.linalg.solve(H, rhs)[:, :, 0] / d
+        except np.linalg.LinAlgError:   # some singular: one at a time
+            theta = np.zeros((len(capped), p))
+            for i in range(len(capped)):
+                try:
+                    theta[i] = np.linalg.solve(H[i], rhs[i])[:, 0] / d[i]
+                except np.linalg.LinAlgError:
+                    solvable[i] = False
         keep = capped[solvable]
         theta_bar[keep, :p] = theta[solvable]
         theta_bar[keep, p] = -1.0

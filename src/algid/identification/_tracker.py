@@ -331,7 +331,7 @@ class Tracker:
                                                          columns[name]])
             self._configure()
         else:
-            self._samples(t, columns)
+            self._pending(t, columns)
         p = len(self.parameters)
         out = self._out
         shape = (len(out["t"]), p)
@@ -508,6 +508,15 @@ class Tracker:
         self.h_cusum = cusum_threshold(
             max(2.0, 1.0 / (self.config["false_alarm_rate"] * test_interval)), self.k_cusum)
         self.needed = len(self.parameters) + MIN_SPARE_WINDOWS
+        p = len(self.parameters)
+        index = {q: i for i, q in enumerate(self.parameters)}
+        self._noisy_columns = []   # (column, signed coefficient, derivative, term)
+        for i in self._noisy:
+            term = self.model.terms[i]
+            self._noisy_columns.append(
+                (p if term.parameter is None else index[term.parameter],
+                 (-1.0 if term.parameter is None else 1.0) * term.coefficient,
+                 term.derivative, i))
         # the variance of k-th differences of white noise, per unit variance
         self._central = np.array([math.comb(2 * k, k) for k in range(1, 9)], dtype=float)
         self._half_life = np.inf if self.config["half_life"] is None \
@@ -535,6 +544,7 @@ class Tracker:
                  cusum=0.0, previous_test=np.full(p + 2, np.nan), last_report=-np.inf,
                  ring_rows=np.zeros((lags, q)), ring_times=np.zeros(lags), ring_count=0,
                  row_time=-np.inf, row_valid=True)
+        s.update(pend_t=np.empty(0), **{f"pend:{name}": np.empty(0) for name in self._signals})
         self._new_segment()
 
     def _new_segment(self):
@@ -554,6 +564,32 @@ class Tracker:
                 s[f"steps_s:{i}"] = np.empty(0)
 
     # ------------------------------------------------------------------ samples
+    def _pending(self, t, columns):
+        """Hold samples until they can complete a window, then process them together.
+
+        Processing does not depend on how the samples are grouped, and no window can end
+        before the segment holds ``next_window * stride + length + lag`` samples (gaps
+        only delay it): short chunks cost one append until then.
+        """
+        s = self.s
+        s["pend_t"] = np.concatenate([s["pend_t"], t])
+        for name in self._signals:
+            s[f"pend:{name}"] = np.concatenate([s[f"pend:{name}"], columns[name]])
+        needed = s["next_window"] * self.stride + self.length + self.lag
+        if self.lag:
+            needed = max(needed, DERIVATIVE_STEPS + 1)
+        if s["seg_n"] + len(s["pend_t"]) >= needed:
+            self._flush()
+
+    def _flush(self):
+        s = self.s
+        t = s["pend_t"]
+        columns = {name: s[f"pend:{name}"] for name in self._signals}
+        s["pend_t"] = np.empty(0)
+        for name in self._signals:
+            s[f"pend:{name}"] = np.empty(0)
+        self._samples(t, columns)
+
     def _samples(self, t, columns):
         """Cut the samples at gaps and NaN rows (as identify's records are cut); feed each
         run of valid rows to its segment."""
@@ -694,8 +730,7 @@ class Tracker:
             return
         starts = np.arange(first_window, count) * stride - s["seg_first"]
         n = len(starts)
-        rows = np.stack([self._rows(starts, a) for a in self.multiplicities])
-        grams = np.stack([self._grams(starts, a) for a in self.multiplicities])
+        rows, grams = self._rows_and_grams(starts)
         ends = s["buf_t"][starts + L - 1]
         squares, ranges = self._bound_squares(starts)
         m, q1 = len(self.multiplicities), len(self.parameters) + 1
@@ -780,16 +815,12 @@ class Tracker:
         s["bound_upto"] = int(upto[-1])
         ranges = np.stack([np.minimum(first, np.maximum(ends, first)) - lo,
                            np.maximum(ends, first) - lo], axis=1).astype(np.int64)
-        y = s[f"buf:{self.model.output}"]
-        base = lo - 8 - s["seg_first"]
         squares = np.zeros((hi - lo, 8))
-        if hi > lo:
-            for k in range(1, 9):   # elementwise, in a fixed order: any chunking
-                d = np.zeros(hi - lo)
-                for j in range(k + 1):
-                    d = d + ((-1) ** (k - j) * math.comb(k, j)) \
-                        * y[base + 8 - k + j:base + 8 - k + j + hi - lo]
-                squares[:, k - 1] = d * d
+        if hi > lo:   # repeated differences (as identify's), elementwise: any chunking
+            d = s[f"buf:{self.model.output}"][lo - 8 - s["seg_first"]:hi - s["seg_first"]]
+            for k in range(8):
+                d = d[1:] - d[:-1]
+                squares[:, k] = d[7 - k:] ** 2
         return squares, ranges
 
     def _bounds(self, sums):
@@ -838,54 +869,66 @@ class Tracker:
         else:
             s["previous_test"] = np.full(p + 2, np.nan)
 
-    def _window_steps(self, starts):
-        """Per window: its step (span / (length - 1)), and whether it is uniform."""
+    def _window_samples(self, starts):
+        """Per window: the indices of its samples, its step (span / (length - 1)), whether
+        it is uniform, and its times."""
         L = self.length
-        t = self.s["buf_t"]
-        tw = np.lib.stride_tricks.sliding_window_view(t, L)[starts]
+        index = starts[:, None] + np.arange(L)
+        tw = self.s["buf_t"][index]
         step = (tw[:, -1] - tw[:, 0]) / (L - 1)
         if self.config["rate"] is not None:
-            return step, np.ones(len(starts), bool), tw
+            return index, step, np.ones(len(starts), bool), tw
         grid = tw[:, :1] + step[:, None] * np.arange(L)
         uniform = np.max(np.abs(tw - grid), axis=1) <= UNIFORM_TOLERANCE * step
-        return step, uniform, tw
+        return index, step, uniform, tw
 
-    def _rows(self, starts, a):
+    def _rows_and_grams(self, starts):
+        """The window equations ``[A | b]`` (identify's kernels and ``term_rows``) and the
+        covariance unit white output noise puts into them, per multiplicity."""
         s = self.s
         L = self.length
-        step, uniform, tw = self._window_steps(starts)
-        integrals = []
+        index, step, uniform, tw = self._window_samples(starts)
+        irregular = np.flatnonzero(~uniform)
+        n, m, q1 = len(starts), len(self.multiplicities), len(self.parameters) + 1
+        integrals = [[] for _ in self.multiplicities]
         for i, term in enumerate(self.model.terms):
             k = term.derivative
             if i in self._sign_terms:   # each window from its own start: any chunking
-                integrals.append(step_window_integrals(
-                    s["buf_t"][starts[0]:starts[-1] + L], 0.0, s[f"steps_t:{i}"],
-                    s[f"steps_s:{i}"], L, a, k, self.stride,
-                    levels=np.sign(s[f"fac:{i}"][starts])))
+                levels = np.sign(s[f"fac:{i}"][starts])
+                for x, a in enumerate(self.multiplicities):
+                    integrals[x].append(step_window_integrals(
+                        s["buf_t"][starts[0]:starts[-1] + L], 0.0, s[f"steps_t:{i}"],
+                        s[f"steps_s:{i}"], L, a, k, self.stride, levels=levels))
                 continue
-            zw = np.lib.stride_tricks.sliding_window_view(s[f"fac:{i}"], L)[starts]
-            w = np.einsum("ij,j->i", zw, self._unit_weights[(a, k)]) / step ** k
-            for j in np.flatnonzero(~uniform):
-                w[j] = float(window_sample_weights(tw[j], None, L, a, k)[0] @ zw[j])
-            integrals.append(w)
-        return np.column_stack(term_rows(self.model, integrals, [0] * len(self.model.terms),
-                                         len(starts)))
-
-    def _grams(self, starts, a):
-        """Per window, the covariance unit white output noise puts into ``[A | b]``."""
-        s = self.s
-        p = len(self.parameters)
-        L = self.length
-        index = {q: i for i, q in enumerate(self.parameters)}
-        grams = np.zeros((len(starts), p + 1, p + 1))
-        noisy = []
-        for i in self._noisy:
-            term = self.model.terms[i]
-            column = p if term.parameter is None else index[term.parameter]
-            sign = -1.0 if term.parameter is None else 1.0
-            noisy.append((column, sign * term.coefficient, term.derivative, i))
-        if not noisy:
-            return grams
+            zw = s[f"fac:{i}"][index]
+            scale = step ** k
+            for x, a in enumerate(self.multiplicities):
+                w = np.einsum("ij,j->i", zw, self._unit_weights[(a, k)]) / scale
+                for j in irregular:
+                    w[j] = float(window_sample_weights(tw[j], None, L, a, k)[0] @ zw[j])
+                integrals[x].append(w)
+        rows = np.empty((m, n, q1))
+        for x in range(m):
+            A, b = term_rows(self.model, integrals[x], [0] * len(self.model.terms), n)
+            rows[x, :, :-1] = A
+            rows[x, :, -1] = b
+        grams = np.zeros((m, n, q1, q1))
+        noisy = self._noisy_columns
+        for y, (c1, w1, k1, i1) in enumerate(noisy):
+            for c2, w2, k2, i2 in noisy[y:]:
+                pw = s[f"sen:{i1}"][index] * s[f"sen:{i2}"][index]
+                scale = step ** -(k1 + k2) * (w1 * w2)
+                for x, a in enumerate(self.multiplicities):
+                    g = self._unit_weights[(a, k1)] * self._unit_weights[(a, k2)]
+                    v = np.einsum("ij,j->i", pw, g) * scale
+                    for j in irregular:
+                        g = window_sample_weights(tw[j], None, L, a, k1) \
+                            * window_sample_weights(tw[j], None, L, a, k2)
+                        v[j] = float(g[0] @ pw[j]) * (w1 * w2)
+                    grams[x, :, c1, c2] += v
+                    if (c1, k1, i1) != (c2, k2, i2):
+                        grams[x, :, c2, c1] += v
+        return rows, grams
         step, uniform, tw = self._window_steps(starts)
         for x, (c1, w1, k1, i1) in enumerate(noisy):
             for c2, w2, k2, i2 in noisy[x:]:

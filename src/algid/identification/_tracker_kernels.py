@@ -13,9 +13,11 @@ kernels); what remains sequential is the accumulation, window after window:
   standard errors).
 
 Each runs window after window in a fixed order, so the results do not depend on how
-the stream is cut into chunks.  The same Python source runs without numba (set the
-environment variable ``ALGID_TRACKER_NUMPY=1``, or :data:`USE_NUMBA` to False, to force
-it): slower, the same recurrences (not bit for bit the compiled results).
+the stream is cut into chunks.  Without numba (or with the environment variable
+``ALGID_TRACKER_NUMPY=1`` set before the import, or :data:`USE_NUMBA` set to False) the
+same :func:`window_sums` runs as Python, and :func:`window_scores_numpy` does the work of
+:func:`window_scores` in operations on whole matrices: slower, the same recurrences, not
+bit for bit the compiled results.
 """
 
 from __future__ import annotations
@@ -26,7 +28,7 @@ from functools import cache
 
 import numpy as np
 
-__all__ = ["USE_NUMBA", "window_sums", "window_scores", "kernels"]
+__all__ = ["USE_NUMBA", "window_sums", "window_scores", "window_scores_numpy", "kernels"]
 
 
 def _numba_available():
@@ -160,37 +162,87 @@ def window_scores(rows, ends, decays, half_life, bars, lag_weights, U, ring_rows
     p = q1 - 1
     q = p * q1
     lags = ring_rows.shape[0]
+    score = np.empty(q)
     contracted = np.empty((lags + 1, p, p))
     for w in range(n):
-        score = np.outer(rows[w, :p], rows[w]).reshape(q)
+        for i in range(p):
+            for j in range(q1):
+                score[i * q1 + j] = rows[w, i] * rows[w, j]
         decay2 = decays[w] * decays[w]
         used = min(count[0], lags)
-        U[0] = decay2 * U[0] + np.outer(score, score)
+        for i in range(q):
+            for j in range(q):
+                U[0, i, j] = decay2 * U[0, i, j] + score[i] * score[j]
         for back in range(1, lags + 1):
             if back > used:
-                U[back] *= decay2
+                for i in range(q):
+                    for j in range(q):
+                        U[back, i, j] *= decay2
                 continue
             slot = (count[0] - back) % lags
             weight = 1.0
             if not math.isinf(half_life):
                 weight = 2.0 ** (-(ends[w] - ring_times[slot]) / half_life)
-            U[back] = decay2 * U[back] + np.outer(weight * ring_rows[slot], score)
+            for i in range(q):
+                old = weight * ring_rows[slot, i]
+                for j in range(q):
+                    U[back, i, j] = decay2 * U[back, i, j] + old * score[j]
         slot = count[0] % lags
-        ring_rows[slot] = score
+        for i in range(q):
+            ring_rows[slot, i] = score[i]
         ring_times[slot] = ends[w]
         count[0] += 1
         if math.isnan(bars[w, 0]):
             continue
-        bar = np.ascontiguousarray(bars[w])
         for lag in range(lags + 1):
-            inner = np.dot(U[lag].reshape(q * p, q1), bar).reshape(p, q1, p)
             for a in range(p):
-                contracted[lag, a] = np.dot(bar, inner[a])
-        hac = contracted[0].copy()
-        for lag in range(1, lags + 1):
-            hac += lag_weights[lag] * (contracted[lag] + contracted[lag].T)
-        out_hac[w] = hac
-        out_trace[w] = np.trace(contracted[0])
+                for b in range(p):
+                    total = 0.0
+                    for c in range(q1):
+                        inner = 0.0
+                        for d in range(q1):
+                            inner += U[lag, a * q1 + c, b * q1 + d] * bars[w, d]
+                        total += bars[w, c] * inner
+                    contracted[lag, a, b] = total
+        trace = 0.0
+        for a in range(p):
+            trace += contracted[0, a, a]
+            for b in range(p):
+                hac = contracted[0, a, b]
+                for lag in range(1, lags + 1):
+                    hac += lag_weights[lag] * (contracted[lag, a, b] + contracted[lag, b, a])
+                out_hac[w, a, b] = hac
+        out_trace[w] = trace
+
+
+def window_scores_numpy(rows, ends, decays, half_life, bars, lag_weights, U, ring_rows,
+                        ring_times, count, out_hac, out_trace):
+    """:func:`window_scores` in NumPy operations on whole matrices (the path without
+    numba: the same recurrence, not bit for bit the compiled one)."""
+    n, q1 = rows.shape
+    p = q1 - 1
+    lags = ring_rows.shape[0]
+    for w in range(n):
+        score = np.outer(rows[w, :p], rows[w]).reshape(-1)
+        U *= decays[w] * decays[w]
+        U[0] += np.outer(score, score)
+        used = min(int(count[0]), lags)
+        if used:
+            back = np.arange(1, used + 1)
+            slots = (count[0] - back) % lags
+            weights = np.ones(used) if math.isinf(half_life) else \
+                2.0 ** (-(ends[w] - ring_times[slots]) / half_life)
+            U[back] += (weights[:, None] * ring_rows[slots])[:, :, None] * score
+        ring_rows[count[0] % lags] = score
+        ring_times[count[0] % lags] = ends[w]
+        count[0] += 1
+        if math.isnan(bars[w, 0]):
+            continue
+        lagged = np.einsum("lacbd,c,d->lab", U.reshape(lags + 1, p, q1, p, q1), bars[w],
+                           bars[w])
+        out_hac[w] = lagged[0] + np.einsum("l,lab->ab", lag_weights[1:],
+                                           lagged[1:] + lagged[1:].transpose(0, 2, 1))
+        out_trace[w] = np.trace(lagged[0])
 
 
 @cache
@@ -207,6 +259,7 @@ def kernels():
     Returns
     -------
     tuple of callable
-        :func:`window_sums`, :func:`window_scores`.
+        :func:`window_sums` and :func:`window_scores` (compiled), or
+        :func:`window_sums` and :func:`window_scores_numpy`.
     """
-    return _compiled() if USE_NUMBA else (window_sums, window_scores)
+    return _compiled() if USE_NUMBA else (window_sums, window_scores_numpy)
