@@ -760,13 +760,19 @@ class Tracker:
         full, jacobian, mapping = (np.full((n, q1, q1), np.nan), np.full((n, p, p), np.nan),
                                    np.full((n, p, p), np.nan))
         where = np.flatnonzero(wanted)
-        if where.size:
-            solved = _solve_stack(sums["R"][where, top], sums["G"][where, top],
-                                  bounds[where], self.config["method"])
-            ok = where[solved["ok"]]
-            theta[ok] = solved["theta"][solved["ok"]]
+        lower = np.full((n, p), np.nan)
+        if where.size:   # both multiplicities in one stack (their difference: the error)
+            k = len(where)
+            solved = _solve_stack(np.concatenate([sums["R"][where, top], sums["R"][where, low]]),
+                                  np.concatenate([sums["G"][where, top], sums["G"][where, low]]),
+                                  np.concatenate([bounds[where], bounds[where]]),
+                                  self.config["method"])
+            good = solved["ok"][:k]
+            ok = where[good]
+            theta[ok] = solved["theta"][:k][good]
             for key, array in (("full", full), ("jacobian", jacobian), ("mapping", mapping)):
-                array[ok] = solved[key][solved["ok"]]
+                array[ok] = solved[key][:k][good]
+            lower[where[solved["ok"][k:]]] = solved["theta"][k:][solved["ok"][k:]]
         bars = np.concatenate([theta, -np.ones((n, 1))], axis=1)
         hac, trace = np.zeros((n, p, p)), np.zeros(n)
         ring = np.array([s["ring_count"]], dtype=np.int64)
@@ -781,13 +787,7 @@ class Tracker:
             stderr[solved], kappa[solved] = self._stderr(
                 sums["R"][solved, top], sums["W"][solved], bars[solved], hac[solved],
                 trace[solved], full[solved], jacobian[solved], mapping[solved])
-        error = np.full((n, p), np.nan)
-        check = np.flatnonzero(report & np.isfinite(theta[:, 0]))
-        if check.size:
-            lower = _solve_stack(sums["R"][check, low], sums["G"][check, low], bounds[check],
-                                 self.config["method"])
-            error[check[lower["ok"]]] = np.abs(theta[check[lower["ok"]]]
-                                               - lower["theta"][lower["ok"]])
+        error = np.where(report[:, None], np.abs(theta - lower), np.nan)
         residual = np.full(n, np.nan)
         if solved.size:
             R = sums["R"][solved, top]
@@ -895,10 +895,12 @@ class Tracker:
             k = term.derivative
             if i in self._sign_terms:   # each window from its own start: any chunking
                 levels = np.sign(s[f"fac:{i}"][starts])
+                times = s[f"steps_t:{i}"]
+                inside = (times > tw[0, 0]) & (times < tw[-1, -1])
                 for x, a in enumerate(self.multiplicities):
                     integrals[x].append(step_window_integrals(
-                        s["buf_t"][starts[0]:starts[-1] + L], 0.0, s[f"steps_t:{i}"],
-                        s[f"steps_s:{i}"], L, a, k, self.stride, levels=levels))
+                        s["buf_t"][starts[0]:starts[-1] + L], 0.0, times[inside],
+                        s[f"steps_s:{i}"][inside], L, a, k, self.stride, levels=levels))
                 continue
             zw = s[f"fac:{i}"][index]
             scale = step ** k

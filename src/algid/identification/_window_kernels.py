@@ -209,10 +209,12 @@ def step_window_integrals(t, level, times, steps, length, multiplicity, derivati
     span = t[length - 1:length - 1 + (n_win - 1) * stride + 1:stride] - t0
     primitive = _kernel_primitive(int(multiplicity), int(derivative))
     whole = chebyshev.chebval(1.0, primitive)
-    before = np.concatenate([[0.0], np.cumsum(steps)])
     if levels is None:
+        before = np.concatenate([[0.0], np.cumsum(steps)])
         levels = level + before[np.searchsorted(times, t0, side="right")]
     total = np.asarray(levels, dtype=float) * whole
+    if not times.size:
+        return total / span ** derivative
     # the windows holding each step: from the first that ends after it to the last that
     # starts before it
     lo = np.searchsorted(t0 + span, times, side="right")
