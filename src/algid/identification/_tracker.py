@@ -65,6 +65,10 @@ DEFAULT_FALSE_ALARM_RATE = 1e-3
 #: Steps of the (centred) differentiator of derivatives inside factors.
 DERIVATIVE_STEPS = 20
 
+#: Largest share of a parameter's unit direction in the null space of the equations at
+#: which it still counts as determined (round-off leaves about 1e-15).
+DETERMINED_LEAK = 1e-6
+
 #: Steps seen before the sampling step of a time column is fixed (their median).
 STEP_SAMPLES = 16
 
@@ -128,12 +132,12 @@ def _exponent(x):
     return np.where(x > 0, np.frexp(np.where(x > 0, x, 1.0))[1] - 1, 0)
 
 
-def _solve_stack(R, G, bound, method):
+def _solve_full(R, G, bound, method):
     """identify's solve on accumulated factors ``R`` of ``[A | b]`` and noise sums ``G``
     (a stack, one batched call per step).
 
     Returns the estimates, the basis quantities the covariance needs and ``ok``, False
-    where the equations do not determine the parameters.
+    where the equations do not determine every parameter.
     """
     k, q1, _ = R.shape
     p = q1 - 1
@@ -167,6 +171,66 @@ def _solve_stack(R, G, bound, method):
     mapping = np.ldexp(inverse, (shifts[:, p:] - shifts[:, :p])[:, :, None])
     theta = (mapping @ phi[:, :, None])[:, :, 0]
     return {"ok": ok, "theta": theta, "full": full, "jacobian": jacobian, "mapping": mapping}
+
+
+def _solve_stack(R, G, bound, method):
+    """:func:`_solve_full`, and where it fails, the parameters the equations do determine.
+
+    Terms proportional so far (``sign(q')`` and an offset before the first reversal of
+    ``q'``) leave the other parameters determined: a parameter whose unit direction has
+    no share (:data:`DETERMINED_LEAK`) in the null space of the unit-column regressors
+    (singular values below ``ROUNDOFF_SEPARABILITY``) is estimated by dropping, per null
+    direction, the column of largest share, and solving the rest; the parameters of the
+    proportional combination stay NaN.  Returns, beside :func:`_solve_full`'s, ``values``
+    (the estimates in the residuals: the kept columns' solution, 0 for the dropped ones),
+    ``theta`` (NaN where not determined) and ``kept`` (columns solved for).
+    """
+    k, q1, _ = R.shape
+    p = q1 - 1
+    out = _solve_full(R, G, bound, method)
+    out["values"] = out["theta"].copy()
+    out["kept"] = np.full(k, p)
+    retry = np.flatnonzero(~out["ok"])
+    if not retry.size:
+        return out
+    norms = np.sqrt(np.sum(R[retry, :p, :p] ** 2, axis=1))
+    unit = R[retry, :p, :p] / np.where(norms > 0, norms, 1.0)[:, None, :]
+    _, singular, vh = np.linalg.svd(unit)
+    null = singular < ROUNDOFF_SEPARABILITY
+    leak = np.sqrt(np.sum(np.where(null[:, :, None], vh ** 2, 0.0), axis=1))
+    determined = (leak < DETERMINED_LEAK) & (norms > 0)
+    keep = np.ones((len(retry), p), bool)
+    for i in np.flatnonzero(determined.any(axis=1)):
+        for r in np.flatnonzero(null[i]):
+            keep[i, np.argmax(np.where(keep[i], np.abs(vh[i, r]), -1.0))] = False
+    useful = determined.any(axis=1) & keep.any(axis=1)
+    theta = np.full((k, p), np.nan)
+    for pattern in np.unique(keep[useful], axis=0):
+        select = useful & np.all(keep == pattern, axis=1)
+        rows, idx = retry[select], np.flatnonzero(pattern)
+        columns = np.append(idx, p)
+        reduced = np.linalg.qr(R[rows][:, :, columns], mode="r")
+        sub = _solve_full(reduced, G[rows][:, columns][:, :, columns], bound[rows], method)
+        good = sub["ok"]
+        rows, m = rows[good], len(idx)
+        if not rows.size:
+            continue
+        out["ok"][rows] = True
+        out["kept"][rows] = m
+        out["values"][rows] = 0.0
+        out["values"][np.ix_(rows, idx)] = sub["theta"][good]
+        theta[np.ix_(rows, idx)] = np.where(determined[select][good][:, idx],
+                                            sub["theta"][good], np.nan)
+        out["full"][rows] = 0.0
+        out["full"][np.ix_(rows, idx, idx)] = sub["full"][good, :m, :m]
+        out["full"][rows, p, p] = sub["full"][good, m, m]
+        out["jacobian"][rows] = np.eye(p)
+        out["jacobian"][np.ix_(rows, idx, idx)] = sub["jacobian"][good]
+        out["mapping"][rows] = 0.0
+        out["mapping"][np.ix_(rows, idx, idx)] = sub["mapping"][good]
+    out["theta"] = np.where(out["ok"][:, None], out["values"], np.nan)
+    out["theta"][retry] = theta[retry]
+    return out
 
 
 def _scatter(values, mask, size):
@@ -761,6 +825,8 @@ class Tracker:
                                    np.full((n, p, p), np.nan))
         where = np.flatnonzero(wanted)
         lower = np.full((n, p), np.nan)
+        values = np.full((n, p), np.nan)     # the estimates in the residuals
+        kept = np.full(n, p)
         if where.size:   # both multiplicities in one stack (their difference: the error)
             k = len(where)
             solved = _solve_stack(np.concatenate([sums["R"][where, top], sums["R"][where, low]]),
@@ -770,23 +836,27 @@ class Tracker:
             good = solved["ok"][:k]
             ok = where[good]
             theta[ok] = solved["theta"][:k][good]
+            values[ok] = solved["values"][:k][good]
+            kept[ok] = solved["kept"][:k][good]
             for key, array in (("full", full), ("jacobian", jacobian), ("mapping", mapping)):
                 array[ok] = solved[key][:k][good]
             lower[where[solved["ok"][k:]]] = solved["theta"][k:][solved["ok"][k:]]
-        bars = np.concatenate([theta, -np.ones((n, 1))], axis=1)
+        bars = np.concatenate([values, -np.ones((n, 1))], axis=1)
         hac, trace = np.zeros((n, p, p)), np.zeros(n)
         ring = np.array([s["ring_count"]], dtype=np.int64)
         window_scores(np.ascontiguousarray(rows[top]), ends, sums["decay"], self._half_life,
                       bars, self.lag_weights, s["U"], s["ring_rows"], s["ring_times"], ring,
                       hac, trace)
         s["ring_count"] = int(ring[0])
-        solved = np.flatnonzero(np.isfinite(theta[:, 0]))
+        solved = np.flatnonzero(np.isfinite(values[:, 0]))
         stderr = np.full((n, p), np.nan)
         kappa = np.full(n, np.nan)
         if solved.size:
             stderr[solved], kappa[solved] = self._stderr(
                 sums["R"][solved, top], sums["W"][solved], bars[solved], hac[solved],
-                trace[solved], full[solved], jacobian[solved], mapping[solved])
+                trace[solved], full[solved], jacobian[solved], mapping[solved], kept[solved])
+            stderr[np.isnan(theta)] = np.nan
+        solved = np.flatnonzero(np.isfinite(theta).all(axis=1))   # the CUSUM's
         error = np.where(report[:, None], np.abs(theta - lower), np.nan)
         residual = np.full(n, np.nan)
         if solved.size:
@@ -830,7 +900,7 @@ class Tracker:
             ratios = np.where(counts > 0, sums[:, 0] / counts / self._central, np.inf)
         return np.min(ratios, axis=1)
 
-    def _stderr(self, R, W, bars, hac, trace, full, jacobian, mapping):
+    def _stderr(self, R, W, bars, hac, trace, full, jacobian, mapping, kept):
         """Standard errors and long-run variance factors of solved windows (stacked)."""
         p = hac.shape[1]
         # centred: the scores' mean (the bias correction's share) is no scatter
@@ -843,7 +913,7 @@ class Tracker:
         independent = W[:, 0] ** 2 / W[:, 1] / self.overlap
         covariance = mapping @ sandwich_stack(np.linalg.inv(jacobian), middle) \
             @ np.swapaxes(mapping, 1, 2)
-        covariance *= (independent / np.maximum(independent - p, 1.0))[:, None, None]
+        covariance *= (independent / np.maximum(independent - kept, 1.0))[:, None, None]
         variances = np.maximum(np.einsum("kii->ki", covariance), 0.0)
         long_run = np.einsum("kii->k", hac) / np.maximum(trace, 1e-300)
         return np.sqrt(variances), long_run
