@@ -571,7 +571,7 @@ class Tracker:
         test_interval = self.overlap * self.stride * self.s["step"]
         self.h_cusum = cusum_threshold(
             max(2.0, 1.0 / (self.config["false_alarm_rate"] * test_interval)), self.k_cusum)
-        self.needed = len(self.parameters) + MIN_SPARE_WINDOWS
+        self.needed = 1 + MIN_SPARE_WINDOWS
         p = len(self.parameters)
         index = {q: i for i, q in enumerate(self.parameters)}
         self._noisy_columns = []   # (column, signed coefficient, derivative, term)
@@ -815,7 +815,7 @@ class Tracker:
             report = crossed > np.concatenate([[np.floor(s["last_report"] / every)],
                                                crossed[:-1]])
         n_eff = sums["W"][:, 0] ** 2 / sums["W"][:, 1] / self.overlap
-        wanted = (tested | report) & (n_eff >= self.needed)
+        wanted = (tested | report) & (n_eff >= self.needed)   # enough for one parameter
         bounds = self._bounds(sums["bound"])
         top = self.multiplicities.index(max(self.multiplicities))
         low = self.multiplicities.index(min(self.multiplicities))
@@ -833,6 +833,9 @@ class Tracker:
                                   np.concatenate([sums["G"][where, top], sums["G"][where, low]]),
                                   np.concatenate([bounds[where], bounds[where]]),
                                   self.config["method"])
+            # as many windows beyond the parameters solved for as identify's rule asks
+            enough = n_eff[np.concatenate([where, where])] >= solved["kept"] + MIN_SPARE_WINDOWS
+            solved["ok"] &= enough
             good = solved["ok"][:k]
             ok = where[good]
             theta[ok] = solved["theta"][:k][good]
