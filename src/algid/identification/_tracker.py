@@ -132,12 +132,13 @@ def _exponent(x):
     return np.where(x > 0, np.frexp(np.where(x > 0, x, 1.0))[1] - 1, 0)
 
 
-def _solve_full(R, G, bound, method):
+def _solve_full(R, G, bound, method, separable=None):
     """identify's solve on accumulated factors ``R`` of ``[A | b]`` and noise sums ``G``
     (a stack, one batched call per step).
 
     Returns the estimates, the basis quantities the covariance needs and ``ok``, False
-    where the equations do not determine every parameter.
+    where the equations do not determine every parameter (``separable``: the check of
+    the smallest singular value, when already made).
     """
     k, q1, _ = R.shape
     p = q1 - 1
@@ -147,8 +148,10 @@ def _solve_full(R, G, bound, method):
     Rs = np.ldexp(R, -shifts[:, None, :])
     with np.errstate(divide="ignore", invalid="ignore"):
         unit = Rs[:, :, :p] / np.sqrt(np.sum(Rs[:, :, :p] ** 2, axis=1))[:, None, :]
-    unit[~ok] = np.eye(q1, p)
-    ok &= np.linalg.svd(unit, compute_uv=False)[:, -1] >= ROUNDOFF_SEPARABILITY
+    if separable is None:
+        unit[~ok] = np.eye(q1, p)
+        separable = np.linalg.svd(unit, compute_uv=False)[:, -1] >= ROUNDOFF_SEPARABILITY
+    ok &= separable
     square = np.where(ok[:, None, None], Rs[:, :p, :p], np.eye(p))
     inverse = np.linalg.inv(square)
     c = Rs[:, :p, p]
@@ -187,27 +190,39 @@ def _solve_stack(R, G, bound, method):
     """
     k, q1, _ = R.shape
     p = q1 - 1
-    out = _solve_full(R, G, bound, method)
-    out["values"] = out["theta"].copy()
-    out["kept"] = np.full(k, p)
-    retry = np.flatnonzero(~out["ok"])
-    if not retry.size:
-        return out
-    norms = np.sqrt(np.sum(R[retry, :p, :p] ** 2, axis=1))
-    unit = R[retry, :p, :p] / np.where(norms > 0, norms, 1.0)[:, None, :]
+    norms = np.sqrt(np.sum(R[:, :p, :p] ** 2, axis=1))
+    unit = R[:, :p, :p] / np.where(norms > 0, norms, 1.0)[:, None, :]
     _, singular, vh = np.linalg.svd(unit)
     null = singular < ROUNDOFF_SEPARABILITY
-    leak = np.sqrt(np.sum(np.where(null[:, :, None], vh ** 2, 0.0), axis=1))
-    determined = (leak < DETERMINED_LEAK) & (norms > 0)
-    keep = np.ones((len(retry), p), bool)
-    for i in np.flatnonzero(determined.any(axis=1)):
+    out = {"ok": np.zeros(k, bool), "theta": np.full((k, p), np.nan),
+           "values": np.full((k, p), np.nan), "kept": np.full(k, p),
+           "full": np.full((k, q1, q1), np.nan), "jacobian": np.full((k, p, p), np.nan),
+           "mapping": np.full((k, p, p), np.nan)}
+    separable = np.flatnonzero(~null[:, -1] & np.all(norms > 0, axis=1))
+    if separable.size:
+        sub = _solve_full(R[separable], G[separable], bound[separable], method,
+                          separable=np.ones(separable.size, bool))
+        good = sub["ok"]
+        rows = separable[good]
+        out["ok"][rows] = True
+        for key in ("theta", "full", "jacobian", "mapping"):
+            out[key][rows] = sub[key][good]
+        out["values"][rows] = sub["theta"][good]
+    groups = {}   # the windows of each set of kept columns
+    for i in np.flatnonzero(null.any(axis=1)):
+        leak = np.sqrt(np.sum(vh[i][null[i]] ** 2, axis=0))
+        determined = (leak < DETERMINED_LEAK) & (norms[i] > 0)
+        if not determined.any():
+            continue
+        keep = np.ones(p, bool)
         for r in np.flatnonzero(null[i]):
-            keep[i, np.argmax(np.where(keep[i], np.abs(vh[i, r]), -1.0))] = False
-    useful = determined.any(axis=1) & keep.any(axis=1)
-    theta = np.full((k, p), np.nan)
-    for pattern in np.unique(keep[useful], axis=0):
-        select = useful & np.all(keep == pattern, axis=1)
-        rows, idx = retry[select], np.flatnonzero(pattern)
+            keep[np.argmax(np.where(keep, np.abs(vh[i, r]), -1.0))] = False
+        if keep.any():
+            groups.setdefault(tuple(keep), []).append((i, determined))
+    for pattern, members in groups.items():
+        rows = np.array([i for i, _ in members])
+        determined = np.array([d for _, d in members])
+        idx = np.flatnonzero(pattern)
         columns = np.append(idx, p)
         reduced = np.linalg.qr(R[rows][:, :, columns], mode="r")
         sub = _solve_full(reduced, G[rows][:, columns][:, :, columns], bound[rows], method)
@@ -217,19 +232,20 @@ def _solve_stack(R, G, bound, method):
             continue
         out["ok"][rows] = True
         out["kept"][rows] = m
-        out["values"][rows] = 0.0
-        out["values"][np.ix_(rows, idx)] = sub["theta"][good]
-        theta[np.ix_(rows, idx)] = np.where(determined[select][good][:, idx],
-                                            sub["theta"][good], np.nan)
-        out["full"][rows] = 0.0
-        out["full"][np.ix_(rows, idx, idx)] = sub["full"][good, :m, :m]
-        out["full"][rows, p, p] = sub["full"][good, m, m]
-        out["jacobian"][rows] = np.eye(p)
-        out["jacobian"][np.ix_(rows, idx, idx)] = sub["jacobian"][good]
-        out["mapping"][rows] = 0.0
-        out["mapping"][np.ix_(rows, idx, idx)] = sub["mapping"][good]
-    out["theta"] = np.where(out["ok"][:, None], out["values"], np.nan)
-    out["theta"][retry] = theta[retry]
+        values = np.zeros((rows.size, p))
+        values[:, idx] = sub["theta"][good]
+        out["values"][rows] = values
+        out["theta"][rows] = np.where(determined[good], values, np.nan)
+        full = np.zeros((rows.size, q1, q1))
+        full[np.ix_(np.arange(rows.size), idx, idx)] = sub["full"][good, :m, :m]
+        full[:, p, p] = sub["full"][good, m, m]
+        out["full"][rows] = full
+        jacobian = np.broadcast_to(np.eye(p), (rows.size, p, p)).copy()
+        jacobian[np.ix_(np.arange(rows.size), idx, idx)] = sub["jacobian"][good]
+        out["jacobian"][rows] = jacobian
+        mapping = np.zeros((rows.size, p, p))
+        mapping[np.ix_(np.arange(rows.size), idx, idx)] = sub["mapping"][good]
+        out["mapping"][rows] = mapping
     return out
 
 
