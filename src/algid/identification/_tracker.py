@@ -41,10 +41,10 @@ from algid.identification._bias_compensation import koopmans_stack
 from algid.identification._change_detection import INCREMENT_CAP, cusum_reference, cusum_threshold
 from algid.identification._identify import WINDOW_OVERLAP, factor_sensitivity, term_rows
 from algid.identification._records import GAP_FACTOR, TIME_COLUMNS, UNIFORM_TOLERANCE, check_rate
+from algid.identification._tracker_kernels import kernels
 from algid.identification._window_basis import ROUNDOFF_SEPARABILITY
 from algid.identification._window_covariance import sandwich_stack
 from algid.identification._window_kernels import step_window_integrals, window_sample_weights
-from algid.identification._tracker_kernels import kernels
 from algid.identification._window_rule import MIN_SPARE_WINDOWS, check_multiplicities, min_length
 from algid.models._argument import estimator_module
 from algid.models._compiled import model_of
