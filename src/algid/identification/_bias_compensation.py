@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["bias_compensated", "koopmans", "solve_equilibrated"]
+__all__ = ["bias_compensated", "koopmans", "koopmans_stack", "solve_equilibrated"]
 
 
 def bias_compensated(A, b, grams, bound=np.inf):
@@ -107,6 +107,101 @@ def koopmans(normal, noise, bound=np.inf):
                                    normal[:p, p] - bound * noise[:p, p])
         return np.append(theta, -1.0), bound, True
     return None, None, False
+
+
+def koopmans_stack(normal, noise, bound):
+    """:func:`koopmans` on a stack of problems (one batched call per step).
+
+    The generalised eigenproblem is reduced by the Cholesky factor of the equilibrated
+    ``normal`` (as LAPACK's ``sygv`` does): the results equal :func:`koopmans`'s to
+    round-off, each problem's independently of the others in the stack.
+
+    Parameters
+    ----------
+    normal, noise : numpy.ndarray, shape (k, p + 1, p + 1)
+        As in :func:`koopmans`, per problem.
+    bound : numpy.ndarray, shape (k,)
+        Upper bounds on the output noise variance.
+
+    Returns
+    -------
+    theta_bar : numpy.ndarray, shape (k, p + 1)
+        ``(theta, -1)``, NaN where no correction applies.
+    variance : numpy.ndarray, shape (k,)
+        The noise variance of the correction, NaN where none.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> normal = np.array([[[2.0, 1.0], [1.0, 2.0]]])
+    >>> theta_bar, variance = koopmans_stack(normal, np.eye(2)[None], np.array([np.inf]))
+    >>> theta_bar.round(6).tolist(), variance.round(6).tolist()
+    ([[1.0, -1.0]], [1.0])
+    """
+    k, q1, _ = normal.shape
+    p = q1 - 1
+    theta_bar = np.full((k, q1), np.nan)
+    variance = np.full(k, np.nan)
+    diagonal = np.sqrt(np.einsum("kii->ki", normal))
+    diagonal[diagonal == 0] = 1.0
+    scale = diagonal[:, :, None] * diagonal[:, None, :]
+    eligible = np.any(noise != 0, axis=(1, 2)) & (bound > 0)
+    scaled = np.where(eligible[:, None, None], normal / scale, np.eye(q1))
+    lower, ok = _cholesky_stack(scaled)
+    eligible &= ok
+    if not np.any(eligible):
+        return theta_bar, variance
+    inverse = np.linalg.inv(lower)
+    reduced = inverse @ (noise / scale) @ np.swapaxes(inverse, 1, 2)
+    mu, vectors = np.linalg.eigh(reduced)
+    v = (np.swapaxes(inverse, 1, 2) @ vectors[:, :, -1:])[:, :, 0] / diagonal
+    top = mu[:, -1]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        eigen = eligible & (top > 0) & (np.abs(v[:, -1]) * diagonal[:, -1] > 1e-8) \
+            & (1.0 / top <= bound)
+        theta_bar[eigen] = -v[eigen] / v[eigen, -1:]
+        variance[eigen] = 1.0 / top[eigen]
+    capped = np.flatnonzero(eligible & ~eigen & (top > 0) & np.isfinite(bound))
+    if capped.size:   # the eigenvalue exceeds the bound: the correction of the bound
+        cap = bound[capped, None, None]
+        H = normal[capped, :p, :p] - cap * noise[capped, :p, :p]
+        g = normal[capped, :p, p] - cap[:, :, 0] * noise[capped, :p, p]
+        d = np.sqrt(np.abs(np.einsum("kii->ki", H)))
+        d[d == 0] = 1.0
+        H = H / d[:, :, None] / d[:, None, :]
+        solvable = np.isfinite(H).all(axis=(1, 2)) & np.isfinite(g).all(axis=1)
+        H[~solvable] = np.eye(p)
+        rhs = np.where(solvable[:, None], g / d, 0.0)[:, :, None]
+        try:
+            theta = np.linalg.solve(H, rhs)[:, :, 0] / d
+        except np.linalg.LinAlgError:   # some singular: one at a time
+            theta = np.zeros((len(capped), p))
+            for i in range(len(capped)):
+                try:
+                    theta[i] = np.linalg.solve(H[i], rhs[i])[:, 0] / d[i]
+                except np.linalg.LinAlgError:
+                    solvable[i] = False
+        keep = capped[solvable]
+        theta_bar[keep, :p] = theta[solvable]
+        theta_bar[keep, p] = -1.0
+        variance[keep] = bound[keep]
+    return theta_bar, variance
+
+
+def _cholesky_stack(matrices):
+    """Lower Cholesky factors of a stack, and which matrices are positive definite."""
+    try:
+        return np.linalg.cholesky(matrices), np.ones(len(matrices), bool)
+    except np.linalg.LinAlgError:
+        lower = np.empty_like(matrices)
+        ok = np.ones(len(matrices), bool)
+        for i, matrix in enumerate(matrices):
+            try:
+                lower[i] = np.linalg.cholesky(matrix)
+            except np.linalg.LinAlgError:
+                lower[i] = np.eye(len(matrix))
+                ok[i] = False
+        return lower, ok
 
 
 def solve_equilibrated(H, g):

@@ -88,12 +88,14 @@ def average_run_length(h, k):
     """
     n = CHAIN_STATES
     width = h / n
-    centres = (np.arange(n) + 0.5) * width
-    edges = np.arange(n + 1) * width
     # from state i to cell j: z**2 in [edges[j] - c_i + k, edges[j+1] - c_i + k];
     # to state 0 also everything that falls below 0
-    upper = _chi2_cdf(edges[None, 1:] - centres[:, None] + k)
-    lower = _chi2_cdf(edges[None, :-1] - centres[:, None] + k)
+    # the law depends on j - i only: on the 2 n + 1 differences of cell edges and centres
+    offsets = (np.arange(-n, n + 1) - 0.5) * width + k
+    cdf = _chi2_cdf(offsets)
+    difference = np.arange(n)[None, :] - np.arange(n)[:, None] + n
+    upper = cdf[difference + 1]
+    lower = cdf[difference]
     transition = upper - lower
     transition[:, 0] = upper[:, 0]
     # start at 0: the first cell's centre stands for it
@@ -101,6 +103,7 @@ def average_run_length(h, k):
     return float(runs[0])
 
 
+@lru_cache(maxsize=64)
 def cusum_threshold(run_length, k):
     """The threshold ``h`` whose average run length is ``run_length`` tests.
 

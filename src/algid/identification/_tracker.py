@@ -37,12 +37,13 @@ import numpy as np
 
 from algid.errors import AlgidError, InputDataError
 from algid.identification._arguments import check_arguments, check_model_columns
-from algid.identification._bias_compensation import koopmans
+from algid.identification._bias_compensation import koopmans_stack
 from algid.identification._change_detection import INCREMENT_CAP, cusum_reference, cusum_threshold
 from algid.identification._identify import WINDOW_OVERLAP, factor_sensitivity, term_rows
 from algid.identification._records import GAP_FACTOR, TIME_COLUMNS, UNIFORM_TOLERANCE, check_rate
+from algid.identification._tracker_kernels import kernels
 from algid.identification._window_basis import ROUNDOFF_SEPARABILITY
-from algid.identification._window_covariance import sandwich
+from algid.identification._window_covariance import sandwich_stack
 from algid.identification._window_kernels import step_window_integrals, window_sample_weights
 from algid.identification._window_rule import MIN_SPARE_WINDOWS, check_multiplicities, min_length
 from algid.models._argument import estimator_module
@@ -64,10 +65,14 @@ DEFAULT_FALSE_ALARM_RATE = 1e-3
 #: Steps of the (centred) differentiator of derivatives inside factors.
 DERIVATIVE_STEPS = 20
 
+#: Largest share of a parameter's unit direction in the null space of the equations at
+#: which it still counts as determined (round-off leaves about 1e-15).
+DETERMINED_LEAK = 1e-6
+
 #: Steps seen before the sampling step of a time column is fixed (their median).
 STEP_SAMPLES = 16
 
-_FORMAT = "algid.Tracker/1"
+_FORMAT = "algid.Tracker/2"
 
 
 @dataclass
@@ -127,40 +132,127 @@ def _exponent(x):
     return np.where(x > 0, np.frexp(np.where(x > 0, x, 1.0))[1] - 1, 0)
 
 
-def _solve(R, G, bound, method):
-    """identify's solve on the accumulated factor ``R`` of ``[A | b]`` and noise sum ``G``.
+def _solve_full(R, G, bound, method, separable=None):
+    """identify's solve on accumulated factors ``R`` of ``[A | b]`` and noise sums ``G``
+    (a stack, one batched call per step).
 
-    Returns the estimate, the basis quantities the covariance needs, or None where the
-    equations do not determine the parameters.
+    Returns the estimates, the basis quantities the covariance needs and ``ok``, False
+    where the equations do not determine every parameter (``separable``: the check of
+    the smallest singular value, when already made).
     """
-    p = R.shape[0] - 1
-    norms = np.linalg.norm(R, axis=0)
-    if not np.all(norms[:p] > 0):
-        return None
+    k, q1, _ = R.shape
+    p = q1 - 1
+    norms = np.sqrt(np.sum(R * R, axis=1))
+    ok = np.all(norms[:, :p] > 0, axis=1)
     shifts = _exponent(norms) + 1             # the column scaling of WindowBasis
-    Rs = np.ldexp(R, -shifts)
-    unit = Rs[:, :p] / np.linalg.norm(Rs[:, :p], axis=0)
-    if np.linalg.svd(unit, compute_uv=False)[-1] < ROUNDOFF_SEPARABILITY:
-        return None
-    inverse = np.linalg.inv(Rs[:p, :p])
-    c = Rs[:p, p]
-    normal = np.eye(p + 1)
-    normal[:p, p] = normal[p, :p] = c
-    normal[p, p] = float(Rs[:, p] @ Rs[:, p])
-    full = np.zeros((p + 1, p + 1))          # [A | b] -> the orthonormal basis
-    full[:p, :p] = np.ldexp(inverse, -shifts[:p, None])
-    full[p, p] = np.ldexp(1.0, -int(shifts[p]))
-    noise = full.T @ G @ full
-    variance = None
-    if method == "bc":
-        theta_bar, variance, _ = koopmans(normal, noise, bound)
-    if variance is None:
-        phi = c.copy()
-    else:
-        phi = theta_bar[:p]
-    jacobian = np.eye(p) - (variance or 0.0) * noise[:p, :p]
-    mapping = np.ldexp(inverse, (shifts[p] - shifts[:p])[:, None])
-    return mapping @ phi, phi, full, jacobian, mapping
+    Rs = np.ldexp(R, -shifts[:, None, :])
+    with np.errstate(divide="ignore", invalid="ignore"):
+        unit = Rs[:, :, :p] / np.sqrt(np.sum(Rs[:, :, :p] ** 2, axis=1))[:, None, :]
+    if separable is None:
+        unit[~ok] = np.eye(q1, p)
+        separable = np.linalg.svd(unit, compute_uv=False)[:, -1] >= ROUNDOFF_SEPARABILITY
+    ok &= separable
+    square = np.where(ok[:, None, None], Rs[:, :p, :p], np.eye(p))
+    inverse = np.linalg.inv(square)
+    c = Rs[:, :p, p]
+    normal = np.broadcast_to(np.eye(q1), (k, q1, q1)).copy()
+    normal[:, :p, p] = normal[:, p, :p] = c
+    normal[:, p, p] = np.sum(Rs[:, :, p] ** 2, axis=1)
+    full = np.zeros((k, q1, q1))          # [A | b] -> the orthonormal basis
+    full[:, :p, :p] = np.ldexp(inverse, -shifts[:, :p, None])
+    full[:, p, p] = np.ldexp(1.0, -shifts[:, p])
+    noise = np.swapaxes(full, 1, 2) @ G @ full
+    variance = np.full(k, np.nan)
+    phi = c.copy()
+    if method == "bc" and np.any(ok):
+        theta_bar, variance = koopmans_stack(normal[ok], noise[ok], bound[ok])
+        corrected = np.isfinite(variance)
+        rows = np.flatnonzero(ok)[corrected]
+        phi[rows] = theta_bar[corrected, :p]
+        variance = np.where(ok, _scatter(variance, ok, k), np.nan)
+    jacobian = np.eye(p) - np.nan_to_num(variance)[:, None, None] * noise[:, :p, :p]
+    mapping = np.ldexp(inverse, (shifts[:, p:] - shifts[:, :p])[:, :, None])
+    theta = (mapping @ phi[:, :, None])[:, :, 0]
+    return {"ok": ok, "theta": theta, "full": full, "jacobian": jacobian, "mapping": mapping}
+
+
+def _solve_stack(R, G, bound, method):
+    """:func:`_solve_full`, and where it fails, the parameters the equations do determine.
+
+    Terms proportional so far (``sign(q')`` and an offset before the first reversal of
+    ``q'``) leave the other parameters determined: a parameter whose unit direction has
+    no share (:data:`DETERMINED_LEAK`) in the null space of the unit-column regressors
+    (singular values below ``ROUNDOFF_SEPARABILITY``) is estimated by dropping, per null
+    direction, the column of largest share, and solving the rest; the parameters of the
+    proportional combination stay NaN.  Returns, beside :func:`_solve_full`'s, ``values``
+    (the estimates in the residuals: the kept columns' solution, 0 for the dropped ones),
+    ``theta`` (NaN where not determined) and ``kept`` (columns solved for).
+    """
+    k, q1, _ = R.shape
+    p = q1 - 1
+    norms = np.sqrt(np.sum(R[:, :p, :p] ** 2, axis=1))
+    unit = R[:, :p, :p] / np.where(norms > 0, norms, 1.0)[:, None, :]
+    _, singular, vh = np.linalg.svd(unit)
+    null = singular < ROUNDOFF_SEPARABILITY
+    out = {"ok": np.zeros(k, bool), "theta": np.full((k, p), np.nan),
+           "values": np.full((k, p), np.nan), "kept": np.full(k, p),
+           "full": np.full((k, q1, q1), np.nan), "jacobian": np.full((k, p, p), np.nan),
+           "mapping": np.full((k, p, p), np.nan)}
+    separable = np.flatnonzero(~null[:, -1] & np.all(norms > 0, axis=1))
+    if separable.size:
+        sub = _solve_full(R[separable], G[separable], bound[separable], method,
+                          separable=np.ones(separable.size, bool))
+        good = sub["ok"]
+        rows = separable[good]
+        out["ok"][rows] = True
+        for key in ("theta", "full", "jacobian", "mapping"):
+            out[key][rows] = sub[key][good]
+        out["values"][rows] = sub["theta"][good]
+    groups = {}   # the windows of each set of kept columns
+    for i in np.flatnonzero(null.any(axis=1)):
+        leak = np.sqrt(np.sum(vh[i][null[i]] ** 2, axis=0))
+        determined = (leak < DETERMINED_LEAK) & (norms[i] > 0)
+        if not determined.any():
+            continue
+        keep = np.ones(p, bool)
+        for r in np.flatnonzero(null[i]):
+            keep[np.argmax(np.where(keep, np.abs(vh[i, r]), -1.0))] = False
+        if keep.any():
+            groups.setdefault(tuple(keep), []).append((i, determined))
+    for pattern, members in groups.items():
+        rows = np.array([i for i, _ in members])
+        determined = np.array([d for _, d in members])
+        idx = np.flatnonzero(pattern)
+        columns = np.append(idx, p)
+        reduced = np.linalg.qr(R[rows][:, :, columns], mode="r")
+        sub = _solve_full(reduced, G[rows][:, columns][:, :, columns], bound[rows], method)
+        good = sub["ok"]
+        rows, m = rows[good], len(idx)
+        if not rows.size:
+            continue
+        out["ok"][rows] = True
+        out["kept"][rows] = m
+        values = np.zeros((rows.size, p))
+        values[:, idx] = sub["theta"][good]
+        out["values"][rows] = values
+        out["theta"][rows] = np.where(determined[good], values, np.nan)
+        full = np.zeros((rows.size, q1, q1))
+        full[np.ix_(np.arange(rows.size), idx, idx)] = sub["full"][good, :m, :m]
+        full[:, p, p] = sub["full"][good, m, m]
+        out["full"][rows] = full
+        jacobian = np.broadcast_to(np.eye(p), (rows.size, p, p)).copy()
+        jacobian[np.ix_(np.arange(rows.size), idx, idx)] = sub["jacobian"][good]
+        out["jacobian"][rows] = jacobian
+        mapping = np.zeros((rows.size, p, p))
+        mapping[np.ix_(np.arange(rows.size), idx, idx)] = sub["mapping"][good]
+        out["mapping"][rows] = mapping
+    return out
+
+
+def _scatter(values, mask, size):
+    out = np.full(size, np.nan)
+    out[mask] = values
+    return out
 
 
 def _lag_weights(overlap):
@@ -319,7 +411,7 @@ class Tracker:
                                                          columns[name]])
             self._configure()
         else:
-            self._samples(t, columns)
+            self._pending(t, columns)
         p = len(self.parameters)
         out = self._out
         shape = (len(out["t"]), p)
@@ -495,12 +587,20 @@ class Tracker:
         test_interval = self.overlap * self.stride * self.s["step"]
         self.h_cusum = cusum_threshold(
             max(2.0, 1.0 / (self.config["false_alarm_rate"] * test_interval)), self.k_cusum)
-        self.needed = len(self.parameters) + MIN_SPARE_WINDOWS
-        # k-th differences as dot products with the last k + 1 of 9 samples
-        self._differences = np.zeros((9, 8))
-        for k in range(1, 9):
-            self._differences[8 - k:, k - 1] = [(-1) ** (k - j) * math.comb(k, j)
-                                                for j in range(k + 1)]
+        self.needed = 1 + MIN_SPARE_WINDOWS
+        p = len(self.parameters)
+        index = {q: i for i, q in enumerate(self.parameters)}
+        self._noisy_columns = []   # (column, signed coefficient, derivative, term)
+        for i in self._noisy:
+            term = self.model.terms[i]
+            self._noisy_columns.append(
+                (p if term.parameter is None else index[term.parameter],
+                 (-1.0 if term.parameter is None else 1.0) * term.coefficient,
+                 term.derivative, i))
+        # the variance of k-th differences of white noise, per unit variance
+        self._central = np.array([math.comb(2 * k, k) for k in range(1, 9)], dtype=float)
+        self._half_life = np.inf if self.config["half_life"] is None \
+            else float(self.config["half_life"])
         self._unit_weights = {(a, term.derivative): window_sample_weights(
             None, 1.0, length, a, term.derivative)
             for a in self.multiplicities for term in self.model.terms}
@@ -516,15 +616,15 @@ class Tracker:
         p = len(self.parameters)
         lags = 2 * self.overlap
         s = self.s
-        for a in self.multiplicities:
-            s[f"R{a}"] = np.zeros((p + 1, p + 1))
-            s[f"G{a}"] = np.zeros((p + 1, p + 1))
+        m = len(self.multiplicities)
         q = p * (p + 1)
-        s.update(U=np.zeros((lags + 1, q, q)), W1=0.0, W2=0.0,
-                 bound_sums=np.zeros(8), bound_counts=np.zeros(8), last_end=np.nan,
+        s.update(R=np.zeros((m, p + 1, p + 1)), G=np.zeros((m, p + 1, p + 1)),
+                 U=np.zeros((lags + 1, q, q)), W=np.zeros(2), bound=np.zeros((2, 8)),
+                 last_end=np.nan,
                  cusum=0.0, previous_test=np.full(p + 2, np.nan), last_report=-np.inf,
                  ring_rows=np.zeros((lags, q)), ring_times=np.zeros(lags), ring_count=0,
                  row_time=-np.inf, row_valid=True)
+        s.update(pend_t=np.empty(0), **{f"pend:{name}": np.empty(0) for name in self._signals})
         self._new_segment()
 
     def _new_segment(self):
@@ -544,6 +644,32 @@ class Tracker:
                 s[f"steps_s:{i}"] = np.empty(0)
 
     # ------------------------------------------------------------------ samples
+    def _pending(self, t, columns):
+        """Hold samples until they can complete a window, then process them together.
+
+        Processing does not depend on how the samples are grouped, and no window can end
+        before the segment holds ``next_window * stride + length + lag`` samples (gaps
+        only delay it): short chunks cost one append until then.
+        """
+        s = self.s
+        s["pend_t"] = np.concatenate([s["pend_t"], t])
+        for name in self._signals:
+            s[f"pend:{name}"] = np.concatenate([s[f"pend:{name}"], columns[name]])
+        needed = s["next_window"] * self.stride + self.length + self.lag
+        if self.lag:
+            needed = max(needed, DERIVATIVE_STEPS + 1)
+        if s["seg_n"] + len(s["pend_t"]) >= needed:
+            self._flush()
+
+    def _flush(self):
+        s = self.s
+        t = s["pend_t"]
+        columns = {name: s[f"pend:{name}"] for name in self._signals}
+        s["pend_t"] = np.empty(0)
+        for name in self._signals:
+            s[f"pend:{name}"] = np.empty(0)
+        self._samples(t, columns)
+
     def _samples(self, t, columns):
         """Cut the samples at gaps and NaN rows (as identify's records are cut); feed each
         run of valid rows to its segment."""
@@ -683,69 +809,217 @@ class Tracker:
         if count <= first_window:
             return
         starts = np.arange(first_window, count) * stride - s["seg_first"]
-        rows = {a: self._rows(starts, a) for a in self.multiplicities}
-        top = max(self.multiplicities)
-        grams = {a: self._grams(starts, a) for a in self.multiplicities}
+        n = len(starts)
+        rows, grams = self._rows_and_grams(starts)
         ends = s["buf_t"][starts + L - 1]
-        for w in range(len(starts)):
-            self._accumulate(first_window + w, ends[w], starts[w],
-                             {a: rows[a][w] for a in rows}, {a: grams[a][w] for a in grams},
-                             top)
+        squares, ranges = self._bound_squares(starts)
+        m, q1 = len(self.multiplicities), len(self.parameters) + 1
+        sums = {"R": np.empty((n, m, q1, q1)), "G": np.empty((n, m, q1, q1)),
+                "W": np.empty((n, 2)), "bound": np.empty((n, 2, 8)), "decay": np.empty(n)}
+        window_sums, window_scores = kernels()
+        window_sums(rows, grams, ends, float(s["last_end"]), self._half_life, squares, ranges,
+                    s["R"], s["G"], s["W"], s["bound"], sums["R"], sums["G"], sums["W"],
+                    sums["bound"], sums["decay"])
+        s["last_end"] = float(ends[-1])
+        indices = first_window + np.arange(n)
+        tested = indices % self.overlap == 0
+        every = self.config["every"]
+        if every is None:
+            report = np.ones(n, bool)
+        else:   # a window end that crosses a multiple of ``every`` since the last report
+            crossed = np.floor(ends / every)
+            report = crossed > np.concatenate([[np.floor(s["last_report"] / every)],
+                                               crossed[:-1]])
+        n_eff = sums["W"][:, 0] ** 2 / sums["W"][:, 1] / self.overlap
+        wanted = (tested | report) & (n_eff >= self.needed)   # enough for one parameter
+        bounds = self._bounds(sums["bound"])
+        top = self.multiplicities.index(max(self.multiplicities))
+        low = self.multiplicities.index(min(self.multiplicities))
+        p = q1 - 1
+        theta = np.full((n, p), np.nan)
+        full, jacobian, mapping = (np.full((n, q1, q1), np.nan), np.full((n, p, p), np.nan),
+                                   np.full((n, p, p), np.nan))
+        where = np.flatnonzero(wanted)
+        lower = np.full((n, p), np.nan)
+        values = np.full((n, p), np.nan)     # the estimates in the residuals
+        kept = np.full(n, p)
+        if where.size:   # both multiplicities in one stack (their difference: the error)
+            k = len(where)
+            solved = _solve_stack(np.concatenate([sums["R"][where, top], sums["R"][where, low]]),
+                                  np.concatenate([sums["G"][where, top], sums["G"][where, low]]),
+                                  np.concatenate([bounds[where], bounds[where]]),
+                                  self.config["method"])
+            # as many windows beyond the parameters solved for as identify's rule asks
+            enough = n_eff[np.concatenate([where, where])] >= solved["kept"] + MIN_SPARE_WINDOWS
+            solved["ok"] &= enough
+            good = solved["ok"][:k]
+            ok = where[good]
+            theta[ok] = solved["theta"][:k][good]
+            values[ok] = solved["values"][:k][good]
+            kept[ok] = solved["kept"][:k][good]
+            for key, array in (("full", full), ("jacobian", jacobian), ("mapping", mapping)):
+                array[ok] = solved[key][:k][good]
+            lower[where[solved["ok"][k:]]] = solved["theta"][k:][solved["ok"][k:]]
+        bars = np.concatenate([values, -np.ones((n, 1))], axis=1)
+        hac, trace = np.zeros((n, p, p)), np.zeros(n)
+        ring = np.array([s["ring_count"]], dtype=np.int64)
+        window_scores(np.ascontiguousarray(rows[top]), ends, sums["decay"], self._half_life,
+                      bars, self.lag_weights, s["U"], s["ring_rows"], s["ring_times"], ring,
+                      hac, trace)
+        s["ring_count"] = int(ring[0])
+        solved = np.flatnonzero(np.isfinite(values[:, 0]))
+        stderr = np.full((n, p), np.nan)
+        kappa = np.full(n, np.nan)
+        if solved.size:
+            stderr[solved], kappa[solved] = self._stderr(
+                sums["R"][solved, top], sums["W"][solved], bars[solved], hac[solved],
+                trace[solved], full[solved], jacobian[solved], mapping[solved], kept[solved])
+            stderr[np.isnan(theta)] = np.nan
+        solved = np.flatnonzero(np.isfinite(theta).all(axis=1))   # the CUSUM's
+        error = np.where(report[:, None], np.abs(theta - lower), np.nan)
+        residual = np.full(n, np.nan)
+        if solved.size:
+            R = sums["R"][solved, top]
+            residual[solved] = np.sum((R @ bars[solved, :, None])[:, :, 0] ** 2, axis=1) \
+                / sums["W"][solved, 0]
+        for w in np.flatnonzero(tested):
+            self._test(ends[w], rows[top, w], theta[w], residual[w], kappa[w], n_eff[w])
+        if np.any(report):
+            s["last_report"] = float(ends[report][-1])
+        self._out["t"].extend(ends[report].tolist())
+        self._out["values"].extend(theta[report])
+        self._out["stderr"].extend(stderr[report])
+        self._out["error"].extend(error[report])
         s["next_window"] = count
 
-    def _window_steps(self, starts):
-        """Per window: its step (span / (length - 1)), and whether it is uniform."""
-        L = self.length
-        t = self.s["buf_t"]
-        tw = np.lib.stride_tricks.sliding_window_view(t, L)[starts]
-        step = (tw[:, -1] - tw[:, 0]) / (L - 1)
-        if self.config["rate"] is not None:
-            return step, np.ones(len(starts), bool), tw
-        grid = tw[:, :1] + step[:, None] * np.arange(L)
-        uniform = np.max(np.abs(tw - grid), axis=1) <= UNIFORM_TOLERANCE * step
-        return step, uniform, tw
-
-    def _rows(self, starts, a):
+    def _bound_squares(self, starts):
+        """Squared output differences (orders 1 to 8) at the samples the windows add to
+        the noise bound (identify's), and each window's range of them."""
         s = self.s
-        L = self.length
-        step, uniform, tw = self._window_steps(starts)
-        integrals = []
-        for i, term in enumerate(self.model.terms):
-            k = term.derivative
-            if i in self._sign_terms:
-                w = np.empty(len(starts))
-                times, sizes = s[f"steps_t:{i}"], s[f"steps_s:{i}"]
-                v = s[f"fac:{i}"]
-                for j, st in enumerate(starts):   # one window at a time: any chunking
-                    inside = (times > tw[j, 0]) & (times < tw[j, -1])
-                    before = np.sign(v[st])
-                    w[j] = step_window_integrals(tw[j], before, times[inside], sizes[inside],
-                                                 L, a, k)[0]
-                integrals.append(w)
-                continue
-            zw = np.lib.stride_tricks.sliding_window_view(s[f"fac:{i}"], L)[starts]
-            w = np.einsum("ij,j->i", zw, self._unit_weights[(a, k)]) / step ** k
-            for j in np.flatnonzero(~uniform):
-                w[j] = float(window_sample_weights(tw[j], None, L, a, k)[0] @ zw[j])
-            integrals.append(w)
-        return np.column_stack(term_rows(self.model, integrals, [0] * len(self.model.terms),
-                                         len(starts)))
+        ends = starts + self.length + s["seg_first"]   # in the segment's samples
+        upto = np.maximum.accumulate(np.concatenate([[max(s["bound_upto"], 0)], ends]))
+        first = np.maximum(upto[:-1], 8)
+        lo = int(first[0])
+        hi = max(int(ends[-1]), lo)
+        s["bound_upto"] = int(upto[-1])
+        ranges = np.stack([np.minimum(first, np.maximum(ends, first)) - lo,
+                           np.maximum(ends, first) - lo], axis=1).astype(np.int64)
+        squares = np.zeros((hi - lo, 8))
+        if hi > lo:   # repeated differences (as identify's), elementwise: any chunking
+            d = s[f"buf:{self.model.output}"][lo - 8 - s["seg_first"]:hi - s["seg_first"]]
+            for k in range(8):
+                d = d[1:] - d[:-1]
+                squares[:, k] = d[7 - k:] ** 2
+        return squares, ranges
 
-    def _grams(self, starts, a):
-        """Per window, the covariance unit white output noise puts into ``[A | b]``."""
+    def _bounds(self, sums):
+        """identify's bound on the output noise variance, per window (from its sums)."""
+        counts = sums[:, 1]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            ratios = np.where(counts > 0, sums[:, 0] / counts / self._central, np.inf)
+        return np.min(ratios, axis=1)
+
+    def _stderr(self, R, W, bars, hac, trace, full, jacobian, mapping, kept):
+        """Standard errors and long-run variance factors of solved windows (stacked)."""
+        p = hac.shape[1]
+        # centred: the scores' mean (the bias correction's share) is no scatter
+        mean = -(np.swapaxes(R, 1, 2) @ (R @ bars[:, :, None]))[:, :p, 0] / W[:, :1]
+        hac = hac - ((2.0 * self.lag_weights.sum() - 1.0) * W[:, 1])[:, None, None] \
+            * (mean[:, :, None] * mean[:, None, :])
+        scale = full[:, :p, :p] * full[:, p:, p:]        # raw scores -> the basis
+        middle = np.swapaxes(scale, 1, 2) @ hac @ scale
+        # degrees of freedom: the non-overlapping windows (as counted by the weights)
+        independent = W[:, 0] ** 2 / W[:, 1] / self.overlap
+        covariance = mapping @ sandwich_stack(np.linalg.inv(jacobian), middle) \
+            @ np.swapaxes(mapping, 1, 2)
+        covariance *= (independent / np.maximum(independent - kept, 1.0))[:, None, None]
+        variances = np.maximum(np.einsum("kii->ki", covariance), 0.0)
+        long_run = np.einsum("kii->k", hac) / np.maximum(trace, 1e-300)
+        return np.sqrt(variances), long_run
+
+    def _test(self, end, row, theta, residual, kappa, n_eff):
+        """The CUSUM step of a window that shares no sample with the last tested one."""
         s = self.s
         p = len(self.parameters)
+        previous = s["previous_test"]
+        if np.all(np.isfinite(previous)):
+            innovation = float(row @ np.append(previous[:p], -1.0))
+            variance = previous[p] * (1.0 + p * previous[p + 1])
+            if variance > 0:
+                increment = min(innovation ** 2 / variance, INCREMENT_CAP)
+                s["cusum"] = max(0.0, s["cusum"] + increment - self.k_cusum)
+                if s["cusum"] > self.h_cusum:
+                    s["cusum"] = 0.0
+                    s["alarms"] += 1
+                    self._out["alarms"].append(float(end))
+        if np.all(np.isfinite(theta)):
+            s["previous_test"] = np.concatenate([theta, [residual, kappa / max(n_eff, 1e-300)
+                                                         / self.overlap]])
+        else:
+            s["previous_test"] = np.full(p + 2, np.nan)
+
+    def _window_samples(self, starts):
+        """Per window: the indices of its samples, its step (span / (length - 1)), whether
+        it is uniform, and its times."""
         L = self.length
-        index = {q: i for i, q in enumerate(self.parameters)}
-        grams = np.zeros((len(starts), p + 1, p + 1))
-        noisy = []
-        for i in self._noisy:
-            term = self.model.terms[i]
-            column = p if term.parameter is None else index[term.parameter]
-            sign = -1.0 if term.parameter is None else 1.0
-            noisy.append((column, sign * term.coefficient, term.derivative, i))
-        if not noisy:
-            return grams
+        index = starts[:, None] + np.arange(L)
+        tw = self.s["buf_t"][index]
+        step = (tw[:, -1] - tw[:, 0]) / (L - 1)
+        if self.config["rate"] is not None:
+            return index, step, np.ones(len(starts), bool), tw
+        grid = tw[:, :1] + step[:, None] * np.arange(L)
+        uniform = np.max(np.abs(tw - grid), axis=1) <= UNIFORM_TOLERANCE * step
+        return index, step, uniform, tw
+
+    def _rows_and_grams(self, starts):
+        """The window equations ``[A | b]`` (identify's kernels and ``term_rows``) and the
+        covariance unit white output noise puts into them, per multiplicity."""
+        s = self.s
+        L = self.length
+        index, step, uniform, tw = self._window_samples(starts)
+        irregular = np.flatnonzero(~uniform)
+        n, m, q1 = len(starts), len(self.multiplicities), len(self.parameters) + 1
+        integrals = [[] for _ in self.multiplicities]
+        for i, term in enumerate(self.model.terms):
+            k = term.derivative
+            if i in self._sign_terms:   # each window from its own start: any chunking
+                levels = np.sign(s[f"fac:{i}"][starts])
+                times = s[f"steps_t:{i}"]
+                inside = (times > tw[0, 0]) & (times < tw[-1, -1])
+                for x, a in enumerate(self.multiplicities):
+                    integrals[x].append(step_window_integrals(
+                        s["buf_t"][starts[0]:starts[-1] + L], 0.0, times[inside],
+                        s[f"steps_s:{i}"][inside], L, a, k, self.stride, levels=levels))
+                continue
+            zw = s[f"fac:{i}"][index]
+            scale = step ** k
+            for x, a in enumerate(self.multiplicities):
+                w = np.einsum("ij,j->i", zw, self._unit_weights[(a, k)]) / scale
+                for j in irregular:
+                    w[j] = float(window_sample_weights(tw[j], None, L, a, k)[0] @ zw[j])
+                integrals[x].append(w)
+        rows = np.empty((m, n, q1))
+        for x in range(m):
+            A, b = term_rows(self.model, integrals[x], [0] * len(self.model.terms), n)
+            rows[x, :, :-1] = A
+            rows[x, :, -1] = b
+        grams = np.zeros((m, n, q1, q1))
+        noisy = self._noisy_columns
+        for y, (c1, w1, k1, i1) in enumerate(noisy):
+            for c2, w2, k2, i2 in noisy[y:]:
+                pw = s[f"sen:{i1}"][index] * s[f"sen:{i2}"][index]
+                scale = step ** -(k1 + k2) * (w1 * w2)
+                for x, a in enumerate(self.multiplicities):
+                    g = self._unit_weights[(a, k1)] * self._unit_weights[(a, k2)]
+                    v = np.einsum("ij,j->i", pw, g) * scale
+                    for j in irregular:
+                        g = window_sample_weights(tw[j], None, L, a, k1) \
+                            * window_sample_weights(tw[j], None, L, a, k2)
+                        v[j] = float(g[0] @ pw[j]) * (w1 * w2)
+                    grams[x, :, c1, c2] += v
+                    if (c1, k1, i1) != (c2, k2, i2):
+                        grams[x, :, c2, c1] += v
+        return rows, grams
         step, uniform, tw = self._window_steps(starts)
         for x, (c1, w1, k1, i1) in enumerate(noisy):
             for c2, w2, k2, i2 in noisy[x:]:
@@ -761,150 +1035,3 @@ class Tracker:
                 if (c1, k1, i1) != (c2, k2, i2):
                     grams[:, c2, c1] += v
         return grams
-
-    def _accumulate(self, index, end, start, rows, grams, top):
-        """Add one window to the sums (forgetting the old ones), and report."""
-        s = self.s
-        half_life = self.config["half_life"]
-        decay = 1.0
-        if half_life is not None and np.isfinite(s["last_end"]):
-            decay = 2.0 ** (-(end - s["last_end"]) / half_life)
-        s["last_end"] = end
-        self._noise_bound(start, decay)
-        for a in self.multiplicities:
-            stacked = np.vstack([math.sqrt(decay) * s[f"R{a}"], rows[a][None, :]])
-            s[f"R{a}"] = np.linalg.qr(stacked, mode="r")
-            s[f"G{a}"] = decay * s[f"G{a}"] + grams[a]
-        row = rows[top]
-        p = len(self.parameters)
-        decay2 = decay * decay
-        s["W1"] = decay * s["W1"] + 1.0
-        s["W2"] = decay2 * s["W2"] + 1.0
-        # the scores' products: a_j r_j = -(a_j [A|b]_j^T) theta_bar, lag by lag
-        score = np.outer(row[:p], row).reshape(-1)
-        U = s["U"]
-        U *= decay2
-        U[0] += np.outer(score, score)
-        count = int(s["ring_count"])
-        lags = len(s["ring_times"])
-        if count:
-            back = np.arange(1, min(count, lags) + 1)
-            slots = (count - back) % lags
-            weights = np.ones(len(back)) if half_life is None else \
-                2.0 ** (-(end - s["ring_times"][slots]) / half_life)
-            U[back] += (weights[:, None] * s["ring_rows"][slots])[:, :, None] * score
-        s["ring_rows"][count % lags] = score
-        s["ring_times"][count % lags] = end
-        s["ring_count"] = count + 1
-        tested = index % self.overlap == 0
-        every = self.config["every"]
-        report = every is None or np.floor(end / every) > np.floor(s["last_report"] / every)
-        if tested or report:
-            self._estimate(index, end, row, tested, report)
-
-    def _noise_bound(self, start, decay):
-        """Squared differences of the output up to the window's end (identify's bound)."""
-        s = self.s
-        end = start + self.length + s["seg_first"]   # in the segment's samples
-        lo = max(s["bound_upto"], 0)
-        y = s[f"buf:{self.model.output}"]
-        s["bound_sums"] *= decay
-        s["bound_counts"] *= decay
-        first = max(lo, 8)
-        if end > first:   # differences of orders 1..8 ending at the new samples
-            block = np.lib.stride_tricks.sliding_window_view(
-                y[first - 8 - s["seg_first"]:end - s["seg_first"]], 9)
-            d = block @ self._differences
-            s["bound_sums"] += np.einsum("ij,ij->j", d, d)
-            s["bound_counts"] += len(d)
-        s["bound_upto"] = max(end, s["bound_upto"])
-
-    def _bound(self):
-        s = self.s
-        counts = s["bound_counts"]
-        use = counts > 0
-        if not np.any(use):
-            return np.inf
-        ratios = s["bound_sums"][use] / counts[use] / np.array(
-            [math.comb(2 * k, k) for k in range(1, 9)])[use]
-        return float(np.min(ratios))
-
-    def _estimate(self, index, end, row, tested, report):
-        s = self.s
-        p = len(self.parameters)
-        method = self.config["method"]
-        bound = self._bound()
-        top = max(self.multiplicities)
-        theta = np.full(p, np.nan)
-        stderr = np.full(p, np.nan)
-        error = np.full(p, np.nan)
-        n_eff = s["W1"] ** 2 / s["W2"] / self.overlap
-        kappa = np.nan
-        solved = self._solve_top(bound, method, top) if n_eff >= self.needed else None
-        if solved is not None:
-            theta, stderr, kappa = solved
-        if solved is not None and report:
-            low = _solve(s[f"R{min(self.multiplicities)}"], s[f"G{min(self.multiplicities)}"],
-                         bound, method)
-            if low is not None:
-                error = np.abs(theta - low[0])
-        if tested:
-            self._test(end, row, theta, kappa, n_eff)
-        if report:
-            s["last_report"] = end
-            self._out["t"].append(end)
-            self._out["values"].append(theta)
-            self._out["stderr"].append(stderr)
-            self._out["error"].append(error)
-
-    def _solve_top(self, bound, method, top):
-        s = self.s
-        solved = _solve(s[f"R{top}"], s[f"G{top}"], bound, method)
-        if solved is None:
-            return None
-        theta, phi, full, jacobian, mapping = solved
-        p = len(phi)
-        bar = np.append(theta, -1.0)             # in the units of the rows
-        U = s["U"].reshape(len(s["U"]), p, p + 1, p, p + 1)
-        lagged = np.einsum("lacbd,c,d->lab", U, bar, bar)
-        hac = lagged[0] + np.einsum("l,lab->ab", self.lag_weights[1:],
-                                    lagged[1:] + lagged[1:].transpose(0, 2, 1))
-        # centred: the scores' mean (the bias correction's share) is no scatter
-        mean = -(s[f"R{top}"].T @ (s[f"R{top}"] @ bar))[:p] / s["W1"]
-        hac -= (2.0 * self.lag_weights.sum() - 1.0) * s["W2"] * np.outer(mean, mean)
-        scale = full[:p, :p] * full[p, p]        # raw scores -> the basis
-        middle = scale.T @ hac @ scale
-        inverse = np.linalg.inv(jacobian)
-        # degrees of freedom: the non-overlapping windows (as counted by the weights)
-        independent = s["W1"] ** 2 / s["W2"] / self.overlap
-        covariance = mapping @ sandwich(inverse, middle) @ mapping.T \
-            * (independent / max(independent - p, 1.0))
-        long_run = float(np.trace(hac) / max(np.trace(lagged[0]), 1e-300))
-        return theta, np.sqrt(np.maximum(np.diag(covariance), 0.0)), long_run
-
-    def _test(self, end, row, theta, kappa, n_eff):
-        """The CUSUM step of a window that shares no sample with the last tested one."""
-        s = self.s
-        p = len(self.parameters)
-        previous = s["previous_test"]
-        if np.all(np.isfinite(previous)):
-            bar = np.append(previous[:p], -1.0)
-            R = s[f"R{max(self.multiplicities)}"]
-            innovation = float(row @ bar)
-            variance = previous[p] * (1.0 + p * previous[p + 1])
-            if variance > 0:
-                increment = min(innovation ** 2 / variance, INCREMENT_CAP)
-                s["cusum"] = max(0.0, s["cusum"] + increment - self.k_cusum)
-                if s["cusum"] > self.h_cusum:
-                    s["cusum"] = 0.0
-                    s["alarms"] += 1
-                    self._out["alarms"].append(end)
-            del R
-        if np.all(np.isfinite(theta)):
-            bar = np.append(theta, -1.0)
-            R = s[f"R{max(self.multiplicities)}"]
-            residual = float(np.sum((R @ bar) ** 2)) / s["W1"]
-            s["previous_test"] = np.concatenate([theta, [residual, kappa / max(n_eff, 1e-300)
-                                                         / self.overlap]])
-        else:
-            s["previous_test"] = np.full(p + 2, np.nan)

@@ -170,7 +170,7 @@ def _kernel_primitive(multiplicity, derivative):
 
 
 def step_window_integrals(t, level, times, steps, length, multiplicity, derivative,
-                          stride=1):
+                          stride=1, levels=None):
     """Exact window integrals of a piecewise-constant signal (``sign(v)``).
 
     The signal is ``level`` before ``times[0]`` and changes by ``steps[j]`` at
@@ -193,6 +193,9 @@ def step_window_integrals(t, level, times, steps, length, multiplicity, derivati
         Increasing times of the steps and their sizes.
     length, multiplicity, derivative, stride
         As in :func:`uniform_window_integrals`.
+    levels : array_like, optional
+        The signal at the start of each window, in place of ``level`` and the steps
+        before it (a stream's windows: the same values however the stream is cut).
 
     Returns
     -------
@@ -206,8 +209,12 @@ def step_window_integrals(t, level, times, steps, length, multiplicity, derivati
     span = t[length - 1:length - 1 + (n_win - 1) * stride + 1:stride] - t0
     primitive = _kernel_primitive(int(multiplicity), int(derivative))
     whole = chebyshev.chebval(1.0, primitive)
-    before = np.concatenate([[0.0], np.cumsum(steps)])
-    total = (level + before[np.searchsorted(times, t0, side="right")]) * whole
+    if levels is None:
+        before = np.concatenate([[0.0], np.cumsum(steps)])
+        levels = level + before[np.searchsorted(times, t0, side="right")]
+    total = np.asarray(levels, dtype=float) * whole
+    if not times.size:
+        return total / span ** derivative
     # the windows holding each step: from the first that ends after it to the last that
     # starts before it
     lo = np.searchsorted(t0 + span, times, side="right")

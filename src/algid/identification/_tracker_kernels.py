@@ -1,0 +1,265 @@
+"""The per-window recurrences of :class:`algid.Tracker`, compiled by numba when installed.
+
+:class:`~algid.Tracker` forms the window equations of a chunk at once (NumPy, identify's
+kernels); what remains sequential is the accumulation, window after window:
+
+- :func:`window_sums`: the forgetting factor of each window, the Givens update of the
+  triangular factors ``R`` of ``[A | b]`` (one per kernel multiplicity), the noise sums
+  ``G``, the weight sums and the sums of squared output differences of the noise bound,
+  with a copy of each after every window (the estimates of all the chunk's window ends
+  are then solved in one batched call);
+- :func:`window_scores`: the lagged products of the windows' scores and, at each window
+  to be reported, their contraction with the estimate there (the HAC middle of the
+  standard errors).
+
+Each runs window after window in a fixed order, so the results do not depend on how
+the stream is cut into chunks.  Without numba (or with the environment variable
+``ALGID_TRACKER_NUMPY=1`` set before the import, or :data:`USE_NUMBA` set to False) the
+same :func:`window_sums` runs as Python, and :func:`window_scores_numpy` does the work of
+:func:`window_scores` in operations on whole matrices: slower, the same recurrences, not
+bit for bit the compiled results.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from functools import cache
+
+import numpy as np
+
+__all__ = ["USE_NUMBA", "window_sums", "window_scores", "window_scores_numpy", "kernels"]
+
+
+def _numba_available():
+    if os.environ.get("ALGID_TRACKER_NUMPY", "") not in ("", "0"):
+        return False
+    try:
+        import numba  # noqa: F401
+    except ImportError:
+        return False
+    return True
+
+
+#: Whether :func:`kernels` compiles the recurrences with numba.
+USE_NUMBA = _numba_available()
+
+
+def window_sums(rows, grams, ends, last_end, half_life, squares, ranges, R, G, W, bound,
+                out_R, out_G, out_W, out_bound, out_decay):
+    """Accumulate ``n`` windows; the state (``R``, ``G``, ``W``, ``bound``) in place.
+
+    Parameters
+    ----------
+    rows : numpy.ndarray, shape (m, n, p + 1)
+        ``[A | b]`` of each window, per multiplicity.
+    grams : numpy.ndarray, shape (m, n, p + 1, p + 1)
+        The noise covariance each window adds.
+    ends : numpy.ndarray, shape (n,)
+        Times of the windows' last samples.
+    last_end : float
+        The end of the window before (NaN: none).
+    half_life : float
+        Of the forgetting (inf: none).
+    squares : numpy.ndarray, shape (k, 8)
+        Squared output differences of orders 1 to 8 at the new samples.
+    ranges : numpy.ndarray of int64, shape (n, 2)
+        The rows of ``squares`` each window adds to the noise bound.
+    R, G : numpy.ndarray, shape (m, p + 1, p + 1)
+        Triangular factors and noise sums.
+    W : numpy.ndarray, shape (2,)
+        Sums of the weights and of their squares.
+    bound : numpy.ndarray, shape (2, 8)
+        Sums of the squared differences and their counts.
+    out_R, out_G, out_W, out_bound : numpy.ndarray
+        The state after each window (leading axis ``n``).
+    out_decay : numpy.ndarray, shape (n,)
+        Each window's forgetting factor.
+    """
+    m, n, q1 = rows.shape
+    x = np.empty(q1)
+    previous = last_end
+    for w in range(n):
+        decay = 1.0
+        if not math.isinf(half_life) and not math.isnan(previous):
+            decay = 2.0 ** (-(ends[w] - previous) / half_life)
+        previous = ends[w]
+        out_decay[w] = decay
+        for k in range(8):
+            bound[0, k] *= decay
+            bound[1, k] *= decay
+        for i in range(ranges[w, 0], ranges[w, 1]):
+            for k in range(8):
+                bound[0, k] += squares[i, k]
+        added = float(ranges[w, 1] - ranges[w, 0])
+        for k in range(8):
+            bound[1, k] += added
+        root = math.sqrt(decay)
+        for a in range(m):
+            for i in range(q1):
+                x[i] = rows[a, w, i]
+                for j in range(q1):
+                    R[a, i, j] *= root
+                    G[a, i, j] = decay * G[a, i, j] + grams[a, w, i, j]
+            for i in range(q1):       # Givens rotations: the new row into R
+                if x[i] == 0.0:
+                    continue
+                r = math.hypot(R[a, i, i], x[i])
+                c = R[a, i, i] / r
+                s = x[i] / r
+                R[a, i, i] = r
+                x[i] = 0.0
+                for j in range(i + 1, q1):
+                    rij = R[a, i, j]
+                    R[a, i, j] = c * rij + s * x[j]
+                    x[j] = c * x[j] - s * rij
+            for i in range(q1):
+                for j in range(q1):
+                    out_R[w, a, i, j] = R[a, i, j]
+                    out_G[w, a, i, j] = G[a, i, j]
+        W[0] = decay * W[0] + 1.0
+        W[1] = decay * decay * W[1] + 1.0
+        out_W[w, 0] = W[0]
+        out_W[w, 1] = W[1]
+        for k in range(8):
+            out_bound[w, 0, k] = bound[0, k]
+            out_bound[w, 1, k] = bound[1, k]
+
+
+def window_scores(rows, ends, decays, half_life, bars, lag_weights, U, ring_rows,
+                  ring_times, count, out_hac, out_trace):
+    """Lagged products of the scores; their HAC contraction where ``bars`` is finite.
+
+    The score of a window is ``a_j [A | b]_j`` (the outer product, flattened), and
+    ``U[l]`` sums, with the forgetting, the products of each score with the one ``l``
+    windows before it in the same segment; at ``theta_bar`` they give the lagged
+    products ``sum_j w_j (a_j r_j)(a_{j-l} r_{j-l})^T`` of the estimating equations.
+
+    Parameters
+    ----------
+    rows : numpy.ndarray, shape (n, p + 1)
+        ``[A | b]`` of each window (top multiplicity).
+    ends, decays : numpy.ndarray, shape (n,)
+        Window ends and forgetting factors (from :func:`window_sums`).
+    half_life : float
+        Of the forgetting (inf: none).
+    bars : numpy.ndarray, shape (n, p + 1)
+        ``(theta, -1)`` where the HAC middle is wanted, NaN elsewhere.
+    lag_weights : numpy.ndarray, shape (lags + 1,)
+        identify's flat-top weights.
+    U : numpy.ndarray, shape (lags + 1, q, q)
+        The lagged products (in place).
+    ring_rows, ring_times : numpy.ndarray, shapes (lags, q), (lags,)
+        The last scores and their window ends (in place).
+    count : numpy.ndarray of int64, shape (1,)
+        Scores in the ring since the segment's start (in place).
+    out_hac : numpy.ndarray, shape (n, p, p)
+        The HAC sum ``lagged_0 + sum_l k_l (lagged_l + lagged_l^T)``.
+    out_trace : numpy.ndarray, shape (n,)
+        The trace of ``lagged_0``.
+    """
+    n, q1 = rows.shape
+    p = q1 - 1
+    q = p * q1
+    lags = ring_rows.shape[0]
+    score = np.empty(q)
+    contracted = np.empty((lags + 1, p, p))
+    for w in range(n):
+        for i in range(p):
+            for j in range(q1):
+                score[i * q1 + j] = rows[w, i] * rows[w, j]
+        decay2 = decays[w] * decays[w]
+        used = min(count[0], lags)
+        for i in range(q):
+            for j in range(q):
+                U[0, i, j] = decay2 * U[0, i, j] + score[i] * score[j]
+        for back in range(1, lags + 1):
+            if back > used:
+                for i in range(q):
+                    for j in range(q):
+                        U[back, i, j] *= decay2
+                continue
+            slot = (count[0] - back) % lags
+            weight = 1.0
+            if not math.isinf(half_life):
+                weight = 2.0 ** (-(ends[w] - ring_times[slot]) / half_life)
+            for i in range(q):
+                old = weight * ring_rows[slot, i]
+                for j in range(q):
+                    U[back, i, j] = decay2 * U[back, i, j] + old * score[j]
+        slot = count[0] % lags
+        for i in range(q):
+            ring_rows[slot, i] = score[i]
+        ring_times[slot] = ends[w]
+        count[0] += 1
+        if math.isnan(bars[w, 0]):
+            continue
+        for lag in range(lags + 1):
+            for a in range(p):
+                for b in range(p):
+                    total = 0.0
+                    for c in range(q1):
+                        inner = 0.0
+                        for d in range(q1):
+                            inner += U[lag, a * q1 + c, b * q1 + d] * bars[w, d]
+                        total += bars[w, c] * inner
+                    contracted[lag, a, b] = total
+        trace = 0.0
+        for a in range(p):
+            trace += contracted[0, a, a]
+            for b in range(p):
+                hac = contracted[0, a, b]
+                for lag in range(1, lags + 1):
+                    hac += lag_weights[lag] * (contracted[lag, a, b] + contracted[lag, b, a])
+                out_hac[w, a, b] = hac
+        out_trace[w] = trace
+
+
+def window_scores_numpy(rows, ends, decays, half_life, bars, lag_weights, U, ring_rows,
+                        ring_times, count, out_hac, out_trace):
+    """:func:`window_scores` in NumPy operations on whole matrices (the path without
+    numba: the same recurrence, not bit for bit the compiled one)."""
+    n, q1 = rows.shape
+    p = q1 - 1
+    lags = ring_rows.shape[0]
+    for w in range(n):
+        score = np.outer(rows[w, :p], rows[w]).reshape(-1)
+        U *= decays[w] * decays[w]
+        U[0] += np.outer(score, score)
+        used = min(int(count[0]), lags)
+        if used:
+            back = np.arange(1, used + 1)
+            slots = (count[0] - back) % lags
+            weights = np.ones(used) if math.isinf(half_life) else \
+                2.0 ** (-(ends[w] - ring_times[slots]) / half_life)
+            U[back] += (weights[:, None] * ring_rows[slots])[:, :, None] * score
+        ring_rows[count[0] % lags] = score
+        ring_times[count[0] % lags] = ends[w]
+        count[0] += 1
+        if math.isnan(bars[w, 0]):
+            continue
+        lagged = np.einsum("lacbd,c,d->lab", U.reshape(lags + 1, p, q1, p, q1), bars[w],
+                           bars[w])
+        out_hac[w] = lagged[0] + np.einsum("l,lab->ab", lag_weights[1:],
+                                           lagged[1:] + lagged[1:].transpose(0, 2, 1))
+        out_trace[w] = np.trace(lagged[0])
+
+
+@cache
+def _compiled():
+    import numba
+
+    jit = numba.njit(cache=True, nogil=True)
+    return jit(window_sums), jit(window_scores)
+
+
+def kernels():
+    """The recurrences: compiled when :data:`USE_NUMBA`, else the Python functions.
+
+    Returns
+    -------
+    tuple of callable
+        :func:`window_sums` and :func:`window_scores` (compiled), or
+        :func:`window_sums` and :func:`window_scores_numpy`.
+    """
+    return _compiled() if USE_NUMBA else (window_sums, window_scores_numpy)
