@@ -109,7 +109,8 @@ for name, record in runs.items():
     tracked[name], seconds[name] = stream(tracker, emps_columns(record), SPAN)
     streamed = tracked[name].t[-1] - record.t[0]
     print(f"{name} run: {streamed:.1f} s of record streamed in {seconds[name]:.1f} s "
-          f"({streamed / seconds[name]:.1f} times faster than real time), {len(tracked[name])} window ends, "
+          f"({streamed / seconds[name]:.1f} times faster than real time), "
+          f"{len(tracked[name])} window ends, "
           f"alarms at {np.round(tracked[name].alarms, 2).tolist()} s")
 
 # %% [markdown]
@@ -356,7 +357,7 @@ display(Markdown(
     f"just before the change and {100 * M_after:+.2f} % from the new mass 4 s after it. "
     + (f"The first alarm comes {late[0] - T_CHANGE:.2f} s after the change"
        if len(late) else "No alarm follows the change")
-    + (f", and none before it. " if not len(early)
+    + (", and none before it. " if not len(early)
        else f"; {len(early)} alarm(s) came before it. ")
     + f"Without forgetting (dotted) the estimate is an average over the whole record: at "
     f"the end it is still {100 * M_kept:+.1f} % from the new mass, and its alarms keep "
@@ -375,9 +376,9 @@ RESULTS["loop_alarms_no_forgetting"] = kept.alarms.tolist()
 # ## The Silverbox tracked by a linear model
 #
 # The arrow part of the Silverbox (notebook 5) is filtered noise whose amplitude grows
-# linearly over its 66 s (the quick workload streams its first 40 s). We track it with the *linear* model
-# `V2'' + B V2' + K V2 = G V1 + d` and a half-life of 1 s. Its spring is hardening:
-# notebook 5 fits `K V2 + K3 V2³`. A linear spring fitted to it over a stretch where
+# linearly over its 66 s (the quick workload streams its first 40 s). We track it with
+# the *linear* model `V2'' + B V2' + K V2 = G V1 + d` and a half-life of 1 s. Its spring
+# is hardening: notebook 5 fits `K V2 + K3 V2³`. A linear spring fitted to it over a stretch where
 # the output has standard deviation σ sees the stiffness `K + 3 K3 σ²` (the
 # least-squares slope of `K x + K3 x³` against `x`, for a Gaussian `x`), so the tracked
 # `K` should rise with the amplitude along that curve. The cubic model's `K` and `K3`
@@ -454,7 +455,8 @@ display(Markdown(
     f"to {np.sqrt(np.mean(K[loud])) / (2 * np.pi):.1f} Hz. The curve "
     f"`K + 3 K3 σ²` of the cubic model, identified on another part of the record, "
     f"predicts it: after the first 5 s the tracked K stays within "
-    f"{100 * np.median(mismatch):.2f} % of it in half of the reports and within {100 * np.percentile(mismatch, 95):.1f} % in 95 %. "
+    f"{100 * np.median(mismatch):.2f} % of it in half of the reports and within "
+    f"{100 * np.percentile(mismatch, 95):.1f} % in 95 %. "
     f"A linear model does not describe this spring, and tracked over time it says so, "
     f"and how"
     + (f"; the CUSUM noticed it too: {len(out_sb.alarms)} alarm(s), at "
