@@ -462,8 +462,9 @@ display(Markdown(
     f"{100 * np.percentile(mismatch, 95):.1f} % in 95 %. "
     f"A linear model does not describe this spring, and tracked over time it says so, "
     f"and how"
-    + (f"; the CUSUM noticed it too: {len(out_sb.alarms)} alarm(s), at "
-       f"{', '.join(f'{a:.1f}' for a in out_sb.alarms)} s." if len(out_sb.alarms) else ".")))
+    + (f". The tracker raised {len(out_sb.alarms)} alarm(s) on the way (dashed, at "
+       f"{', '.join(f'{a:.1f}' for a in out_sb.alarms)} s)." if len(out_sb.alarms)
+       else ".")))
 
 # %% tags=["remove-cell"]
 RESULTS["silverbox_K_rise"] = float(rise)
