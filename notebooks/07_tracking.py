@@ -176,8 +176,10 @@ def draw_estimates(axes, out, title):
         ax.grid(alpha=0.3)
     for ax in axes[-1]:
         ax.set_xlabel("t (s)")
-    axes.flat[0].legend(fontsize="small", loc="lower right")
-    axes.flat[0].figure.suptitle(title)
+    fig = axes.flat[0].figure
+    fig.legend(*axes.flat[0].get_legend_handles_labels(), loc="outside lower center", ncol=5,
+               fontsize="small")
+    fig.suptitle(title)
 
 
 fig, axes = plt.subplots(2, 2, figsize=(11, 6), sharex=True, layout="constrained")
@@ -432,10 +434,12 @@ ax_s.set_ylabel("output standard deviation σ (mV)")
 ax_t.legend(loc="upper left", fontsize="small")
 ax_s.legend(loc="lower right", fontsize="small")
 ax_t.set_title("Silverbox, arrow part: stiffness of a linear model over time", fontsize="medium")
-ax_a.plot(1e3 * amplitude, K / 1e3, ".", ms=3, color="C0", label="tracked K")
-order = np.argsort(amplitude)
-ax_a.plot(1e3 * amplitude[order], predicted_K[order] / 1e3, color="C1", lw=1.5,
-          label="K + 3 K3 σ²")
+after_start = out_sb.t >= 5.0  # once the memory of the forgetting is filled
+ax_a.plot(1e3 * amplitude[after_start], K[after_start] / 1e3, ".", ms=3, color="C0",
+          label="tracked K (after the first 5 s)")
+order = np.argsort(amplitude[after_start])
+ax_a.plot(1e3 * amplitude[after_start][order], predicted_K[after_start][order] / 1e3,
+          color="C1", lw=1.5, label="K + 3 K3 σ²")
 ax_a.set_xlabel("output standard deviation σ (mV)")
 ax_a.set_ylabel("stiffness (10³ / s²)")
 ax_a.set_title("the same against the amplitude", fontsize="medium")
@@ -444,7 +448,7 @@ for ax in (ax_t, ax_a):
     ax.grid(alpha=0.3)
 
 # %%
-settled = out_sb.t >= 5.0  # past the first seconds of the stream
+settled = after_start
 low, high = np.percentile(amplitude[settled], [10, 90])
 quiet, loud = settled & (amplitude <= low), settled & (amplitude >= high)
 rise = np.mean(K[loud]) / np.mean(K[quiet]) - 1
