@@ -31,7 +31,7 @@ from algid_notebooks import find_kernel, notebook_names, runs_this_python  # noq
 
 NOTEBOOKS = ROOT / "notebooks"
 NAMES = ("01_derivation", "02_paper_figures", "03_noise_and_filter", "04_online_realisation",
-         "05_silverbox", "06_emps")
+         "05_silverbox", "06_emps", "07_tracking")
 
 
 def test_every_notebook_is_executed():
@@ -69,7 +69,7 @@ def run_notebook(executed_notebooks):
 HIDDEN = "remove-cell"  # the tag of the cells that the documentation does not render
 #: The figures a reader of a real-data notebook wants: the estimates, measured against
 #: simulated output, the residuals.
-MIN_FIGURES = {"05_silverbox": 3, "06_emps": 3}
+MIN_FIGURES = {"05_silverbox": 3, "06_emps": 3, "07_tracking": 4}
 
 
 def _hidden(cell):
@@ -280,3 +280,42 @@ def test_06_emps(run_notebook, record_property):
     # ones, and the friction smoothed by tanh does worse than sign
     assert res["closed_loop_force_error_identified"] <= res["closed_loop_force_error_published"]
     assert res["closed_loop_force_error_tanh"] > res["closed_loop_force_error_identified"]
+
+
+def test_07_tracking(run_notebook, record_property):
+    res, elapsed = run_notebook("07_tracking")
+    record_property("seconds", round(elapsed, 1))
+    print(f"07_tracking: {elapsed:.1f} s")
+    # EMPS without forgetting: the whole run (M / Fv / Fc / off within 1 / 2 / 3 / 5 % of
+    # the published values), or its first 8 s in the quick workload (measured -0.18,
+    # -3.0, +2.4, -6.7 %)
+    limits = ({"M": 0.01, "Fv": 0.05, "Fc": 0.05, "off": 0.10} if res["quick"]
+              else {"M": 0.01, "Fv": 0.02, "Fc": 0.03, "off": 0.05})
+    for p, limit in limits.items():
+        assert abs(res["emps_final_relative_error"][p]) <= limit, p
+    # the tracker is identify on the same samples but for the causal sign crossings
+    assert max(abs(v) for v in res["emps_tracker_over_identify"].values()) < 0.002
+    # M within 5 % from at most 1 s after the first estimate (the record starts at rest)
+    assert res["emps_M_within_5pct_from_s"] - res["emps_first_estimate_s"] <= 1.0
+    # the alarms on the estimation run come while the tracker learns, as the text says:
+    # within 3 s of its first estimate, Fv then several standard errors off
+    if res["emps_alarms"]:
+        assert res["emps_alarms_within_s_of_first"] <= 3.0
+        assert res["emps_Fv_sigmas_at_first_alarm"] > 3
+    # the validation run, with its pulses: near the published values, no alarm
+    limits = {"M": 0.03, "Fv": 0.05, "Fc": 0.08 if res["quick"] else 0.05, "off": 0.05}
+    for p, limit in limits.items():
+        assert abs(res["validation_final_relative_error"][p]) <= limit, p
+    assert res["validation_alarms"] == []
+    # the mass that grows by 25 %, half-life 1 s: M within 1 % before, 3 % 4 s after; an
+    # alarm within 2 s of the change and none before; without forgetting M stays behind
+    t_change, alarms = res["loop_t_change"], res["loop_alarms"]
+    assert abs(res["loop_M_before_relative_error"]) < 0.01
+    assert abs(res["loop_M_4s_after_relative_error"]) < 0.03
+    assert alarms and t_change < alarms[0] < t_change + 2.0
+    assert abs(res["loop_M_no_forgetting_relative_error"]) > 0.05
+    # the Silverbox's linear stiffness rises with the amplitude, along K + 3 K3 sigma^2
+    assert res["silverbox_K_rise"] > 0.02
+    assert res["silverbox_K_amplitude_correlation"] > 0.9
+    assert res["silverbox_K_mismatch_median"] < 0.005
+    assert res["silverbox_K_mismatch_p95"] < 0.02
