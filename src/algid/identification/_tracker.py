@@ -41,7 +41,7 @@ from algid.identification._bias_compensation import koopmans_stack
 from algid.identification._change_detection import INCREMENT_CAP, cusum_reference, cusum_threshold
 from algid.identification._identify import WINDOW_OVERLAP, factor_sensitivity, term_rows
 from algid.identification._records import GAP_FACTOR, TIME_COLUMNS, UNIFORM_TOLERANCE, check_rate
-from algid.identification._tracker_kernels import kernels
+from algid.identification._tracker_kernels import kernels, solvers
 from algid.identification._window_basis import ROUNDOFF_SEPARABILITY
 from algid.identification._window_covariance import sandwich_stack
 from algid.identification._window_kernels import step_window_integrals, window_sample_weights
@@ -816,7 +816,7 @@ class Tracker:
         m, q1 = len(self.multiplicities), len(self.parameters) + 1
         sums = {"R": np.empty((n, m, q1, q1)), "G": np.empty((n, m, q1, q1)),
                 "W": np.empty((n, 2)), "bound": np.empty((n, 2, 8)), "decay": np.empty(n)}
-        window_sums, window_scores = kernels()
+        window_sums = kernels()[0]
         window_sums(rows, grams, ends, float(s["last_end"]), self._half_life, squares, ranges,
                     s["R"], s["G"], s["W"], s["bound"], sums["R"], sums["G"], sums["W"],
                     sums["bound"], sums["decay"])
@@ -833,6 +833,30 @@ class Tracker:
         n_eff = sums["W"][:, 0] ** 2 / sums["W"][:, 1] / self.overlap
         wanted = (tested | report) & (n_eff >= self.needed)   # enough for one parameter
         bounds = self._bounds(sums["bound"])
+        compiled = solvers()
+        if compiled is None:
+            theta, stderr, error, residual, kappa = self._solve_numpy(
+                rows, ends, sums, bounds, n_eff, wanted, report)
+        else:
+            theta, stderr, error, residual, kappa = self._solve_compiled(
+                compiled, rows, ends, sums, bounds, n_eff, wanted, report)
+        top = self.multiplicities.index(max(self.multiplicities))
+        for w in np.flatnonzero(tested):
+            self._test(ends[w], rows[top, w], theta[w], residual[w], kappa[w], n_eff[w])
+        if np.any(report):
+            s["last_report"] = float(ends[report][-1])
+        self._out["t"].extend(ends[report].tolist())
+        self._out["values"].extend(theta[report])
+        self._out["stderr"].extend(stderr[report])
+        self._out["error"].extend(error[report])
+        s["next_window"] = count
+
+    def _solve_numpy(self, rows, ends, sums, bounds, n_eff, wanted, report):
+        """Estimates, standard errors, numerical errors, CUSUM residuals and long-run
+        variance factors of a chunk's window ends, in batched NumPy calls."""
+        s = self.s
+        n = len(ends)
+        q1 = len(self.parameters) + 1
         top = self.multiplicities.index(max(self.multiplicities))
         low = self.multiplicities.index(min(self.multiplicities))
         p = q1 - 1
@@ -863,9 +887,9 @@ class Tracker:
         bars = np.concatenate([values, -np.ones((n, 1))], axis=1)
         hac, trace = np.zeros((n, p, p)), np.zeros(n)
         ring = np.array([s["ring_count"]], dtype=np.int64)
-        window_scores(np.ascontiguousarray(rows[top]), ends, sums["decay"], self._half_life,
-                      bars, self.lag_weights, s["U"], s["ring_rows"], s["ring_times"], ring,
-                      hac, trace)
+        kernels()[1](np.ascontiguousarray(rows[top]), ends, sums["decay"], self._half_life,
+                     bars, self.lag_weights, s["U"], s["ring_rows"], s["ring_times"], ring,
+                     hac, trace)
         s["ring_count"] = int(ring[0])
         solved = np.flatnonzero(np.isfinite(values[:, 0]))
         stderr = np.full((n, p), np.nan)
@@ -882,15 +906,37 @@ class Tracker:
             R = sums["R"][solved, top]
             residual[solved] = np.sum((R @ bars[solved, :, None])[:, :, 0] ** 2, axis=1) \
                 / sums["W"][solved, 0]
-        for w in np.flatnonzero(tested):
-            self._test(ends[w], rows[top, w], theta[w], residual[w], kappa[w], n_eff[w])
-        if np.any(report):
-            s["last_report"] = float(ends[report][-1])
-        self._out["t"].extend(ends[report].tolist())
-        self._out["values"].extend(theta[report])
-        self._out["stderr"].extend(stderr[report])
-        self._out["error"].extend(error[report])
-        s["next_window"] = count
+        return theta, stderr, error, residual, kappa
+
+    def _solve_compiled(self, compiled, rows, ends, sums, bounds, n_eff, wanted, report):
+        """:meth:`_solve_numpy` window after window in compiled loops."""
+        solve_windows, window_stderr = compiled
+        s = self.s
+        n, p = len(ends), len(self.parameters)
+        top = self.multiplicities.index(max(self.multiplicities))
+        low = self.multiplicities.index(min(self.multiplicities))
+        pair = [top, low]
+        theta, values, lower = np.empty((n, p)), np.empty((n, p)), np.empty((n, p))
+        kept = np.empty(n, dtype=np.int64)
+        full, jacobian, mapping = np.empty((n, p + 1, p + 1)), np.empty((n, p, p)), \
+            np.empty((n, p, p))
+        solve_windows(np.ascontiguousarray(sums["R"][:, pair]),
+                      np.ascontiguousarray(sums["G"][:, pair]), bounds, n_eff, wanted,
+                      self.config["method"] == "bc", MIN_SPARE_WINDOWS, theta, values, kept,
+                      full, jacobian, mapping, lower)
+        bars = np.concatenate([values, -np.ones((n, 1))], axis=1)
+        hac, trace = np.zeros((n, p, p)), np.zeros(n)
+        ring = np.array([s["ring_count"]], dtype=np.int64)
+        kernels()[1](np.ascontiguousarray(rows[top]), ends, sums["decay"], self._half_life,
+                     bars, self.lag_weights, s["U"], s["ring_rows"], s["ring_times"], ring,
+                     hac, trace)
+        s["ring_count"] = int(ring[0])
+        stderr, kappa, residual = np.empty((n, p)), np.empty(n), np.empty(n)
+        window_stderr(np.ascontiguousarray(sums["R"][:, top]), sums["W"], bars, hac, trace,
+                      full, jacobian, mapping, kept, theta, float(self.lag_weights.sum()),
+                      self.overlap, stderr, kappa, residual)
+        error = np.where(report[:, None], np.abs(theta - lower), np.nan)
+        return theta, stderr, error, residual, kappa
 
     def _bound_squares(self, starts):
         """Squared output differences (orders 1 to 8) at the samples the windows add to

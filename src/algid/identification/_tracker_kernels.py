@@ -28,7 +28,8 @@ from functools import cache
 
 import numpy as np
 
-__all__ = ["USE_NUMBA", "window_sums", "window_scores", "window_scores_numpy", "kernels"]
+__all__ = ["USE_NUMBA", "window_sums", "window_scores", "window_scores_numpy", "kernels",
+           "solvers"]
 
 
 def _numba_available():
@@ -263,3 +264,22 @@ def kernels():
         :func:`window_sums` and :func:`window_scores_numpy`.
     """
     return _compiled() if USE_NUMBA else (window_sums, window_scores_numpy)
+
+
+@cache
+def _compiled_solvers():
+    from algid.identification._tracker_solve import solve_windows, window_stderr
+
+    return solve_windows, window_stderr
+
+
+def solvers():
+    """The compiled per-window solves (:mod:`algid.identification._tracker_solve`) when
+    :data:`USE_NUMBA`, else None (the tracker then solves in batched NumPy calls).
+
+    Returns
+    -------
+    tuple of callable or None
+        ``solve_windows`` and ``window_stderr``.
+    """
+    return _compiled_solvers() if USE_NUMBA else None
