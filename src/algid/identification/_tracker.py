@@ -604,6 +604,19 @@ class Tracker:
         self._unit_weights = {(a, term.derivative): window_sample_weights(
             None, 1.0, length, a, term.derivative)
             for a in self.multiplicities for term in self.model.terms}
+        terms = self.model.terms   # the same, as arrays for the compiled window equations
+        self._weight_table = np.array([[self._unit_weights[(a, term.derivative)]
+                                        for term in terms] for a in self.multiplicities])
+        self._term_table = {
+            "derivatives": np.array([term.derivative for term in terms], dtype=np.int64),
+            "coefficients": np.array([float(term.coefficient) for term in terms]),
+            "columns": np.array([p if term.parameter is None else index[term.parameter]
+                                 for term in terms], dtype=np.int64),
+            "sign_terms": np.array([i in self._sign_terms for i in range(len(terms))]),
+            "noisy": np.array([(c, k, i, self._noisy.index(i))
+                               for c, _, k, i in self._noisy_columns],
+                              dtype=np.int64).reshape(-1, 4),
+            "noisy_weights": np.array([w for _, w, _, _ in self._noisy_columns])}
         # derivative taps of the centred algebraic differentiator, from its own function
         impulses = np.eye(DERIVATIVE_STEPS + 1)
         self._taps = {}
@@ -910,7 +923,7 @@ class Tracker:
 
     def _solve_compiled(self, compiled, rows, ends, sums, bounds, n_eff, wanted, report):
         """:meth:`_solve_numpy` window after window in compiled loops."""
-        solve_windows, window_stderr = compiled
+        solve_windows, window_stderr = compiled[:2]
         s = self.s
         n, p = len(ends), len(self.parameters)
         top = self.multiplicities.index(max(self.multiplicities))
@@ -1017,9 +1030,70 @@ class Tracker:
         uniform = np.max(np.abs(tw - grid), axis=1) <= UNIFORM_TOLERANCE * step
         return index, step, uniform, tw
 
+    def _rows_and_grams_compiled(self, window_rows, starts):
+        """:meth:`_rows_and_grams` window after window in a compiled loop (the exact
+        integrals of steps and irregular windows as there)."""
+        s = self.s
+        L = self.length
+        n, m, q1 = len(starts), len(self.multiplicities), len(self.parameters) + 1
+        terms = self.model.terms
+        first, last = int(starts[0]), int(starts[-1]) + L
+        tw0, tw1 = s["buf_t"][starts], s["buf_t"][starts + L - 1]
+        step = (tw1 - tw0) / (L - 1)
+        if self.config["rate"] is not None:
+            irregular = np.zeros(n, bool)
+        else:
+            tw = s["buf_t"][starts[:, None] + np.arange(L)]
+            grid = tw[:, :1] + step[:, None] * np.arange(L)
+            irregular = np.max(np.abs(tw - grid), axis=1) > UNIFORM_TOLERANCE * step
+        integrals = np.empty((m, len(terms), n))
+        for i in self._sign_terms:   # each window from its own start: any chunking
+            levels = np.sign(s[f"fac:{i}"][starts])
+            times = s[f"steps_t:{i}"]
+            inside = (times > tw0[0]) & (times < tw1[-1])
+            for x, a in enumerate(self.multiplicities):
+                integrals[x, i] = step_window_integrals(
+                    s["buf_t"][first:last], 0.0, times[inside], s[f"steps_s:{i}"][inside], L,
+                    a, terms[i].derivative, self.stride, levels=levels)
+        for j in np.flatnonzero(irregular):
+            tw = s["buf_t"][starts[j]:starts[j] + L]
+            for i, term in enumerate(terms):
+                if i not in self._sign_terms:
+                    zw = s[f"fac:{i}"][starts[j]:starts[j] + L]
+                    for x, a in enumerate(self.multiplicities):
+                        integrals[x, i, j] = float(
+                            window_sample_weights(tw, None, L, a, term.derivative)[0] @ zw)
+        fac = np.stack([s[f"fac:{i}"][first:last] for i in range(len(terms))])
+        sen = np.stack([s[f"sen:{i}"][first:last] for i in self._noisy]) if self._noisy \
+            else np.zeros((0, last - first))
+        rows, grams = np.empty((m, n, q1)), np.empty((m, n, q1, q1))
+        table = self._term_table
+        window_rows(fac, sen, starts - first, step, irregular, self._weight_table,
+                    table["derivatives"], table["coefficients"], table["columns"],
+                    table["sign_terms"], table["noisy"], table["noisy_weights"], integrals,
+                    rows, grams)
+        noisy = self._noisy_columns
+        for j in np.flatnonzero(irregular):   # as in _rows_and_grams
+            tw = s["buf_t"][starts[j]:starts[j] + L]
+            for y, (c1, w1, k1, i1) in enumerate(noisy):
+                for c2, w2, k2, i2 in noisy[y:]:
+                    pw = s[f"sen:{i1}"][starts[j]:starts[j] + L] \
+                        * s[f"sen:{i2}"][starts[j]:starts[j] + L]
+                    for x, a in enumerate(self.multiplicities):
+                        g = window_sample_weights(tw, None, L, a, k1) \
+                            * window_sample_weights(tw, None, L, a, k2)
+                        v = float(g[0] @ pw) * (w1 * w2)
+                        grams[x, j, c1, c2] += v
+                        if (c1, k1, i1) != (c2, k2, i2):
+                            grams[x, j, c2, c1] += v
+        return rows, grams
+
     def _rows_and_grams(self, starts):
         """The window equations ``[A | b]`` (identify's kernels and ``term_rows``) and the
         covariance unit white output noise puts into them, per multiplicity."""
+        compiled = solvers()
+        if compiled is not None:
+            return self._rows_and_grams_compiled(compiled[2], starts)
         s = self.s
         L = self.length
         index, step, uniform, tw = self._window_samples(starts)

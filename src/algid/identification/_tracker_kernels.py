@@ -268,9 +268,9 @@ def kernels():
 
 @cache
 def _compiled_solvers():
-    from algid.identification._tracker_solve import solve_windows, window_stderr
+    from algid.identification._tracker_solve import solve_windows, window_rows, window_stderr
 
-    return solve_windows, window_stderr
+    return solve_windows, window_stderr, window_rows
 
 
 def solvers():
@@ -280,6 +280,6 @@ def solvers():
     Returns
     -------
     tuple of callable or None
-        ``solve_windows`` and ``window_stderr``.
+        ``solve_windows``, ``window_stderr`` and ``window_rows``.
     """
     return _compiled_solvers() if USE_NUMBA else None

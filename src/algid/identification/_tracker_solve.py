@@ -12,6 +12,8 @@ loops over systems of ``p + 1 <= 13`` columns:
   when some columns are proportional (a Givens QR of the kept columns), and the
   bias compensation (Cholesky reduction of the generalised eigenproblem, cyclic Jacobi
   eigenvalues, or the correction of the noise bound);
+- :func:`window_rows`: the window equations and their noise covariances (quadrature
+  weights of uniform windows);
 - :func:`window_stderr`: the sandwich covariance (centred HAC middle, its negative
   eigenvalues clipped or reflected), the long-run variance factor and the residual of
   the CUSUM.
@@ -31,7 +33,7 @@ import numpy as np
 from algid.identification._window_basis import ROUNDOFF_SEPARABILITY
 from algid.identification._window_covariance import INDEFINITE_RTOL
 
-__all__ = ["solve_windows", "window_stderr"]
+__all__ = ["solve_windows", "window_stderr", "window_rows"]
 
 #: Largest share of a parameter's unit direction in the null space at which it counts
 #: as determined (as the NumPy path's ``DETERMINED_LEAK``).
@@ -686,3 +688,76 @@ def window_stderr(R, W, bars, hac, trace, full, jacobian, mapping, kept, theta, 
             if math.isnan(theta[w, i]):
                 continue
             stderr[w, i] = math.sqrt(max(covariance[i, i] * factor, 0.0))
+
+
+@_jit
+def window_rows(fac, sen, starts, step, irregular, weights, derivatives, coefficients,
+                columns, sign_terms, noisy, noisy_weights, integrals, rows, grams):
+    """The window equations ``[A | b]`` and their noise covariances (the NumPy path's
+    ``_rows_and_grams``), window after window.
+
+    Parameters
+    ----------
+    fac, sen : numpy.ndarray, shapes (terms, k), (r, k)
+        Factor samples and output sensitivities (of the noisy columns' terms) of the
+        segment's buffered samples.
+    starts : numpy.ndarray of int64, shape (n,)
+        First sample of each window in the buffer.
+    step : numpy.ndarray, shape (n,)
+        Each window's sampling step.
+    irregular : numpy.ndarray of bool, shape (n,)
+        Windows whose integrals (and noise covariances) the caller forms.
+    weights : numpy.ndarray, shape (m, terms, length)
+        Quadrature weights of a uniform window of unit step, per multiplicity and term.
+    derivatives, columns : numpy.ndarray of int64, shape (terms,)
+        Each term's derivative order and column (``p``: the known side).
+    coefficients : numpy.ndarray, shape (terms,)
+        Each term's coefficient.
+    sign_terms : numpy.ndarray of bool, shape (terms,)
+        Terms whose integrals the caller forms (exact integrals of steps).
+    noisy : numpy.ndarray of int64, shape (r, 4)
+        Per noisy column: its column, derivative order, term and row of ``sen``.
+    noisy_weights : numpy.ndarray, shape (r,)
+        Per noisy column: its signed coefficient.
+    integrals : numpy.ndarray, shape (m, terms, n)
+        The window integrals (in place, those of uniform windows of other terms).
+    rows : numpy.ndarray, shape (m, n, p + 1)
+    grams : numpy.ndarray, shape (m, n, p + 1, p + 1)
+        Outputs (``grams``: zero for irregular windows).
+    """
+    m, terms, length = weights.shape
+    n = starts.shape[0]
+    q1 = rows.shape[2]
+    p = q1 - 1
+    r = noisy.shape[0]
+    rows[:] = 0.0
+    grams[:] = 0.0
+    for w in range(n):
+        first = starts[w]
+        for x in range(m):
+            for i in range(terms):
+                if not (irregular[w] or sign_terms[i]):
+                    total = 0.0
+                    for j in range(length):
+                        total += fac[i, first + j] * weights[x, i, j]
+                    integrals[x, i, w] = total / step[w] ** derivatives[i]
+                value = coefficients[i] * integrals[x, i, w]
+                if columns[i] == p:
+                    rows[x, w, p] -= value
+                else:
+                    rows[x, w, columns[i]] += value
+            if irregular[w]:
+                continue
+            for y in range(r):
+                c1, k1, i1, s1 = noisy[y, 0], noisy[y, 1], noisy[y, 2], noisy[y, 3]
+                for z in range(y, r):
+                    c2, k2, i2, s2 = noisy[z, 0], noisy[z, 1], noisy[z, 2], noisy[z, 3]
+                    total = 0.0
+                    for j in range(length):
+                        total += sen[s1, first + j] * sen[s2, first + j] \
+                            * (weights[x, i1, j] * weights[x, i2, j])
+                    value = total * (step[w] ** -(k1 + k2) * (noisy_weights[y]
+                                                             * noisy_weights[z]))
+                    grams[x, w, c1, c2] += value
+                    if y != z:
+                        grams[x, w, c2, c1] += value
