@@ -352,7 +352,8 @@ class Tracker:
                             if isinstance(term.factor, Call) and term.factor.function == "sign"]
         self._noisy = [i for i, term in enumerate(model.terms)
                        if model.output in term.factor.signals() and i not in self._sign_terms]
-        self.lag = DERIVATIVE_STEPS // 2 if model.needs_derivatives else 0
+        self._needs_derivatives = model.needs_derivatives   # (a property: computed)
+        self.lag = DERIVATIVE_STEPS // 2 if self._needs_derivatives else 0
         self.s = {"seen": 0, "last_time": -np.inf, "configured": False, "alarms": 0,
                   "warm_t": np.empty(0), **{f"warm:{n}": np.empty(0) for n in self._signals}}
 
@@ -414,6 +415,9 @@ class Tracker:
             self._pending(t, columns)
         p = len(self.parameters)
         out = self._out
+        if not out["t"] and not out["alarms"]:   # most one-sample updates
+            return TrackUpdate(self.parameters, np.empty(0), np.empty((0, p)),
+                               np.empty((0, p)), np.empty((0, p)), np.empty(0))
         shape = (len(out["t"]), p)
         return TrackUpdate(self.parameters, np.array(out["t"], dtype=float),
                            np.array(out["values"], dtype=float).reshape(shape),
@@ -493,6 +497,8 @@ class Tracker:
                                      f"stream; give time= (a column name) or rate= (Hz)")
             self.config["time"] = time
         columns = {}
+        n = None
+        same = True
         for name in self._signals + ([time] if time is not None else []):
             if name not in chunk:
                 raise InputDataError(f"no column {name!r} in the chunk (columns: "
@@ -502,16 +508,18 @@ class Tracker:
             except (TypeError, ValueError):
                 raise InputDataError(f"column {name!r} is not numeric") from None
             columns[name] = values
-        lengths = {len(v) for v in columns.values()}
-        if len(lengths) != 1:
+            same = same and (n is None or len(values) == n)
+            n = len(values)
+        if not same:
             raise InputDataError("the columns of the chunk have different lengths (" + ", ".join(
                 f"{k}: {len(v)}" for k, v in columns.items()) + ")")
-        n = lengths.pop()
         if time is None:
             t = (self.s["seen"] + np.arange(n)) / self.config["rate"]
         else:
             t = columns.pop(time)
-            if not np.all(np.isfinite(t)):
+            if n == 1 and t[0] > self.s["last_time"] and math.isfinite(t[0]):
+                pass   # one sample (a live stream): the checks below, on a scalar
+            elif not np.all(np.isfinite(t)):
                 raise InputDataError(f"time column {time!r} is not finite in the chunk")
             previous = np.concatenate([[self.s["last_time"]], t])
             if np.any(np.diff(previous) <= 0):
@@ -604,6 +612,8 @@ class Tracker:
         self._unit_weights = {(a, term.derivative): window_sample_weights(
             None, 1.0, length, a, term.derivative)
             for a in self.multiplicities for term in self.model.terms}
+        self._output_terms = {i for i in self._noisy
+                              if self.model.terms[i].factor == Signal(self.model.output)}
         terms = self.model.terms   # the same, as arrays for the compiled window equations
         self._weight_table = np.array([[self._unit_weights[(a, term.derivative)]
                                         for term in terms] for a in self.multiplicities])
@@ -620,7 +630,7 @@ class Tracker:
         # derivative taps of the centred algebraic differentiator, from its own function
         impulses = np.eye(DERIVATIVE_STEPS + 1)
         self._taps = {}
-        for _, k in self.model.needs_derivatives:
+        for _, k in self._needs_derivatives:
             rows = np.array([algebraic_derivative(e, 1.0, derivative=k) for e in impulses])
             self._taps[k] = np.ascontiguousarray(rows.T)   # row i: the estimate at sample i
 
@@ -647,7 +657,7 @@ class Tracker:
                                                                         + 2, np.nan))
         for name in self._signals:
             s[f"buf:{name}"] = np.empty(0)
-        for name, k in self.model.needs_derivatives:
+        for name, k in self._needs_derivatives:
             s[f"der:{name}:{k}"] = np.empty(0)
         for i in range(len(self.model.terms)):
             s[f"fac:{i}"] = np.empty(0)
@@ -695,6 +705,11 @@ class Tracker:
         valid_before = np.concatenate([[s["row_valid"]], valid[:-1]])
         cut = (t - rows_before > GAP_FACTOR * s["step"]) | ~valid_before
         s["row_time"], s["row_valid"] = float(t[-1]), bool(valid[-1])
+        if valid.all() and not cut[1:].any():   # the common case: one run
+            if cut[0] and s["seg_n"]:
+                self._new_segment()
+            self._extend(t, columns)
+            return
         edges = np.flatnonzero(np.diff(np.concatenate([[0], valid.astype(int), [0]])))
         for start, stop in zip(edges[::2], edges[1::2]):
             pieces = [start, *(start + 1 + np.flatnonzero(cut[start + 1:stop])), stop]
@@ -719,7 +734,7 @@ class Tracker:
         s = self.s
         n, first = s["seg_n"], s["seg_first"]
         half = DERIVATIVE_STEPS // 2
-        for name, k in self.model.needs_derivatives:
+        for name, k in self._needs_derivatives:
             key = f"der:{name}:{k}"
             done = first + len(s[key])
             final = n - half if n > DERIVATIVE_STEPS else 0   # samples with a final estimate
@@ -734,7 +749,7 @@ class Tracker:
             interior = np.arange(max(done, half), final)
             if interior.size:
                 lo = interior - half - first
-                yw = np.lib.stride_tricks.sliding_window_view(y, width)[lo]
+                yw = y[lo[:, None] + np.arange(width)]
                 step = (t[lo + DERIVATIVE_STEPS] - t[lo]) / DERIVATIVE_STEPS
                 values[interior - done] = np.einsum("ij,j->i", yw, self._taps[k][half]) \
                     / step ** k
@@ -753,16 +768,18 @@ class Tracker:
         lo, hi = done - first, ready - first
         t = s["buf_t"][lo:hi]
         values = {name: s[f"buf:{name}"][lo:hi] for name in self._signals}
-        for name, k in self.model.needs_derivatives:
+        for name, k in self._needs_derivatives:
             key = f"der:{name}:{k}"
             values[(name, k)] = s[key][lo:hi]
         output = self.model.output
         h = 1e-6 * np.maximum(np.abs(values[output]), 1e-300)
+        with np.errstate(all="ignore"):
+            factors = [np.asarray((term.factor.args[0] if i in self._sign_terms else
+                                   term.factor).evaluate(values, t), dtype=float)
+                       * np.ones(len(t)) for i, term in enumerate(self.model.terms)]
         for i, term in enumerate(self.model.terms):
-            factor = term.factor.args[0] if i in self._sign_terms else term.factor
-            with np.errstate(all="ignore"):
-                z = np.asarray(factor.evaluate(values, t), dtype=float) * np.ones(len(t))
-            if not np.all(np.isfinite(z)):
+            z = factors[i]
+            if not np.isfinite(z).all():
                 row = int(np.flatnonzero(~np.isfinite(z))[0])
                 raise InputDataError(f"the term {term.factor} is {z[row]} at t = "
                                      f"{t[row]:.6g} s: the data leave its domain")
@@ -770,7 +787,7 @@ class Tracker:
                 self._sign_steps(i, z, t, lo)
             s[f"fac:{i}"] = np.concatenate([s[f"fac:{i}"], z])
             if i in self._noisy:
-                sens = np.ones(len(t)) if term.factor == Signal(output) else \
+                sens = np.ones(len(t)) if i in self._output_terms else \
                     factor_sensitivity(term.factor, output, values, t, h)
                 s[f"sen:{i}"] = np.concatenate([s[f"sen:{i}"], sens])
         s["seg_ready"] = ready
@@ -800,7 +817,7 @@ class Tracker:
         s["buf_t"] = s["buf_t"][drop:]
         for name in self._signals:
             s[f"buf:{name}"] = s[f"buf:{name}"][drop:]
-        for name, k in self.model.needs_derivatives:
+        for name, k in self._needs_derivatives:
             key = f"der:{name}:{k}"
             s[key] = s[key][drop:]
         for i in range(len(self.model.terms)):
@@ -928,13 +945,11 @@ class Tracker:
         n, p = len(ends), len(self.parameters)
         top = self.multiplicities.index(max(self.multiplicities))
         low = self.multiplicities.index(min(self.multiplicities))
-        pair = [top, low]
         theta, values, lower = np.empty((n, p)), np.empty((n, p)), np.empty((n, p))
         kept = np.empty(n, dtype=np.int64)
         full, jacobian, mapping = np.empty((n, p + 1, p + 1)), np.empty((n, p, p)), \
             np.empty((n, p, p))
-        solve_windows(np.ascontiguousarray(sums["R"][:, pair]),
-                      np.ascontiguousarray(sums["G"][:, pair]), bounds, n_eff, wanted,
+        solve_windows(sums["R"], sums["G"], top, low, bounds, n_eff, wanted,
                       self.config["method"] == "bc", MIN_SPARE_WINDOWS, theta, values, kept,
                       full, jacobian, mapping, lower)
         bars = np.concatenate([values, -np.ones((n, 1))], axis=1)
@@ -945,7 +960,7 @@ class Tracker:
                      hac, trace)
         s["ring_count"] = int(ring[0])
         stderr, kappa, residual = np.empty((n, p)), np.empty(n), np.empty(n)
-        window_stderr(np.ascontiguousarray(sums["R"][:, top]), sums["W"], bars, hac, trace,
+        window_stderr(sums["R"], top, sums["W"], bars, hac, trace,
                       full, jacobian, mapping, kept, theta, float(self.lag_weights.sum()),
                       self.overlap, stderr, kappa, residual)
         error = np.where(report[:, None], np.abs(theta - lower), np.nan)

@@ -529,15 +529,17 @@ def _solve_window(R, G, bound, bc, theta, values, full, jacobian, mapping):
 
 
 @_jit
-def solve_windows(R, G, bounds, n_eff, wanted, bc, spare, theta, values, kept, full,
+def solve_windows(R, G, top, low, bounds, n_eff, wanted, bc, spare, theta, values, kept, full,
                   jacobian, mapping, lower):
     """Solve the wanted window ends, at the top and the low multiplicity.
 
     Parameters
     ----------
-    R, G : numpy.ndarray, shape (n, 2, p + 1, p + 1)
-        Triangular factors of ``[A | b]`` and noise sums after each window, at the top
-        (index 0) and the low (index 1) multiplicity.
+    R, G : numpy.ndarray, shape (n, m, p + 1, p + 1)
+        Triangular factors of ``[A | b]`` and noise sums after each window, per
+        multiplicity.
+    top, low : int
+        The indices of the top and the low multiplicity.
     bounds, n_eff : numpy.ndarray, shape (n,)
         The noise-variance bound and the effective number of windows.
     wanted : numpy.ndarray of bool, shape (n,)
@@ -574,7 +576,7 @@ def solve_windows(R, G, bounds, n_eff, wanted, bc, spare, theta, values, kept, f
     for w in range(n):
         if not wanted[w]:
             continue
-        m = _solve_window(R[w, 0], G[w, 0], bounds[w], bc, theta[w], sub_values, full[w],
+        m = _solve_window(R[w, top], G[w, top], bounds[w], bc, theta[w], sub_values, full[w],
                           jacobian[w], mapping[w])
         if m < 0 or not n_eff[w] >= m + spare:
             theta[w] = math.nan
@@ -584,22 +586,24 @@ def solve_windows(R, G, bounds, n_eff, wanted, bc, spare, theta, values, kept, f
         else:
             values[w] = sub_values
             kept[w] = m
-        m = _solve_window(R[w, 1], G[w, 1], bounds[w], bc, sub_theta, sub_values, sub_full,
+        m = _solve_window(R[w, low], G[w, low], bounds[w], bc, sub_theta, sub_values, sub_full,
                           sub_jacobian, sub_mapping)
         if m >= 0 and n_eff[w] >= m + spare:
             lower[w] = sub_theta
 
 
 @_jit
-def window_stderr(R, W, bars, hac, trace, full, jacobian, mapping, kept, theta, lag_sum,
+def window_stderr(R, top, W, bars, hac, trace, full, jacobian, mapping, kept, theta, lag_sum,
                   overlap, stderr, kappa, residual):
     """Standard errors, long-run variance factors and CUSUM residuals of the solved
     windows (as the NumPy path's ``_stderr``), NaN elsewhere.
 
     Parameters
     ----------
-    R : numpy.ndarray, shape (n, p + 1, p + 1)
-        Triangular factors (top multiplicity).
+    R : numpy.ndarray, shape (n, m, p + 1, p + 1)
+        Triangular factors, per multiplicity.
+    top : int
+        The index of the top multiplicity.
     W : numpy.ndarray, shape (n, 2)
         Sums of the weights and of their squares.
     bars : numpy.ndarray, shape (n, p + 1)
@@ -617,7 +621,7 @@ def window_stderr(R, W, bars, hac, trace, full, jacobian, mapping, kept, theta, 
         Outputs.
     """
     n = R.shape[0]
-    q = R.shape[1]
+    q = R.shape[2]
     p = q - 1
     stderr[:] = math.nan
     kappa[:] = math.nan
@@ -634,7 +638,7 @@ def window_stderr(R, W, bars, hac, trace, full, jacobian, mapping, kept, theta, 
         for i in range(q):
             total = 0.0
             for j in range(q):
-                total += R[w, i, j] * bars[w, j]
+                total += R[w, top, i, j] * bars[w, j]
             fitted[i] = total
         determined = True
         for i in range(p):
@@ -647,7 +651,7 @@ def window_stderr(R, W, bars, hac, trace, full, jacobian, mapping, kept, theta, 
         for i in range(p):   # centred: the scores' mean is no scatter
             total = 0.0
             for k in range(q):
-                total += R[w, k, i] * fitted[k]
+                total += R[w, top, k, i] * fitted[k]
             mean[i] = -total / W[w, 0]
         weight = (2.0 * lag_sum - 1.0) * W[w, 1]
         trace_hac = 0.0
