@@ -34,6 +34,7 @@ import types
 from dataclasses import dataclass, field
 
 import numpy as np
+from numpy.polynomial import chebyshev
 
 from algid.errors import AlgidError, InputDataError
 from algid.identification._arguments import check_arguments, check_model_columns
@@ -44,7 +45,11 @@ from algid.identification._records import GAP_FACTOR, TIME_COLUMNS, UNIFORM_TOLE
 from algid.identification._tracker_kernels import kernels, solvers
 from algid.identification._window_basis import ROUNDOFF_SEPARABILITY
 from algid.identification._window_covariance import sandwich_stack
-from algid.identification._window_kernels import step_window_integrals, window_sample_weights
+from algid.identification._window_kernels import (
+    TERM_KERNELS,
+    step_window_integrals,
+    window_sample_weights,
+)
 from algid.identification._window_rule import MIN_SPARE_WINDOWS, check_multiplicities, min_length
 from algid.models._argument import estimator_module
 from algid.models._compiled import model_of
@@ -517,19 +522,22 @@ class Tracker:
             t = (self.s["seen"] + np.arange(n)) / self.config["rate"]
         else:
             t = columns.pop(time)
-            if n == 1 and t[0] > self.s["last_time"] and math.isfinite(t[0]):
-                pass   # one sample (a live stream): the checks below, on a scalar
-            elif not np.all(np.isfinite(t)):
-                raise InputDataError(f"time column {time!r} is not finite in the chunk")
-            previous = np.concatenate([[self.s["last_time"]], t])
-            if np.any(np.diff(previous) <= 0):
-                row = int(np.flatnonzero(np.diff(previous) <= 0)[0])
-                raise InputDataError(f"time column {time!r} does not increase at t = "
-                                     f"{t[row]:.9g} (row {self.s['seen'] + row} of the stream)")
+            # one sample (a live stream): the checks below, on a scalar
+            if not (n == 1 and math.isfinite(t[0]) and t[0] > self.s["last_time"]):
+                self._check_times(time, t)
         self.s["seen"] += n
         if n:
             self.s["last_time"] = float(t[-1])
         return t, columns
+
+    def _check_times(self, time, t):
+        if not np.all(np.isfinite(t)):
+            raise InputDataError(f"time column {time!r} is not finite in the chunk")
+        previous = np.concatenate([[self.s["last_time"]], t])
+        if np.any(np.diff(previous) <= 0):
+            row = int(np.flatnonzero(np.diff(previous) <= 0)[0])
+            raise InputDataError(f"time column {time!r} does not increase at t = "
+                                 f"{t[row]:.9g} (row {self.s['seen'] + row} of the stream)")
 
     # ------------------------------------------------------------------ configuration
     def _configure(self):
@@ -612,6 +620,10 @@ class Tracker:
         self._unit_weights = {(a, term.derivative): window_sample_weights(
             None, 1.0, length, a, term.derivative)
             for a in self.multiplicities for term in self.model.terms}
+        # the kernels' primitives (zero at the window's start), as step_window_integrals's
+        self._primitives = {(a, k): chebyshev.chebint(TERM_KERNELS[(a, k)], scl=0.5, lbnd=-1)
+                            for a in self.multiplicities for k in {
+                                self.model.terms[i].derivative for i in self._sign_terms}}
         self._output_terms = {i for i in self._noisy
                               if self.model.terms[i].factor == Signal(self.model.output)}
         terms = self.model.terms   # the same, as arrays for the compiled window equations
@@ -776,7 +788,8 @@ class Tracker:
         with np.errstate(all="ignore"):
             factors = [np.asarray((term.factor.args[0] if i in self._sign_terms else
                                    term.factor).evaluate(values, t), dtype=float)
-                       * np.ones(len(t)) for i, term in enumerate(self.model.terms)]
+                       for i, term in enumerate(self.model.terms)]
+        factors = [z if z.shape == t.shape else z * np.ones(len(t)) for z in factors]
         for i, term in enumerate(self.model.terms):
             z = factors[i]
             if not np.isfinite(z).all():
@@ -1045,7 +1058,7 @@ class Tracker:
         uniform = np.max(np.abs(tw - grid), axis=1) <= UNIFORM_TOLERANCE * step
         return index, step, uniform, tw
 
-    def _rows_and_grams_compiled(self, window_rows, starts):
+    def _rows_and_grams_compiled(self, window_rows, step_integrals, starts):
         """:meth:`_rows_and_grams` window after window in a compiled loop (the exact
         integrals of steps and irregular windows as there)."""
         s = self.s
@@ -1064,12 +1077,10 @@ class Tracker:
         integrals = np.empty((m, len(terms), n))
         for i in self._sign_terms:   # each window from its own start: any chunking
             levels = np.sign(s[f"fac:{i}"][starts])
-            times = s[f"steps_t:{i}"]
-            inside = (times > tw0[0]) & (times < tw1[-1])
             for x, a in enumerate(self.multiplicities):
-                integrals[x, i] = step_window_integrals(
-                    s["buf_t"][first:last], 0.0, times[inside], s[f"steps_s:{i}"][inside], L,
-                    a, terms[i].derivative, self.stride, levels=levels)
+                step_integrals(s["buf_t"], starts, L, levels, s[f"steps_t:{i}"],
+                               s[f"steps_s:{i}"], self._primitives[(a, terms[i].derivative)],
+                               terms[i].derivative, integrals[x, i])
         for j in np.flatnonzero(irregular):
             tw = s["buf_t"][starts[j]:starts[j] + L]
             for i, term in enumerate(terms):
@@ -1108,7 +1119,7 @@ class Tracker:
         covariance unit white output noise puts into them, per multiplicity."""
         compiled = solvers()
         if compiled is not None:
-            return self._rows_and_grams_compiled(compiled[2], starts)
+            return self._rows_and_grams_compiled(compiled[2], compiled[3], starts)
         s = self.s
         L = self.length
         index, step, uniform, tw = self._window_samples(starts)

@@ -268,9 +268,14 @@ def kernels():
 
 @cache
 def _compiled_solvers():
-    from algid.identification._tracker_solve import solve_windows, window_rows, window_stderr
+    from algid.identification._tracker_solve import (
+        solve_windows,
+        step_integrals,
+        window_rows,
+        window_stderr,
+    )
 
-    return solve_windows, window_stderr, window_rows
+    return solve_windows, window_stderr, window_rows, step_integrals
 
 
 def solvers():
@@ -280,6 +285,6 @@ def solvers():
     Returns
     -------
     tuple of callable or None
-        ``solve_windows``, ``window_stderr`` and ``window_rows``.
+        ``solve_windows``, ``window_stderr``, ``window_rows`` and ``step_integrals``.
     """
     return _compiled_solvers() if USE_NUMBA else None

@@ -12,8 +12,8 @@ loops over systems of ``p + 1 <= 13`` columns:
   when some columns are proportional (a Givens QR of the kept columns), and the
   bias compensation (Cholesky reduction of the generalised eigenproblem, cyclic Jacobi
   eigenvalues, or the correction of the noise bound);
-- :func:`window_rows`: the window equations and their noise covariances (quadrature
-  weights of uniform windows);
+- :func:`window_rows`, :func:`step_integrals`: the window equations and their noise
+  covariances (quadrature weights of uniform windows, exact integrals of steps);
 - :func:`window_stderr`: the sandwich covariance (centred HAC middle, its negative
   eigenvalues clipped or reflected), the long-run variance factor and the residual of
   the CUSUM.
@@ -33,7 +33,7 @@ import numpy as np
 from algid.identification._window_basis import ROUNDOFF_SEPARABILITY
 from algid.identification._window_covariance import INDEFINITE_RTOL
 
-__all__ = ["solve_windows", "window_stderr", "window_rows"]
+__all__ = ["solve_windows", "window_stderr", "window_rows", "step_integrals"]
 
 #: Largest share of a parameter's unit direction in the null space at which it counts
 #: as determined (as the NumPy path's ``DETERMINED_LEAK``).
@@ -765,3 +765,56 @@ def window_rows(fac, sen, starts, step, irregular, weights, derivatives, coeffic
                     grams[x, w, c1, c2] += value
                     if y != z:
                         grams[x, w, c2, c1] += value
+
+
+@_jit
+def _chebval(x, c):
+    """A Chebyshev series at ``x`` (Clenshaw, as ``numpy.polynomial.chebyshev.chebval``)."""
+    if c.shape[0] == 1:
+        return c[0]
+    if c.shape[0] == 2:
+        return c[0] + c[1] * x
+    x2 = 2.0 * x
+    c0 = c[c.shape[0] - 2]
+    c1 = c[c.shape[0] - 1]
+    for i in range(3, c.shape[0] + 1):
+        tmp = c0
+        c0 = c[c.shape[0] - i] - c1
+        c1 = tmp + c1 * x2
+    return c0 + c1 * x
+
+
+@_jit
+def step_integrals(t, starts, length, levels, times, steps, primitive, derivative, out):
+    """Exact window integrals of a piecewise-constant signal (the NumPy path's
+    ``step_window_integrals`` with ``levels``), window after window.
+
+    Parameters
+    ----------
+    t : numpy.ndarray
+        The buffered sample times.
+    starts : numpy.ndarray of int64, shape (n,)
+        First sample of each window.
+    length : int
+        Samples per window.
+    levels : numpy.ndarray, shape (n,)
+        The signal at each window's start.
+    times, steps : numpy.ndarray
+        Increasing times of the steps and their sizes.
+    primitive : numpy.ndarray
+        Chebyshev coefficients of the term kernel's primitive.
+    derivative : int
+        The term's derivative order.
+    out : numpy.ndarray, shape (n,)
+    """
+    whole = _chebval(1.0, primitive)
+    for w in range(starts.shape[0]):
+        t0 = t[starts[w]]
+        span = t[starts[w] + length - 1] - t0
+        end = t0 + span
+        total = levels[w] * whole
+        for j in range(times.shape[0]):
+            if t0 < times[j] < end:
+                u = (times[j] - t0) / span
+                total += steps[j] * (whole - _chebval(2.0 * u - 1.0, primitive))
+        out[w] = total / span ** derivative
