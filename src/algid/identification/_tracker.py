@@ -994,6 +994,10 @@ class Tracker:
         squares = np.zeros((hi - lo, 8))
         if hi > lo:   # repeated differences (as identify's), elementwise: any chunking
             d = s[f"buf:{self.model.output}"][lo - 8 - s["seg_first"]:hi - s["seg_first"]]
+            compiled = solvers()
+            if compiled is not None:   # the same operations, in a compiled loop
+                compiled[4](d, squares)
+                return squares, ranges
             for k in range(8):
                 d = d[1:] - d[:-1]
                 squares[:, k] = d[7 - k:] ** 2
@@ -1001,6 +1005,11 @@ class Tracker:
 
     def _bounds(self, sums):
         """identify's bound on the output noise variance, per window (from its sums)."""
+        compiled = solvers()
+        if compiled is not None:
+            bounds = np.empty(len(sums))
+            compiled[5](sums, self._central, bounds)
+            return bounds
         counts = sums[:, 1]
         with np.errstate(divide="ignore", invalid="ignore"):
             ratios = np.where(counts > 0, sums[:, 0] / counts / self._central, np.inf)

@@ -269,13 +269,16 @@ def kernels():
 @cache
 def _compiled_solvers():
     from algid.identification._tracker_solve import (
+        difference_squares,
+        noise_bounds,
         solve_windows,
         step_integrals,
         window_rows,
         window_stderr,
     )
 
-    return solve_windows, window_stderr, window_rows, step_integrals
+    return (solve_windows, window_stderr, window_rows, step_integrals, difference_squares,
+            noise_bounds)
 
 
 def solvers():
@@ -285,6 +288,7 @@ def solvers():
     Returns
     -------
     tuple of callable or None
-        ``solve_windows``, ``window_stderr``, ``window_rows`` and ``step_integrals``.
+        ``solve_windows``, ``window_stderr``, ``window_rows``, ``step_integrals``,
+        ``difference_squares`` and ``noise_bounds``.
     """
     return _compiled_solvers() if USE_NUMBA else None

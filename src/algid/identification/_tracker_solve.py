@@ -14,6 +14,8 @@ loops over systems of ``p + 1 <= 13`` columns:
   eigenvalues, or the correction of the noise bound);
 - :func:`window_rows`, :func:`step_integrals`: the window equations and their noise
   covariances (quadrature weights of uniform windows, exact integrals of steps);
+- :func:`difference_squares`, :func:`noise_bounds`: identify's bound on the output
+  noise variance;
 - :func:`window_stderr`: the sandwich covariance (centred HAC middle, its negative
   eigenvalues clipped or reflected), the long-run variance factor and the residual of
   the CUSUM.
@@ -33,7 +35,8 @@ import numpy as np
 from algid.identification._window_basis import ROUNDOFF_SEPARABILITY
 from algid.identification._window_covariance import INDEFINITE_RTOL
 
-__all__ = ["solve_windows", "window_stderr", "window_rows", "step_integrals"]
+__all__ = ["solve_windows", "window_stderr", "window_rows", "step_integrals",
+           "difference_squares", "noise_bounds"]
 
 #: Largest share of a parameter's unit direction in the null space at which it counts
 #: as determined (as the NumPy path's ``DETERMINED_LEAK``).
@@ -818,3 +821,33 @@ def step_integrals(t, starts, length, levels, times, steps, primitive, derivativ
                 u = (times[j] - t0) / span
                 total += steps[j] * (whole - _chebval(2.0 * u - 1.0, primitive))
         out[w] = total / span ** derivative
+
+
+@_jit
+def difference_squares(y, out):
+    """Squared differences of orders 1 to 8 ending at each sample after the first 8 of
+    ``y`` (the NumPy path's repeated differences, the same operations)."""
+    v = np.empty(9)
+    for i in range(out.shape[0]):
+        for j in range(9):
+            v[j] = y[i + j]
+        for k in range(8):
+            for j in range(8 - k):
+                v[j] = v[j + 1] - v[j]
+            out[i, k] = v[7 - k] ** 2
+
+
+@_jit
+def noise_bounds(sums, central, out):
+    """identify's bound on the output noise variance of each window, from its sums of
+    squared differences and their counts (as the NumPy path's ``_bounds``)."""
+    for w in range(sums.shape[0]):
+        bound = math.inf
+        for k in range(sums.shape[2]):
+            ratio = sums[w, 0, k] / sums[w, 1, k] / central[k] if sums[w, 1, k] > 0 \
+                else math.inf
+            if math.isnan(ratio) or ratio < bound:
+                bound = ratio
+            if math.isnan(bound):
+                break
+        out[w] = bound
