@@ -295,12 +295,15 @@ def test_07_tracking(run_notebook, record_property):
         assert abs(res["emps_final_relative_error"][p]) <= limit, p
     # the tracker is identify on the same samples but for the causal sign crossings
     assert max(abs(v) for v in res["emps_tracker_over_identify"].values()) < 0.002
-    # M within 5 % from at most 1 s after the first estimate (the record starts at rest)
+    # M within 5 % from at most 2 s into the record (it starts at rest), and at most 1 s
+    # after the first estimate
+    assert res["emps_M_within_5pct_from_s"] <= 2.0
     assert res["emps_M_within_5pct_from_s"] - res["emps_first_estimate_s"] <= 1.0
     # the alarms on the estimation run come while the tracker learns, as the text says:
-    # within 3 s of its first estimate, Fv then several standard errors off
+    # within 3 s of all four parameters being determined, Fv then several standard errors
+    # off
     if res["emps_alarms"]:
-        assert res["emps_alarms_within_s_of_first"] <= 3.0
+        assert res["emps_alarms_within_s_of_determined"] <= 3.0
         assert res["emps_Fv_sigmas_at_first_alarm"] > 3
     # the validation run, with its pulses: near the published values, no alarm
     limits = {"M": 0.03, "Fv": 0.05, "Fc": 0.08 if res["quick"] else 0.05, "off": 0.05}
