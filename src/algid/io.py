@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from algid import _memory as memory
+import algid._memory as memory
 from algid._memory import check_fits
 from algid.errors import DataFileError, InputDataError
 from algid.identification._records import check_rate, check_rate_agrees

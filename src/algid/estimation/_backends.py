@@ -99,11 +99,11 @@ def require_backend(name):
         An unknown backend, or numba not installed.
     """
     if name == "numpy":
-        from algid.estimation import _core_numpy as core_numpy
+        import algid.estimation._core_numpy as core_numpy
         return core_numpy.advance
     if name == "numba":
         try:
-            from algid.estimation import _core_numba as core_numba
+            import algid.estimation._core_numba as core_numba
         except ImportError:
             raise _numba_missing() from None
         return core_numba.advance

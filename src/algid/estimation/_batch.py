@@ -9,11 +9,11 @@ from __future__ import annotations
 
 import numpy as np
 
+import algid.estimation._backends as backends
+import algid.estimation._core as core
 from algid._scaling import amplitude_scale, check_amplitude_range, scalable
 from algid._signal_checks import as_signal, check_experiment, positive_number
 from algid.errors import InputDataError
-from algid.estimation import _backends as backends
-from algid.estimation import _core as core
 from algid.estimation._identifiability import check_identifiable
 from algid.estimation._late_origin import advance_best, late_twin
 from algid.estimation._numerical_error import (

@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from algid.estimation import _core as core
+import algid.estimation._core as core
 from algid.estimation._numerical_error import BLOCK, advance_with_error, with_companion
 
 __all__ = ["LATE_ORIGIN", "late_twin", "advance_best"]

@@ -44,7 +44,7 @@ from functools import cache
 
 import numpy as np
 
-from algid.estimation import _core as core
+import algid.estimation._core as core
 from algid.estimation._backends import require_backend
 from algid.estimation._core_numpy import advance_sample as numpy_sample
 from algid.estimation._core_numpy import sample_step_is_exact

@@ -41,7 +41,7 @@ from algid.models._argument import estimator_module, is_record, measured_signals
 from algid._scaling import amplitude_scale, scalable
 from algid._signal_checks import UNIFORM_RTOL, positive_number
 from algid.errors import InputDataError
-from algid.estimation import _core as core
+import algid.estimation._core as core
 from algid.estimation._backends import choose_engine
 from algid.estimation._late_origin import advance_best, late_twin
 from algid.estimation._long_stream import run_stream

@@ -20,6 +20,6 @@ _NEEDS_CONTROL = {"simulate", "plant", "SimulationResult"}
 def __getattr__(name):
     # python-control is an optional extra: import the plant's simulator on first use
     if name in _NEEDS_CONTROL:
-        from algid.simulation import _plant
+        import algid.simulation._plant as _plant
         return getattr(_plant, name)
     raise AttributeError(f"module 'algid.simulation' has no attribute {name!r}")

@@ -35,11 +35,11 @@ from pathlib import Path
 
 import sympy as sp
 
+import algid.symbolic._c_arithmetic as c_loops
 from algid.errors import ModelError
 from algid.estimation._core import EARLY_POINTS, first_estimate
 from algid.estimation._options import DEFAULT_QUADRATURE_POINTS
 from algid.signals._quadrature import QUADRATURE_POINTS
-from algid.symbolic import _c_arithmetic as c_loops
 from algid.symbolic._derivation import Derivation
 
 __all__ = ["c_sources", "write_c_sources", "quadrature_weights", "C_HEADER",
