@@ -403,3 +403,42 @@ def test_generated_source_of_another_shape_is_refused_before_it_runs(injected, t
     with pytest.raises(AlgidError):
         module_from_source(injected, "algid_injected_module")
     assert not (tmp_path / "CANARY").exists()
+
+
+@pytest.mark.parametrize("injected", [
+    # text inside a function's code (not its docstring) never reaches the compiler
+    '"""Estimator."""\ndef f():\n    return "y\'\' + B*y\' = u"\n',
+    '"""Estimator."""\ndef f(x=b"raw"):\n    return x\n',
+])
+def test_generated_code_holding_text_is_refused(injected):
+    from algid.models._registry import module_from_source
+
+    with pytest.raises(ModelError, match="text in its code"):
+        module_from_source(injected, "algid_text_module")
+
+
+def test_generated_data_are_read_not_compiled(tmp_path, monkeypatch):
+    """Docstrings and literal assignments are data: set on the module, never compiled,
+    whatever text they hold; the functions keep their docstrings."""
+    from algid.models._registry import module_from_source
+
+    monkeypatch.chdir(tmp_path)
+    text = "__import__('os').system('touch CANARY')"
+    source = (f'"""Model {text}."""\nEQUATION = {text!r}\nFACTORS = {{"z1": {text!r}}}\n\n'
+              f'def f(x):\n    """Docstring {text}."""\n    return x + 1\n')
+    module = module_from_source(source, "algid_data_module")
+    assert module.EQUATION == text and module.FACTORS == {"z1": text}
+    assert module.__doc__ == f"Model {text}." and module.f.__doc__ == f"Docstring {text}."
+    assert module.f(1) == 2
+    assert not (tmp_path / "CANARY").exists()
+
+
+def test_compiled_loop_of_a_user_model_loads_in_memory():
+    """The numba loop of a user model, made a module in memory (no cache directory):
+    its ``numba.njit(...)(function)`` lines have the shape the check allows."""
+    pytest.importorskip("numba")
+    from algid.models._registry import module_from_source
+
+    module = compile_equation("y'' + B*y' + K*y + c*y**3 = G*u + d", "B K c G d")
+    loops = module_from_source(module.NUMBA_SOURCE, module.__name__ + "_numba")
+    assert callable(loops.advance)

@@ -19,7 +19,6 @@ from __future__ import annotations
 
 import hashlib
 import importlib
-import importlib.util
 import os
 import sys
 from functools import cache, lru_cache
@@ -85,11 +84,10 @@ def _write_once(path, text):
 
 
 def _module_from_file(name, path):
-    spec = importlib.util.spec_from_file_location(name, path)
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[name] = module
-    spec.loader.exec_module(module)
-    return module
+    # the same checks as in memory: a cached file is generated text, made a module
+    # only through module_from_source (its functions defined in the file, for numba)
+    with open(path, encoding="utf-8") as held:
+        return module_from_source(held.read(), name, filename=path)
 
 
 def _cached_loop(module, directory):

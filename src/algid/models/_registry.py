@@ -74,7 +74,9 @@ def _check_generated_shape(source, name):
         if isinstance(node, (ast.Import, ast.ImportFrom)):
             modules = ([a.name for a in node.names] if isinstance(node, ast.Import)
                        else [node.module or ""])
-            if not all(m.split(".")[0] in _GENERATED_IMPORTS for m in modules):
+            # (a cached loop imports its model's algebra, cached beside it as algid_user_*)
+            if not all(m.split(".")[0] in _GENERATED_IMPORTS or m.startswith("algid_user_")
+                       for m in modules):
                 raise ModelError(f"generated module {name!r} imports {modules}")
             continue
         docstring = (i == 0 and isinstance(node, ast.Expr) and isinstance(node.value,
@@ -92,21 +94,59 @@ def _check_generated_shape(source, name):
                    if isinstance(node, ast.FunctionDef) else [])
         for part in outside:
             for call in ast.walk(part or ast.Constant(None)):
-                if isinstance(call, ast.Call) and ast.unparse(call.func) not in \
-                        _GENERATED_CALLS:
+                # numba.njit(...)(function): the outer call is of the inner one's result,
+                # which the walk checks on its own
+                if isinstance(call, ast.Call) and not isinstance(call.func, ast.Call) \
+                        and ast.unparse(call.func) not in _GENERATED_CALLS:
                     raise ModelError(f"generated module {name!r}: unexpected call at line "
                                      f"{call.lineno}")
 
 
-def module_from_source(source: str, name: str) -> ModuleType:
-    """Execute generated source text as a module registered in :data:`sys.modules`.
+def _split_text(tree):
+    """The parts of a checked module that are data, taken out of its code.
 
-    Only for text written by this package's own generators (user models compiled in
-    memory, :func:`algid.symbolic._codegen.compile_model`); never for user text, which
-    they write only as escaped literals.  Before it runs, the text is checked to have
-    the shape they write (a docstring, imports of NumPy, numba, math and algid,
-    assignments and functions; no call outside the functions but ``numba.njit``), so
-    that a user string escaping its literal is refused rather than run.
+    Returns ``(doc, values, functions_doc, code)``: the module docstring, the top-level
+    assignments of literal values (read by :func:`ast.literal_eval`, which runs
+    nothing), the docstrings of the functions, and the rest as a module tree without
+    them.  What a generator writes from a user's equation (the equation, its
+    description, the factors' text) is in the first three.
+    """
+    doc, values, functions_doc, body = None, {}, {}, []
+    for i, node in enumerate(tree.body):
+        if i == 0 and isinstance(node, ast.Expr) and isinstance(node.value, ast.Constant):
+            doc = node.value.value
+            continue
+        if isinstance(node, ast.Assign) and all(isinstance(t, ast.Name) for t in node.targets):
+            try:
+                value = ast.literal_eval(node.value)
+            except (ValueError, TypeError, SyntaxError, MemoryError, RecursionError):
+                pass
+            else:
+                values.update((t.id, value) for t in node.targets)
+                continue
+        if isinstance(node, ast.FunctionDef):
+            first = node.body[0]
+            if isinstance(first, ast.Expr) and isinstance(first.value, ast.Constant) \
+                    and isinstance(first.value.value, str):
+                functions_doc[node.name] = first.value.value
+                node.body = node.body[1:] or [ast.Pass(lineno=first.lineno,
+                                                        col_offset=first.col_offset)]
+        body.append(node)
+    return doc, values, functions_doc, ast.Module(body=body, type_ignores=[])
+
+
+def module_from_source(source: str, name: str, *, filename: str | None = None) -> ModuleType:
+    """Make a module of text written by this package's own generators.
+
+    Only for generated text (user models compiled in memory,
+    :func:`algid.symbolic._codegen.compile_model`, and their cached copies on disk).  The
+    text is first checked to have the shape the generators write (a docstring, imports of
+    NumPy, numba, math and algid, assignments and functions; no call outside the
+    functions but ``numba.njit``).  Then its data are taken out of its code: the
+    docstrings and the assignments of literal values are read with
+    :func:`ast.literal_eval` and set on the module, and only the rest is compiled, after
+    a check that it holds no text but identifiers.  So a user's equation or any other
+    free text never reaches the compiler: at most names the grammar checked.
 
     Parameters
     ----------
@@ -114,6 +154,9 @@ def module_from_source(source: str, name: str) -> ModuleType:
         Text of a generated module.
     name : str
         Module name to register it under.
+    filename : str, optional
+        The file the text was read from (numba caches the machine code of functions
+        defined in a file); by default a ``<generated name>`` label.
 
     Returns
     -------
@@ -122,12 +165,23 @@ def module_from_source(source: str, name: str) -> ModuleType:
     Raises
     ------
     ModelError
-        If the text is not shaped as the generators write it.
+        If the text is not shaped as the generators write it, or its code holds text.
     """
     _check_generated_shape(source, name)
-    module = ModuleType(name)
-    module.__file__ = f"<generated {name}>"
+    doc, values, functions_doc, code = _split_text(ast.parse(source))
+    for node in ast.walk(code):
+        if isinstance(node, ast.Constant) and isinstance(node.value, (str, bytes)) \
+                and not (isinstance(node.value, str) and node.value.isidentifier()):
+            raise ModelError(f"generated module {name!r}: text in its code at line "
+                             f"{node.lineno}")
+    module = ModuleType(name, doc)
+    module.__file__ = filename or f"<generated {name}>"
     module.GENERATED_SOURCE = source  # the text it was made from (to cache its compiled loop)
+    module.__dict__.update(values)
     sys.modules[name] = module
-    exec(compile(source, module.__file__, "exec"), module.__dict__)
+    exec(compile(code, module.__file__, "exec"), module.__dict__)
+    for function, text in functions_doc.items():
+        target = module.__dict__[function]
+        # a numba dispatcher documents the Python function it wraps
+        getattr(target, "py_func", target).__doc__ = text
     return module
