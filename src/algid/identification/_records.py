@@ -218,7 +218,8 @@ def _time_axis(record, index, n, time, rate):
     return t, time
 
 
-def record_columns(record, signals, *, time=None, rate=None, first_sample=0):
+def record_columns(record, signals, *, time=None, rate=None, first_sample=0, index=0,
+                   min_samples=0):
     """The time axis and the named signals of one record, checked as :func:`algid.identify`
     checks them (no gaps are cut: the estimator needs the record whole).
 
@@ -236,6 +237,10 @@ def record_columns(record, signals, *, time=None, rate=None, first_sample=0):
         Index of the first sample when the times come from ``rate``: sample ``i`` is at
         ``(first_sample + i) / rate`` (a stream's later chunk goes on where the previous
         one ended, at the same times as the whole record).
+    index : int, optional
+        The record's place among several (named in the messages).
+    min_samples : int, optional
+        Fewer samples are refused (before the time axis is read).
 
     Returns
     -------
@@ -248,13 +253,15 @@ def record_columns(record, signals, *, time=None, rate=None, first_sample=0):
     InputDataError
         A missing or non-numeric column, signals of different lengths, a bad time axis.
     """
-    columns = {name: _column(record, name, 0, "signal") for name in signals}
+    columns = {name: _column(record, name, index, "signal") for name in signals}
     lengths = {len(v) for v in columns.values()}
     if len(lengths) > 1:
-        raise InputDataError("signals have different lengths ("
-                             + ", ".join(f"{k}: {len(v)}" for k, v in columns.items()) + ")")
+        raise InputDataError(f"record {index}: signals have different lengths "
+                             f"({', '.join(f'{k}: {len(v)}' for k, v in columns.items())})")
     n = lengths.pop() if lengths else 0
-    t, _ = _time_axis(record, 0, n, time, rate)
+    if n < min_samples:
+        raise InputDataError(f"record {index}: fewer than {min_samples} samples")
+    t, _ = _time_axis(record, index, n, time, rate)
     if first_sample and time is None and not any(c in record for c in TIME_COLUMNS):
         t = (first_sample + np.arange(n)) / check_rate(rate)
     return t, columns
@@ -311,15 +318,8 @@ def prepare_records(data, signals, *, time=None, rate=None, min_length=8):
     records = _as_records(data)
     segments, steps = [], []
     for index, record in enumerate(records):
-        columns = {name: _column(record, name, index, "signal") for name in signals}
-        lengths = {len(v) for v in columns.values()}
-        if len(lengths) != 1:
-            raise InputDataError(f"record {index}: signals have different lengths "
-                                 f"({', '.join(f'{k}: {len(v)}' for k, v in columns.items())})")
-        n = lengths.pop()
-        if n < 2:
-            raise InputDataError(f"record {index}: fewer than 2 samples")
-        t, _ = _time_axis(record, index, n, time, rate)
+        t, columns = record_columns(record, signals, time=time, rate=rate, index=index,
+                                    min_samples=2)
         valid = np.all([np.isfinite(v) for v in columns.values()], axis=0)
         ranges, median = _split(t, valid, min_length)
         steps.append(median)
