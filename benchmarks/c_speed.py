@@ -11,9 +11,11 @@ samples, it times
 
 - the naive NumPy trapezoid estimator of :mod:`benchmarks.baselines` (the reference,
   throughput ratio 1.0);
-- the numba engine (the estimator core, ``backend="numba"``): its compiled loop on one chunk, and
+- the numba engine (the estimator core, ``backend="numba"``): its compiled loop on one
+  chunk, without and with the numerical error (the companion estimator), and
   ``algid.estimate(engine="numba")`` (which checks the data first);
-- the C estimator on one chunk, and in chunks of 1000 and of 1 sample;
+- the C estimator (which always computes the numerical error) on one chunk, and in
+  chunks of 1000 and of 1 sample;
 - one ``numpy.cumsum`` pass over the same samples: the memory-bandwidth ceiling.
 
 Times are the best of ``repeats`` process CPU times (``time.process_time``; every
@@ -55,14 +57,16 @@ _DRIVER = r"""
 #include <stddef.h>
 #include "algid_msd.h"
 
-/* Feed n samples in chunks of `chunk`, as a caller of the library would. */
+/* Feed n samples in chunks of `chunk`, as a caller of the library would: the estimates
+   to theta, the numerical error to error. */
 void bench_stream(void *state, const double *u, const double *y, size_t n, size_t chunk,
-                  double *theta)
+                  double *theta, double *error)
 {
     size_t i;
     for (i = 0; i < n; i += chunk) {
         const size_t m = n - i < chunk ? n - i : chunk;
-        algid_msd_update(state, u + i, y + i, m, theta + i * ALGID_MSD_N_PARAMETERS);
+        algid_msd_update(state, u + i, y + i, m, theta + i * ALGID_MSD_N_PARAMETERS,
+                         error + i);
     }
 }
 """
@@ -102,20 +106,20 @@ def _build(cc, flags, where):
     handle.algid_msd_init.argtypes = [ctypes.c_void_p, ctypes.c_double, ctypes.c_double]
     handle.algid_msd_init.restype = ctypes.c_int
     handle.bench_stream.argtypes = [ctypes.c_void_p, dptr, dptr, ctypes.c_size_t,
-                                    ctypes.c_size_t, dptr]
+                                    ctypes.c_size_t, dptr, dptr]
     handle.bench_stream.restype = None
     return handle, proc.stderr.strip()
 
 
-def _c_runner(handle, f, x, out, chunk):
+def _c_runner(handle, f, x, out, error, chunk):
     dptr = ctypes.POINTER(ctypes.c_double)
     state = (ctypes.c_double * (handle.algid_msd_state_size() // 8))()
     args = (f.ctypes.data_as(dptr), x.ctypes.data_as(dptr), f.size)
-    out_ptr = out.ctypes.data_as(dptr)
+    out_ptr, error_ptr = out.ctypes.data_as(dptr), error.ctypes.data_as(dptr)
 
     def run():
         handle.algid_msd_init(state, STEP, 0.0)
-        handle.bench_stream(state, *args, chunk, out_ptr)
+        handle.bench_stream(state, *args, chunk, out_ptr, error_ptr)
 
     return run
 
@@ -128,6 +132,7 @@ def _numba_runners(f, x):
     """
     import algid
     from algid.estimation import _core as core
+    from algid.estimation import _numerical_error as numerical_error
     from algid.estimation._backends import numba_available
     from algid.estimation._options import DEFAULT_QUADRATURE_POINTS
     from algid.models._registry import load_model
@@ -138,13 +143,21 @@ def _numba_runners(f, x):
     gen = load_model("msd")
     out = np.empty((2, f.size))
 
+    error = np.empty(f.size)
+
     def loop():
         state = core.new_state(gen, points=DEFAULT_QUADRATURE_POINTS, filter_order=2,
                                dt=STEP)
         core.advance(state, (f, x), backend="numba", out=out)
 
+    def loop_with_error():  # the C computes the numerical error: so does this loop
+        state = numerical_error.with_companion(core.new_state(
+            gen, points=DEFAULT_QUADRATURE_POINTS, filter_order=2, dt=STEP))
+        numerical_error.advance_with_error(state, (f, x), backend="numba", out=out,
+                                           error_out=error)
+
     return {"numba_estimate": lambda: algid.estimate(t, f, x, engine="numba"),
-            "numba_loop": loop}, "available"
+            "numba_loop": loop, "numba_loop_error": loop_with_error}, "available"
 
 
 def c_speed(config):
@@ -187,13 +200,15 @@ def c_speed(config):
         numba_runners, _ = _numba_runners(f, x)
         bl.naive_algebraic(t[:2000], f[:2000], x[:2000])
         outs = {label: np.empty((n, 2)) for label in handles}
+        errors = {label: np.empty(n) for label in handles}
         timed = {"naive_numpy": lambda: bl.naive_algebraic(t, f, x),
                  "cumsum": lambda: np.cumsum(f)}
         timed.update(numba_runners)
         chunks = {"all": n, "1000": 1000, "1": 1}
         for label, handle in handles.items():
             for name, chunk in chunks.items():
-                timed[f"c_{label}_chunk_{name}"] = _c_runner(handle, f, x, outs[label], chunk)
+                timed[f"c_{label}_chunk_{name}"] = _c_runner(handle, f, x, outs[label],
+                                                             errors[label], chunk)
         times = {key: math.inf for key in timed}
         for _ in range(repeats):  # interleaved: the load of the machine varies
             for key, run in timed.items():
@@ -202,7 +217,8 @@ def c_speed(config):
         labels = {"naive_numpy": "naive NumPy (paper's formulas, cumulative_trapezoid) "
                                  "[baseline]",
                   "numba_estimate": "algid.estimate, numba engine (checks included)",
-                  "numba_loop": "numba engine loop, one chunk",
+                  "numba_loop": "numba engine loop, one chunk, without the numerical error",
+                  "numba_loop_error": "numba engine loop with the numerical error, one chunk",
                   "cumsum": "one numpy.cumsum pass (memory-bandwidth ceiling)"}
         for key, elapsed in times.items():
             label = labels.get(key)
@@ -212,41 +228,45 @@ def c_speed(config):
                          f"{'one chunk' if chunk == 'all' else 'chunks of ' + chunk}")
             rows[key] = {"method": key, "label": label, "time": elapsed,
                          "throughput": n / elapsed, "throughput_ratio": ref / elapsed}
-        numba_key = "numba_loop" if "numba_loop" in times else (
+        numba_key = "numba_loop_error" if "numba_loop_error" in times else (
             "numba_estimate" if "numba_estimate" in times else None)
         for label in handles:
             c_ns[label] = {name: times[f"c_{label}_chunk_{name}"] / n * 1e9 for name in chunks}
             fraction[label] = times["cumsum"] / times[f"c_{label}_chunk_all"]
             if numba_key:
                 over_numba[label] = times[numba_key] / times[f"c_{label}_chunk_all"]
-        diff = None
+        diff = error_diff = None
         if handles:  # agreement with the NumPy engine on the first samples
-            diff = _max_rel_diff(t, f, x, outs[next(iter(handles))])
+            first = next(iter(handles))
+            diff, error_diff = _max_rel_diff(t, f, x, outs[first], errors[first])
     if not numba_runners:
         rows["numba"] = {"method": "numba", "not_available": numba_why}
     return {"n_samples": n, "repeats": repeats, "compiler": cc, "flags": FLAGS,
             "compiler_warnings": warnings, "rows": list(rows.values()),
             "c_ns_per_sample": c_ns, "fraction_of_cumsum": fraction,
             "numba_reference": numba_key, "c_over_numba": over_numba,
-            "max_rel_diff_c_numpy": diff}
+            "max_rel_diff_c_numpy": diff, "max_error_diff_c_numpy": error_diff}
 
 
-def _max_rel_diff(t, f, x, c_rows):
+def _max_rel_diff(t, f, x, c_rows, c_error):
     """Largest relative difference between the C estimates and those of
     ``algid.estimate(engine="numpy")`` over the first ``min(n, 10**5)`` samples, from
-    0.05 s on."""
+    0.05 s on; and the largest relative difference of the numerical errors there."""
     import algid
 
     m = min(t.size, 10**5)
     r = algid.estimate(t[:m], f[:m], x[:m], engine="numpy")
     ref = np.column_stack([r.B, r.K])
     late = t[:m] >= 0.05
-    return float(np.max(np.abs(c_rows[:m][late] / ref[late] - 1.0)))
+    error = r.numerical_error[late]
+    return (float(np.max(np.abs(c_rows[:m][late] / ref[late] - 1.0))),
+            float(np.max(np.abs(c_error[:m][late] - error) / error)))
 
 
 def target(data):
     """``(measured, detail)`` of the target "C at least as fast as numba": numba loop
-    time over C time with the portable build (``-O2``); None when it did not run."""
+    time over C time with the portable build (``-O2``), both with the numerical error;
+    None when it did not run."""
     over = data.get("c_over_numba") or {}
     if "O2" not in over:
         return None, data.get("not_available", "numba or the compiler is missing")
@@ -279,12 +299,16 @@ def markdown(data):
         over = data["c_over_numba"].get(build)
         lines.append(f"- C -{build.replace('_', ' -march=')}: "
                      f"{ns['1']:.1f} ns per sample in chunks of 1, {ns['1000']:.1f} in chunks "
-                     f"of 1000, {ns['all']:.1f} in one chunk; throughput "
+                     f"of 1000, {ns['all']:.1f} in one chunk (numerical error included); "
+                     "throughput "
                      f"{data['fraction_of_cumsum'][build]:.2f} of one numpy.cumsum pass"
-                     + (f"; {over:.2f} × the numba loop" if over is not None else ""))
+                     + (f"; {over:.2f} × the numba loop with the numerical error"
+                        if over is not None else ""))
     if data.get("max_rel_diff_c_numpy") is not None:
         lines.append(f"- largest relative difference between C and the NumPy engine "
-                     f"(first 10^5 samples, from 0.05 s on): {data['max_rel_diff_c_numpy']:.1e}")
+                     f"(first 10^5 samples, from 0.05 s on): {data['max_rel_diff_c_numpy']:.1e}; "
+                     "of their numerical errors: "
+                     f"{data.get('max_error_diff_c_numpy', float('nan')):.1e}")
     return "\n".join(lines)
 
 

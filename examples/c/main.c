@@ -3,7 +3,9 @@
  * The plant is the paper's x'' + 2 x' + 3 x = f (B = 2, K = 3), driven by
  * f(t) = sin(t) from rest and integrated with the classical Runge-Kutta method at
  * 10 steps per sample.  Every millisecond the loop "reads" f and x and hands them
- * to algid_msd_update, one sample at a time, as a controller would.
+ * to algid_msd_update, one sample at a time, as a controller would; with every
+ * estimate comes its numerical error (the relative error the arithmetic leaves, as
+ * algid.estimate reports it).
  */
 #include <math.h>
 #include <stdio.h>
@@ -44,6 +46,7 @@ int main(void)
     static double state[ALGID_MSD_STATE_DOUBLES];  /* no allocation */
     double plant[2] = {0.0, 0.0};                  /* x, x' */
     double theta[ALGID_MSD_N_PARAMETERS] = {0.0, 0.0};
+    double error = 0.0;                             /* numerical error of theta */
     const long n = (long)(DURATION / DT + 0.5) + 1;
     long i;
     int j;
@@ -55,14 +58,15 @@ int main(void)
     for (i = 0; i < n; ++i) {  /* one pass per sampling period */
         const double t = (double)i * DT;
         const double f = force(t), x = plant[0];  /* the "measurements" */
-        algid_msd_update(state, &f, &x, 1, theta);
+        algid_msd_update(state, &f, &x, 1, theta, &error);
         if (i % 1000 == 0 && i > 0) {
-            printf("t = %4.1f s  B = %.12f  K = %.12f\n", t, theta[0], theta[1]);
+            printf("t = %4.1f s  B = %.12f  K = %.12f  numerical error %.1e\n", t,
+                   theta[0], theta[1], error);
         }
         for (j = 0; j < SUBSTEPS; ++j) {  /* the plant until the next sample */
             plant_step(t + j * (DT / SUBSTEPS), plant, DT / SUBSTEPS);
         }
     }
-    printf("B = %.12f\nK = %.12f\n", theta[0], theta[1]);
+    printf("B = %.12f\nK = %.12f\nnumerical error = %.1e\n", theta[0], theta[1], error);
     return 0;
 }

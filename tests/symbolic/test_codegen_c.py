@@ -77,8 +77,10 @@ class CEstimator:
         self._init.argtypes = [ctypes.c_void_p, ctypes.c_double, ctypes.c_double]
         self._update = getattr(self.lib, f"algid_{name}_update")
         self._update.restype = ctypes.c_size_t
-        self._update.argtypes = [ctypes.c_void_p, dptr, dptr, ctypes.c_size_t, dptr]
+        self._update.argtypes = [ctypes.c_void_p, dptr, dptr, ctypes.c_size_t, dptr, dptr]
         self._dptr = dptr
+        #: The numerical error of the rows of the last update or run.
+        self.error = None
 
     def state(self):
         """A zeroed buffer of doubles of the state's size."""
@@ -87,24 +89,34 @@ class CEstimator:
     def init(self, state, dt, reset_period=0.0):
         return self._init(state, dt, reset_period)
 
-    def update(self, state, u, y, out=None):
+    def update(self, state, u, y, out=None, error=None, *, with_error=True):
+        """Estimates of a chunk (their numerical error into ``error`` and
+        :attr:`error`; with ``with_error=False`` the C gets a NULL error)."""
         u = np.ascontiguousarray(u, dtype=float)
         y = np.ascontiguousarray(y, dtype=float)
         if out is None:
             out = np.full((u.size, self.n_parameters), -1.0)
+        if error is None:
+            error = np.full(u.size, -1.0)
         n = self._update(state, u.ctypes.data_as(self._dptr), y.ctypes.data_as(self._dptr),
-                         u.size, out.ctypes.data_as(self._dptr))
+                         u.size, out.ctypes.data_as(self._dptr),
+                         error.ctypes.data_as(self._dptr) if with_error else None)
         assert n == u.size
+        self.error = error
         return out
 
     def run(self, u, y, dt, *, reset_period=0.0, chunk=None):
-        """Estimates of a whole record fed in chunks of ``chunk`` samples."""
+        """Estimates of a whole record fed in chunks of ``chunk`` samples (their
+        numerical error in :attr:`error`)."""
         state = self.state()
         assert self.init(state, dt, reset_period) == 0
         out = np.full((u.size, self.n_parameters), -1.0)
+        error = np.full(u.size, -1.0)
         chunk = u.size if chunk is None else chunk
         for i in range(0, u.size, chunk):
-            self.update(state, u[i:i + chunk], y[i:i + chunk], out[i:i + chunk])
+            self.update(state, u[i:i + chunk], y[i:i + chunk], out[i:i + chunk],
+                        error[i:i + chunk])
+        self.error = error
         return out
 
 
@@ -312,6 +324,100 @@ def test_other_orders_equal_batch_estimate(build, p, q):
     assert _max_rel(est[late], ref[late]) <= RTOL
 
 
+def _assert_same_error(c_error, py_error, rtol=RTOL):
+    """The C's numerical error is Python's: NaN and inf on the same samples, the finite
+    values equal to ``rtol`` relative (both are relative differences of estimates that
+    agree to round-off)."""
+    np.testing.assert_array_equal(np.isnan(c_error), np.isnan(py_error))
+    np.testing.assert_array_equal(np.isinf(c_error), np.isinf(py_error))
+    finite = np.isfinite(py_error)
+    assert finite.any()
+    assert np.max(np.abs(c_error[finite] - py_error[finite]) / py_error[finite]) <= rtol
+
+
+@needs_cc
+@pytest.mark.parametrize("model", ["msd", "msd_mass", "user"])
+@pytest.mark.parametrize("kind", ["step", "sine"])
+def test_numerical_error_equals_batch_estimate_in_any_chunking(build, user_registered,
+                                                              model, kind):
+    c = build(model)
+    t, u, y, _ = _experiment(model, kind)
+    dt = (t[-1] - t[0]) / (t.size - 1)
+    c.run(u, y, dt, chunk=1)
+    error = c.error
+    assert (error != -1.0).all()  # every row written
+    for chunk in (7, 1000, None):
+        c.run(u, y, dt, chunk=chunk)
+        np.testing.assert_array_equal(c.error, error)
+    _assert_same_error(error, algid.estimate(t, u, y, model=model,
+                                             engine="numpy").numerical_error)
+    assert error[-1] < 1e-12  # noise-free and resolved: round-off
+
+
+@needs_cc
+def test_numerical_error_of_an_under_resolved_record_equals_batch_estimate(build):
+    # a lightly damped mode of 3 rad/s sampled 100 times per period: the numerical
+    # error is large, and the C's is the batch one to 1e-10 relative
+    import scipy.signal
+
+    c = build("msd")
+    t = np.arange(4000) * 0.02
+    u = np.sin(2.1 * t) + np.sin(3.3 * t)
+    _, y, _ = scipy.signal.lsim(([1.0], [1.0, 0.05, 9.0]), u, t)
+    est = c.run(u, y, 0.02, chunk=333)
+    reference = algid.estimate(t, u, y)
+    _assert_same_error(c.error, reference.numerical_error)
+    assert 1e-6 < c.error[-1] < 1e-2
+    late = t >= 1.0
+    assert _max_rel(est[late], _rows(reference, ["B", "K"])[late]) <= RTOL
+
+
+@needs_cc
+@pytest.mark.parametrize("p, q", [(0, 4), (1, 2), (3, 9)])
+def test_numerical_error_of_other_orders_equals_batch_estimate(build, p, q):
+    # p = 0: the companion has a filter of order 1; q = 9 (the largest rule): 8 points
+    c = build("msd", p=p, q=q)
+    t, u, y, _ = _experiment("msd", "sine", duration=2.0)
+    dt = (t[-1] - t[0]) / (t.size - 1)
+    c.run(u, y, dt, chunk=333)
+    error = c.error
+    c.run(u, y, dt, chunk=1)
+    np.testing.assert_array_equal(c.error, error)
+    reference = algid.estimate(t, u, y, filter_order=p, quadrature_points=q,
+                               engine="numpy").numerical_error
+    _assert_same_error(error, reference)
+
+
+@needs_cc
+def test_numerical_error_can_be_skipped_and_the_companion_still_advances(build):
+    c = build("msd")
+    t, u, y, _ = _experiment("msd", "sine", duration=1.0)
+    whole = c.run(u, y, 1e-3)
+    error = c.error
+    state = c.state()
+    assert c.init(state, 1e-3, 0.0) == 0
+    first = c.update(state, u[:300], y[:300], with_error=False)  # error NULL
+    rest = c.update(state, u[300:], y[300:])
+    np.testing.assert_array_equal(np.vstack([first, rest]), whole)
+    np.testing.assert_array_equal(c.error, error[300:])
+
+
+@needs_cc
+@pytest.mark.parametrize("period", [1.0, 0.05])
+def test_numerical_error_with_re_anchoring_equals_online_estimator(build, period):
+    c = build("msd")
+    t, u, y, _ = _experiment("msd", "sine", duration=20.0)
+    c.run(u, y, 1e-3, reset_period=period, chunk=997)
+    error = c.error
+    c.run(u, y, 1e-3, reset_period=period, chunk=7)
+    np.testing.assert_array_equal(c.error, error)
+    online = algid.OnlineEstimator(rate=1000.0, reset_period=period, engine="numpy")
+    reference = online.update(t, u, y).numerical_error
+    # windows of 25-49 samples (period 0.05 s) are ill-conditioned: the two roundings
+    # of the same formulas differ more there, as the estimates do (see above)
+    _assert_same_error(error, reference, rtol=RTOL if period >= 2 * SETTLE else 1e-4)
+
+
 @needs_cc
 @pytest.mark.parametrize("block", [1, 3, 200])
 def test_block_size_does_not_change_the_numbers(build, block):
@@ -406,8 +512,8 @@ def test_init_refuses_bad_step_and_period(build):
     assert c.init(state, 1e-3, 0.0) == ok
     out = np.empty((1, 2))
     dptr = ctypes.POINTER(ctypes.c_double)
-    assert c._update(state, None, None, 1, out.ctypes.data_as(dptr)) == 0
-    assert c._update(state, None, None, 0, None) == 0
+    assert c._update(state, None, None, 1, out.ctypes.data_as(dptr), None) == 0
+    assert c._update(state, None, None, 0, None, None) == 0
 
 
 @needs_cc
@@ -472,3 +578,7 @@ def test_example_program_builds_and_estimates(tmp_path):
     values = dict(re.findall(r"^(B|K) = (\S+)$", proc.stdout, flags=re.M))
     assert abs(float(values["B"]) / 2.0 - 1) < 1e-6
     assert abs(float(values["K"]) / 3.0 - 1) < 1e-6
+    # the numerical error: round-off on these resolved samples; the estimates' distance
+    # from B, K is the plant's Runge-Kutta error, which the estimator cannot see
+    error = float(re.search(r"^numerical error = (\S+)$", proc.stdout, flags=re.M).group(1))
+    assert 0.0 < error < 1e-9

@@ -10,7 +10,7 @@ microcontroller or a real-time loop.  Its three functions are
     size_t algid_<name>_state_size(void);
     int    algid_<name>_init(void *state, double dt, double reset_period);
     size_t algid_<name>_update(void *state, const double *u, const double *y,
-                               size_t n, double *theta);
+                               size_t n, double *theta, double *error);
 
 The arithmetic is that of the Python estimator (:func:`algid.estimate`,
 :class:`algid.OnlineEstimator`), sample by sample: the integrator chains with the
@@ -18,6 +18,11 @@ causal ``q``-point Adams-Moulton rule, ``P``, ``Q`` and Cramer's rule printed by
 SymPy's C printer, the invariant filter ``1/s**p`` on the numerators and the
 denominator, the quotient (NaN where the denominator is zero or not finite).  The first
 samples after an origin use the start-up rule of :mod:`algid.signals._quadrature`.
+Beside every estimator runs its companion (the same code generated for the rule and
+filter of :func:`algid.estimation._numerical_error.companion_options`), and ``error``
+receives the numerical error of every sample as :func:`algid.estimate` reports it: the
+largest relative difference of the two over the parameters, the largest over the last
+:data:`algid.estimation._numerical_error.WINDOW` samples.
 Each sample is processed by the same code whatever the chunk it comes in, so chunks of
 any size give the same numbers bit for bit; ``reset_period = T > 0`` re-anchors as
 :class:`algid.OnlineEstimator` does.
@@ -38,6 +43,7 @@ import sympy as sp
 import algid.symbolic._c_arithmetic as c_loops
 from algid.errors import ModelError
 from algid.estimation._core import EARLY_POINTS, first_estimate
+from algid.estimation._numerical_error import WINDOW, companion_options
 from algid.estimation._options import DEFAULT_QUADRATURE_POINTS
 from algid.signals._quadrature import QUADRATURE_POINTS
 from algid.symbolic._derivation import Derivation
@@ -228,7 +234,7 @@ def write_c_sources(derivation: Derivation, out, **options) -> list:
 class _Writer:
     """Builds the two files; every model-specific line comes from the derivation."""
 
-    def __init__(self, derivation, name, p, q):
+    def __init__(self, derivation, name, p, q, companion=True):
         model = derivation.model
         self.model = model
         self.name = name
@@ -258,11 +264,25 @@ class _Writer:
         # doubles of one window and of the whole state (see _struct)
         self.window_doubles = 1 + self.n_int + self.n_int * m + 2 * q
         self.state_doubles = 4 + 2 * self.window_doubles
+        self.companion = None
+        self.block_macro = None  # the BLOCK of another writer, for a companion's
+        if companion:
+            # the companion's code: the same writer, for its rule and filter; its blocks
+            # are this estimator's (one stack size to set)
+            other_q, other_p = companion_options(q, p)
+            self.companion = _Writer(derivation, f"{name}_companion", other_p, other_q,
+                                     companion=False)
+            self.companion.block_macro = f"{self.PRE}_BLOCK"
+            self.state_doubles += 2 * self.companion.window_doubles + 2 * (WINDOW - 1)
 
     def stack_bytes(self, block):
-        """Bytes of the arrays of the block loop for blocks of ``block`` samples."""
+        """Bytes of the arrays of the block loop for blocks of ``block`` samples (the
+        larger of the estimator's and its companion's, with the companion's rows)."""
         rows = self.levels + (self.p + 1) * self.lanes
-        return 8 * (rows * (self.q - 1 + block) + self.width * block)
+        own = 8 * (rows * (self.q - 1 + block) + self.width * block)
+        if self.companion is None:
+            return own
+        return max(own, self.companion.stack_bytes(block)) + 8 * block * self.n_par
 
     # ------------------------------------------------------------------ files
 
@@ -283,6 +303,7 @@ class _Writer:
     def header(self):
         P, pre, name = self.PRE, self.pre, self.name
         params = ", ".join(self.params)
+        cq, cp = self.companion.q, self.companion.p
         guard = f"{P}_H"
         lines = self._banner("Algebraic estimator (C99)")
         lines += [
@@ -330,9 +351,16 @@ class _Writer:
             "   give the same numbers (bit for bit when compiled without floating-point",
             "   contraction into fused multiply-adds: ISO modes such as -std=c99 do that;",
             "   with -std=gnu99 and -march with FMA add -ffp-contract=off).",
-            "   Returns n (0 if a pointer is NULL). */",
+            "   error (NULL if not wanted) receives n values: the numerical error of each",
+            "   row, as algid.estimate reports it (its companion estimator, with a rule of",
+            f"   {cq} points and a filter of order {cp}, runs beside every estimator, NULL or",
+            "   not): the largest relative difference of the two over the parameters, the",
+            f"   largest over the last {WINDOW} samples; NaN where theta is, inf where only the",
+            "   companion is undefined.  Unlike algid.estimate, it does not test whether the",
+            "   samples determine the parameters (see the user guide).",
+            "   Returns n (0 if u, y or theta is NULL and n > 0, or state is NULL). */",
             f"size_t {pre}_update(void *state, const double *u, const double *y, size_t n,",
-            f"{' ' * (len(pre) + 14)}double *theta);",
+            f"{' ' * (len(pre) + 14)}double *theta, double *error);",
             "", "#ifdef __cplusplus", "}", "#endif", "", f"#endif /* {guard} */", ""]
         del name
         return "\n".join(lines)
@@ -343,7 +371,9 @@ class _Writer:
         out = self._banner("Algebraic estimator (C99)")
         out += ["", f'#include "{self.pre}.h"', "", "#include <math.h>", ""]
         out += self._constants()
-        out += self._struct()
+        out += self._window_struct()
+        if self.companion is None:
+            out += self._state_struct()
         out += c_loops.algebra_function(self)
         out += self._finish()
         out += c_loops.startup_functions(self)
@@ -351,8 +381,27 @@ class _Writer:
         out += c_loops.sample_loop_function(self)
         out += c_loops.block_loop_function(self)
         out += self._window_feed()
+        if self.companion is not None:
+            out += self.companion.internals()
+            out += self._state_struct()
+            out += self._error_function()
+            out += self._pair_feed()
         out += self._api()
         return "\n".join(out)
+
+    def internals(self):
+        """The static code of one estimator (a companion's: no state, no API)."""
+        out = [f"/* ---- the companion: {self.q}-point rule, filter order {self.p} ---- */", ""]
+        out += self._constants()
+        out += self._window_struct()
+        out += c_loops.algebra_function(self)
+        out += self._finish()
+        out += c_loops.startup_functions(self)
+        out += c_loops.integrator_step_function(self)
+        out += c_loops.sample_loop_function(self)
+        out += c_loops.block_loop_function(self)
+        out += self._window_feed()
+        return out
 
     def _constants(self):
         pre, q = self.pre, self.q
@@ -362,7 +411,7 @@ class _Writer:
                  f"#ifndef {self.PRE}_BLOCK  /* samples per block of the loop: the stack holds",
                  "                             about "
                  f"{self.levels + (self.p + 1) * self.lanes + 1} arrays of M + BLOCK doubles */",
-                 f"#define {self.PRE}_BLOCK {BLOCK}",
+                 f"#define {self.PRE}_BLOCK {self.block_macro or BLOCK}",
                  "#endif",
                  "",
                  f"/* {q}-point Adams-Moulton rule (weights times dt): the integral over",
@@ -391,7 +440,7 @@ class _Writer:
         lines += ["};", ""]
         return lines
 
-    def _struct(self):
+    def _window_struct(self):
         pre, P = self.pre, self.PRE
         chains = ", ".join(f"({s}, {pw}, {d})" for s, pw, d in self.chains)
         return [
@@ -408,12 +457,21 @@ class _Writer:
             f"    double start_y[{self.q}];",
             f"}} {pre}_window;",
             "",
+        ]
+
+    def _state_struct(self):
+        pre, P = self.pre, self.PRE
+        companion = [] if self.companion is None else [
+            f"    {self.companion.pre}_window companion[2];  /* the companions of A and B */",
+            f"    double recent[2][{WINDOW - 1}];  /* their last raw errors (finite; else 0) */"]
+        return [
             "typedef struct {",
             "    double dt;",
             "    double half;    /* samples per half period; 0: never re-anchor */",
             "    double phase;   /* samples since the last multiple of half */",
             "    double index;   /* index of the current half period, capped at 2 (parity kept) */",
             f"    {pre}_window window[2];  /* A, B */",
+            *companion,
             f"}} {pre}_state;",
             "",
             "/* The header's size of the state must hold the struct (a negative array size",
@@ -481,6 +539,77 @@ class _Writer:
             "",
         ]
 
+    def _error_function(self):
+        pre, n_par, width = self.pre, self.n_par, WINDOW - 1
+        return [
+            "/* The numerical error of n rows of estimates theta against the companion's rows",
+            "   other (as algid.estimation._numerical_error): per row the largest over the",
+            "   parameters of |a - b| / |a| (a = b = 0: 0; a finite, b not: inf; a NaN: NaN),",
+            f"   then, when finite, the largest over this row and the {width} before it, whose",
+            "   finite raw values recent holds (non-finite ones count as 0). */",
+            f"static void {pre}_error(const double *theta, const double *other, size_t n,",
+            f"{' ' * (len(pre) + 14)}double *recent, double *error)",
+            "{",
+            "    size_t i;",
+            "    int r, k;",
+            "    for (i = 0; i < n; ++i) {",
+            "        double raw = 0.0, value, largest;",
+            f"        for (r = 0; r < {n_par}; ++r) {{",
+            f"            const double a = theta[i * {n_par} + (size_t)r];",
+            f"            const double b = other[i * {n_par} + (size_t)r];",
+            "            double rel = fabs(a - b) / fabs(a);",
+            "            if (rel != rel && fabs(a) < INFINITY) {",
+            "                rel = a == b ? 0.0 : INFINITY;",
+            "            }",
+            "            raw = (rel != rel || raw != raw) ? NAN : (rel > raw ? rel : raw);",
+            "        }",
+            "        value = isfinite(raw) ? raw : 0.0;",
+            "        largest = value;",
+            f"        for (k = 0; k < {width}; ++k) {{",
+            "            if (recent[k] > largest) largest = recent[k];",
+            "        }",
+            f"        for (k = 0; k < {width - 1}; ++k) recent[k] = recent[k + 1];",
+            f"        recent[{width - 1}] = value;",
+            "        error[i] = isfinite(raw) ? largest : raw;",
+            "    }",
+            "}",
+            "",
+        ]
+
+    def _pair_feed(self):
+        pre, P, n_par, other = self.pre, self.PRE, self.n_par, self.companion.pre
+        return [
+            "/* n samples through estimator k (0: A, 1: B) and its companion: estimates to",
+            "   theta, the numerical error to error (if not NULL; the companion advances",
+            "   either way, so that a later error is that of the whole stream). */",
+            f"static void {pre}_feed_pair({pre}_state *st, int k, const double *u, "
+            "const double *y,",
+            f"{' ' * (len(pre) + 18)}size_t n, double *theta, double *error)",
+            "{",
+            f"    double rows[{P}_BLOCK * {n_par}];",
+            "    size_t start, m;",
+            f"    {pre}_feed(&st->window[k], u, y, n, st->dt, theta);",
+            f"    for (start = 0; start < n; start += m) {{",
+            f"        m = n - start < {P}_BLOCK ? n - start : {P}_BLOCK;",
+            f"        {other}_feed(&st->companion[k], u + start, y + start, m, st->dt, rows);",
+            "        if (error != NULL) {",
+            f"            {pre}_error(theta + start * {n_par}, rows, m, st->recent[k], "
+            "error + start);",
+            "        }",
+            "    }",
+            "}",
+            "",
+            "/* Restart estimator k and its companion: the next sample is their origin. */",
+            f"static void {pre}_restart_pair({pre}_state *st, int k)",
+            "{",
+            "    int i;",
+            f"    {pre}_restart(&st->window[k]);",
+            f"    {other}_restart(&st->companion[k]);",
+            f"    for (i = 0; i < {WINDOW - 1}; ++i) st->recent[k][i] = 0.0;",
+            "}",
+            "",
+        ]
+
     def _api(self):
         pre, P, q = self.pre, self.PRE, self.q
         return [
@@ -522,13 +651,13 @@ class _Writer:
             "    st->half = half;",
             "    st->phase = 0.0;",
             "    st->index = 0.0;",
-            f"    {pre}_restart(&st->window[0]);",
-            f"    {pre}_restart(&st->window[1]);",
+            f"    {pre}_restart_pair(st, 0);",
+            f"    {pre}_restart_pair(st, 1);",
             f"    return {P}_OK;",
             "}",
             "",
             f"size_t {pre}_update(void *state, const double *u, const double *y, size_t n,",
-            f"{' ' * (len(pre) + 14)}double *theta)",
+            f"{' ' * (len(pre) + 14)}double *theta, double *error)",
             "{",
             f"    {pre}_state *st = ({pre}_state *)state;",
             "    size_t pos = 0;",
@@ -536,7 +665,7 @@ class _Writer:
             "        return 0;",
             "    }",
             "    if (st->half == 0.0) {",
-            f"        {pre}_feed(&st->window[0], u, y, n, st->dt, theta);",
+            f"        {pre}_feed_pair(st, 0, u, y, n, theta, error);",
             "        return n;",
             "    }",
             "    /* pieces between multiples of half a period: there neither estimator",
@@ -547,16 +676,17 @@ class _Writer:
             "        /* A (0) is reported in half periods 0, 1, 3, 5, ..., B (1) in 2, 4, ... */",
             "        const int reported = (st->index == 0.0 || st->index == 1.0) ? 0 : 1;",
             f"        double *rows = theta + pos * {self.n_par};",
+            "        double *errors = error == NULL ? NULL : error + pos;",
             "        if (st->phase == 0.0 && st->index > 0.0) {",
             "            /* A restarts at 0, N, 2N, ..., B at N/2, 3N/2, ... */",
-            f"            {pre}_restart(&st->window[st->index == 1.0 ? 1 : 0]);",
+            f"            {pre}_restart_pair(st, st->index == 1.0 ? 1 : 0);",
             "        }",
             "        if (st->index > 0.0) {  /* the other estimator first: its rows are",
             "                                   overwritten by those of the reported one */",
-            f"            {pre}_feed(&st->window[1 - reported], u + pos, y + pos, piece, st->dt, "
-            "rows);",
+            f"            {pre}_feed_pair(st, 1 - reported, u + pos, y + pos, piece, rows, "
+            "errors);",
             "        }",
-            f"        {pre}_feed(&st->window[reported], u + pos, y + pos, piece, st->dt, rows);",
+            f"        {pre}_feed_pair(st, reported, u + pos, y + pos, piece, rows, errors);",
             "        pos += piece;",
             "        st->phase += (double)piece;",
             "        if (st->phase == st->half) {",

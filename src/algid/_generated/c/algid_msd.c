@@ -99,18 +99,6 @@ typedef struct {
     double start_y[8];
 } algid_msd_window;
 
-typedef struct {
-    double dt;
-    double half;    /* samples per half period; 0: never re-anchor */
-    double phase;   /* samples since the last multiple of half */
-    double index;   /* index of the current half period, capped at 2 (parity kept) */
-    algid_msd_window window[2];  /* A, B */
-} algid_msd_state;
-
-/* The header's size of the state must hold the struct (a negative array size
-   stops the compilation otherwise). */
-typedef char algid_msd_state_fits[sizeof(algid_msd_state) == ALGID_MSD_STATE_DOUBLES * sizeof(double) ? 1 : -1];
-
 /* P, Q and Cramer's rule from the kernels kv (in the order below); writes
    the numerators (parameter order) and the denominator det P to lanes. */
 static void algid_msd_algebra(const double *kv, double *lanes)
@@ -565,6 +553,646 @@ static void algid_msd_feed(algid_msd_window *w, const double *u, const double *y
     }
 }
 
+/* ---- the companion: 9-point rule, filter order 1 ---- */
+
+#define ALGID_MSD_COMPANION_M 8  /* integrand samples kept per integrator */
+#define ALGID_MSD_COMPANION_NI 15  /* integrators: chains, then filter */
+#ifndef ALGID_MSD_COMPANION_BLOCK  /* samples per block of the loop: the stack holds
+                             about 23 arrays of M + BLOCK doubles */
+#define ALGID_MSD_COMPANION_BLOCK ALGID_MSD_BLOCK
+#endif
+
+/* 9-point Adams-Moulton rule (weights times dt): the integral over
+   [t[n-1], t[n]] from the samples n-q+1 .. n; each weight is multiplied
+   by dt first, as in algid.signals._quadrature.integrator_weights. */
+static const double algid_msd_companion_w[9] = {
+    -0.00935653659611993,
+    0.08621968694885361,
+    -0.3558239638447972,
+    0.8670464065255732,
+    -1.3869929453262786,
+    1.5419306657848324,
+    -1.268902667548501,
+    1.2310113536155203,
+    0.2948680004409171,
+};
+/* Start-up: row j-1 integrates over [t[j-1], t[j]] from samples 0 .. q-1. */
+static const double algid_msd_companion_ws[7][9] = {
+    {0.2948680004409171, 1.2310113536155203, -1.268902667548501, 1.5419306657848324, -1.3869929453262786, 0.8670464065255732, -0.3558239638447972, 0.08621968694885361, -0.00935653659611993},
+    {-0.00935653659611993, 0.3790768298059965, 0.8941760361552028, -0.4829535934744268, 0.36300705467372135, -0.20806933421516755, 0.08109733245149912, -0.018988646384479717, 0.0020108575837742503},
+    {0.0020108575837742503, -0.027454254850088185, 0.4514677028218695, 0.7252639991181657, -0.22958553791887126, 0.10963899911816578, -0.03915729717813051, 0.008706459435626103, -0.0008909281305114639},
+    {-0.0008909281305114639, 0.010029210758377425, -0.05952766754850088, 0.5263056657848324, 0.6130070546737213, -0.11732859347442681, 0.03480103615520282, -0.007083884479717813, 0.0006881062610229277},
+    {0.0006881062610229277, -0.007083884479717813, 0.03480103615520282, -0.11732859347442681, 0.6130070546737213, 0.5263056657848324, -0.05952766754850088, 0.010029210758377425, -0.0008909281305114639},
+    {-0.0008909281305114639, 0.008706459435626103, -0.03915729717813051, 0.10963899911816578, -0.22958553791887126, 0.7252639991181657, 0.4514677028218695, -0.027454254850088185, 0.0020108575837742503},
+    {0.0020108575837742503, -0.018988646384479717, 0.08109733245149912, -0.20806933421516755, 0.36300705467372135, -0.4829535934744268, 0.8941760361552028, 0.3790768298059965, -0.00935653659611993},
+};
+/* The 6-point rule and its start-up, for the estimate of sample 5. */
+static const double algid_msd_companion_w6[6] = {
+    0.01875,
+    -0.12013888888888889,
+    0.3347222222222222,
+    -0.5541666666666667,
+    0.9909722222222223,
+    0.3298611111111111,
+};
+static const double algid_msd_companion_ws6[4][6] = {
+    {0.3298611111111111, 0.9909722222222223, -0.5541666666666667, 0.3347222222222222, -0.12013888888888889, 0.01875},
+    {-0.01875, 0.4423611111111111, 0.7097222222222223, -0.17916666666666667, 0.05347222222222222, -0.007638888888888889},
+    {0.007638888888888889, -0.06458333333333334, 0.5569444444444445, 0.5569444444444445, -0.06458333333333334, 0.007638888888888889},
+    {-0.007638888888888889, 0.05347222222222222, -0.17916666666666667, 0.7097222222222223, 0.4423611111111111, -0.01875},
+};
+/* The 7-point rule and its start-up, for the estimate of sample 6. */
+static const double algid_msd_companion_w7[7] = {
+    -0.014269179894179895,
+    0.10436507936507937,
+    -0.3341765873015873,
+    0.6201058201058202,
+    -0.7682043650793651,
+    1.0765873015873015,
+    0.31559193121693124,
+};
+static const double algid_msd_companion_ws7[5][7] = {
+    {0.31559193121693124, 1.0765873015873015, -0.7682043650793651, 0.6201058201058202, -0.3341765873015873, 0.10436507936507937, -0.014269179894179895},
+    {-0.014269179894179895, 0.4154761904761905, 0.7769345238095238, -0.2687830687830688, 0.12068452380952381, -0.034523809523809526, 0.004480820105820106},
+    {0.004480820105820106, -0.04563492063492063, 0.5095734126984127, 0.6201058201058202, -0.11195436507936508, 0.026587301587301587, -0.003158068783068783},
+    {-0.003158068783068783, 0.026587301587301587, -0.11195436507936508, 0.6201058201058202, 0.5095734126984127, -0.04563492063492063, 0.004480820105820106},
+    {0.004480820105820106, -0.034523809523809526, 0.12068452380952381, -0.2687830687830688, 0.7769345238095238, 0.4154761904761905, -0.014269179894179895},
+};
+/* The 8-point rule and its start-up, for the estimate of sample 7. */
+static const double algid_msd_companion_w8[8] = {
+    0.01136739417989418,
+    -0.09384093915343915,
+    0.3430803571428571,
+    -0.7320353835978836,
+    1.0179646164021163,
+    -1.0069196428571427,
+    1.1561590608465608,
+    0.30422453703703706,
+};
+static const double algid_msd_companion_ws8[6][8] = {
+    {0.30422453703703706, 1.1561590608465608, -1.0069196428571427, 1.0179646164021163, -0.7320353835978836, 0.3430803571428571, -0.09384093915343915, 0.01136739417989418},
+    {-0.01136739417989418, 0.3951636904761905, 0.8378720238095239, -0.3703455687830688, 0.2222470238095238, -0.09546130952380952, 0.024793320105820107, -0.0029017857142857144},
+    {0.0029017857142857144, -0.034581679894179894, 0.4764136904761905, 0.6753720238095238, -0.1672205687830688, 0.05974702380952381, -0.014211309523809524, 0.0015790343915343915},
+    {-0.0015790343915343915, 0.015534060846560846, -0.07879464285714285, 0.5648396164021164, 0.5648396164021164, -0.07879464285714285, 0.015534060846560846, -0.0015790343915343915},
+    {0.0015790343915343915, -0.014211309523809524, 0.05974702380952381, -0.1672205687830688, 0.6753720238095238, 0.4764136904761905, -0.034581679894179894, 0.0029017857142857144},
+    {-0.0029017857142857144, 0.024793320105820107, -0.09546130952380952, 0.2222470238095238, -0.3703455687830688, 0.8378720238095239, 0.3951636904761905, -0.01136739417989418},
+};
+/* A rule of n points for the start-up: its weights w (n) and its start-up rows
+   ws (n - 2 rows of n, row-major). */
+typedef struct {
+    int n;
+    const double *w;
+    const double *ws;
+} algid_msd_companion_rule;
+/* The rules of fewer points for the samples before the start-up (if any), then
+   the estimator's own. */
+static const algid_msd_companion_rule algid_msd_companion_rules[4] = {
+    {6, algid_msd_companion_w6, &algid_msd_companion_ws6[0][0]},
+    {7, algid_msd_companion_w7, &algid_msd_companion_ws7[0][0]},
+    {8, algid_msd_companion_w8, &algid_msd_companion_ws8[0][0]},
+    {9, algid_msd_companion_w, &algid_msd_companion_ws[0][0]},
+};
+
+/* One estimator with its time origin at its last restart.  Integrator k keeps
+   its integral (the running sum of its increments, weights times dt) and the last
+   M samples of its integrand, oldest first.  Integrators: the levels 1 .. depth
+   of the chains (signal, power, depth) (f, 2, 3), (x, 0, 3), (x, 1, 3), (x, 2, 3),
+   then filter level by filter level the numerators and the denominator. */
+typedef struct {
+    double n;  /* samples since the origin (an integer; exact below 2**53) */
+    double sum[ALGID_MSD_COMPANION_NI];
+    double hist[ALGID_MSD_COMPANION_NI][ALGID_MSD_COMPANION_M];
+    double start_u[9];  /* samples 0 .. q-1, until the start-up */
+    double start_y[9];
+} algid_msd_companion_window;
+
+/* P, Q and Cramer's rule from the kernels kv (in the order below); writes
+   the numerators (parameter order) and the denominator det P to lanes. */
+static void algid_msd_companion_algebra(const double *kv, double *lanes)
+{
+    const double f_t2_i2 = kv[0];  /* 2-fold integral of t**2 f */
+    const double f_t2_i3 = kv[1];  /* 3-fold integral of t**2 f */
+    const double x_t0_i2 = kv[2];  /* 2-fold integral of t**0 x */
+    const double x_t0_i3 = kv[3];  /* 3-fold integral of t**0 x */
+    const double x_t1_i1 = kv[4];  /* 1-fold integral of t**1 x */
+    const double x_t1_i2 = kv[5];  /* 2-fold integral of t**1 x */
+    const double x_t1_i3 = kv[6];  /* 3-fold integral of t**1 x */
+    const double x_t2_i0 = kv[7];  /* 0-fold integral of t**2 x */
+    const double x_t2_i1 = kv[8];  /* 1-fold integral of t**2 x */
+    const double x_t2_i2 = kv[9];  /* 2-fold integral of t**2 x */
+    const double x_t2_i3 = kv[10];  /* 3-fold integral of t**2 x */
+    const double p_0_0 = -2*x_t1_i2 + x_t2_i1;
+    const double p_0_1 = x_t2_i2;
+    const double p_1_0 = -2*x_t1_i3 + x_t2_i2;
+    const double p_1_1 = x_t2_i3;
+    const double q_0 = f_t2_i2 - 2*x_t0_i2 + 4*x_t1_i1 - x_t2_i0;
+    const double q_1 = f_t2_i3 - 2*x_t0_i3 + 4*x_t1_i2 - x_t2_i1;
+    lanes[0] = -p_0_1*q_1 + p_1_1*q_0;  /* numerator of B */
+    lanes[1] = p_0_0*q_1 - p_1_0*q_0;  /* numerator of K */
+    lanes[2] = p_0_0*p_1_1 - p_0_1*p_1_0;  /* det P */
+}
+
+/* theta row from the filtered numerators and denominator. */
+static void algid_msd_companion_divide(const double *lanes, double *theta)
+{
+    const double d = lanes[2];
+    if (d == 0.0 || !isfinite(d)) {
+        theta[0] = NAN;
+        theta[1] = NAN;
+    } else {
+        theta[0] = lanes[0] / d;
+        theta[1] = lanes[1] / d;
+    }
+}
+
+/* Integrate the n samples a[0 .. n-1] of an integrand with the start-up rule
+   of n points; set integrator k to its state after sample n-1; out[j]: the
+   integral. */
+static void algid_msd_companion_start_level(algid_msd_companion_window *w, int k, const double *a, double dt,
+                                     double *out, const algid_msd_companion_rule *rule)
+{
+    double inc[8];
+    double s = 0.0;
+    const int n = rule->n;
+    int i, j;
+    for (j = 0; j < n - 2; ++j) {
+        double acc = (rule->ws[j * n] * dt) * a[0];
+        for (i = 1; i < n; ++i) acc += (rule->ws[j * n + i] * dt) * a[i];
+        inc[j] = acc;
+    }
+    inc[n - 2] = (rule->w[0] * dt) * a[0];
+    for (i = 1; i < n; ++i) inc[n - 2] += (rule->w[i] * dt) * a[i];
+    out[0] = 0.0;
+    for (j = 1; j < n; ++j) {
+        s += inc[j - 1];
+        out[j] = s;
+    }
+    w->sum[k] = s;
+    for (i = 0; i < n - 1; ++i) w->hist[k][i] = a[i + 1];
+}
+
+/* Samples 0 .. n-1 after the origin by the rule of n points: the estimate of
+   sample n-1 into theta. */
+static void algid_msd_companion_start(algid_msd_companion_window *w, double dt, double *theta, const algid_msd_companion_rule *rule)
+{
+    double lv[16][9] = {{0.0}};  /* every level of every chain */
+    double lanes[2][3][9] = {{{0.0}}};
+    double kv[11], row[3];
+    const int n = rule->n;
+    int j, r;
+    int lev;
+    for (j = 0; j < n; ++j) {
+        const double tau = (double)j * dt;
+        lv[0][j] = (tau*tau) * w->start_u[j];
+        lv[4][j] = w->start_y[j];
+        lv[8][j] = tau * w->start_y[j];
+        lv[12][j] = (tau*tau) * w->start_y[j];
+    }
+    algid_msd_companion_start_level(w, 0, lv[0], dt, lv[1], rule);
+    algid_msd_companion_start_level(w, 1, lv[1], dt, lv[2], rule);
+    algid_msd_companion_start_level(w, 2, lv[2], dt, lv[3], rule);
+    algid_msd_companion_start_level(w, 3, lv[4], dt, lv[5], rule);
+    algid_msd_companion_start_level(w, 4, lv[5], dt, lv[6], rule);
+    algid_msd_companion_start_level(w, 5, lv[6], dt, lv[7], rule);
+    algid_msd_companion_start_level(w, 6, lv[8], dt, lv[9], rule);
+    algid_msd_companion_start_level(w, 7, lv[9], dt, lv[10], rule);
+    algid_msd_companion_start_level(w, 8, lv[10], dt, lv[11], rule);
+    algid_msd_companion_start_level(w, 9, lv[12], dt, lv[13], rule);
+    algid_msd_companion_start_level(w, 10, lv[13], dt, lv[14], rule);
+    algid_msd_companion_start_level(w, 11, lv[14], dt, lv[15], rule);
+    for (j = 0; j < n; ++j) {
+        kv[0] = lv[2][j];
+        kv[1] = lv[3][j];
+        kv[2] = lv[6][j];
+        kv[3] = lv[7][j];
+        kv[4] = lv[9][j];
+        kv[5] = lv[10][j];
+        kv[6] = lv[11][j];
+        kv[7] = lv[12][j];
+        kv[8] = lv[13][j];
+        kv[9] = lv[14][j];
+        kv[10] = lv[15][j];
+        algid_msd_companion_algebra(kv, row);
+        for (r = 0; r < 3; ++r) lanes[0][r][j] = row[r];
+    }
+    for (lev = 0; lev < 1; ++lev) {
+        for (r = 0; r < 3; ++r) {
+            algid_msd_companion_start_level(w, 12 + lev * 3 + r, lanes[lev][r], dt, lanes[lev + 1][r], rule);
+        }
+    }
+    for (r = 0; r < 3; ++r) row[r] = lanes[1][r][n - 1];
+    algid_msd_companion_divide(row, theta);
+}
+
+/* The estimate of sample n-1 by the rule of n < q points, before the
+   start-up of the estimator's own rule (the window is left as it is). */
+static void algid_msd_companion_early(const algid_msd_companion_window *w, double dt, double *theta,
+                                const algid_msd_companion_rule *rule)
+{
+    algid_msd_companion_window scratch = *w;
+    algid_msd_companion_start(&scratch, dt, theta, rule);
+}
+
+/* One step of an integrator: v is its integrand at this sample; returns the
+   integral.  The increment is summed left to right, as NumPy does. */
+static double algid_msd_companion_integrate(double *sum, double *hist, double v, double dt)
+{
+    const double inc = (algid_msd_companion_w[0] * dt) * hist[0] + (algid_msd_companion_w[1] * dt) * hist[1] + (algid_msd_companion_w[2] * dt) * hist[2] + (algid_msd_companion_w[3] * dt) * hist[3] + (algid_msd_companion_w[4] * dt) * hist[4] + (algid_msd_companion_w[5] * dt) * hist[5] + (algid_msd_companion_w[6] * dt) * hist[6] + (algid_msd_companion_w[7] * dt) * hist[7] + (algid_msd_companion_w[8] * dt) * v;
+    hist[0] = hist[1];
+    hist[1] = hist[2];
+    hist[2] = hist[3];
+    hist[3] = hist[4];
+    hist[4] = hist[5];
+    hist[5] = hist[6];
+    hist[6] = hist[7];
+    hist[7] = v;
+    *sum += inc;
+    return *sum;
+}
+
+/* Samples after the start-up (w->n >= q), one by one: for short chunks, where
+   the set-up of a block costs more than it saves.  Same arithmetic as the blocks. */
+static void algid_msd_companion_samples(algid_msd_companion_window *w, const double *u, const double *y, size_t n,
+                                   double dt, double *theta)
+{
+    double *const s = w->sum;
+    double (*const h)[ALGID_MSD_COMPANION_M] = w->hist;
+    double count = w->n;
+    double kv[11], lanes[3];
+    size_t i;
+    for (i = 0; i < n; ++i, count += 1.0) {
+        const double tau = count * dt;
+        const double c0_0 = (tau*tau) * u[i];
+        const double c1_0 = y[i];
+        const double c2_0 = tau * y[i];
+        const double c3_0 = (tau*tau) * y[i];
+        const double c0_1 = algid_msd_companion_integrate(&s[0], h[0], c0_0, dt);
+        const double c1_1 = algid_msd_companion_integrate(&s[3], h[3], c1_0, dt);
+        const double c2_1 = algid_msd_companion_integrate(&s[6], h[6], c2_0, dt);
+        const double c3_1 = algid_msd_companion_integrate(&s[9], h[9], c3_0, dt);
+        const double c0_2 = algid_msd_companion_integrate(&s[1], h[1], c0_1, dt);
+        const double c1_2 = algid_msd_companion_integrate(&s[4], h[4], c1_1, dt);
+        const double c2_2 = algid_msd_companion_integrate(&s[7], h[7], c2_1, dt);
+        const double c3_2 = algid_msd_companion_integrate(&s[10], h[10], c3_1, dt);
+        const double c0_3 = algid_msd_companion_integrate(&s[2], h[2], c0_2, dt);
+        const double c1_3 = algid_msd_companion_integrate(&s[5], h[5], c1_2, dt);
+        const double c2_3 = algid_msd_companion_integrate(&s[8], h[8], c2_2, dt);
+        const double c3_3 = algid_msd_companion_integrate(&s[11], h[11], c3_2, dt);
+        kv[0] = c0_2;
+        kv[1] = c0_3;
+        kv[2] = c1_2;
+        kv[3] = c1_3;
+        kv[4] = c2_1;
+        kv[5] = c2_2;
+        kv[6] = c2_3;
+        kv[7] = c3_0;
+        kv[8] = c3_1;
+        kv[9] = c3_2;
+        kv[10] = c3_3;
+        algid_msd_companion_algebra(kv, lanes);
+        lanes[0] = algid_msd_companion_integrate(&s[12], h[12], lanes[0], dt);
+        lanes[1] = algid_msd_companion_integrate(&s[13], h[13], lanes[1], dt);
+        lanes[2] = algid_msd_companion_integrate(&s[14], h[14], lanes[2], dt);
+        algid_msd_companion_divide(lanes, theta + i * 2);
+    }
+    w->n = count;
+}
+
+/* Samples after the start-up (w->n >= q), a block of at most BLOCK samples at
+   a time: for each level the increments of the block (a loop without
+   dependencies), then the running sums.  Row lv[l] (fl[f][r] for the filter)
+   holds the last M values of a level before the block, then its values over
+   the block.  Each sample gets the same arithmetic whatever the block. */
+#if defined(__GNUC__) && !defined(__clang__) && __GNUC__ >= 6 \
+    && defined(__x86_64__) && defined(__linux__)
+/* GCC on x86-64 Linux: a second copy of this loop for processors with AVX2
+   (four doubles per instruction instead of two), chosen when the library is
+   loaded.  The avx2 target has no fused multiply-add: same numbers. */
+__attribute__((target_clones("avx2", "default")))
+#endif
+static void algid_msd_companion_blocks(algid_msd_companion_window *w, const double *u, const double *y, size_t n,
+                                  double dt, double *theta)
+{
+    double lv[16][ALGID_MSD_COMPANION_M + ALGID_MSD_COMPANION_BLOCK];
+    double fl[2][3][ALGID_MSD_COMPANION_M + ALGID_MSD_COMPANION_BLOCK];
+    double inc[4][ALGID_MSD_COMPANION_BLOCK];
+    double row[3];
+    double s[ALGID_MSD_COMPANION_NI];
+    double count = w->n;
+    size_t start, b, nb;
+    int k, i, r;
+    const double *a;
+    double acc[4];
+    int lev;
+    for (k = 0; k < ALGID_MSD_COMPANION_NI; ++k) s[k] = w->sum[k];
+    for (i = 0; i < ALGID_MSD_COMPANION_M; ++i) {
+        lv[0][i] = w->hist[0][i];
+        lv[1][i] = w->hist[1][i];
+        lv[2][i] = w->hist[2][i];
+        lv[4][i] = w->hist[3][i];
+        lv[5][i] = w->hist[4][i];
+        lv[6][i] = w->hist[5][i];
+        lv[8][i] = w->hist[6][i];
+        lv[9][i] = w->hist[7][i];
+        lv[10][i] = w->hist[8][i];
+        lv[12][i] = w->hist[9][i];
+        lv[13][i] = w->hist[10][i];
+        lv[14][i] = w->hist[11][i];
+        for (lev = 0; lev < 1; ++lev) {
+            for (r = 0; r < 3; ++r) fl[lev][r][i] = w->hist[12 + lev * 3 + r][i];
+        }
+    }
+    for (start = 0; start < n; start += nb) {
+        nb = n - start < ALGID_MSD_COMPANION_BLOCK ? n - start : ALGID_MSD_COMPANION_BLOCK;
+        if (nb < ALGID_MSD_COMPANION_BLOCK) {  /* the increments run over whole blocks
+                                   (a loop the compiler vectorises): give the
+                                   unused tail defined values */
+            for (b = ALGID_MSD_COMPANION_M + nb; b < ALGID_MSD_COMPANION_M + ALGID_MSD_COMPANION_BLOCK; ++b) {
+                for (k = 0; k < 16; ++k) lv[k][b] = 0.0;
+                for (i = 0; i < 2; ++i) {
+                    for (r = 0; r < 3; ++r) fl[i][r][b] = 0.0;
+                }
+            }
+        }
+        for (b = 0; b < nb; ++b) {
+            const double tau = (count + (double)b) * dt;
+            lv[0][ALGID_MSD_COMPANION_M + b] = (tau*tau) * u[start + b];
+            lv[4][ALGID_MSD_COMPANION_M + b] = y[start + b];
+            lv[8][ALGID_MSD_COMPANION_M + b] = tau * y[start + b];
+            lv[12][ALGID_MSD_COMPANION_M + b] = (tau*tau) * y[start + b];
+        }
+        a = lv[0];
+        for (b = 0; b < ALGID_MSD_COMPANION_BLOCK; ++b) inc[0][b] = (algid_msd_companion_w[0] * dt) * a[b + 0] + (algid_msd_companion_w[1] * dt) * a[b + 1] + (algid_msd_companion_w[2] * dt) * a[b + 2] + (algid_msd_companion_w[3] * dt) * a[b + 3] + (algid_msd_companion_w[4] * dt) * a[b + 4] + (algid_msd_companion_w[5] * dt) * a[b + 5] + (algid_msd_companion_w[6] * dt) * a[b + 6] + (algid_msd_companion_w[7] * dt) * a[b + 7] + (algid_msd_companion_w[8] * dt) * a[b + 8];
+        a = lv[4];
+        for (b = 0; b < ALGID_MSD_COMPANION_BLOCK; ++b) inc[1][b] = (algid_msd_companion_w[0] * dt) * a[b + 0] + (algid_msd_companion_w[1] * dt) * a[b + 1] + (algid_msd_companion_w[2] * dt) * a[b + 2] + (algid_msd_companion_w[3] * dt) * a[b + 3] + (algid_msd_companion_w[4] * dt) * a[b + 4] + (algid_msd_companion_w[5] * dt) * a[b + 5] + (algid_msd_companion_w[6] * dt) * a[b + 6] + (algid_msd_companion_w[7] * dt) * a[b + 7] + (algid_msd_companion_w[8] * dt) * a[b + 8];
+        a = lv[8];
+        for (b = 0; b < ALGID_MSD_COMPANION_BLOCK; ++b) inc[2][b] = (algid_msd_companion_w[0] * dt) * a[b + 0] + (algid_msd_companion_w[1] * dt) * a[b + 1] + (algid_msd_companion_w[2] * dt) * a[b + 2] + (algid_msd_companion_w[3] * dt) * a[b + 3] + (algid_msd_companion_w[4] * dt) * a[b + 4] + (algid_msd_companion_w[5] * dt) * a[b + 5] + (algid_msd_companion_w[6] * dt) * a[b + 6] + (algid_msd_companion_w[7] * dt) * a[b + 7] + (algid_msd_companion_w[8] * dt) * a[b + 8];
+        a = lv[12];
+        for (b = 0; b < ALGID_MSD_COMPANION_BLOCK; ++b) inc[3][b] = (algid_msd_companion_w[0] * dt) * a[b + 0] + (algid_msd_companion_w[1] * dt) * a[b + 1] + (algid_msd_companion_w[2] * dt) * a[b + 2] + (algid_msd_companion_w[3] * dt) * a[b + 3] + (algid_msd_companion_w[4] * dt) * a[b + 4] + (algid_msd_companion_w[5] * dt) * a[b + 5] + (algid_msd_companion_w[6] * dt) * a[b + 6] + (algid_msd_companion_w[7] * dt) * a[b + 7] + (algid_msd_companion_w[8] * dt) * a[b + 8];
+        acc[0] = s[0];
+        acc[1] = s[3];
+        acc[2] = s[6];
+        acc[3] = s[9];
+        for (b = 0; b < nb; ++b) {
+            acc[0] += inc[0][b];
+            lv[1][ALGID_MSD_COMPANION_M + b] = acc[0];
+            acc[1] += inc[1][b];
+            lv[5][ALGID_MSD_COMPANION_M + b] = acc[1];
+            acc[2] += inc[2][b];
+            lv[9][ALGID_MSD_COMPANION_M + b] = acc[2];
+            acc[3] += inc[3][b];
+            lv[13][ALGID_MSD_COMPANION_M + b] = acc[3];
+        }
+        s[0] = acc[0];
+        s[3] = acc[1];
+        s[6] = acc[2];
+        s[9] = acc[3];
+        a = lv[1];
+        for (b = 0; b < ALGID_MSD_COMPANION_BLOCK; ++b) inc[0][b] = (algid_msd_companion_w[0] * dt) * a[b + 0] + (algid_msd_companion_w[1] * dt) * a[b + 1] + (algid_msd_companion_w[2] * dt) * a[b + 2] + (algid_msd_companion_w[3] * dt) * a[b + 3] + (algid_msd_companion_w[4] * dt) * a[b + 4] + (algid_msd_companion_w[5] * dt) * a[b + 5] + (algid_msd_companion_w[6] * dt) * a[b + 6] + (algid_msd_companion_w[7] * dt) * a[b + 7] + (algid_msd_companion_w[8] * dt) * a[b + 8];
+        a = lv[5];
+        for (b = 0; b < ALGID_MSD_COMPANION_BLOCK; ++b) inc[1][b] = (algid_msd_companion_w[0] * dt) * a[b + 0] + (algid_msd_companion_w[1] * dt) * a[b + 1] + (algid_msd_companion_w[2] * dt) * a[b + 2] + (algid_msd_companion_w[3] * dt) * a[b + 3] + (algid_msd_companion_w[4] * dt) * a[b + 4] + (algid_msd_companion_w[5] * dt) * a[b + 5] + (algid_msd_companion_w[6] * dt) * a[b + 6] + (algid_msd_companion_w[7] * dt) * a[b + 7] + (algid_msd_companion_w[8] * dt) * a[b + 8];
+        a = lv[9];
+        for (b = 0; b < ALGID_MSD_COMPANION_BLOCK; ++b) inc[2][b] = (algid_msd_companion_w[0] * dt) * a[b + 0] + (algid_msd_companion_w[1] * dt) * a[b + 1] + (algid_msd_companion_w[2] * dt) * a[b + 2] + (algid_msd_companion_w[3] * dt) * a[b + 3] + (algid_msd_companion_w[4] * dt) * a[b + 4] + (algid_msd_companion_w[5] * dt) * a[b + 5] + (algid_msd_companion_w[6] * dt) * a[b + 6] + (algid_msd_companion_w[7] * dt) * a[b + 7] + (algid_msd_companion_w[8] * dt) * a[b + 8];
+        a = lv[13];
+        for (b = 0; b < ALGID_MSD_COMPANION_BLOCK; ++b) inc[3][b] = (algid_msd_companion_w[0] * dt) * a[b + 0] + (algid_msd_companion_w[1] * dt) * a[b + 1] + (algid_msd_companion_w[2] * dt) * a[b + 2] + (algid_msd_companion_w[3] * dt) * a[b + 3] + (algid_msd_companion_w[4] * dt) * a[b + 4] + (algid_msd_companion_w[5] * dt) * a[b + 5] + (algid_msd_companion_w[6] * dt) * a[b + 6] + (algid_msd_companion_w[7] * dt) * a[b + 7] + (algid_msd_companion_w[8] * dt) * a[b + 8];
+        acc[0] = s[1];
+        acc[1] = s[4];
+        acc[2] = s[7];
+        acc[3] = s[10];
+        for (b = 0; b < nb; ++b) {
+            acc[0] += inc[0][b];
+            lv[2][ALGID_MSD_COMPANION_M + b] = acc[0];
+            acc[1] += inc[1][b];
+            lv[6][ALGID_MSD_COMPANION_M + b] = acc[1];
+            acc[2] += inc[2][b];
+            lv[10][ALGID_MSD_COMPANION_M + b] = acc[2];
+            acc[3] += inc[3][b];
+            lv[14][ALGID_MSD_COMPANION_M + b] = acc[3];
+        }
+        s[1] = acc[0];
+        s[4] = acc[1];
+        s[7] = acc[2];
+        s[10] = acc[3];
+        a = lv[2];
+        for (b = 0; b < ALGID_MSD_COMPANION_BLOCK; ++b) inc[0][b] = (algid_msd_companion_w[0] * dt) * a[b + 0] + (algid_msd_companion_w[1] * dt) * a[b + 1] + (algid_msd_companion_w[2] * dt) * a[b + 2] + (algid_msd_companion_w[3] * dt) * a[b + 3] + (algid_msd_companion_w[4] * dt) * a[b + 4] + (algid_msd_companion_w[5] * dt) * a[b + 5] + (algid_msd_companion_w[6] * dt) * a[b + 6] + (algid_msd_companion_w[7] * dt) * a[b + 7] + (algid_msd_companion_w[8] * dt) * a[b + 8];
+        a = lv[6];
+        for (b = 0; b < ALGID_MSD_COMPANION_BLOCK; ++b) inc[1][b] = (algid_msd_companion_w[0] * dt) * a[b + 0] + (algid_msd_companion_w[1] * dt) * a[b + 1] + (algid_msd_companion_w[2] * dt) * a[b + 2] + (algid_msd_companion_w[3] * dt) * a[b + 3] + (algid_msd_companion_w[4] * dt) * a[b + 4] + (algid_msd_companion_w[5] * dt) * a[b + 5] + (algid_msd_companion_w[6] * dt) * a[b + 6] + (algid_msd_companion_w[7] * dt) * a[b + 7] + (algid_msd_companion_w[8] * dt) * a[b + 8];
+        a = lv[10];
+        for (b = 0; b < ALGID_MSD_COMPANION_BLOCK; ++b) inc[2][b] = (algid_msd_companion_w[0] * dt) * a[b + 0] + (algid_msd_companion_w[1] * dt) * a[b + 1] + (algid_msd_companion_w[2] * dt) * a[b + 2] + (algid_msd_companion_w[3] * dt) * a[b + 3] + (algid_msd_companion_w[4] * dt) * a[b + 4] + (algid_msd_companion_w[5] * dt) * a[b + 5] + (algid_msd_companion_w[6] * dt) * a[b + 6] + (algid_msd_companion_w[7] * dt) * a[b + 7] + (algid_msd_companion_w[8] * dt) * a[b + 8];
+        a = lv[14];
+        for (b = 0; b < ALGID_MSD_COMPANION_BLOCK; ++b) inc[3][b] = (algid_msd_companion_w[0] * dt) * a[b + 0] + (algid_msd_companion_w[1] * dt) * a[b + 1] + (algid_msd_companion_w[2] * dt) * a[b + 2] + (algid_msd_companion_w[3] * dt) * a[b + 3] + (algid_msd_companion_w[4] * dt) * a[b + 4] + (algid_msd_companion_w[5] * dt) * a[b + 5] + (algid_msd_companion_w[6] * dt) * a[b + 6] + (algid_msd_companion_w[7] * dt) * a[b + 7] + (algid_msd_companion_w[8] * dt) * a[b + 8];
+        acc[0] = s[2];
+        acc[1] = s[5];
+        acc[2] = s[8];
+        acc[3] = s[11];
+        for (b = 0; b < nb; ++b) {
+            acc[0] += inc[0][b];
+            lv[3][ALGID_MSD_COMPANION_M + b] = acc[0];
+            acc[1] += inc[1][b];
+            lv[7][ALGID_MSD_COMPANION_M + b] = acc[1];
+            acc[2] += inc[2][b];
+            lv[11][ALGID_MSD_COMPANION_M + b] = acc[2];
+            acc[3] += inc[3][b];
+            lv[15][ALGID_MSD_COMPANION_M + b] = acc[3];
+        }
+        s[2] = acc[0];
+        s[5] = acc[1];
+        s[8] = acc[2];
+        s[11] = acc[3];
+        for (b = 0; b < ALGID_MSD_COMPANION_BLOCK; ++b) {
+            const double f_t2_i2 = lv[2][ALGID_MSD_COMPANION_M + b];  /* 2-fold integral of t**2 f */
+            const double f_t2_i3 = lv[3][ALGID_MSD_COMPANION_M + b];  /* 3-fold integral of t**2 f */
+            const double x_t0_i2 = lv[6][ALGID_MSD_COMPANION_M + b];  /* 2-fold integral of t**0 x */
+            const double x_t0_i3 = lv[7][ALGID_MSD_COMPANION_M + b];  /* 3-fold integral of t**0 x */
+            const double x_t1_i1 = lv[9][ALGID_MSD_COMPANION_M + b];  /* 1-fold integral of t**1 x */
+            const double x_t1_i2 = lv[10][ALGID_MSD_COMPANION_M + b];  /* 2-fold integral of t**1 x */
+            const double x_t1_i3 = lv[11][ALGID_MSD_COMPANION_M + b];  /* 3-fold integral of t**1 x */
+            const double x_t2_i0 = lv[12][ALGID_MSD_COMPANION_M + b];  /* 0-fold integral of t**2 x */
+            const double x_t2_i1 = lv[13][ALGID_MSD_COMPANION_M + b];  /* 1-fold integral of t**2 x */
+            const double x_t2_i2 = lv[14][ALGID_MSD_COMPANION_M + b];  /* 2-fold integral of t**2 x */
+            const double x_t2_i3 = lv[15][ALGID_MSD_COMPANION_M + b];  /* 3-fold integral of t**2 x */
+            const double p_0_0 = -2*x_t1_i2 + x_t2_i1;
+            const double p_0_1 = x_t2_i2;
+            const double p_1_0 = -2*x_t1_i3 + x_t2_i2;
+            const double p_1_1 = x_t2_i3;
+            const double q_0 = f_t2_i2 - 2*x_t0_i2 + 4*x_t1_i1 - x_t2_i0;
+            const double q_1 = f_t2_i3 - 2*x_t0_i3 + 4*x_t1_i2 - x_t2_i1;
+            fl[0][0][ALGID_MSD_COMPANION_M + b] = -p_0_1*q_1 + p_1_1*q_0;  /* numerator of B */
+            fl[0][1][ALGID_MSD_COMPANION_M + b] = p_0_0*q_1 - p_1_0*q_0;  /* numerator of K */
+            fl[0][2][ALGID_MSD_COMPANION_M + b] = p_0_0*p_1_1 - p_0_1*p_1_0;  /* det P */
+        }
+        for (lev = 0; lev < 1; ++lev) {
+            a = fl[lev][0];
+            for (b = 0; b < ALGID_MSD_COMPANION_BLOCK; ++b) inc[0][b] = (algid_msd_companion_w[0] * dt) * a[b + 0] + (algid_msd_companion_w[1] * dt) * a[b + 1] + (algid_msd_companion_w[2] * dt) * a[b + 2] + (algid_msd_companion_w[3] * dt) * a[b + 3] + (algid_msd_companion_w[4] * dt) * a[b + 4] + (algid_msd_companion_w[5] * dt) * a[b + 5] + (algid_msd_companion_w[6] * dt) * a[b + 6] + (algid_msd_companion_w[7] * dt) * a[b + 7] + (algid_msd_companion_w[8] * dt) * a[b + 8];
+            a = fl[lev][1];
+            for (b = 0; b < ALGID_MSD_COMPANION_BLOCK; ++b) inc[1][b] = (algid_msd_companion_w[0] * dt) * a[b + 0] + (algid_msd_companion_w[1] * dt) * a[b + 1] + (algid_msd_companion_w[2] * dt) * a[b + 2] + (algid_msd_companion_w[3] * dt) * a[b + 3] + (algid_msd_companion_w[4] * dt) * a[b + 4] + (algid_msd_companion_w[5] * dt) * a[b + 5] + (algid_msd_companion_w[6] * dt) * a[b + 6] + (algid_msd_companion_w[7] * dt) * a[b + 7] + (algid_msd_companion_w[8] * dt) * a[b + 8];
+            a = fl[lev][2];
+            for (b = 0; b < ALGID_MSD_COMPANION_BLOCK; ++b) inc[2][b] = (algid_msd_companion_w[0] * dt) * a[b + 0] + (algid_msd_companion_w[1] * dt) * a[b + 1] + (algid_msd_companion_w[2] * dt) * a[b + 2] + (algid_msd_companion_w[3] * dt) * a[b + 3] + (algid_msd_companion_w[4] * dt) * a[b + 4] + (algid_msd_companion_w[5] * dt) * a[b + 5] + (algid_msd_companion_w[6] * dt) * a[b + 6] + (algid_msd_companion_w[7] * dt) * a[b + 7] + (algid_msd_companion_w[8] * dt) * a[b + 8];
+            acc[0] = s[12 + lev * 3 + 0];
+            acc[1] = s[12 + lev * 3 + 1];
+            acc[2] = s[12 + lev * 3 + 2];
+            for (b = 0; b < nb; ++b) {
+                acc[0] += inc[0][b];
+                fl[lev + 1][0][ALGID_MSD_COMPANION_M + b] = acc[0];
+                acc[1] += inc[1][b];
+                fl[lev + 1][1][ALGID_MSD_COMPANION_M + b] = acc[1];
+                acc[2] += inc[2][b];
+                fl[lev + 1][2][ALGID_MSD_COMPANION_M + b] = acc[2];
+            }
+            s[12 + lev * 3 + 0] = acc[0];
+            s[12 + lev * 3 + 1] = acc[1];
+            s[12 + lev * 3 + 2] = acc[2];
+        }
+        for (b = 0; b < nb; ++b) {
+            for (r = 0; r < 3; ++r) row[r] = fl[1][r][ALGID_MSD_COMPANION_M + b];
+            algid_msd_companion_divide(row, theta + (start + b) * 2);
+        }
+        /* the last M values of every level start the next block */
+        for (i = 0; i < ALGID_MSD_COMPANION_M; ++i) {
+            for (k = 0; k < 16; ++k) lv[k][i] = lv[k][nb + (size_t)i];
+            for (lev = 0; lev < 1; ++lev) {
+                for (r = 0; r < 3; ++r) fl[lev][r][i] = fl[lev][r][nb + (size_t)i];
+            }
+        }
+        count += (double)nb;
+    }
+    for (k = 0; k < ALGID_MSD_COMPANION_NI; ++k) w->sum[k] = s[k];
+    for (i = 0; i < ALGID_MSD_COMPANION_M; ++i) {
+        w->hist[0][i] = lv[0][i];
+        w->hist[1][i] = lv[1][i];
+        w->hist[2][i] = lv[2][i];
+        w->hist[3][i] = lv[4][i];
+        w->hist[4][i] = lv[5][i];
+        w->hist[5][i] = lv[6][i];
+        w->hist[6][i] = lv[8][i];
+        w->hist[7][i] = lv[9][i];
+        w->hist[8][i] = lv[10][i];
+        w->hist[9][i] = lv[12][i];
+        w->hist[10][i] = lv[13][i];
+        w->hist[11][i] = lv[14][i];
+        for (lev = 0; lev < 1; ++lev) {
+            for (r = 0; r < 3; ++r) w->hist[12 + lev * 3 + r][i] = fl[lev][r][i];
+        }
+    }
+    w->n = count;
+}
+
+/* Restart an estimator: the next sample is its time origin. */
+static void algid_msd_companion_restart(algid_msd_companion_window *w)
+{
+    int k, i;
+    w->n = 0.0;
+    for (k = 0; k < ALGID_MSD_COMPANION_NI; ++k) {
+        w->sum[k] = 0.0;
+        for (i = 0; i < ALGID_MSD_COMPANION_M; ++i) w->hist[k][i] = 0.0;
+    }
+    for (i = 0; i < 9; ++i) w->start_u[i] = w->start_y[i] = 0.0;
+}
+
+/* n samples through one estimator: start-up buffer first, then the loop. */
+static void algid_msd_companion_feed(algid_msd_companion_window *w, const double *u, const double *y, size_t n,
+                                double dt, double *theta)
+{
+    size_t i = 0;
+    while (i < n && w->n < 9.0) {
+        const int j = (int)w->n;
+        int r;
+        w->start_u[j] = u[i];
+        w->start_y[j] = y[i];
+        w->n += 1.0;
+        if (j == 8) {
+            algid_msd_companion_start(w, dt, theta + i * 2, &algid_msd_companion_rules[3]);
+        } else if (j == 5) {
+            algid_msd_companion_early(w, dt, theta + i * 2, &algid_msd_companion_rules[0]);
+        } else if (j == 6) {
+            algid_msd_companion_early(w, dt, theta + i * 2, &algid_msd_companion_rules[1]);
+        } else if (j == 7) {
+            algid_msd_companion_early(w, dt, theta + i * 2, &algid_msd_companion_rules[2]);
+        } else {
+            for (r = 0; r < 2; ++r) theta[i * 2 + (size_t)r] = NAN;
+        }
+        ++i;
+    }
+    if (n - i > ALGID_MSD_COMPANION_BLOCK / 4) {
+        algid_msd_companion_blocks(w, u + i, y + i, n - i, dt, theta + i * 2);
+    } else if (i < n) {
+        algid_msd_companion_samples(w, u + i, y + i, n - i, dt, theta + i * 2);
+    }
+}
+
+typedef struct {
+    double dt;
+    double half;    /* samples per half period; 0: never re-anchor */
+    double phase;   /* samples since the last multiple of half */
+    double index;   /* index of the current half period, capped at 2 (parity kept) */
+    algid_msd_window window[2];  /* A, B */
+    algid_msd_companion_window companion[2];  /* the companions of A and B */
+    double recent[2][15];  /* their last raw errors (finite; else 0) */
+} algid_msd_state;
+
+/* The header's size of the state must hold the struct (a negative array size
+   stops the compilation otherwise). */
+typedef char algid_msd_state_fits[sizeof(algid_msd_state) == ALGID_MSD_STATE_DOUBLES * sizeof(double) ? 1 : -1];
+
+/* The numerical error of n rows of estimates theta against the companion's rows
+   other (as algid.estimation._numerical_error): per row the largest over the
+   parameters of |a - b| / |a| (a = b = 0: 0; a finite, b not: inf; a NaN: NaN),
+   then, when finite, the largest over this row and the 15 before it, whose
+   finite raw values recent holds (non-finite ones count as 0). */
+static void algid_msd_error(const double *theta, const double *other, size_t n,
+                       double *recent, double *error)
+{
+    size_t i;
+    int r, k;
+    for (i = 0; i < n; ++i) {
+        double raw = 0.0, value, largest;
+        for (r = 0; r < 2; ++r) {
+            const double a = theta[i * 2 + (size_t)r];
+            const double b = other[i * 2 + (size_t)r];
+            double rel = fabs(a - b) / fabs(a);
+            if (rel != rel && fabs(a) < INFINITY) {
+                rel = a == b ? 0.0 : INFINITY;
+            }
+            raw = (rel != rel || raw != raw) ? NAN : (rel > raw ? rel : raw);
+        }
+        value = isfinite(raw) ? raw : 0.0;
+        largest = value;
+        for (k = 0; k < 15; ++k) {
+            if (recent[k] > largest) largest = recent[k];
+        }
+        for (k = 0; k < 14; ++k) recent[k] = recent[k + 1];
+        recent[14] = value;
+        error[i] = isfinite(raw) ? largest : raw;
+    }
+}
+
+/* n samples through estimator k (0: A, 1: B) and its companion: estimates to
+   theta, the numerical error to error (if not NULL; the companion advances
+   either way, so that a later error is that of the whole stream). */
+static void algid_msd_feed_pair(algid_msd_state *st, int k, const double *u, const double *y,
+                           size_t n, double *theta, double *error)
+{
+    double rows[ALGID_MSD_BLOCK * 2];
+    size_t start, m;
+    algid_msd_feed(&st->window[k], u, y, n, st->dt, theta);
+    for (start = 0; start < n; start += m) {
+        m = n - start < ALGID_MSD_BLOCK ? n - start : ALGID_MSD_BLOCK;
+        algid_msd_companion_feed(&st->companion[k], u + start, y + start, m, st->dt, rows);
+        if (error != NULL) {
+            algid_msd_error(theta + start * 2, rows, m, st->recent[k], error + start);
+        }
+    }
+}
+
+/* Restart estimator k and its companion: the next sample is their origin. */
+static void algid_msd_restart_pair(algid_msd_state *st, int k)
+{
+    int i;
+    algid_msd_restart(&st->window[k]);
+    algid_msd_companion_restart(&st->companion[k]);
+    for (i = 0; i < 15; ++i) st->recent[k][i] = 0.0;
+}
+
 size_t algid_msd_state_size(void)
 {
     return sizeof(algid_msd_state);
@@ -603,13 +1231,13 @@ int algid_msd_init(void *state, double dt, double reset_period)
     st->half = half;
     st->phase = 0.0;
     st->index = 0.0;
-    algid_msd_restart(&st->window[0]);
-    algid_msd_restart(&st->window[1]);
+    algid_msd_restart_pair(st, 0);
+    algid_msd_restart_pair(st, 1);
     return ALGID_MSD_OK;
 }
 
 size_t algid_msd_update(void *state, const double *u, const double *y, size_t n,
-                       double *theta)
+                       double *theta, double *error)
 {
     algid_msd_state *st = (algid_msd_state *)state;
     size_t pos = 0;
@@ -617,7 +1245,7 @@ size_t algid_msd_update(void *state, const double *u, const double *y, size_t n,
         return 0;
     }
     if (st->half == 0.0) {
-        algid_msd_feed(&st->window[0], u, y, n, st->dt, theta);
+        algid_msd_feed_pair(st, 0, u, y, n, theta, error);
         return n;
     }
     /* pieces between multiples of half a period: there neither estimator
@@ -628,15 +1256,16 @@ size_t algid_msd_update(void *state, const double *u, const double *y, size_t n,
         /* A (0) is reported in half periods 0, 1, 3, 5, ..., B (1) in 2, 4, ... */
         const int reported = (st->index == 0.0 || st->index == 1.0) ? 0 : 1;
         double *rows = theta + pos * 2;
+        double *errors = error == NULL ? NULL : error + pos;
         if (st->phase == 0.0 && st->index > 0.0) {
             /* A restarts at 0, N, 2N, ..., B at N/2, 3N/2, ... */
-            algid_msd_restart(&st->window[st->index == 1.0 ? 1 : 0]);
+            algid_msd_restart_pair(st, st->index == 1.0 ? 1 : 0);
         }
         if (st->index > 0.0) {  /* the other estimator first: its rows are
                                    overwritten by those of the reported one */
-            algid_msd_feed(&st->window[1 - reported], u + pos, y + pos, piece, st->dt, rows);
+            algid_msd_feed_pair(st, 1 - reported, u + pos, y + pos, piece, rows, errors);
         }
-        algid_msd_feed(&st->window[reported], u + pos, y + pos, piece, st->dt, rows);
+        algid_msd_feed_pair(st, reported, u + pos, y + pos, piece, rows, errors);
         pos += piece;
         st->phase += (double)piece;
         if (st->phase == st->half) {

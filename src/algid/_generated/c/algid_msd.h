@@ -24,9 +24,9 @@ extern "C" {
 #define ALGID_MSD_STARTUP_SAMPLES 5
 /* Size of the state in doubles: a buffer `double state[ALGID_MSD_STATE_DOUBLES]`
    is large enough and suitably aligned (algid_msd_state_size() bytes). */
-#define ALGID_MSD_STATE_DOUBLES 326
+#define ALGID_MSD_STATE_DOUBLES 664
 /* Stack: update works on blocks of ALGID_MSD_BLOCK samples (default 64:
-   about 15 kB of stack); define ALGID_MSD_BLOCK when compiling the .c for a
+   about 16 kB of stack); define ALGID_MSD_BLOCK when compiling the .c for a
    smaller stack (ALGID_MSD_BLOCK=4: about 3 kB), with the same numbers. */
 
 /* Return values of init. */
@@ -54,9 +54,16 @@ int algid_msd_init(void *state, double dt, double reset_period);
    give the same numbers (bit for bit when compiled without floating-point
    contraction into fused multiply-adds: ISO modes such as -std=c99 do that;
    with -std=gnu99 and -march with FMA add -ffp-contract=off).
-   Returns n (0 if a pointer is NULL). */
+   error (NULL if not wanted) receives n values: the numerical error of each
+   row, as algid.estimate reports it (its companion estimator, with a rule of
+   9 points and a filter of order 1, runs beside every estimator, NULL or
+   not): the largest relative difference of the two over the parameters, the
+   largest over the last 16 samples; NaN where theta is, inf where only the
+   companion is undefined.  Unlike algid.estimate, it does not test whether the
+   samples determine the parameters (see the user guide).
+   Returns n (0 if u, y or theta is NULL and n > 0, or state is NULL). */
 size_t algid_msd_update(void *state, const double *u, const double *y, size_t n,
-                       double *theta);
+                       double *theta, double *error);
 
 #ifdef __cplusplus
 }
