@@ -16,6 +16,10 @@ TARGETS = {
     "c_speed": ("C estimator (-O2) on one chunk: its time / the numba loop's", 1.0),
     "numpy_speed": ("NumPy backend, default (with the numerical error): its time / the "
                     "naive NumPy estimator's", 1.0 / 1.5),
+    "error_speed": ("default estimate (with the numerical error), NumPy and numba, 2e6 and "
+                    "1e7 samples: its time / the naive estimator's (highest of 3 runs)", 0.25),
+    "error_cost": ("the numerical error: default time / numerical_error=False time", 1.25),
+    "error_stream": ("stream in chunks of 1000 / batch, with the numerical error", 1.5),
 }
 
 
@@ -102,6 +106,11 @@ def targets(results):
         from benchmarks.c_speed import target
         measured, detail = target(cs)
         add("c_speed", 1.0 / measured, detail)
+    ec = results.get("error_cost")
+    if ec and ec.get("sizes"):
+        from benchmarks.error_cost import targets as error_targets
+        for name, (measured, detail) in error_targets(ec).items():
+            add(name, measured, detail)
     return out
 
 
@@ -256,6 +265,9 @@ def markdown(results):
     if results.get("c_speed"):
         from benchmarks.c_speed import markdown as c_speed_markdown
         parts.append(c_speed_markdown(results["c_speed"]))
+    if results.get("error_cost"):
+        from benchmarks.error_cost import markdown as error_cost_markdown
+        parts.append(error_cost_markdown(results["error_cost"]))
     tg = results.get("targets")
     if tg:
         rows = [[t["description"], f"≤ {t['limit']:.3g}", _num(t["measured"], ".3g"),

@@ -28,7 +28,8 @@ if __package__ in (None, ""):  # run as a script: python benchmarks/run.py
 __all__ = ["run", "main", "SECTIONS", "to_json"]
 
 #: Section names, in the order they run.
-SECTIONS = ("accuracy", "efficiency", "performance", "long_stream", "tracking", "c_speed")
+SECTIONS = ("accuracy", "efficiency", "performance", "long_stream", "tracking", "c_speed",
+            "error_cost")
 
 DEFAULT_OUT = pathlib.Path(__file__).resolve().parent / "results.json"
 

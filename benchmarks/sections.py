@@ -26,6 +26,7 @@ from algid.estimation._result import convergence_time
 from algid.simulation import simulate
 from benchmarks import baselines as bl
 from benchmarks.c_speed import c_speed  # section 6, in a module of its own
+from benchmarks.error_cost import error_cost  # section 7, likewise
 from benchmarks.measure import (
     best_time,
     both_converged,
@@ -36,7 +37,7 @@ from benchmarks.measure import (
 )
 
 __all__ = ["Config", "CONFIGS", "TRUE", "RTOL", "accuracy", "efficiency", "performance",
-           "long_stream", "tracking", "c_speed", "optional_features"]
+           "long_stream", "tracking", "c_speed", "error_cost", "optional_features"]
 
 #: True parameters of the paper's system.
 TRUE = {"B": 2.0, "K": 3.0}

@@ -41,11 +41,12 @@ def test_smoke_run_writes_every_section(smoke):
     assert set(SECTIONS) | {"meta", "targets"} <= set(results)
     assert results["meta"]["mode"] == "smoke"
     assert results["meta"]["sections"] == list(SECTIONS)
-    for heading in ("### 1.", "### 2.", "### 3.", "### 4.", "### 5.", "### 6.", "### Targets"):
+    for heading in ("### 1.", "### 2.", "### 3.", "### 4.", "### 5.", "### 6.", "### 7.",
+                    "### Targets"):
         assert heading in stdout
     names = {t["name"] for t in results["targets"]}
     assert names - {"c_speed"} == {"convergence", "efficiency", "long_stream", "tracking",
-                                   "numpy_speed"}
+                                   "numpy_speed", "error_speed", "error_cost", "error_stream"}
     for t in results["targets"]:
         assert set(t) == {"name", "description", "limit", "measured", "met", "detail"}
 
@@ -236,5 +237,21 @@ def test_smoke_c_speed(smoke):
         assert set(cs["c_ns_per_sample"][build]) == {"1", "1000", "all"}
         assert all(v > 0 for v in cs["c_ns_per_sample"][build].values())
         assert cs["fraction_of_cumsum"][build] > 0
-    # the timed C estimator computes the batch estimate (chunks of 1, 1000, all alike)
+    # the timed C estimator computes the batch estimate (chunks of 1, 1000, all alike),
+    # and its numerical error
     assert cs["max_rel_diff_c_numpy"] <= 1e-10
+    assert cs["max_error_diff_c_numpy"] <= 1e-10
+
+
+def test_smoke_error_cost(smoke):
+    ec = smoke[0]["error_cost"]
+    assert ec["runs"] == 1 and [s["n_samples"] for s in ec["sizes"]] == [2000, 10000]
+    for size in ec["sizes"]:
+        assert len(size["naive_rates"]) == 1 and size["naive_rates"][0] > 0
+        for engine in ec["engines"]:
+            r = size[engine]
+            # the ratios are those of the times of the run
+            times = size["times"]
+            assert r["speed"] == pytest.approx(times["naive"][0] / times[engine][0])
+            assert r["error_cost"] == pytest.approx(times[engine][0] /
+                                                    times[f"{engine}_alone"][0])

@@ -422,10 +422,13 @@ def test_numerical_error_with_re_anchoring_equals_online_estimator(build, period
 @pytest.mark.parametrize("block", [1, 3, 200])
 def test_block_size_does_not_change_the_numbers(build, block):
     t, u, y, _ = _experiment("msd", "step", duration=1.0)
-    default = build("msd").run(u, y, 1e-3, chunk=500, reset_period=0.1)
-    other = build("msd", f"ALGID_MSD_BLOCK={block}").run(u, y, 1e-3, chunk=500,
-                                                          reset_period=0.1)
+    c = build("msd")
+    default = c.run(u, y, 1e-3, chunk=500, reset_period=0.1)
+    error = c.error
+    c = build("msd", f"ALGID_MSD_BLOCK={block}")
+    other = c.run(u, y, 1e-3, chunk=500, reset_period=0.1)
     np.testing.assert_array_equal(other, default)
+    np.testing.assert_array_equal(c.error, error)  # the companion's blocks are these
 
 
 def _reported_origin(i, half):

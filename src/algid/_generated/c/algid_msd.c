@@ -1173,13 +1173,19 @@ static void algid_msd_feed_pair(algid_msd_state *st, int k, const double *u, con
                            size_t n, double *theta, double *error)
 {
     double rows[ALGID_MSD_BLOCK * 2];
-    size_t start, m;
-    algid_msd_feed(&st->window[k], u, y, n, st->dt, theta);
-    for (start = 0; start < n; start += m) {
-        m = n - start < ALGID_MSD_BLOCK ? n - start : ALGID_MSD_BLOCK;
-        algid_msd_companion_feed(&st->companion[k], u + start, y + start, m, st->dt, rows);
-        if (error != NULL) {
-            algid_msd_error(theta + start * 2, rows, m, st->recent[k], error + start);
+    size_t piece, start, m;
+    /* pieces of 16 blocks: the samples and the estimates are still in the cache
+       when the companion reads them */
+    for (piece = 0; piece < n; piece += 16 * ALGID_MSD_BLOCK) {
+        const size_t end = n - piece < 16 * ALGID_MSD_BLOCK ? n : piece + 16 * ALGID_MSD_BLOCK;
+        algid_msd_feed(&st->window[k], u + piece, y + piece, end - piece, st->dt,
+                       theta + piece * 2);
+        for (start = piece; start < end; start += m) {
+            m = end - start < ALGID_MSD_BLOCK ? end - start : ALGID_MSD_BLOCK;
+            algid_msd_companion_feed(&st->companion[k], u + start, y + start, m, st->dt, rows);
+            if (error != NULL) {
+                algid_msd_error(theta + start * 2, rows, m, st->recent[k], error + start);
+            }
         }
     }
 }

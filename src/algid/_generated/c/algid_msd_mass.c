@@ -1336,13 +1336,19 @@ static void algid_msd_mass_feed_pair(algid_msd_mass_state *st, int k, const doub
                                 size_t n, double *theta, double *error)
 {
     double rows[ALGID_MSD_MASS_BLOCK * 3];
-    size_t start, m;
-    algid_msd_mass_feed(&st->window[k], u, y, n, st->dt, theta);
-    for (start = 0; start < n; start += m) {
-        m = n - start < ALGID_MSD_MASS_BLOCK ? n - start : ALGID_MSD_MASS_BLOCK;
-        algid_msd_mass_companion_feed(&st->companion[k], u + start, y + start, m, st->dt, rows);
-        if (error != NULL) {
-            algid_msd_mass_error(theta + start * 3, rows, m, st->recent[k], error + start);
+    size_t piece, start, m;
+    /* pieces of 16 blocks: the samples and the estimates are still in the cache
+       when the companion reads them */
+    for (piece = 0; piece < n; piece += 16 * ALGID_MSD_MASS_BLOCK) {
+        const size_t end = n - piece < 16 * ALGID_MSD_MASS_BLOCK ? n : piece + 16 * ALGID_MSD_MASS_BLOCK;
+        algid_msd_mass_feed(&st->window[k], u + piece, y + piece, end - piece, st->dt,
+                            theta + piece * 3);
+        for (start = piece; start < end; start += m) {
+            m = end - start < ALGID_MSD_MASS_BLOCK ? end - start : ALGID_MSD_MASS_BLOCK;
+            algid_msd_mass_companion_feed(&st->companion[k], u + start, y + start, m, st->dt, rows);
+            if (error != NULL) {
+                algid_msd_mass_error(theta + start * 3, rows, m, st->recent[k], error + start);
+            }
         }
     }
 }
