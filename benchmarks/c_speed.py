@@ -26,9 +26,7 @@ than the wall time; compare the ratios.  The section is :func:`c_speed`;
 
 from __future__ import annotations
 
-import argparse
 import ctypes
-import json
 import math
 import pathlib
 import shutil
@@ -314,20 +312,10 @@ def markdown(data):
 
 def main(argv=None):
     """Run the section alone and print it (``--json`` for the raw figures)."""
-    from benchmarks.run import to_json
-    from benchmarks.sections import CONFIGS
+    from benchmarks.run import section_main
 
-    parser = argparse.ArgumentParser(prog="python -m benchmarks.c_speed",
-                                     description=__doc__.splitlines()[0])
-    size = parser.add_mutually_exclusive_group()
-    size.add_argument("--quick", action="store_true", help="10**6 samples")
-    size.add_argument("--smoke", action="store_true", help="10**4 samples (seconds)")
-    parser.add_argument("--json", action="store_true", help="print the figures as JSON")
-    args = parser.parse_args(argv)
-    config = CONFIGS["smoke" if args.smoke else "quick" if args.quick else "full"]
-    data = c_speed(config)
-    print(json.dumps(to_json(data), indent=1) if args.json else markdown(data))
-    return 0
+    return section_main(argv, "benchmarks.c_speed", c_speed, markdown,
+                        ('10**6 samples', '10**4 samples (seconds)'))
 
 
 if __name__ == "__main__":

@@ -25,7 +25,7 @@ import time
 if __package__ in (None, ""):  # run as a script: python benchmarks/run.py
     sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent.parent))
 
-__all__ = ["run", "main", "SECTIONS", "to_json"]
+__all__ = ["run", "main", "section_main", "SECTIONS", "to_json"]
 
 #: Section names, in the order they run.
 SECTIONS = ("accuracy", "efficiency", "performance", "long_stream", "tracking", "c_speed",
@@ -45,6 +45,41 @@ def to_json(value):
     if hasattr(value, "item") and not isinstance(value, (str, bytes)):  # NumPy scalar
         return to_json(value.item())
     return value
+
+
+def section_main(argv, module, section, markdown, sizes):
+    """Command line of one section run alone: ``--quick``, ``--smoke``, ``--json``.
+
+    Parameters
+    ----------
+    argv : list of str or None
+    module : str
+        ``benchmarks.<name>`` (the program's name); its docstring's first line is the
+        description.
+    section, markdown : callable
+        ``section(config) -> data`` and ``markdown(data) -> str``.
+    sizes : tuple of str
+        Help of ``--quick`` and of ``--smoke``.
+
+    Returns
+    -------
+    int
+        Exit code.
+    """
+    import importlib
+
+    from benchmarks.sections import CONFIGS
+
+    description = (importlib.import_module(module).__doc__ or "").splitlines()[0]
+    parser = argparse.ArgumentParser(prog=f"python -m {module}", description=description)
+    size = parser.add_mutually_exclusive_group()
+    size.add_argument("--quick", action="store_true", help=sizes[0])
+    size.add_argument("--smoke", action="store_true", help=sizes[1])
+    parser.add_argument("--json", action="store_true", help="print the figures as JSON")
+    args = parser.parse_args(argv)
+    data = section(CONFIGS["smoke" if args.smoke else "quick" if args.quick else "full"])
+    print(json.dumps(to_json(data), indent=1) if args.json else markdown(data))
+    return 0
 
 
 def run(mode="full", *, only=None, log=None):

@@ -250,7 +250,7 @@ def test_smoke_error_cost(smoke):
         assert len(size["naive_rates"]) == 1 and size["naive_rates"][0] > 0
         for engine in ec["engines"]:
             r = size[engine]
-            # the ratios are those of the times of the run
+            # the ratios are those of the times of the (one) run
             times = size["times"]
             assert r["speed"] == pytest.approx(times["naive"][0] / times[engine][0])
             assert r["error_cost"] == pytest.approx(times[engine][0] /

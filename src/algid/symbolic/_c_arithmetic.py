@@ -1,7 +1,9 @@
 """The arithmetic of the C estimator, as C text: the code run for every sample.
 
 Functions of the writer of :mod:`algid.symbolic._codegen_c` (its attributes: ``pre``
-and ``PRE`` the prefixes ``algid_<name>`` / ``ALGID_<NAME>``, ``p`` the filter order,
+and ``PRE`` the prefixes ``algid_<name>`` / ``ALGID_<NAME>``, ``algebra_pre`` that of
+the ``_algebra`` function the loops call (a companion calls its estimator's), ``p`` the
+filter order,
 ``q`` the points of the rule, ``chains``, ``chain_ints``, ``kernels``, ``P``, ``Q``,
 ``numerators``, ``denominator``, ...), each returning a list of lines:
 
@@ -229,7 +231,7 @@ def startup_functions(w):
     for idx, k in enumerate(w.kernels):
         c = chain_of[(k.signal, k.power)]
         lines.append(f"        kv[{idx}] = lv[{base[c] + k.order}][j];")
-    lines += [f"        {pre}_algebra(kv, row);",
+    lines += [f"        {w.algebra_pre}_algebra(kv, row);",
               f"        for (r = 0; r < {w.lanes}; ++r) lanes[0][r][j] = row[r];",
               "    }"]
     if w.p:
@@ -319,7 +321,7 @@ def sample_loop_function(w):
     chain_of = {(s, pw): c for c, (s, pw, _) in enumerate(w.chains)}
     for idx, k in enumerate(w.kernels):
         lines.append(f"        kv[{idx}] = c{chain_of[(k.signal, k.power)]}_{k.order};")
-    lines.append(f"        {pre}_algebra(kv, lanes);")
+    lines.append(f"        {w.algebra_pre}_algebra(kv, lanes);")
     n_chain = len(w.chain_ints)
     for lev in range(w.p):
         for r in range(w.lanes):

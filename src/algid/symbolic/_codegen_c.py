@@ -266,6 +266,7 @@ class _Writer:
         self.state_doubles = 4 + 2 * self.window_doubles
         self.companion = None
         self.block_macro = None  # the BLOCK of another writer, for a companion's
+        self.algebra_pre = self.pre  # whose <pre>_algebra the loops call
         if companion:
             # the companion's code: the same writer, for its rule and filter; its blocks
             # are this estimator's (one stack size to set)
@@ -273,6 +274,7 @@ class _Writer:
             self.companion = _Writer(derivation, f"{name}_companion", other_p, other_q,
                                      companion=False)
             self.companion.block_macro = f"{self.PRE}_BLOCK"
+            self.companion.algebra_pre = self.pre  # the same algebra: written once
             self.state_doubles += 2 * self.companion.window_doubles + 2 * (WINDOW - 1)
 
     def stack_bytes(self, block):
@@ -370,31 +372,25 @@ class _Writer:
     def source(self):
         out = self._banner("Algebraic estimator (C99)")
         out += ["", f'#include "{self.pre}.h"', "", "#include <math.h>", ""]
-        out += self._constants()
-        out += self._window_struct()
-        if self.companion is None:
-            out += self._state_struct()
-        out += c_loops.algebra_function(self)
-        out += self._finish()
-        out += c_loops.startup_functions(self)
-        out += c_loops.integrator_step_function(self)
-        out += c_loops.sample_loop_function(self)
-        out += c_loops.block_loop_function(self)
-        out += self._window_feed()
+        out += self._estimator_code()
         if self.companion is not None:
-            out += self.companion.internals()
+            out += [f"/* ---- the companion: {self.companion.q}-point rule, filter order "
+                    f"{self.companion.p} ---- */", ""]
+            out += self.companion._estimator_code()
             out += self._state_struct()
             out += self._error_function()
             out += self._pair_feed()
         out += self._api()
         return "\n".join(out)
 
-    def internals(self):
-        """The static code of one estimator (a companion's: no state, no API)."""
-        out = [f"/* ---- the companion: {self.q}-point rule, filter order {self.p} ---- */", ""]
-        out += self._constants()
-        out += self._window_struct()
-        out += c_loops.algebra_function(self)
+    def _estimator_code(self):
+        """The static code of one estimator: its constants, its window and its loops (a
+        companion's calls the algebra of the estimator it serves)."""
+        out = self._constants() + self._window_struct()
+        if self.companion is None and self.algebra_pre == self.pre:
+            out += self._state_struct()
+        if self.algebra_pre == self.pre:
+            out += c_loops.algebra_function(self)
         out += self._finish()
         out += c_loops.startup_functions(self)
         out += c_loops.integrator_step_function(self)

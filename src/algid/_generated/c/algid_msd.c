@@ -666,32 +666,6 @@ typedef struct {
     double start_y[9];
 } algid_msd_companion_window;
 
-/* P, Q and Cramer's rule from the kernels kv (in the order below); writes
-   the numerators (parameter order) and the denominator det P to lanes. */
-static void algid_msd_companion_algebra(const double *kv, double *lanes)
-{
-    const double f_t2_i2 = kv[0];  /* 2-fold integral of t**2 f */
-    const double f_t2_i3 = kv[1];  /* 3-fold integral of t**2 f */
-    const double x_t0_i2 = kv[2];  /* 2-fold integral of t**0 x */
-    const double x_t0_i3 = kv[3];  /* 3-fold integral of t**0 x */
-    const double x_t1_i1 = kv[4];  /* 1-fold integral of t**1 x */
-    const double x_t1_i2 = kv[5];  /* 2-fold integral of t**1 x */
-    const double x_t1_i3 = kv[6];  /* 3-fold integral of t**1 x */
-    const double x_t2_i0 = kv[7];  /* 0-fold integral of t**2 x */
-    const double x_t2_i1 = kv[8];  /* 1-fold integral of t**2 x */
-    const double x_t2_i2 = kv[9];  /* 2-fold integral of t**2 x */
-    const double x_t2_i3 = kv[10];  /* 3-fold integral of t**2 x */
-    const double p_0_0 = -2*x_t1_i2 + x_t2_i1;
-    const double p_0_1 = x_t2_i2;
-    const double p_1_0 = -2*x_t1_i3 + x_t2_i2;
-    const double p_1_1 = x_t2_i3;
-    const double q_0 = f_t2_i2 - 2*x_t0_i2 + 4*x_t1_i1 - x_t2_i0;
-    const double q_1 = f_t2_i3 - 2*x_t0_i3 + 4*x_t1_i2 - x_t2_i1;
-    lanes[0] = -p_0_1*q_1 + p_1_1*q_0;  /* numerator of B */
-    lanes[1] = p_0_0*q_1 - p_1_0*q_0;  /* numerator of K */
-    lanes[2] = p_0_0*p_1_1 - p_0_1*p_1_0;  /* det P */
-}
-
 /* theta row from the filtered numerators and denominator. */
 static void algid_msd_companion_divide(const double *lanes, double *theta)
 {
@@ -772,7 +746,7 @@ static void algid_msd_companion_start(algid_msd_companion_window *w, double dt, 
         kv[8] = lv[13][j];
         kv[9] = lv[14][j];
         kv[10] = lv[15][j];
-        algid_msd_companion_algebra(kv, row);
+        algid_msd_algebra(kv, row);
         for (r = 0; r < 3; ++r) lanes[0][r][j] = row[r];
     }
     for (lev = 0; lev < 1; ++lev) {
@@ -849,7 +823,7 @@ static void algid_msd_companion_samples(algid_msd_companion_window *w, const dou
         kv[8] = c3_1;
         kv[9] = c3_2;
         kv[10] = c3_3;
-        algid_msd_companion_algebra(kv, lanes);
+        algid_msd_algebra(kv, lanes);
         lanes[0] = algid_msd_companion_integrate(&s[12], h[12], lanes[0], dt);
         lanes[1] = algid_msd_companion_integrate(&s[13], h[13], lanes[1], dt);
         lanes[2] = algid_msd_companion_integrate(&s[14], h[14], lanes[2], dt);

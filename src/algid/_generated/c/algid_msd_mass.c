@@ -748,43 +748,6 @@ typedef struct {
     double start_y[9];
 } algid_msd_mass_companion_window;
 
-/* P, Q and Cramer's rule from the kernels kv (in the order below); writes
-   the numerators (parameter order) and the denominator det P to lanes. */
-static void algid_msd_mass_companion_algebra(const double *kv, double *lanes)
-{
-    const double F_t2_i2 = kv[0];  /* 2-fold integral of t**2 F */
-    const double F_t2_i3 = kv[1];  /* 3-fold integral of t**2 F */
-    const double F_t2_i4 = kv[2];  /* 4-fold integral of t**2 F */
-    const double x_t0_i2 = kv[3];  /* 2-fold integral of t**0 x */
-    const double x_t0_i3 = kv[4];  /* 3-fold integral of t**0 x */
-    const double x_t0_i4 = kv[5];  /* 4-fold integral of t**0 x */
-    const double x_t1_i1 = kv[6];  /* 1-fold integral of t**1 x */
-    const double x_t1_i2 = kv[7];  /* 2-fold integral of t**1 x */
-    const double x_t1_i3 = kv[8];  /* 3-fold integral of t**1 x */
-    const double x_t1_i4 = kv[9];  /* 4-fold integral of t**1 x */
-    const double x_t2_i0 = kv[10];  /* 0-fold integral of t**2 x */
-    const double x_t2_i1 = kv[11];  /* 1-fold integral of t**2 x */
-    const double x_t2_i2 = kv[12];  /* 2-fold integral of t**2 x */
-    const double x_t2_i3 = kv[13];  /* 3-fold integral of t**2 x */
-    const double x_t2_i4 = kv[14];  /* 4-fold integral of t**2 x */
-    const double p_0_0 = 2*x_t0_i2 - 4*x_t1_i1 + x_t2_i0;
-    const double p_0_1 = -2*x_t1_i2 + x_t2_i1;
-    const double p_0_2 = x_t2_i2;
-    const double p_1_0 = 2*x_t0_i3 - 4*x_t1_i2 + x_t2_i1;
-    const double p_1_1 = -2*x_t1_i3 + x_t2_i2;
-    const double p_1_2 = x_t2_i3;
-    const double p_2_0 = 2*x_t0_i4 - 4*x_t1_i3 + x_t2_i2;
-    const double p_2_1 = -2*x_t1_i4 + x_t2_i3;
-    const double p_2_2 = x_t2_i4;
-    const double q_0 = F_t2_i2;
-    const double q_1 = F_t2_i3;
-    const double q_2 = F_t2_i4;
-    lanes[0] = p_0_1*p_1_2*q_2 - p_0_1*p_2_2*q_1 - p_0_2*p_1_1*q_2 + p_0_2*p_2_1*q_1 + p_1_1*p_2_2*q_0 - p_1_2*p_2_1*q_0;  /* numerator of m */
-    lanes[1] = -p_0_0*p_1_2*q_2 + p_0_0*p_2_2*q_1 + p_0_2*p_1_0*q_2 - p_0_2*p_2_0*q_1 - p_1_0*p_2_2*q_0 + p_1_2*p_2_0*q_0;  /* numerator of c */
-    lanes[2] = p_0_0*p_1_1*q_2 - p_0_0*p_2_1*q_1 - p_0_1*p_1_0*q_2 + p_0_1*p_2_0*q_1 + p_1_0*p_2_1*q_0 - p_1_1*p_2_0*q_0;  /* numerator of k */
-    lanes[3] = p_0_0*p_1_1*p_2_2 - p_0_0*p_1_2*p_2_1 - p_0_1*p_1_0*p_2_2 + p_0_1*p_1_2*p_2_0 + p_0_2*p_1_0*p_2_1 - p_0_2*p_1_1*p_2_0;  /* det P */
-}
-
 /* theta row from the filtered numerators and denominator. */
 static void algid_msd_mass_companion_divide(const double *lanes, double *theta)
 {
@@ -875,7 +838,7 @@ static void algid_msd_mass_companion_start(algid_msd_mass_companion_window *w, d
         kv[12] = lv[17][j];
         kv[13] = lv[18][j];
         kv[14] = lv[19][j];
-        algid_msd_mass_companion_algebra(kv, row);
+        algid_msd_mass_algebra(kv, row);
         for (r = 0; r < 4; ++r) lanes[0][r][j] = row[r];
     }
     for (lev = 0; lev < 1; ++lev) {
@@ -960,7 +923,7 @@ static void algid_msd_mass_companion_samples(algid_msd_mass_companion_window *w,
         kv[12] = c3_2;
         kv[13] = c3_3;
         kv[14] = c3_4;
-        algid_msd_mass_companion_algebra(kv, lanes);
+        algid_msd_mass_algebra(kv, lanes);
         lanes[0] = algid_msd_mass_companion_integrate(&s[16], h[16], lanes[0], dt);
         lanes[1] = algid_msd_mass_companion_integrate(&s[17], h[17], lanes[1], dt);
         lanes[2] = algid_msd_mass_companion_integrate(&s[18], h[18], lanes[2], dt);
