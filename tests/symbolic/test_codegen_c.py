@@ -377,6 +377,17 @@ def test_other_orders_equal_batch_estimate(build, p, q):
 
 
 @needs_cc
+def test_numerical_error_flags_a_parameter_the_samples_do_not_determine(build):
+    # at rest (x = 1, f = 3 = K x) nothing excites B: algid.estimate refuses the record;
+    # the C, which does not test identifiability, reports K and a large error
+    c = build("msd")
+    n = 5000
+    est = c.run(np.full(n, 3.0), np.ones(n), 1e-3)
+    assert est[-1, 1] == pytest.approx(3.0, rel=1e-9)
+    assert c.error[-1] > 0.1
+
+
+@needs_cc
 def test_numerical_error_can_be_skipped_and_the_companion_still_advances(build):
     c = build("msd")
     t, u, y, _ = _experiment("msd", "sine", duration=1.0)
