@@ -387,8 +387,6 @@ class _Writer:
         """The static code of one estimator: its constants, its window and its loops (a
         companion's calls the algebra of the estimator it serves)."""
         out = self._constants() + self._window_struct()
-        if self.companion is None and self.algebra_pre == self.pre:
-            out += self._state_struct()
         if self.algebra_pre == self.pre:
             out += c_loops.algebra_function(self)
         out += self._finish()
