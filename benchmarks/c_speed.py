@@ -41,6 +41,7 @@ if __package__ in (None, ""):  # run as a script
     sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent.parent))
 
 from benchmarks import baselines as bl  # noqa: E402
+from benchmarks.measure import sine_record  # noqa: E402
 
 __all__ = ["c_speed", "markdown", "target", "GENERATED", "FLAGS"]
 
@@ -68,13 +69,6 @@ void bench_stream(void *state, const double *u, const double *y, size_t n, size_
     }
 }
 """
-
-
-def _signals(n):
-    t = np.arange(n) * STEP
-    f = np.sin(1.3 * t) + 0.5 * np.sin(0.37 * t)
-    x = 0.4 * np.sin(1.3 * t - 0.8) + 0.2 * np.sin(0.37 * t - 0.1)
-    return t, f, x
 
 
 def _cpu_time(func):
@@ -180,7 +174,7 @@ def c_speed(config):
         return {"not_available": "no C compiler (gcc or cc) on PATH"}
     n = int(config.n_batch)
     repeats = max(1, int(config.repeats))
-    t, f, x = _signals(n)
+    t, f, x = sine_record(n, STEP)
     rows = {}
     c_ns, fraction, over_numba, warnings = {}, {}, {}, {}
     with tempfile.TemporaryDirectory() as tmp:

@@ -39,14 +39,7 @@ from algid.estimation import _core as core
 from algid.estimation._options import DEFAULT_QUADRATURE_POINTS
 from algid.models._registry import load_model
 from benchmarks.baselines import naive_algebraic
-from benchmarks.measure import peak_memory
-
-
-def _signals(n, h=1e-3):
-    t = np.arange(n) * h
-    f = np.sin(1.3 * t) + 0.5 * np.sin(0.37 * t)
-    x = 0.4 * np.sin(1.3 * t - 0.8) + 0.2 * np.sin(0.37 * t - 0.1)
-    return t, f, x
+from benchmarks.measure import peak_memory, sine_record
 
 
 def _best(func, repeats):
@@ -89,8 +82,8 @@ def _rss_growth(n, engine_name, opts):
     [bytes; Linux: reads /proc/self/status]."""
     code = (
         "import numpy as np, algid\n"
-        "from benchmarks.engine_speed import _signals\n"
-        f"t, f, x = _signals({n})\n"
+        "from benchmarks.measure import sine_record\n"
+        f"t, f, x = sine_record({n})\n"
         f"if {engine_name!r} == 'numba':\n"
         f"    algid.estimate(t[:1000], f[:1000], x[:1000], engine='numba', **{opts!r})\n"
         "status = open('/proc/self/status').read().split()\n"
@@ -128,7 +121,7 @@ def main(argv=None):
                  [np.ones(2 * q)] * 2, backend="numba")  # compile or load the loop
 
     for n in (int(v) for v in args.sizes):
-        t, f, x = _signals(n)
+        t, f, x = sine_record(n)
         h = float((t[-1] - t[0]) / (n - 1))
         in_bytes = t.nbytes + f.nbytes + x.nbytes
         print(f"\n== {model}, q={q}, p={p}, n={n:.0e} samples (input {in_bytes / 1e6:.0f} MB)")

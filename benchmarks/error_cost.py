@@ -1,7 +1,7 @@
 """What the numerical error costs (``python -m benchmarks.error_cost [--smoke|--quick]``).
 
-On the same record (the sine record of :mod:`benchmarks.engine_speed`), in one process,
-every run times once each of
+On the same record (:func:`benchmarks.measure.sine_record`, as the other speed
+sections), in one process, every run times once each of
 
 - the naive NumPy estimator of :mod:`benchmarks.baselines` (the paper's formulas with
   ``cumulative_trapezoid``; the baseline);
@@ -26,19 +26,14 @@ import time
 
 import numpy as np
 
+from benchmarks.measure import sine_record
+
 __all__ = ["error_cost", "markdown", "targets", "STREAM_CHUNK"]
 
 #: Samples per chunk of the streams.
 STREAM_CHUNK = 1000
 #: Runs at least (each times every method once).
 MIN_RUNS = 3
-
-
-def _signals(n, h=1e-3):
-    t = np.arange(n) * h
-    f = np.sin(1.3 * t) + 0.5 * np.sin(0.37 * t)
-    x = 0.4 * np.sin(1.3 * t - 0.8) + 0.2 * np.sin(0.37 * t - 0.1)
-    return t, f, x
 
 
 def _cpu(func):
@@ -93,7 +88,7 @@ def error_cost(config):
     runs = 1 if config.mode == "smoke" else max(MIN_RUNS, int(config.repeats))
     out = {"runs": runs, "engines": list(engines), "stream_chunk": STREAM_CHUNK, "sizes": []}
     for n in (int(config.n_batch) // 5, int(config.n_batch)):
-        t, f, x = _signals(n)
+        t, f, x = sine_record(n)
         for run in _methods(t[:3000], f[:3000], x[:3000], engines).values():
             run()  # warm-up: numba's compilation or cache, NumPy's first calls
         methods = _methods(t, f, x, engines)

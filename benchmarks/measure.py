@@ -17,8 +17,27 @@ import numpy as np
 from algid.estimation._result import convergence_time
 from algid.simulation import simulate
 
-__all__ = ["best_time", "peak_memory", "both_converged", "relative_errors",
+__all__ = ["sine_record", "best_time", "peak_memory", "both_converged", "relative_errors",
            "piecewise_stream", "sine_stream"]
+
+
+def sine_record(n, h=1e-3):
+    """The speed benchmarks' record: ``n`` samples ``h`` apart of two sines through a
+    mass-spring-damper-like response (the same samples in every speed section).
+
+    Parameters
+    ----------
+    n : int
+    h : float, optional
+
+    Returns
+    -------
+    t, f, x : ndarray
+    """
+    t = np.arange(n) * h
+    f = np.sin(1.3 * t) + 0.5 * np.sin(0.37 * t)
+    x = 0.4 * np.sin(1.3 * t - 0.8) + 0.2 * np.sin(0.37 * t - 0.1)
+    return t, f, x
 
 
 def best_time(func, repeats):
