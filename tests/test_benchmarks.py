@@ -255,3 +255,27 @@ def test_smoke_error_cost(smoke):
             assert r["speed"] == pytest.approx(times["naive"][0] / times[engine][0])
             assert r["error_cost"] == pytest.approx(times[engine][0] /
                                                     times[f"{engine}_alone"][0])
+
+
+def test_error_propagation_study_follows_the_companion():
+    """The grid propagation of benchmarks.error_propagation: its error at the final
+    sample of an under-resolved plant (actual error 4e-8) is the companion's within a
+    factor 1.5 and bounds the actual error; the study's estimates are estimate's."""
+    from benchmarks.error_propagation import difference_taps, propagated_error
+    from benchmarks.population import draw_plants
+    from benchmarks.population import exact_response as plant_response
+
+    taps = difference_taps(8, 9, 1.0)
+    assert taps.size == 8  # a backward difference of order 7: kills cubics
+    assert abs(taps @ np.arange(8.0) ** 3) < 1e-12
+    plant = draw_plants(60, 0)[54]
+    t, f, x = plant_response(plant)
+    result = algid.estimate(t, f, x)
+    actual = max(abs(result.B[-1] / plant.B - 1.0), abs(result.K[-1] / plant.K - 1.0))
+    propagated, estimates = propagated_error(t, f, x)
+    companion = result.numerical_error[-1]
+    assert actual > 1e-9 and actual <= 10 * propagated
+    assert companion / 1.5 < propagated < 1.5 * companion
+    np.testing.assert_allclose(estimates, [result.B[-1], result.K[-1]], rtol=1e-12)
+    with pytest.raises(ValueError, match="longer record"):
+        propagated_error(t[:500], f[:500], x[:500])
