@@ -12,6 +12,7 @@ import numba
 import numpy as np
 
 from algid._generated.msd import cramer, regressors_packed
+from algid.estimation._error_propagation import GRID
 from algid.estimation._numerical_error_numba import sample_error, sample_extent
 
 CACHE = True
@@ -165,18 +166,22 @@ def advance_sample_pair(channel_0, channel_1, n0, dt, buffer, offsets, filter_or
 
 @numba.njit(cache=CACHE, nogil=True)
 def advance(channel_0, channel_1, out, integrals, history, n0, dt, divisors,
-            weights, startup, filter_order, from_origin):
+            weights, startup, filter_order, from_origin, taps, residuals,
+            switch, lane_difference, level_difference, telescoped, other):
     """Advance the state (integrals, history) over the chunk; estimates into out.
 
     The state layout is that of estimation._core.integrator_layout.  With from_origin
     the chunk starts at the time origin and holds at least len(weights) samples.
-    """
+    With columns in other (as many as samples), the error propagation is active:
+    the companion's estimates at its grid samples go there, the estimates elsewhere
+    (the other arguments: its state, algid.estimation._error_propagation)."""
     W = max(weights.shape[0] - 1, 0)
     size = channel_0.shape[0]
-    if size == 1 and not from_origin:
+    if size == 1 and not from_origin and other.shape[1] == 0:
         advance_sample(channel_0[0], channel_1[0], out, integrals, history, n0, dt,
                        divisors, weights, filter_order)
         return
+    powers = np.empty(residuals.shape[1])
     # y<c>_<l>[:W]: the last W values of level l of chain c before the block;
     # y<c>_<l>[W + b]: its value at sample b of the block; all are views into one
     # scratch array (one allocation per call)
@@ -355,6 +360,115 @@ def advance(channel_0, channel_1, out, integrals, history, n0, dt, divisors,
             else:
                 out[0, start + b] = fb[filter_order, 0, W + b] / d
                 out[1, start + b] = fb[filter_order, 1, W + b] / d
+        # the companion's estimates at the grid samples (estimation._error_propagation)
+        if other.shape[1]:
+            for b in range(nb):
+                other[0, start + b] = out[0, start + b]
+                other[1, start + b] = out[1, start + b]
+            b = (GRID - (n0 + start + 1) % GRID) % GRID
+            while b < nb:
+                j = W + b
+                since = (n0 + start + b + 1 - switch) * dt
+                power = 1.0
+                for jj in range(residuals.shape[1]):
+                    if jj:
+                        power = power * since / jj
+                    powers[jj] = power
+                base = j - taps.shape[0] + 1
+                t0 = y0_1[base] * taps[0]
+                t1 = y0_2[base] * taps[0]
+                t2 = y1_1[base] * taps[0]
+                t3 = y1_2[base] * taps[0]
+                t4 = y2_0[base] * taps[0]
+                t5 = y2_1[base] * taps[0]
+                t6 = y2_2[base] * taps[0]
+                t8 = y3_0[base] * taps[0]
+                t9 = y3_1[base] * taps[0]
+                t10 = y3_2[base] * taps[0]
+                for k in range(1, taps.shape[0]):
+                    t0 = t0 + y0_1[base + k] * taps[k]
+                    t1 = t1 + y0_2[base + k] * taps[k]
+                    t2 = t2 + y1_1[base + k] * taps[k]
+                    t3 = t3 + y1_2[base + k] * taps[k]
+                    t4 = t4 + y2_0[base + k] * taps[k]
+                    t5 = t5 + y2_1[base + k] * taps[k]
+                    t6 = t6 + y2_2[base + k] * taps[k]
+                    t8 = t8 + y3_0[base + k] * taps[k]
+                    t9 = t9 + y3_1[base + k] * taps[k]
+                    t10 = t10 + y3_2[base + k] * taps[k]
+                c0 = y0_2[j] + 2.0 * t0
+                for jj in range(2):
+                    c0 = c0 + residuals[0, jj] * powers[jj]
+                c1 = y0_3[j] + 3.0 * t1
+                for jj in range(3):
+                    c1 = c1 + residuals[1, jj] * powers[jj]
+                c2 = y1_2[j] + 2.0 * t2
+                for jj in range(2):
+                    c2 = c2 + residuals[2, jj] * powers[jj]
+                c3 = y1_3[j] + 3.0 * t3
+                for jj in range(3):
+                    c3 = c3 + residuals[3, jj] * powers[jj]
+                c4 = y2_1[j] + 1.0 * t4
+                for jj in range(1):
+                    c4 = c4 + residuals[4, jj] * powers[jj]
+                c5 = y2_2[j] + 2.0 * t5
+                for jj in range(2):
+                    c5 = c5 + residuals[5, jj] * powers[jj]
+                c6 = y2_3[j] + 3.0 * t6
+                for jj in range(3):
+                    c6 = c6 + residuals[6, jj] * powers[jj]
+                c7 = y3_0[j] + 0.0
+                c8 = y3_1[j] + 1.0 * t8
+                for jj in range(1):
+                    c8 = c8 + residuals[8, jj] * powers[jj]
+                c9 = y3_2[j] + 2.0 * t9
+                for jj in range(2):
+                    c9 = c9 + residuals[9, jj] * powers[jj]
+                c10 = y3_3[j] + 3.0 * t10
+                for jj in range(3):
+                    c10 = c10 + residuals[10, jj] * powers[jj]
+                P, Q = _regressors_packed((c0, c1, c2, c3, c4, c5, c6, c7, c8, c9, c10,))
+                nums, den = _cramer(P, Q)
+                g0 = nums[0] - fb[0, 0, j]
+                g1 = nums[1] - fb[0, 1, j]
+                g2 = den - fb[0, 2, j]
+                h0 = lane_difference[0]
+                lane_difference[0] = g0
+                h1 = lane_difference[1]
+                lane_difference[1] = g1
+                h2 = lane_difference[2]
+                lane_difference[2] = g2
+                for lev in range(filter_order - 1):
+                    u0 = fb[lev, 0, base] * taps[0]
+                    u1 = fb[lev, 1, base] * taps[0]
+                    u2 = fb[lev, 2, base] * taps[0]
+                    for k in range(1, taps.shape[0]):
+                        u0 = u0 + fb[lev, 0, base + k] * taps[k]
+                        u1 = u1 + fb[lev, 1, base + k] * taps[k]
+                        u2 = u2 + fb[lev, 2, base + k] * taps[k]
+                    step = GRID * dt / 2.0 * (h0 + g0) + (u0 - telescoped[lev, 0])
+                    telescoped[lev, 0] = u0
+                    h0 = level_difference[lev, 0]
+                    g0 = h0 + step
+                    level_difference[lev, 0] = g0
+                    step = GRID * dt / 2.0 * (h1 + g1) + (u1 - telescoped[lev, 1])
+                    telescoped[lev, 1] = u1
+                    h1 = level_difference[lev, 1]
+                    g1 = h1 + step
+                    level_difference[lev, 1] = g1
+                    step = GRID * dt / 2.0 * (h2 + g2) + (u2 - telescoped[lev, 2])
+                    telescoped[lev, 2] = u2
+                    h2 = level_difference[lev, 2]
+                    g2 = h2 + step
+                    level_difference[lev, 2] = g2
+                d = fb[filter_order - 1, 2, j] + g2
+                if d == 0.0 or not math.isfinite(d):
+                    other[0, start + b] = np.nan
+                    other[1, start + b] = np.nan
+                else:
+                    other[0, start + b] = (fb[filter_order - 1, 0, j] + g0) / d
+                    other[1, start + b] = (fb[filter_order - 1, 1, j] + g1) / d
+                b += GRID
         # the last W values of every integrand start the next block
         for i in range(W):
             y0_0[i] = y0_0[nb + i]

@@ -101,6 +101,9 @@ class EstimatorState:
         With a companion: the largest absolute value of every channel since the time
         origin, and its last value (both divided by its divisor), for the
         identifiability checks.
+    propagation : Propagation or None
+        With a companion whose estimate can be propagated: what the propagation
+        carries (:mod:`algid.estimation._error_propagation`); None without.
     undetermined : tuple of int
         With a companion: the parameters (indices) that the data left undetermined at
         the last check (:mod:`algid.estimation._numerical_error`).
@@ -126,6 +129,7 @@ class EstimatorState:
     channel_last: np.ndarray | None = None
     undetermined: tuple = ()
     early: bool = True
+    propagation: object = None
 
     def copy(self) -> EstimatorState:
         """An independent state that continues from the same point.
@@ -145,7 +149,9 @@ class EstimatorState:
                                    channel_max=None if self.channel_max is None
                                    else self.channel_max.copy(),
                                    channel_last=None if self.channel_last is None
-                                   else self.channel_last.copy())
+                                   else self.channel_last.copy(),
+                                   propagation=None if self.propagation is None
+                                   else self.propagation.copy())
 
     def restart(self, early: bool = True) -> None:
         """Move the time origin to the next sample (re-anchoring): forget the past.
@@ -166,6 +172,9 @@ class EstimatorState:
             self.recent_errors.fill(0.0)
         if self.channel_max is not None:
             self.channel_max.fill(0.0)
+        if self.propagation is not None:
+            self.propagation.active = False
+            self.propagation.captured.clear()
         self.undetermined = ()
 
     def magnitude(self) -> float:

@@ -30,8 +30,8 @@ from algid._generated import MODULES, NUMBA_MODULES
 from algid.models._registry import module_from_source
 from algid.signals._quadrature import integrator_weights
 
-__all__ = ["advance", "bound_sample_pair", "pack_pair", "PAIR_ARRAYS", "compiled_loop",
-           "user_cache_dir", "machine_code_cached"]
+__all__ = ["advance", "bound_sample", "bound_sample_pair", "pack_pair", "PAIR_ARRAYS",
+           "compiled_loop", "user_cache_dir", "machine_code_cached"]
 
 
 def user_cache_dir():
@@ -186,6 +186,11 @@ def compiled_loop(module):
     return _loops_of(module).advance
 
 
+#: The arguments of the error propagation where it is not active.
+_NOT_PROPAGATED = (np.zeros(1), np.zeros((1, 1)), 0, np.zeros(1), np.zeros((0, 1)),
+                   np.zeros((0, 1)), np.zeros((1, 0)))
+
+
 @lru_cache(maxsize=64)
 def _weights(points, dt):
     return integrator_weights(points, dt)
@@ -233,6 +238,33 @@ def bound_sample_pair(state):
     buffer, offsets = pack_pair(state, _fixed(state)[3], _fixed(companion)[3])
     return (_loops_of(state.model).advance_sample_pair,
             (buffer, offsets, state.filter_order, companion.filter_order))
+
+
+def bound_sample(state):
+    """One sample of a state alone (no companion), as a function of the sample's values.
+
+    Parameters
+    ----------
+    state : EstimatorState
+        Past its start-up.  Bound to its arrays and ``dt``: make a new one if they
+        change (:func:`pack_pair` replaces the arrays).
+
+    Returns
+    -------
+    callable
+        ``sample(*values, out, n_seen)``: the generated ``advance_sample`` of the values
+        (floats, in the model's ``CHANNELS`` order) into ``out`` (shape
+        ``(n_parameters, 1)``); the caller adds one to ``state.n_seen``.
+    """
+    _, _, _, weights, _ = _fixed(state)
+    loop = _loops_of(state.model).advance_sample
+    integrals, history, dt = state.integrals, state.history, state.dt
+    divisors, filter_order = state.divisors, state.filter_order
+
+    def sample(*arguments):
+        *values, out, n_seen = arguments
+        loop(*values, out, integrals, history, n_seen, dt, divisors, weights, filter_order)
+    return sample
 
 
 #: The arrays of an estimator and its companion that the one-sample step reads and
@@ -289,7 +321,7 @@ def pack_pair(state, weights, companion_weights):
     return packed, offsets
 
 
-def advance(state, layout, channels, out, *, from_origin=False):
+def advance(state, layout, channels, out, *, from_origin=False, other=None):
     """Estimates of a chunk into ``out``, in one compiled pass.
 
     The chunk continues the stream, or with ``from_origin`` it holds the first samples
@@ -309,12 +341,22 @@ def advance(state, layout, channels, out, *, from_origin=False):
         Float64 array the estimates are written into.
     from_origin : bool, optional
         The chunk starts at the time origin (the state holds no sample yet).
+    other : ndarray, shape (n_parameters, m), optional
+        With the state's error propagation active
+        (:mod:`algid.estimation._error_propagation`): receives the companion's estimates
+        at the grid samples and the estimates elsewhere.
     """
     _, _, loop, weights, startup = _fixed(state)
     if from_origin:
         state.n_seen = 0
+    propagation = state.propagation
+    if other is not None:
+        arguments = (propagation.taps, propagation.residuals, propagation.switch,
+                     propagation.lanes, propagation.levels, propagation.telescoped, other)
+    else:
+        arguments = _NOT_PROPAGATED
     loop(*channels, out, state.integrals, state.history, state.n_seen, state.dt,
-         state.divisors, weights, startup, state.filter_order, bool(from_origin))
+         state.divisors, weights, startup, state.filter_order, bool(from_origin), *arguments)
     if from_origin:
         out[:, :state.points - 1] = np.nan
     state.n_seen += channels[0].size

@@ -25,6 +25,7 @@ from functools import cache, lru_cache
 
 import numpy as np
 
+from algid.estimation._error_propagation import GRID, capture_levels
 from algid.signals._quadrature import integrator_weights
 
 __all__ = ["advance", "advance_sample", "sample_step_is_exact", "BLOCK", "SMALL_CHUNK"]
@@ -129,8 +130,10 @@ class _Work:
             level = following
         self.kernels = tuple(self.levels[depth].samples[row] for depth, row in layout.kernels)
         self.lanes = lanes = _Level(layout.n_lanes, width, m)
+        self.filter_levels = []  # filter levels 0 .. p - 1
         start = starts[-1]
         for _ in range(state.filter_order):
+            self.filter_levels.append(lanes)
             stop = start + layout.n_lanes
             integrated = _Level(layout.n_lanes, width, m)
             self.steps.append((lanes, layout.n_lanes, state.integrals[start:stop],
@@ -203,6 +206,11 @@ def _block(state, layout, channels, out, from_origin):
     if len(work.steps) == chain_steps:  # no filter
         _solve(state, work.kernels, work.lanes.samples)
     _divide(work.result, out)
+    propagation = state.propagation
+    if propagation is not None and propagation.active:  # (never from the origin)
+        capture_levels(propagation, layout, [level.padded for level in work.levels],
+                       work.lanes.padded, [level.padded for level in work.filter_levels[1:]],
+                       state.n_seen, state.points - 1)
     if from_origin:
         out[:, :state.points - 1] = np.nan
         state.n_seen = m
@@ -401,6 +409,14 @@ def _sample_columns(state, layout, columns, out):
     state.n_seen += len(columns[0])
 
 
+def _captures(state, m):
+    """Whether the next ``m`` samples hold a grid sample the error propagation
+    captures (:mod:`algid.estimation._error_propagation`; the blocks do)."""
+    propagation = state.propagation
+    return propagation is not None and propagation.active and \
+        (state.n_seen + m) // GRID > state.n_seen // GRID
+
+
 def advance(state, layout, channels, out, *, from_origin=False):
     """Estimates of a chunk into ``out``, block by block.
 
@@ -423,7 +439,8 @@ def advance(state, layout, channels, out, *, from_origin=False):
         The chunk starts at the time origin (the state holds no sample yet).
     """
     m = channels[0].size
-    if not from_origin and m <= SMALL_CHUNK and sample_step_is_exact():
+    if not from_origin and m <= SMALL_CHUNK and sample_step_is_exact() and \
+            not _captures(state, m):
         _sample_steps(state, layout, channels, out)
         return
     first = True

@@ -48,6 +48,8 @@ import algid.estimation._core as core
 from algid.estimation._backends import require_backend
 from algid.estimation._core_numpy import advance_sample as numpy_sample
 from algid.estimation._core_numpy import sample_step_is_exact
+from algid.estimation._error_propagation import GRID, companion_estimates, new_propagation
+from algid.estimation._error_propagation import start as start_propagation
 from algid.estimation._identifiability import undetermined_in_stream
 from algid.signals._quadrature import QUADRATURE_POINTS
 
@@ -96,6 +98,11 @@ def with_companion(state: core.EstimatorState) -> core.EstimatorState:
     state.companion = core.new_state(state.model, points=points, filter_order=filter_order,
                                      dt=state.dt, divisors=state.divisors)
     state.recent_errors = np.zeros(WINDOW - 1)
+    state.propagation = new_propagation(
+        state, state.companion, core.integrator_layout(state.model)) if PROPAGATE else None
+    if state.propagation is not None and next_check(state.propagation.switch - 1) != \
+            state.propagation.switch:
+        raise ValueError("the switch of the propagation must be a checked sample count")
     state.channel_max = np.zeros(len(state.divisors))  # for the identifiability checks
     state.channel_last = np.zeros(len(state.divisors))
     return state
@@ -104,6 +111,10 @@ def with_companion(state: core.EstimatorState) -> core.EstimatorState:
 #: The reported error is the largest relative difference over this many samples (a
 #: power of two).
 WINDOW = 16
+#: Whether the companion's estimate is propagated from the estimator's integrals after
+#: :data:`algid.estimation._error_propagation.SWITCH` samples.  Both engines do it with
+#: the same numbers; off until the generated C does too (its error must equal this one).
+PROPAGATE = False
 
 
 def window_maximum(raw, recent, out):
@@ -241,6 +252,11 @@ def advance_with_error(state, channels, *, backend="numpy", out=None, error_out=
         stop = min(m, start + BLOCK, start + check - state.n_seen)
         _piece(state, tuple(r[start:stop] for r in rows), backend, out[:, start:stop],
                error_out[start:stop], scratch[:, :stop - start])
+        propagation = state.propagation
+        if propagation is not None and not propagation.active and \
+                state.n_seen == propagation.switch:  # (the switch is one of the checks)
+            start_propagation(propagation, state, state.companion,
+                              core.integrator_layout(state.model))
         if state.n_seen == check:
             # judged where the estimate is in doubt: an undetermined parameter, round-off
             # over round-off, has an error of order one, or is 0 with its companion
@@ -335,14 +351,23 @@ def sample_stepper(state, backend="numpy"):
     companion.dt = state.dt
     first = max(state.points, companion.points)
     if backend == "numba":
+        from algid.estimation._core_numba import bound_sample as core_numba_sample
         from algid.estimation._core_numba import bound_sample_pair
         pair, arguments = bound_sample_pair(state)
         dt = state.dt
 
+        alone = core_numba_sample(state)
+        recent = state.recent_errors
+
         def advance(values, out, error_out):  # (the hottest path of a stream)
-            pair(*values, state.n_seen, dt, *arguments, out, error_out)
+            if state.propagation is not None and state.propagation.active:
+                alone(*values, out, state.n_seen)  # (ready: not a grid sample)
+                _off_grid_error(out, recent, error_out)
+                _track_values(state, values)
+            else:
+                pair(*values, state.n_seen, dt, *arguments, out, error_out)
+                companion.n_seen += 1
             state.n_seen += 1
-            companion.n_seen += 1
             if state.undetermined:
                 _mark_undetermined(state, out, error_out)
     else:
@@ -355,8 +380,11 @@ def sample_stepper(state, backend="numpy"):
 
         def advance(values, out, error_out):
             numpy_sample(state, layout, values, out)
-            numpy_sample(companion, layout, values, other)
-            _sample_errors(out, other, recent, error_out)
+            if state.propagation is not None and state.propagation.active:
+                _off_grid_error(out, recent, error_out)  # (ready: not a grid sample)
+            else:
+                numpy_sample(companion, layout, values, other)
+                _sample_errors(out, other, recent, error_out)
             _track_values(state, values)
             if state.undetermined:
                 _mark_undetermined(state, out, error_out)
@@ -369,7 +397,13 @@ def sample_stepper(state, backend="numpy"):
             return True
         if seen < first or seen + 1 >= next_check(seen):
             return False
-        span[:] = seen, next_check(seen) - 1
+        last = next_check(seen) - 1
+        propagation = state.propagation
+        if propagation is not None and seen + 1 >= propagation.switch:
+            if not propagation.active or (seen + 1) % GRID == 0:
+                return False  # a grid sample: the engine captures it
+            last = min(last, seen + (-(seen + 1)) % GRID)
+        span[:] = seen, last
         return True
 
     # in the start-up both estimates are NaN: the raw error is NaN and 0 joins the
@@ -435,6 +469,9 @@ def next_check(n_seen):
 
 def _piece(state, rows, backend, out, error_out, scratch=None):
     """Estimator, companion and numerical error over a piece with no check inside."""
+    if state.propagation is not None and state.propagation.active:
+        _propagated_piece(state, rows, backend, out, error_out)
+        return
     core.advance_rows(state, rows, out, backend)  # rows and out checked by the caller
     other = core.advance_rows(state.companion, rows,
                               np.empty(out.shape) if scratch is None else scratch, backend)
@@ -447,6 +484,32 @@ def _piece(state, rows, backend, out, error_out, scratch=None):
     else:
         _block_error(out, other, state.recent_errors, error_out)
         _track_channels(state, rows)
+    if state.undetermined:
+        _mark_undetermined(state, out, error_out)
+
+
+def _propagated_piece(state, rows, backend, out, error_out):
+    """:func:`_piece` past the switch: the estimator alone, and the companion's estimates
+    propagated at the grid samples (:mod:`algid.estimation._error_propagation`); the
+    estimates stand for them elsewhere (a relative difference of 0, NaN where the
+    estimate is NaN), and the window carries the grid samples' differences."""
+    propagation = state.propagation
+    other = np.empty(out.shape)
+    if backend == "numba":
+        from algid.estimation._core_numba import advance as numba_advance
+        numba_advance(state, core.integrator_layout(state.model), rows, out, other=other)
+        block_error, _ = _compiled()
+        block_error(out, other, state.recent_errors, error_out)
+    else:
+        first = state.n_seen
+        core.advance_rows(state, rows, out, backend)  # the engine captures the grid samples
+        other[...] = out
+        for capture in propagation.captured:
+            other[:, capture.seen - first - 1] = companion_estimates(
+                propagation, state.model, capture, state.dt)
+        propagation.captured.clear()
+        _block_error(out, other, state.recent_errors, error_out)
+    _track_channels(state, rows)
     if state.undetermined:
         _mark_undetermined(state, out, error_out)
 
@@ -512,6 +575,18 @@ def _sample_errors(estimates, other, recent, out):
         out[j] = max(largest, value) if finite else raw
         held = held[1:] + [value] if held else held
     recent[:] = held
+
+
+def _off_grid_error(estimates, recent, out):
+    """The numerical error of one sample between grid samples of the propagation: the
+    window's largest value (:func:`window_maximum`), NaN where an estimate is NaN."""
+    held = recent.tolist()
+    if any(math.isnan(v) for v in estimates[:, 0].tolist()):
+        out[0] = math.nan
+    else:
+        out[0] = max(max(held), 0.0) if held else 0.0
+    recent[:-1] = recent[1:]
+    recent[-1] = 0.0
 
 
 @cache

@@ -13,7 +13,8 @@ A chunk of one sample (a stream fed a sample at a time) takes ``advance_sample``
 same operations in the same order on the state's own arrays, with no working array.
 ``advance_sample_pair`` advances an estimator and its companion over one sample and
 computes the numerical error (:func:`algid.estimation._numerical_error_numba.sample_error`), in one
-compiled call.
+compiled call.  With the error propagation active, ``advance`` also forms the companion's
+estimates at its grid samples (:mod:`algid.estimation._error_propagation`).
 
 The text depends only on the model: ``python -m derivation`` writes it for every
 built-in model beside its NumPy module; a user model gets it in memory
@@ -81,6 +82,75 @@ def _integrate_sample_source():
             "    history[k, W - 1] = value",
             "    integrals[k] = total",
             "    return total"]
+
+
+def _propagation_source(a, layout, n_par):
+    """Lines that form the companion's estimates at the grid samples of a block, as
+    :func:`algid.estimation._error_propagation.companion_estimates` does (the same
+    operations in the same order, one grid sample at a time), into ``other``; ``other``
+    holds the estimates elsewhere."""
+    lanes = layout.n_lanes
+    a("        # the companion's estimates at the grid samples (estimation._error_propagation)")
+    a("        if other.shape[1]:")
+    a("            for b in range(nb):")
+    for r in range(n_par):
+        a(f"                other[{r}, start + b] = out[{r}, start + b]")
+    a("            b = (GRID - (n0 + start + 1) % GRID) % GRID")
+    a("            while b < nb:")
+    a("                j = W + b")
+    a("                since = (n0 + start + b + 1 - switch) * dt")
+    a("                power = 1.0")
+    a("                for jj in range(residuals.shape[1]):")
+    a("                    if jj:")
+    a("                        power = power * since / jj")
+    a("                    powers[jj] = power")
+    # the telescoped level below every kernel: one loop over the taps, a sum per kernel
+    # (independent sums side by side: the loop is not bound by the additions' latency)
+    integrated = [(i, level, c) for i, (level, c) in enumerate(layout.kernels) if level]
+    a("                base = j - taps.shape[0] + 1")
+    for i, level, c in integrated:
+        a(f"                t{i} = y{c}_{level - 1}[base] * taps[0]")
+    a("                for k in range(1, taps.shape[0]):")
+    for i, level, c in integrated:
+        a(f"                    t{i} = t{i} + y{c}_{level - 1}[base + k] * taps[k]")
+    for i, (level, c) in enumerate(layout.kernels):
+        if level:
+            a(f"                c{i} = y{c}_{level}[j] + {float(level)!r} * t{i}")
+            a(f"                for jj in range({level}):")
+            a(f"                    c{i} = c{i} + residuals[{i}, jj] * powers[jj]")
+        else:
+            a(f"                c{i} = y{c}_{level}[j] + 0.0")
+    kernels = ", ".join(f"c{i}" for i in range(len(layout.kernels)))
+    a(f"                P, Q = _regressors_packed(({kernels},))")
+    a("                nums, den = _cramer(P, Q)")
+    for r in range(n_par):
+        a(f"                g{r} = nums[{r}] - fb[0, {r}, j]")
+    a(f"                g{n_par} = den - fb[0, {n_par}, j]")
+    for r in range(lanes):
+        a(f"                h{r} = lane_difference[{r}]")
+        a(f"                lane_difference[{r}] = g{r}")
+    a("                for lev in range(filter_order - 1):")
+    for r in range(lanes):
+        a(f"                    u{r} = fb[lev, {r}, base] * taps[0]")
+    a("                    for k in range(1, taps.shape[0]):")
+    for r in range(lanes):
+        a(f"                        u{r} = u{r} + fb[lev, {r}, base + k] * taps[k]")
+    for r in range(lanes):
+        # the trapezoid over the grid, plus the telescoped difference of the rules
+        a(f"                    step = GRID * dt / 2.0 * (h{r} + g{r})"
+          f" + (u{r} - telescoped[lev, {r}])")
+        a(f"                    telescoped[lev, {r}] = u{r}")
+        a(f"                    h{r} = level_difference[lev, {r}]")
+        a(f"                    g{r} = h{r} + step")
+        a(f"                    level_difference[lev, {r}] = g{r}")
+    a(f"                d = fb[filter_order - 1, {n_par}, j] + g{n_par}")
+    a("                if d == 0.0 or not math.isfinite(d):")
+    for r in range(n_par):
+        a(f"                    other[{r}, start + b] = np.nan")
+    a("                else:")
+    for r in range(n_par):
+        a(f"                    other[{r}, start + b] = (fb[filter_order - 1, {r}, j] + g{r}) / d")
+    a("                b += GRID")
 
 
 def _level_zero(a, layout, indent, index):
@@ -189,6 +259,7 @@ def numba_module_source(module, *, header, cache=True) -> str:
            f"Channels: {', '.join(f'{c} = {n!r}' for c, n in zip(channels, module.CHANNELS))}.",
            "", header, '"""', "", "import math", "", "import numba", "import numpy as np", "",
            f"from {module.__name__} import cramer, regressors_packed",
+           "from algid.estimation._error_propagation import GRID",
            "from algid.estimation._numerical_error_numba import sample_error, sample_extent", "",
            f"CACHE = {bool(cache)!r}", f"BLOCK = {BLOCK}", "",
            "_regressors_packed = numba.njit(cache=CACHE, nogil=True)(regressors_packed)",
@@ -197,22 +268,26 @@ def numba_module_source(module, *, header, cache=True) -> str:
            *_integrate_sample_source(), "", "", *_sample_source(layout, channels, n_par), "", "",
            "@numba.njit(cache=CACHE, nogil=True)",
            f"def advance({', '.join(channels)}, out, integrals, history, n0, dt, divisors,",
-           "            weights, startup, filter_order, from_origin):",
+           "            weights, startup, filter_order, from_origin, taps, residuals,",
+           "            switch, lane_difference, level_difference, telescoped, other):",
            '    """Advance the state (integrals, history) over the chunk; estimates into out.',
            "",
            "    The state layout is that of estimation._core.integrator_layout.  With from_origin",
            "    the chunk starts at the time origin and holds at least len(weights) samples.",
-           '    """']
+           "    With columns in other (as many as samples), the error propagation is active:",
+           "    the companion's estimates at its grid samples go there, the estimates elsewhere",
+           '    (the other arguments: its state, algid.estimation._error_propagation)."""']
     a = src.append
     # max(.., 0): W + b is then known to be non-negative, and the compiler drops the
     # negative-index wraparound from every access (about a fifth of the loop's time)
     a("    W = max(weights.shape[0] - 1, 0)")
     a(f"    size = {channels[0]}.shape[0]")
-    a("    if size == 1 and not from_origin:")
+    a("    if size == 1 and not from_origin and other.shape[1] == 0:")
     a(f"        advance_sample({', '.join(c + '[0]' for c in channels)}, out, integrals, history,"
       " n0, dt,")
     a("                       divisors, weights, filter_order)")
     a("        return")
+    a("    powers = np.empty(residuals.shape[1])")
     a("    # y<c>_<l>[:W]: the last W values of level l of chain c before the block;")
     a("    # y<c>_<l>[W + b]: its value at sample b of the block; all are views into one")
     a("    # scratch array (one allocation per call)")
@@ -303,6 +378,7 @@ def numba_module_source(module, *, header, cache=True) -> str:
     a("            else:")
     for r in range(n_par):
         a(f"                out[{r}, start + b] = fb[filter_order, {r}, W + b] / d")
+    _propagation_source(a, layout, n_par)
     a("        # the last W values of every integrand start the next block")
     a("        for i in range(W):")
     for c, d in enumerate(chain_depth):

@@ -1,0 +1,115 @@
+"""The companion's estimate propagated on a grid (algid.estimation._error_propagation).
+
+The propagation is not what ``algid.estimate`` reports yet (the generated C still runs
+the full companion, and the C's error must equal the estimate's): these tests switch it
+on (``PROPAGATE``) and check that both engines and every chunking give the same numbers,
+that they are those of the study in ``benchmarks.error_propagation``, and that the error
+so formed is as honest as the full companion's.
+"""
+
+import sys
+
+import numpy as np
+import pytest
+from conftest import ROOT
+
+import algid
+import algid.estimation._numerical_error as numerical_error
+from algid.estimation import _backends as backends
+from algid.estimation._error_propagation import GRID, SWITCH, difference_taps
+from algid.signals._quadrature import integrator_weights
+
+if str(ROOT) not in sys.path:
+    sys.path.insert(0, str(ROOT))
+
+from benchmarks.error_propagation import propagated_error  # noqa: E402
+from benchmarks.population import draw_plants, exact_response  # noqa: E402
+from estimation.test_numerical_error import actual_error, plant  # noqa: E402
+
+ENGINES = ["numpy"] + (["numba"] if backends.numba_available() else [])
+#: light damping, two sines, 30 samples per period: 40 periods (about 2100 samples)
+LONG = plant(0.02, 50.0, 30, sines=((1, 0.8, 0.1), (0.5, 1.4, 2.0)), periods=40)
+
+
+@pytest.fixture
+def propagated(monkeypatch):
+    monkeypatch.setattr(numerical_error, "PROPAGATE", True)
+
+
+def _increments(f, points, dt):
+    """The rule's increment at every sample from ``points - 1`` on (oldest first)."""
+    weights = integrator_weights(points, dt)[0]
+    return np.correlate(f, weights, mode="valid")
+
+
+@pytest.mark.parametrize("points, companion_points", [(8, 9), (4, 5), (9, 8)])
+def test_the_rules_differ_by_a_telescoped_fir(points, companion_points):
+    """Past both rules' start-up, the companion's increment minus the estimator's is
+    ``T f[n] - T f[n - 1]``: their running sums differ by ``T f`` and a constant."""
+    dt = 1e-3
+    f = np.random.default_rng(3).standard_normal(300)
+    taps = difference_taps(points, companion_points, dt)
+    first = max(points, companion_points) - 1  # the first sample both rules reach
+    ours = _increments(f, points, dt)[first - points + 1:]
+    theirs = _increments(f, companion_points, dt)[first - companion_points + 1:]
+    telescoped = np.correlate(f, taps, mode="valid")[first - taps.size + 1:]
+    np.testing.assert_allclose(theirs[1:] - ours[1:], np.diff(telescoped),
+                               rtol=0, atol=1e-15)
+
+
+@pytest.mark.parametrize("engine", ENGINES)
+def test_streams_and_engines_give_the_same_numbers(propagated, engine):
+    p = LONG
+    t, f, x = exact_response(p)
+    assert t.size > SWITCH + 4 * GRID
+    batch = algid.estimate(t, f, x, engine=engine)
+    reference = algid.estimate(t, f, x, engine="numpy")
+    np.testing.assert_array_equal(batch.numerical_error, reference.numerical_error)
+    for chunk in (1, 7, 1000):
+        online = algid.OnlineEstimator(dt=p.dt, engine=engine)
+        error = np.concatenate([online.update(t[i:i + chunk], f[i:i + chunk],
+                                              x[i:i + chunk]).numerical_error
+                                for i in range(0, t.size, chunk)])
+        np.testing.assert_array_equal(error, batch.numerical_error)
+
+
+def test_the_full_companion_runs_until_the_switch(propagated, monkeypatch):
+    p = LONG
+    t, f, x = exact_response(p)
+    on = algid.estimate(t, f, x, engine="numpy")
+    monkeypatch.setattr(numerical_error, "PROPAGATE", False)
+    full = algid.estimate(t, f, x, engine="numpy")
+    np.testing.assert_array_equal(on.B, full.B)  # the estimates are not touched
+    np.testing.assert_array_equal(on.numerical_error[:SWITCH], full.numerical_error[:SWITCH])
+    assert not np.array_equal(on.numerical_error, full.numerical_error)
+
+
+def test_it_is_the_study(propagated):
+    """The engines' numbers at the final sample are the study's (formed there in one
+    block, from the same arrays)."""
+    p = LONG
+    t, f, x = exact_response(p)
+    error, estimates = propagated_error(t, f, x)
+    r = algid.estimate(t, f, x, engine="numpy")
+    assert r.numerical_error[-1] == pytest.approx(error, rel=1e-12)
+    assert (r.B[-1], r.K[-1]) == tuple(estimates)
+
+
+def test_it_is_as_honest_as_the_full_companion(propagated, monkeypatch):
+    """On the population's records long enough to switch: the reported error bounds the
+    actual one within 10x (or that is below 1e-10), as the full companion's does, and
+    the two agree in size."""
+    plants = [p for p in draw_plants(120, seed=0) if p.n > SWITCH + 4 * GRID][:25]
+    assert len(plants) == 25
+    ratios = []
+    for p in plants:
+        t, f, x = exact_response(p)
+        r = algid.estimate(t, f, x)
+        actual = actual_error(r, p)[-1]
+        reported = r.numerical_error[-1]
+        assert actual <= 10 * reported or actual < 1e-10, (p, actual, reported)
+        monkeypatch.setattr(numerical_error, "PROPAGATE", False)
+        ratios.append(reported / algid.estimate(t, f, x).numerical_error[-1])
+        monkeypatch.setattr(numerical_error, "PROPAGATE", True)
+    assert 0.5 < np.median(ratios) < 2.0
+    assert np.min(ratios) > 0.05 and np.max(ratios) < 20.0
