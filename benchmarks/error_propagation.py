@@ -51,57 +51,11 @@ import numpy as np
 import algid
 import algid.estimation._core as core
 import algid.estimation._core_numpy as core_numpy
+from algid.estimation._error_propagation import GRID, SWITCH, difference_taps, kernels_at, lanes_of
 from algid.estimation._numerical_error import WINDOW, relative_difference, with_companion
 from algid.models._registry import load_model
-from algid.signals._quadrature import integrator_weights
 
 __all__ = ["difference_taps", "propagated_error", "compare", "main", "GRID", "SWITCH"]
-
-#: The companion's estimate is formed every this many samples.
-GRID = 8
-#: The full companion runs for this many samples after the origin.
-SWITCH = 1024
-
-
-def difference_taps(points, companion_points, dt):
-    """The FIR ``T`` whose running difference is that of two rules' increments.
-
-    Parameters
-    ----------
-    points, companion_points : int
-        Points of the estimator's rule and of the companion's.
-    dt : float
-        Sampling step [s] (folded into the taps, as in the integrators' weights).
-
-    Returns
-    -------
-    ndarray, shape (max(points, companion_points) - 1,)
-        Oldest sample first: ``T f[n] = taps @ f[n - len(taps) + 1 : n + 1]`` and
-        ``T f[n] - T f[n - 1]`` is the companion's increment minus the estimator's.
-    """
-    ours = integrator_weights(points, dt)[0][::-1]  # by lag
-    theirs = integrator_weights(companion_points, dt)[0][::-1]
-    difference = np.zeros(max(points, companion_points))
-    difference[:companion_points] += theirs
-    difference[:points] -= ours
-    running = np.cumsum(difference)  # its last value is 0: both rules integrate 1
-    return running[:-1][::-1].copy()
-
-
-def _lanes(model, kernels):
-    P, Q = model.regressors_packed(kernels)
-    numerators, denominator = model.cramer(P, Q)
-    shape = np.shape(kernels[0])
-    return np.array([np.broadcast_to(v, shape) for v in (*numerators, denominator)],
-                    dtype=float)
-
-
-def _kernels_of(state, layout):
-    """The kernels at the state's last sample (level 0: the newest integrand)."""
-    return [state.history[row][-1] if level == 0 else
-            state.integrals[layout.level_start(level) + row]
-            for level, row in layout.kernels]
-
 
 def _fir_at(padded, row, ends, taps):
     """``taps @`` the samples of ``padded[row]`` ending at every index of ``ends``."""
@@ -154,8 +108,8 @@ def propagated_error(t, f, x, *, points=8, filter_order=2, model="msd"):
             residual[level, row] = (companion.integrals[i] - state.integrals[i]
                                     - level * (longer.history[i] @ taps))
     n_lanes, first_filter = layout.n_lanes, layout.n_chain_integrators
-    lane_difference = (_lanes(module, _kernels_of(companion, layout))
-                       - _lanes(module, _kernels_of(state, layout)))
+    lane_difference = (lanes_of(module, kernels_at(companion, layout))
+                       - lanes_of(module, kernels_at(state, layout)))
     filters = [slice(first_filter + k * n_lanes, first_filter + (k + 1) * n_lanes)
                for k in range(filter_order - 1)]
     level_difference = [companion.integrals[s] - state.integrals[s] for s in filters]
@@ -182,7 +136,7 @@ def propagated_error(t, f, x, *, points=8, filter_order=2, model="msd"):
             correction += residual[level - j, row] * since**j / math.factorial(j)
         theirs.append(value + correction)
     below = np.concatenate([lane_difference[:, None],
-                            _lanes(module, theirs) - _lanes(module, ours)], axis=1)
+                            lanes_of(module, theirs) - lanes_of(module, ours)], axis=1)
     chain_steps = len(work.levels) - 1
     for k in range(1, filter_order):
         driving = work.steps[chain_steps + k - 1][0]  # the estimator's filter level k - 1

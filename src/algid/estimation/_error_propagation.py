@@ -40,8 +40,9 @@ import numpy as np
 
 from algid.signals._quadrature import integrator_weights
 
-__all__ = ["difference_taps", "Propagation", "Capture", "new_propagation", "start",
-           "capture_levels", "companion_estimates", "GRID", "SWITCH"]
+__all__ = ["difference_taps", "lanes_of", "kernels_at", "Propagation", "Capture",
+           "new_propagation", "start", "capture_levels", "companion_estimates", "GRID",
+           "SWITCH"]
 
 #: The companion's estimate is formed every this many samples (samples seen since the
 #: origin a multiple of it).
@@ -172,7 +173,7 @@ def new_propagation(state, companion, layout):
                        telescoped=np.zeros((below, n_lanes)), switch=SWITCH)
 
 
-def _lanes(model, kernels):
+def lanes_of(model, kernels):
     """Cramer's numerators and denominator of the kernels (rows), shape (n_lanes, ...)."""
     P, Q = model.regressors_packed(tuple(kernels))
     numerators, denominator = model.cramer(P, Q)
@@ -181,7 +182,7 @@ def _lanes(model, kernels):
                     dtype=float)
 
 
-def _kernels_of(state, layout):
+def kernels_at(state, layout):
     """The kernels at the state's last sample (level 0: the newest integrand)."""
     return np.array([state.history[row, -1] if level == 0 else
                      state.integrals[layout.level_start(level) + row]
@@ -208,8 +209,8 @@ def start(propagation, state, companion, layout):
             k = layout.level_start(level - j) + row
             propagation.residuals[i, j] = (companion.integrals[k] - state.integrals[k]
                                            - (level - j) * (longer.history[k] @ taps))
-    propagation.lanes[:] = (_lanes(state.model, _kernels_of(companion, layout))
-                            - _lanes(state.model, _kernels_of(state, layout)))
+    propagation.lanes[:] = (lanes_of(state.model, kernels_at(companion, layout))
+                            - lanes_of(state.model, kernels_at(state, layout)))
     n_lanes, first = layout.n_lanes, layout.n_chain_integrators
     for k in range(propagation.levels.shape[0]):
         span = slice(first + k * n_lanes, first + (k + 1) * n_lanes)
@@ -303,7 +304,7 @@ def companion_estimates(propagation, model, capture, dt):
             power = power * since / j
         used = levels > j
         theirs[used] += propagation.residuals[used, j, None] * power
-    below = _lanes(model, theirs) - _lanes(model, capture.kernels)  # filter level 0
+    below = lanes_of(model, theirs) - lanes_of(model, capture.kernels)  # filter level 0
     previous = propagation.lanes.copy()
     propagation.lanes[:] = below[:, -1]
     for k in range(propagation.levels.shape[0]):  # filter level k + 1

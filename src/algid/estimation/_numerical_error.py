@@ -362,7 +362,7 @@ def sample_stepper(state, backend="numpy"):
         def advance(values, out, error_out):  # (the hottest path of a stream)
             if state.propagation is not None and state.propagation.active:
                 alone(*values, out, state.n_seen)  # (ready: not a grid sample)
-                _off_grid_error(out, recent, error_out)
+                _sample_errors(out, out, recent, error_out)  # the estimate stands in
                 _track_values(state, values)
             else:
                 pair(*values, state.n_seen, dt, *arguments, out, error_out)
@@ -381,7 +381,7 @@ def sample_stepper(state, backend="numpy"):
         def advance(values, out, error_out):
             numpy_sample(state, layout, values, out)
             if state.propagation is not None and state.propagation.active:
-                _off_grid_error(out, recent, error_out)  # (ready: not a grid sample)
+                _sample_errors(out, out, recent, error_out)  # (ready: not a grid sample)
             else:
                 numpy_sample(companion, layout, values, other)
                 _sample_errors(out, other, recent, error_out)
@@ -575,18 +575,6 @@ def _sample_errors(estimates, other, recent, out):
         out[j] = max(largest, value) if finite else raw
         held = held[1:] + [value] if held else held
     recent[:] = held
-
-
-def _off_grid_error(estimates, recent, out):
-    """The numerical error of one sample between grid samples of the propagation: the
-    window's largest value (:func:`window_maximum`), NaN where an estimate is NaN."""
-    held = recent.tolist()
-    if any(math.isnan(v) for v in estimates[:, 0].tolist()):
-        out[0] = math.nan
-    else:
-        out[0] = max(max(held), 0.0) if held else 0.0
-    recent[:-1] = recent[1:]
-    recent[-1] = 0.0
 
 
 @cache

@@ -144,13 +144,20 @@ def _propagation_source(a, layout, n_par):
         a(f"                    g{r} = h{r} + step")
         a(f"                    level_difference[lev, {r}] = g{r}")
     a(f"                d = fb[filter_order - 1, {n_par}, j] + g{n_par}")
-    a("                if d == 0.0 or not math.isfinite(d):")
-    for r in range(n_par):
-        a(f"                    other[{r}, start + b] = np.nan")
-    a("                else:")
-    for r in range(n_par):
-        a(f"                    other[{r}, start + b] = (fb[filter_order - 1, {r}, j] + g{r}) / d")
+    _divide(a, "                ", n_par, "d", lambda r: f"other[{r}, start + b]",
+            lambda r: f"(fb[filter_order - 1, {r}, j] + g{r})")
     a("                b += GRID")
+
+
+def _divide(a, indent, n_par, denominator, target, numerator):
+    """Lines that divide the numerators by the denominator into the targets, NaN where
+    the denominator is zero or not finite (as the NumPy backend's ``_divide``)."""
+    a(f"{indent}if {denominator} == 0.0 or not math.isfinite({denominator}):")
+    for r in range(n_par):
+        a(f"{indent}    {target(r)} = np.nan")
+    a(f"{indent}else:")
+    for r in range(n_par):
+        a(f"{indent}    {target(r)} = {numerator(r)} / {denominator}")
 
 
 def _level_zero(a, layout, indent, index):
@@ -196,12 +203,7 @@ def _sample_source(layout, channels, n_par):
     for r in range(lanes):
         a(f"        f{r} = _integrate_sample(integrals, history, {k} + lev * {lanes} + {r},"
           f" f{r}, weights)")
-    a(f"    if f{n_par} == 0.0 or not math.isfinite(f{n_par}):")
-    for r in range(n_par):
-        a(f"        out[{r}, 0] = np.nan")
-    a("    else:")
-    for r in range(n_par):
-        a(f"        out[{r}, 0] = f{r} / f{n_par}")
+    _divide(a, "    ", n_par, f"f{n_par}", lambda r: f"out[{r}, 0]", lambda r: f"f{r}")
     src += ["", "",
             "@numba.njit(cache=CACHE, nogil=True)",
             f"def advance_sample_pair({names}, n0, dt, buffer, offsets, filter_order,",
@@ -372,12 +374,8 @@ def numba_module_source(module, *, header, cache=True) -> str:
         a(f"            fs[lev, {r}] = t{r}")
     a("        for b in range(nb):")
     a(f"            d = fb[filter_order, {n_par}, W + b]")
-    a("            if d == 0.0 or not math.isfinite(d):")
-    for r in range(n_par):
-        a(f"                out[{r}, start + b] = np.nan")
-    a("            else:")
-    for r in range(n_par):
-        a(f"                out[{r}, start + b] = fb[filter_order, {r}, W + b] / d")
+    _divide(a, "            ", n_par, "d", lambda r: f"out[{r}, start + b]",
+            lambda r: f"fb[filter_order, {r}, W + b]")
     _propagation_source(a, layout, n_par)
     a("        # the last W values of every integrand start the next block")
     a("        for i in range(W):")
