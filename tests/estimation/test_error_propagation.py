@@ -1,10 +1,10 @@
 """The companion's estimate propagated on a grid (algid.estimation._error_propagation).
 
-The propagation is not what ``algid.estimate`` reports yet (the generated C still runs
-the full companion, and the C's error must equal the estimate's): these tests switch it
-on (``PROPAGATE``) and check that both engines and every chunking give the same numbers,
-that they are those of the study in ``benchmarks.error_propagation``, and that the error
-so formed is as honest as the full companion's.
+What ``algid.estimate`` reports past the switch (``PROPAGATE``; the fixture makes sure
+of it): both engines and every chunking give the same numbers, they are those of the
+study in ``benchmarks.error_propagation``, and the error so formed is as honest as the
+full companion's (``PROPAGATE`` off).  The generated C's equality with it is tested in
+``tests/symbolic/test_codegen_c.py``.
 """
 
 import sys

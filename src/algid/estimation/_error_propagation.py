@@ -203,19 +203,22 @@ def start(propagation, state, companion, layout):
         Of their model.
     """
     taps = propagation.taps = difference_taps(state.points, companion.points, state.dt)
-    longer = state if state.points > companion.points else companion  # keeps len(taps)
+    # the history of whichever keeps len(taps) samples; the sums tap after tap, oldest
+    # first (as the generated C)
+    longer = state if state.points > companion.points else companion
     for i, (level, row) in enumerate(layout.kernels):
         for j in range(level):
             k = layout.level_start(level - j) + row
-            propagation.residuals[i, j] = (companion.integrals[k] - state.integrals[k]
-                                           - (level - j) * (longer.history[k] @ taps))
+            propagation.residuals[i, j] = (
+                companion.integrals[k] - state.integrals[k]
+                - (level - j) * _grid_fir(longer.history[k], 0, 1, taps)[0])
     propagation.lanes[:] = (lanes_of(state.model, kernels_at(companion, layout))
                             - lanes_of(state.model, kernels_at(state, layout)))
     n_lanes, first = layout.n_lanes, layout.n_chain_integrators
     for k in range(propagation.levels.shape[0]):
         span = slice(first + k * n_lanes, first + (k + 1) * n_lanes)
         propagation.levels[k] = companion.integrals[span] - state.integrals[span]
-        propagation.telescoped[k] = longer.history[span] @ taps
+        propagation.telescoped[k] = _grid_fir(longer.history[span], 0, 1, taps)[:, 0]
     propagation.active = True
     propagation.captured.clear()
 

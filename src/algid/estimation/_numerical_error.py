@@ -112,9 +112,9 @@ def with_companion(state: core.EstimatorState) -> core.EstimatorState:
 #: power of two).
 WINDOW = 16
 #: Whether the companion's estimate is propagated from the estimator's integrals after
-#: :data:`algid.estimation._error_propagation.SWITCH` samples.  Both engines do it with
-#: the same numbers; off until the generated C does too (its error must equal this one).
-PROPAGATE = False
+#: :data:`algid.estimation._error_propagation.SWITCH` samples (both engines and the
+#: generated C, with the same numbers); off: the full companion throughout.
+PROPAGATE = True
 
 
 def window_maximum(raw, recent, out):

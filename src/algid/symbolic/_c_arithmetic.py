@@ -299,37 +299,93 @@ def sample_loop_function(w):
         "/* Samples after the start-up (w->n >= q), one by one: for short chunks, where",
         "   the set-up of a block costs more than it saves.  Same arithmetic as the blocks. */",
         f"static void {pre}_samples({pre}_window *w, const double *u, const double *y, size_t n,",
-        f"{' ' * (len(pre) + 16)}double dt, double *theta)",
+        f"{' ' * (len(pre) + 16)}double dt, double *theta{_grid_parameters(w)})",
         "{",
         "    double *const s = w->sum;",
         f"    double (*const h)[{w.PRE}_M] = w->hist;",
         "    double count = w->n;",
         f"    double kv[{len(w.kernels)}], lanes[{w.lanes}];",
         "    size_t i;",
+    ]
+    if w.grid:
+        lines += [f"    double below[{len(w.kernels)}], fir[{_grid_levels(w) * w.lanes}], "
+                  f"lanes0[{w.lanes}], top[{w.lanes}];",
+                  "    int on_grid, r;"]
+    lines += [
         "    for (i = 0; i < n; ++i, count += 1.0) {",
         "        const double tau = count * dt;",
     ]
+    if w.grid:
+        lines.append(f"        on_grid = g != NULL && fmod(count + 1.0, {w.grid_step}.0) == 0.0;")
     value = {}
     for c in range(len(w.chains)):
         lines.append(f"        const double c{c}_0 = {level0(w, c, 'tau', 'u[i]', 'y[i]')};")
         value[(c, 0)] = f"c{c}_0"
+    chain_of = {(s, pw): c for c, (s, pw, _) in enumerate(w.chains)}
+    # the kernels whose level below is this integrator's integrand (the grid's sums of
+    # that integrand, before the step moves its history on)
+    fed_by = {}
+    for idx, k in enumerate(w.kernels):
+        if k.order:
+            fed_by.setdefault((chain_of[(k.signal, k.power)], k.order), []).append(idx)
     # level by level: independent chains side by side
     for c, lev in sorted(w.chain_ints, key=lambda cl: (cl[1], cl[0])):
         idx = w.chain_ints.index((c, lev))
+        for kernel in fed_by.get((c, lev), []) if w.grid else []:
+            lines.append(f"        below[{kernel}] = on_grid ? {pre}_sum_history(h[{idx}], "
+                         f"c{c}_{lev - 1}, g->taps) : 0.0;")
         lines.append(f"        const double c{c}_{lev} = {pre}_integrate(&s[{idx}], h[{idx}], "
                      f"c{c}_{lev - 1}, dt);")
-    chain_of = {(s, pw): c for c, (s, pw, _) in enumerate(w.chains)}
     for idx, k in enumerate(w.kernels):
         lines.append(f"        kv[{idx}] = c{chain_of[(k.signal, k.power)]}_{k.order};")
+        if w.grid and not k.order:
+            lines.append(f"        below[{idx}] = 0.0;")
     lines.append(f"        {w.algebra_pre}_algebra(kv, lanes);")
+    if w.grid:
+        lines.append(f"        for (r = 0; r < {w.lanes}; ++r) lanes0[r] = lanes[r];")
     n_chain = len(w.chain_ints)
     for lev in range(w.p):
+        if w.grid and lev == w.p - 1:
+            lines.append(f"        for (r = 0; r < {w.lanes}; ++r) top[r] = lanes[r];")
         for r in range(w.lanes):
             k = n_chain + lev * w.lanes + r
+            if w.grid and lev < w.p - 1:
+                lines.append(f"        if (on_grid) fir[{lev * w.lanes + r}] = "
+                             f"{pre}_sum_history(h[{k}], lanes[{r}], g->taps);")
             lines.append(f"        lanes[{r}] = {pre}_integrate(&s[{k}], h[{k}], lanes[{r}], dt);")
-    lines += [f"        {pre}_divide(lanes, theta + i * {w.n_par});", "    }",
-              "    w->n = count;", "}", ""]
+    lines.append(f"        {pre}_divide(lanes, theta + i * {w.n_par});")
+    if w.grid:
+        lines += _grid_row(w, "i", "count", "        ")
+    lines += ["    }", "    w->n = count;", "}", ""]
     return lines
+
+
+def _grid_levels(w):
+    """Rows of the grid's filter arrays (at least one: C has no empty arrays)."""
+    return max(1, w.p - 1)
+
+
+def _grid_parameters(w):
+    """The extra parameters of an estimator's loops that form the propagated companion
+    (:mod:`algid.estimation._error_propagation`): its state and the companion's rows."""
+    return f",\n{' ' * (len(w.pre) + 16)}{w.pre}_grid *g, double *other" if w.grid else ""
+
+
+def _grid_row(w, row, count, pad):
+    """Lines that write row ``row`` of ``other``: the companion's estimates at a grid
+    sample (the kernels, the sums below, the filter's sums, lanes0 and top gathered),
+    the estimates elsewhere."""
+    n_par = w.n_par
+    return [f"{pad}if (g != NULL) {{",
+            f"{pad}    if (on_grid) {{",
+            f"{pad}        {w.pre}_grid_other(g, kv, below, fir, lanes0, top,",
+            f"{pad}                           ({count} + 1.0 - {w.grid_switch}.0) * dt, dt,",
+            f"{pad}                           other + {row} * {n_par});",
+            f"{pad}    }} else {{",
+            f"{pad}        for (r = 0; r < {n_par}; ++r) other[{row} * {n_par} + (size_t)r] = "
+            f"theta[{row} * {n_par} + (size_t)r];",
+            f"{pad}    }}",
+            f"{pad}}}"]
 
 def block_loop_function(w):
     """``<pre>_blocks``: samples after the start-up, in blocks (long chunks).
@@ -367,7 +423,7 @@ def block_loop_function(w):
         '__attribute__((target_clones("avx2", "default")))',
         "#endif",
         f"static void {pre}_blocks({pre}_window *w, const double *u, const double *y, size_t n,",
-        f"{' ' * (len(pre) + 15)}double dt, double *theta)",
+        f"{' ' * (len(pre) + 15)}double dt, double *theta{_grid_parameters(w)})",
         "{",
         f"    double lv[{w.levels}][{P}_M + {P}_BLOCK];",
         f"    double fl[{w.p + 1}][{w.lanes}][{P}_M + {P}_BLOCK];",
@@ -382,6 +438,10 @@ def block_loop_function(w):
     ]
     if w.p:
         lines.append("    int lev;")
+    if w.grid:
+        lines += [f"    double kv[{len(w.kernels)}], below[{len(w.kernels)}], "
+                  f"fir[{_grid_levels(w) * w.lanes}], lanes0[{w.lanes}], top[{w.lanes}];",
+                  "    int on_grid;"]
     lines += [f"    for (k = 0; k < {P}_NI; ++k) s[k] = w->sum[k];",
               f"    for (i = 0; i < {P}_M; ++i) {{"]
     for k, (c, lev) in enumerate(w.chain_ints):
@@ -455,8 +515,33 @@ def block_loop_function(w):
     lines += ["        for (b = 0; b < nb; ++b) {",
               f"            for (r = 0; r < {w.lanes}; ++r) row[r] = fl[{w.p}][r][{P}_M + b];",
               f"            {pre}_divide(row, theta + (start + b) * {w.n_par});",
-              "        }",
-              "        /* the last M values of every level start the next block */",
+              "        }"]
+    if w.grid:
+        lines += ["        /* the propagated companion (algid.estimation._error_propagation) */",
+                  "        for (b = 0; b < nb; ++b) {",
+                  "            const size_t j = " + P + "_M + b;",
+                  f"            on_grid = g != NULL && fmod(count + (double)b + 1.0, "
+                  f"{w.grid_step}.0) == 0.0;",
+                  "            if (on_grid) {"]
+        for idx in range(len(w.kernels)):
+            kern = w.kernels[idx]
+            row = base[chain_of[(kern.signal, kern.power)]] + kern.order
+            lines.append(f"                kv[{idx}] = lv[{row}][j];")
+            below = f"{pre}_sum_block(lv[{row - 1}], j, g->taps)" if kern.order else "0.0"
+            lines.append(f"                below[{idx}] = {below};")
+        lines += [f"                for (r = 0; r < {w.lanes}; ++r) {{",
+                  "                    lanes0[r] = fl[0][r][j];",
+                  f"                    top[r] = fl[{w.p - 1}][r][j];",
+                  "                }"]
+        if w.p > 1:
+            lines += [f"                for (lev = 0; lev < {w.p - 1}; ++lev) {{",
+                      f"                    for (r = 0; r < {w.lanes}; ++r) fir[lev * {w.lanes} + r]"
+                      f" = {pre}_sum_block(fl[lev][r], j, g->taps);",
+                      "                }"]
+        lines.append("            }")
+        lines += _grid_row(w, "(start + b)", "(count + (double)b)", "            ")
+        lines.append("        }")
+    lines += ["        /* the last M values of every level start the next block */",
               f"        for (i = 0; i < {P}_M; ++i) {{",
               f"            for (k = 0; k < {w.levels}; ++k) lv[k][i] = lv[k][nb + (size_t)i];"]
     if w.p:

@@ -43,6 +43,7 @@ import sympy as sp
 import algid.symbolic._c_arithmetic as c_loops
 from algid.errors import ModelError
 from algid.estimation._core import EARLY_POINTS, first_estimate
+from algid.estimation._error_propagation import GRID, SWITCH
 from algid.estimation._numerical_error import WINDOW, companion_options
 from algid.estimation._options import DEFAULT_QUADRATURE_POINTS
 from algid.signals._quadrature import QUADRATURE_POINTS
@@ -267,6 +268,8 @@ class _Writer:
         self.companion = None
         self.block_macro = None  # the BLOCK of another writer, for a companion's
         self.algebra_pre = self.pre  # whose <pre>_algebra the loops call
+        self.grid = False  # whether the loops form the propagated companion
+        self.grid_step, self.grid_switch = GRID, SWITCH
         if companion:
             # the companion's code: the same writer, for its rule and filter; its blocks
             # are this estimator's (one stack size to set)
@@ -276,6 +279,18 @@ class _Writer:
             self.companion.block_macro = f"{self.PRE}_BLOCK"
             self.companion.algebra_pre = self.pre  # the same algebra: written once
             self.state_doubles += 2 * self.companion.window_doubles + 2 * (WINDOW - 1)
+            # past the switch the companion's estimates are propagated on a grid from the
+            # estimator's integrals (as algid.estimation._error_propagation.new_propagation
+            # decides: a companion with one filter level less)
+            self.grid = p >= 1 and other_p == p - 1
+            if self.grid:
+                self.taps = max(q, other_q) - 1
+                self.orders = [k.order for k in self.kernels]
+                self.powers = max(1, max(self.orders))
+                rows = max(1, p - 1)
+                self.grid_doubles = (1 + self.taps + len(self.kernels) * self.powers
+                                     + self.lanes + 2 * rows * self.lanes)
+                self.state_doubles += 2 * self.grid_doubles
 
     def stack_bytes(self, block):
         """Bytes of the arrays of the block loop for blocks of ``block`` samples (the
@@ -360,12 +375,23 @@ class _Writer:
             f"   largest over the last {WINDOW} samples; NaN where theta is, inf where only the",
             "   companion is undefined.  Unlike algid.estimate, it does not test whether the",
             "   samples determine the parameters (see the user guide).",
+            *self._grid_note(),
             "   Returns n (0 if u, y or theta is NULL and n > 0, or state is NULL). */",
             f"size_t {pre}_update(void *state, const double *u, const double *y, size_t n,",
             f"{' ' * (len(pre) + 14)}double *theta, double *error);",
             "", "#ifdef __cplusplus", "}", "#endif", "", f"#endif /* {guard} */", ""]
         del name
         return "\n".join(lines)
+
+    def _grid_note(self):
+        """The header's words on the propagated companion, if the estimator has it."""
+        if not self.grid:
+            return []
+        return [f"   {self.grid_switch} samples after an origin the companion stops: its "
+                "estimates are then",
+                f"   formed every {self.grid_step} samples from the estimator's integrals, as "
+                "algid.estimate",
+                "   forms them."]
 
     # ------------------------------------------------------------------ source
 
@@ -377,6 +403,8 @@ class _Writer:
             out += [f"/* ---- the companion: {self.companion.q}-point rule, filter order "
                     f"{self.companion.p} ---- */", ""]
             out += self.companion._estimator_code()
+            if self.grid:
+                out += self._grid_code()
             out += self._state_struct()
             out += self._error_function()
             out += self._pair_feed()
@@ -390,6 +418,8 @@ class _Writer:
         if self.algebra_pre == self.pre:
             out += c_loops.algebra_function(self)
         out += self._finish()
+        if self.grid:
+            out += self._grid_struct()
         out += c_loops.startup_functions(self)
         out += c_loops.integrator_step_function(self)
         out += c_loops.sample_loop_function(self)
@@ -458,6 +488,8 @@ class _Writer:
         companion = [] if self.companion is None else [
             f"    {self.companion.pre}_window companion[2];  /* the companions of A and B */",
             f"    double recent[2][{WINDOW - 1}];  /* their last raw errors (finite; else 0) */"]
+        if self.grid:
+            companion.append(f"    {pre}_grid grid[2];  /* their propagation past the switch */")
         return [
             "typedef struct {",
             "    double dt;",
@@ -487,8 +519,173 @@ class _Writer:
         lines += ["    }", "}", ""]
         return lines
 
+    def _grid_struct(self):
+        """The propagation's state, its sums and the companion's estimates at a grid
+        sample (:mod:`algid.estimation._error_propagation`: the same operations in the
+        same order)."""
+        pre, n_par, lanes, T = self.pre, self.n_par, self.lanes, self.taps
+        nk, powers, rows = len(self.kernels), self.powers, max(1, self.p - 1)
+        m = self.q - 1
+        history = [f"hist[{m - T + 1 + k}]" if m - T + 1 + k < m else "v" for k in range(T)]
+        orders = ", ".join(str(o) for o in self.orders)
+        lines = [
+            f"/* Past {self.grid_switch} samples from the origin the companion no longer runs:",
+            f"   every {self.grid_step} samples its estimates are formed from the estimator's own",
+            "   integrals (its chains from the telescoped difference of the two rules, taps,",
+            "   and the residuals at the switch as polynomials; its filter levels by the",
+            "   trapezoid over the grid), as algid.estimation._error_propagation does. */",
+            "typedef struct {",
+            "    double active;  /* 1 past the switch */",
+            f"    double taps[{T}];  /* the telescoped difference of the rules, oldest first */",
+            f"    double residual[{nk}][{powers}];  /* per kernel, the coefficients of t**j / j! */",
+            f"    double lane[{lanes}];  /* the companion's lanes minus the estimator's */",
+            f"    double level[{rows}][{lanes}];  /* ... of filter levels 1 .. p - 1 */",
+            f"    double tele[{rows}][{lanes}];  /* the sums of filter levels 0 .. p - 2 */",
+            f"}} {pre}_grid;",
+            "",
+            f"/* Levels of the kernels (kv order). */",
+            f"static const int {pre}_orders[{nk}] = {{{orders}}};",
+            "",
+            "/* taps @ the samples of a ending at j, oldest first. */",
+            f"static double {pre}_sum_block(const double *a, size_t j, const double *taps)",
+            "{",
+            f"    double acc = a[j - {T - 1}] * taps[0];",
+            "    int k;",
+            f"    for (k = 1; k < {T}; ++k) acc = acc + a[j - {T - 1} + (size_t)k] * taps[k];",
+            "    return acc;",
+            "}",
+            "",
+            "/* taps @ an integrator's history followed by its integrand v. */",
+            f"static double {pre}_sum_history(const double *hist, double v, const double *taps)",
+            "{",
+            f"    double acc = {history[0]} * taps[0];",
+            *[f"    acc = acc + {value} * taps[{k}];" for k, value in enumerate(history) if k],
+            "    return acc;",
+            "}",
+            "",
+            "/* The companion's estimates at a grid sample into row: from the estimator's",
+            "   kernels kv, the sums below them, the sums fir of filter levels 0 .. p - 2,",
+            "   filter levels 0 (lanes0) and p - 1 (top); since: time since the switch. */",
+            f"static void {pre}_grid_other({pre}_grid *g, const double *kv, const double *below,",
+            f"{' ' * (len(pre) + 18)}const double *fir, const double *lanes0, const double *top,",
+            f"{' ' * (len(pre) + 18)}double since, double dt, double *row)",
+            "{",
+            f"    double c[{nk}], lanes[{lanes}], now[{lanes}], before[{lanes}], power[{powers}];",
+            "    double d, step, previous;",
+            "    int i, j, r, lev;",
+            "    power[0] = 1.0;",
+            f"    for (j = 1; j < {powers}; ++j) power[j] = power[j - 1] * since / (double)j;",
+            f"    for (i = 0; i < {nk}; ++i) {{",
+            f"        c[i] = kv[i] + (double){pre}_orders[i] * below[i];",
+            f"        for (j = 0; j < {pre}_orders[i]; ++j) c[i] = c[i] + g->residual[i][j] * "
+            "power[j];",
+            "    }",
+            f"    {pre}_algebra(c, lanes);",
+            f"    for (r = 0; r < {lanes}; ++r) {{",
+            "        now[r] = lanes[r] - lanes0[r];",
+            "        before[r] = g->lane[r];",
+            "        g->lane[r] = now[r];",
+            "    }",
+            f"    for (lev = 0; lev < {self.p - 1}; ++lev) {{",
+            f"        for (r = 0; r < {lanes}; ++r) {{",
+            f"            step = {self.grid_step}.0 * dt / 2.0 * (before[r] + now[r])"
+            f" + (fir[lev * {lanes} + r] - g->tele[lev][r]);",
+            f"            g->tele[lev][r] = fir[lev * {lanes} + r];",
+            "            previous = g->level[lev][r];",
+            "            before[r] = previous;",
+            "            now[r] = previous + step;",
+            "            g->level[lev][r] = now[r];",
+            "        }",
+            "    }",
+            f"    d = top[{n_par}] + now[{n_par}];",
+            "    if (d == 0.0 || !isfinite(d)) {",
+            f"        for (r = 0; r < {n_par}; ++r) row[r] = NAN;",
+            "    } else {",
+            f"        for (r = 0; r < {n_par}; ++r) row[r] = (top[r] + now[r]) / d;",
+            "    }",
+            "}",
+            "",
+        ]
+        return lines
+
+    def _grid_code(self):
+        """The switch: the propagation's state from the estimator's and the companion's
+        windows (as algid.estimation._error_propagation.start)."""
+        pre, other, lanes, T = self.pre, self.companion, self.lanes, self.taps
+        q, cq = self.q, other.q
+        longer = "c" if cq > q else "w"
+        chain_of = {(sig, pw): c for c, (sig, pw, _) in enumerate(self.chains)}
+        n_chain = len(self.chain_ints)
+        lines = [
+            "/* The rules' telescoped difference: the running sum of the companion's weights",
+            "   minus the estimator's (by lag), newest lag last, reversed. */",
+            f"static void {pre}_grid_taps(double dt, double *taps)",
+            "{",
+            f"    double difference[{T + 1}], running = 0.0;",
+            "    int k;",
+            f"    for (k = 0; k < {T + 1}; ++k) difference[k] = 0.0;",
+            f"    for (k = 0; k < {cq}; ++k) difference[k] += {other.pre}_w[{cq - 1} - k] * dt;",
+            f"    for (k = 0; k < {q}; ++k) difference[k] -= {pre}_w[{q - 1} - k] * dt;",
+            f"    for (k = 0; k < {T}; ++k) {{",
+            "        running += difference[k];",
+            f"        taps[{T - 1} - k] = running;",
+            "    }",
+            "}",
+            "",
+            f"/* taps @ a history of {T} samples, oldest first. */",
+            f"static double {pre}_grid_sum(const double *hist, const double *taps)",
+            "{",
+            "    double acc = hist[0] * taps[0];",
+            "    int k;",
+            f"    for (k = 1; k < {T}; ++k) acc = acc + hist[k] * taps[k];",
+            "    return acc;",
+            "}",
+            "",
+            "/* At the switch: the differences of the companion's window c from the",
+            "   estimator's w, and the propagation starts. */",
+            f"static void {pre}_grid_start({pre}_grid *g, const {pre}_window *w,",
+            f"{' ' * (len(pre) + 18)}const {other.pre}_window *c, double dt)",
+            "{",
+            f"    double kw[{len(self.kernels)}], kc[{len(self.kernels)}], lw[{lanes}], "
+            f"lc[{lanes}];",
+            "    int r, lev;",
+            f"    {pre}_grid_taps(dt, g->taps);",
+        ]
+        for i, k in enumerate(self.kernels):
+            ch = chain_of[(k.signal, k.power)]
+            for j in range(k.order):
+                idx = self.chain_ints.index((ch, k.order - j))
+                lines.append(f"    g->residual[{i}][{j}] = c->sum[{idx}] - w->sum[{idx}] - "
+                             f"{float(k.order - j)!r} * {pre}_grid_sum({longer}->hist[{idx}], "
+                             "g->taps);")
+            if k.order:
+                idx = self.chain_ints.index((ch, k.order))
+                lines += [f"    kw[{i}] = w->sum[{idx}];", f"    kc[{i}] = c->sum[{idx}];"]
+            else:  # the newest integrand of the chain's first integrator
+                idx = self.chain_ints.index((ch, 1))
+                lines += [f"    kw[{i}] = w->hist[{idx}][{q - 2}];",
+                          f"    kc[{i}] = c->hist[{idx}][{cq - 2}];"]
+        lines += [f"    {pre}_algebra(kc, lc);",
+                  f"    {pre}_algebra(kw, lw);",
+                  f"    for (r = 0; r < {lanes}; ++r) g->lane[r] = lc[r] - lw[r];",
+                  f"    for (lev = 0; lev < {self.p - 1}; ++lev) {{",
+                  f"        for (r = 0; r < {lanes}; ++r) {{",
+                  f"            const int k = {n_chain} + lev * {lanes} + r;",
+                  "            g->level[lev][r] = c->sum[k] - w->sum[k];",
+                  f"            g->tele[lev][r] = {pre}_grid_sum({longer}->hist[k], g->taps);",
+                  "        }",
+                  "    }",
+                  "    g->active = 1.0;",
+                  "}",
+                  ""]
+        return lines
+
     def _window_feed(self):
         pre, q, n_par = self.pre, self.q, self.n_par
+        # with the propagation: its state (NULL before the switch) and the companion's rows
+        grid = ", {pre}_grid *g, double *other" if self.grid else ""
+        rows = (lambda at: f", g, other + {at} * {n_par}") if self.grid else (lambda at: "")
+        grid = grid.format(pre=pre)
         return [
             "/* Restart an estimator: the next sample is its time origin. */",
             f"static void {pre}_restart({pre}_window *w)",
@@ -504,7 +701,7 @@ class _Writer:
             "",
             "/* n samples through one estimator: start-up buffer first, then the loop. */",
             f"static void {pre}_feed({pre}_window *w, const double *u, const double *y, size_t n,",
-            f"{' ' * (len(pre) + 13)}double dt, double *theta)",
+            f"{' ' * (len(pre) + 13)}double dt, double *theta{grid})",
             "{",
             "    size_t i = 0;",
             f"    while (i < n && w->n < {q}.0) {{",
@@ -525,9 +722,9 @@ class _Writer:
             "        ++i;",
             "    }",
             f"    if (n - i > {self.PRE}_BLOCK / 4) {{",
-            f"        {pre}_blocks(w, u + i, y + i, n - i, dt, theta + i * {n_par});",
+            f"        {pre}_blocks(w, u + i, y + i, n - i, dt, theta + i * {n_par}{rows('i')});",
             "    } else if (i < n) {",
-            f"        {pre}_samples(w, u + i, y + i, n - i, dt, theta + i * {n_par});",
+            f"        {pre}_samples(w, u + i, y + i, n - i, dt, theta + i * {n_par}{rows('i')});",
             "    }",
             "}",
             "",
@@ -572,7 +769,8 @@ class _Writer:
 
     def _pair_feed(self):
         pre, P, n_par, other = self.pre, self.PRE, self.n_par, self.companion.pre
-        return [
+        grid = ", NULL, NULL" if self.grid else ""
+        lines = [
             "/* n samples through estimator k (0: A, 1: B) and its companion: estimates to",
             "   theta, the numerical error to error (if not NULL; the companion advances",
             "   either way, so that a later error is that of the whole stream). */",
@@ -581,22 +779,46 @@ class _Writer:
             f"{' ' * (len(pre) + 18)}size_t n, double *theta, double *error)",
             "{",
             f"    double rows[{P}_BLOCK * {n_par}];",
-            "    size_t piece, start, m;",
-            "    /* pieces of 16 blocks: the samples and the estimates are still in the cache",
-            "       when the companion reads them */",
-            f"    for (piece = 0; piece < n; piece += 16 * {P}_BLOCK) {{",
-            f"        const size_t end = n - piece < 16 * {P}_BLOCK ? n : piece + 16 * {P}_BLOCK;",
-            f"        {pre}_feed(&st->window[k], u + piece, y + piece, end - piece, st->dt,",
-            f"{' ' * (len(pre) + 14)}theta + piece * {n_par});",
-            "        for (start = piece; start < end; start += m) {",
-            f"            m = end - start < {P}_BLOCK ? end - start : {P}_BLOCK;",
-            f"            {other}_feed(&st->companion[k], u + start, y + start, m, st->dt, rows);",
-            "            if (error != NULL) {",
-            f"                {pre}_error(theta + start * {n_par}, rows, m, st->recent[k], "
-            "error + start);",
-            "            }",
-            "        }",
-            "    }",
+            "    size_t piece, start, m;"]
+        if self.grid:
+            lines += [
+                f"    {pre}_grid *g = &st->grid[k];",
+                f"    {pre}_window *w = &st->window[k];",
+                "    size_t end;",
+                "    piece = 0;",
+                "    while (piece < n && g->active == 0.0) {",
+                "        /* the full companion, up to the switch */",
+                f"        end = n - piece < 16 * {P}_BLOCK ? n : piece + 16 * {P}_BLOCK;",
+                f"        if (w->n < {self.grid_switch}.0 && "
+                f"(double)(end - piece) > {self.grid_switch}.0 - w->n) {{",
+                f"            end = piece + (size_t)({self.grid_switch}.0 - w->n);",
+                "        }",
+                *self._pieces_with_companion(grid),
+                f"        if (w->n == {self.grid_switch}.0) {{",
+                f"            {pre}_grid_start(g, w, &st->companion[k], st->dt);",
+                "        }",
+                "        piece = end;",
+                "    }",
+                "    /* past the switch: the estimator alone, the companion's estimates on the",
+                "       grid (rows), block by block */",
+                "    for (start = piece; start < n; start += m) {",
+                f"        m = n - start < {P}_BLOCK ? n - start : {P}_BLOCK;",
+                f"        {pre}_feed(w, u + start, y + start, m, st->dt, theta + start * {n_par},",
+                f"{' ' * (len(pre) + 14)}g, rows);",
+                "        if (error != NULL) {",
+                f"            {pre}_error(theta + start * {n_par}, rows, m, st->recent[k], "
+                "error + start);",
+                "        }",
+                "    }"]
+        else:
+            lines += [
+                "    /* pieces of 16 blocks: the samples and the estimates are still in the cache",
+                "       when the companion reads them */",
+                f"    for (piece = 0; piece < n; piece += 16 * {P}_BLOCK) {{",
+                f"        const size_t end = n - piece < 16 * {P}_BLOCK ? n : piece + 16 * {P}_BLOCK;",
+                *self._pieces_with_companion(grid)]
+            lines.append("    }")
+        lines += [
             "}",
             "",
             "/* Restart estimator k and its companion: the next sample is their origin. */",
@@ -605,10 +827,28 @@ class _Writer:
             "    int i;",
             f"    {pre}_restart(&st->window[k]);",
             f"    {other}_restart(&st->companion[k]);",
-            f"    for (i = 0; i < {WINDOW - 1}; ++i) st->recent[k][i] = 0.0;",
-            "}",
-            "",
-        ]
+            f"    for (i = 0; i < {WINDOW - 1}; ++i) st->recent[k][i] = 0.0;"]
+        if self.grid:
+            lines.append("    st->grid[k].active = 0.0;")
+        lines += ["}", ""]
+        return lines
+
+    def _pieces_with_companion(self, grid):
+        """Lines that feed samples piece .. end - 1 to estimator k, then block by block to
+        its companion, and the numerical error (pieces of 16 blocks: the samples and the
+        estimates are still in the cache when the companion reads them)."""
+        pre, P, n_par, other = self.pre, self.PRE, self.n_par, self.companion.pre
+        return [
+            f"        {pre}_feed(&st->window[k], u + piece, y + piece, end - piece, st->dt,",
+            f"{' ' * (len(pre) + 14)}theta + piece * {n_par}{grid});",
+            "        for (start = piece; start < end; start += m) {",
+            f"            m = end - start < {P}_BLOCK ? end - start : {P}_BLOCK;",
+            f"            {other}_feed(&st->companion[k], u + start, y + start, m, st->dt, rows);",
+            "            if (error != NULL) {",
+            f"                {pre}_error(theta + start * {n_par}, rows, m, st->recent[k], "
+            "error + start);",
+            "            }",
+            "        }"]
 
     def _api(self):
         pre, P, q = self.pre, self.PRE, self.q

@@ -138,6 +138,86 @@ static void algid_msd_divide(const double *lanes, double *theta)
     }
 }
 
+/* Past 1024 samples from the origin the companion no longer runs:
+   every 8 samples its estimates are formed from the estimator's own
+   integrals (its chains from the telescoped difference of the two rules, taps,
+   and the residuals at the switch as polynomials; its filter levels by the
+   trapezoid over the grid), as algid.estimation._error_propagation does. */
+typedef struct {
+    double active;  /* 1 past the switch */
+    double taps[8];  /* the telescoped difference of the rules, oldest first */
+    double residual[11][3];  /* per kernel, the coefficients of t**j / j! */
+    double lane[3];  /* the companion's lanes minus the estimator's */
+    double level[1][3];  /* ... of filter levels 1 .. p - 1 */
+    double tele[1][3];  /* the sums of filter levels 0 .. p - 2 */
+} algid_msd_grid;
+
+/* Levels of the kernels (kv order). */
+static const int algid_msd_orders[11] = {2, 3, 2, 3, 1, 2, 3, 0, 1, 2, 3};
+
+/* taps @ the samples of a ending at j, oldest first. */
+static double algid_msd_sum_block(const double *a, size_t j, const double *taps)
+{
+    double acc = a[j - 7] * taps[0];
+    int k;
+    for (k = 1; k < 8; ++k) acc = acc + a[j - 7 + (size_t)k] * taps[k];
+    return acc;
+}
+
+/* taps @ an integrator's history followed by its integrand v. */
+static double algid_msd_sum_history(const double *hist, double v, const double *taps)
+{
+    double acc = hist[0] * taps[0];
+    acc = acc + hist[1] * taps[1];
+    acc = acc + hist[2] * taps[2];
+    acc = acc + hist[3] * taps[3];
+    acc = acc + hist[4] * taps[4];
+    acc = acc + hist[5] * taps[5];
+    acc = acc + hist[6] * taps[6];
+    acc = acc + v * taps[7];
+    return acc;
+}
+
+/* The companion's estimates at a grid sample into row: from the estimator's
+   kernels kv, the sums below them, the sums fir of filter levels 0 .. p - 2,
+   filter levels 0 (lanes0) and p - 1 (top); since: time since the switch. */
+static void algid_msd_grid_other(algid_msd_grid *g, const double *kv, const double *below,
+                           const double *fir, const double *lanes0, const double *top,
+                           double since, double dt, double *row)
+{
+    double c[11], lanes[3], now[3], before[3], power[3];
+    double d, step, previous;
+    int i, j, r, lev;
+    power[0] = 1.0;
+    for (j = 1; j < 3; ++j) power[j] = power[j - 1] * since / (double)j;
+    for (i = 0; i < 11; ++i) {
+        c[i] = kv[i] + (double)algid_msd_orders[i] * below[i];
+        for (j = 0; j < algid_msd_orders[i]; ++j) c[i] = c[i] + g->residual[i][j] * power[j];
+    }
+    algid_msd_algebra(c, lanes);
+    for (r = 0; r < 3; ++r) {
+        now[r] = lanes[r] - lanes0[r];
+        before[r] = g->lane[r];
+        g->lane[r] = now[r];
+    }
+    for (lev = 0; lev < 1; ++lev) {
+        for (r = 0; r < 3; ++r) {
+            step = 8.0 * dt / 2.0 * (before[r] + now[r]) + (fir[lev * 3 + r] - g->tele[lev][r]);
+            g->tele[lev][r] = fir[lev * 3 + r];
+            previous = g->level[lev][r];
+            before[r] = previous;
+            now[r] = previous + step;
+            g->level[lev][r] = now[r];
+        }
+    }
+    d = top[2] + now[2];
+    if (d == 0.0 || !isfinite(d)) {
+        for (r = 0; r < 2; ++r) row[r] = NAN;
+    } else {
+        for (r = 0; r < 2; ++r) row[r] = (top[r] + now[r]) / d;
+    }
+}
+
 /* Integrate the n samples a[0 .. n-1] of an integrand with the start-up rule
    of n points; set integrator k to its state after sample n-1; out[j]: the
    integral. */
@@ -245,30 +325,44 @@ static double algid_msd_integrate(double *sum, double *hist, double v, double dt
 /* Samples after the start-up (w->n >= q), one by one: for short chunks, where
    the set-up of a block costs more than it saves.  Same arithmetic as the blocks. */
 static void algid_msd_samples(algid_msd_window *w, const double *u, const double *y, size_t n,
-                         double dt, double *theta)
+                         double dt, double *theta,
+                         algid_msd_grid *g, double *other)
 {
     double *const s = w->sum;
     double (*const h)[ALGID_MSD_M] = w->hist;
     double count = w->n;
     double kv[11], lanes[3];
     size_t i;
+    double below[11], fir[3], lanes0[3], top[3];
+    int on_grid, r;
     for (i = 0; i < n; ++i, count += 1.0) {
         const double tau = count * dt;
+        on_grid = g != NULL && fmod(count + 1.0, 8.0) == 0.0;
         const double c0_0 = (tau*tau) * u[i];
         const double c1_0 = y[i];
         const double c2_0 = tau * y[i];
         const double c3_0 = (tau*tau) * y[i];
         const double c0_1 = algid_msd_integrate(&s[0], h[0], c0_0, dt);
         const double c1_1 = algid_msd_integrate(&s[3], h[3], c1_0, dt);
+        below[4] = on_grid ? algid_msd_sum_history(h[6], c2_0, g->taps) : 0.0;
         const double c2_1 = algid_msd_integrate(&s[6], h[6], c2_0, dt);
+        below[8] = on_grid ? algid_msd_sum_history(h[9], c3_0, g->taps) : 0.0;
         const double c3_1 = algid_msd_integrate(&s[9], h[9], c3_0, dt);
+        below[0] = on_grid ? algid_msd_sum_history(h[1], c0_1, g->taps) : 0.0;
         const double c0_2 = algid_msd_integrate(&s[1], h[1], c0_1, dt);
+        below[2] = on_grid ? algid_msd_sum_history(h[4], c1_1, g->taps) : 0.0;
         const double c1_2 = algid_msd_integrate(&s[4], h[4], c1_1, dt);
+        below[5] = on_grid ? algid_msd_sum_history(h[7], c2_1, g->taps) : 0.0;
         const double c2_2 = algid_msd_integrate(&s[7], h[7], c2_1, dt);
+        below[9] = on_grid ? algid_msd_sum_history(h[10], c3_1, g->taps) : 0.0;
         const double c3_2 = algid_msd_integrate(&s[10], h[10], c3_1, dt);
+        below[1] = on_grid ? algid_msd_sum_history(h[2], c0_2, g->taps) : 0.0;
         const double c0_3 = algid_msd_integrate(&s[2], h[2], c0_2, dt);
+        below[3] = on_grid ? algid_msd_sum_history(h[5], c1_2, g->taps) : 0.0;
         const double c1_3 = algid_msd_integrate(&s[5], h[5], c1_2, dt);
+        below[6] = on_grid ? algid_msd_sum_history(h[8], c2_2, g->taps) : 0.0;
         const double c2_3 = algid_msd_integrate(&s[8], h[8], c2_2, dt);
+        below[10] = on_grid ? algid_msd_sum_history(h[11], c3_2, g->taps) : 0.0;
         const double c3_3 = algid_msd_integrate(&s[11], h[11], c3_2, dt);
         kv[0] = c0_2;
         kv[1] = c0_3;
@@ -278,17 +372,32 @@ static void algid_msd_samples(algid_msd_window *w, const double *u, const double
         kv[5] = c2_2;
         kv[6] = c2_3;
         kv[7] = c3_0;
+        below[7] = 0.0;
         kv[8] = c3_1;
         kv[9] = c3_2;
         kv[10] = c3_3;
         algid_msd_algebra(kv, lanes);
+        for (r = 0; r < 3; ++r) lanes0[r] = lanes[r];
+        if (on_grid) fir[0] = algid_msd_sum_history(h[12], lanes[0], g->taps);
         lanes[0] = algid_msd_integrate(&s[12], h[12], lanes[0], dt);
+        if (on_grid) fir[1] = algid_msd_sum_history(h[13], lanes[1], g->taps);
         lanes[1] = algid_msd_integrate(&s[13], h[13], lanes[1], dt);
+        if (on_grid) fir[2] = algid_msd_sum_history(h[14], lanes[2], g->taps);
         lanes[2] = algid_msd_integrate(&s[14], h[14], lanes[2], dt);
+        for (r = 0; r < 3; ++r) top[r] = lanes[r];
         lanes[0] = algid_msd_integrate(&s[15], h[15], lanes[0], dt);
         lanes[1] = algid_msd_integrate(&s[16], h[16], lanes[1], dt);
         lanes[2] = algid_msd_integrate(&s[17], h[17], lanes[2], dt);
         algid_msd_divide(lanes, theta + i * 2);
+        if (g != NULL) {
+            if (on_grid) {
+                algid_msd_grid_other(g, kv, below, fir, lanes0, top,
+                                   (count + 1.0 - 1024.0) * dt, dt,
+                                   other + i * 2);
+            } else {
+                for (r = 0; r < 2; ++r) other[i * 2 + (size_t)r] = theta[i * 2 + (size_t)r];
+            }
+        }
     }
     w->n = count;
 }
@@ -306,7 +415,8 @@ static void algid_msd_samples(algid_msd_window *w, const double *u, const double
 __attribute__((target_clones("avx2", "default")))
 #endif
 static void algid_msd_blocks(algid_msd_window *w, const double *u, const double *y, size_t n,
-                        double dt, double *theta)
+                        double dt, double *theta,
+                         algid_msd_grid *g, double *other)
 {
     double lv[16][ALGID_MSD_M + ALGID_MSD_BLOCK];
     double fl[3][3][ALGID_MSD_M + ALGID_MSD_BLOCK];
@@ -319,6 +429,8 @@ static void algid_msd_blocks(algid_msd_window *w, const double *u, const double 
     const double *a;
     double acc[4];
     int lev;
+    double kv[11], below[11], fir[3], lanes0[3], top[3];
+    int on_grid;
     for (k = 0; k < ALGID_MSD_NI; ++k) s[k] = w->sum[k];
     for (i = 0; i < ALGID_MSD_M; ++i) {
         lv[0][i] = w->hist[0][i];
@@ -482,6 +594,51 @@ static void algid_msd_blocks(algid_msd_window *w, const double *u, const double 
             for (r = 0; r < 3; ++r) row[r] = fl[2][r][ALGID_MSD_M + b];
             algid_msd_divide(row, theta + (start + b) * 2);
         }
+        /* the propagated companion (algid.estimation._error_propagation) */
+        for (b = 0; b < nb; ++b) {
+            const size_t j = ALGID_MSD_M + b;
+            on_grid = g != NULL && fmod(count + (double)b + 1.0, 8.0) == 0.0;
+            if (on_grid) {
+                kv[0] = lv[2][j];
+                below[0] = algid_msd_sum_block(lv[1], j, g->taps);
+                kv[1] = lv[3][j];
+                below[1] = algid_msd_sum_block(lv[2], j, g->taps);
+                kv[2] = lv[6][j];
+                below[2] = algid_msd_sum_block(lv[5], j, g->taps);
+                kv[3] = lv[7][j];
+                below[3] = algid_msd_sum_block(lv[6], j, g->taps);
+                kv[4] = lv[9][j];
+                below[4] = algid_msd_sum_block(lv[8], j, g->taps);
+                kv[5] = lv[10][j];
+                below[5] = algid_msd_sum_block(lv[9], j, g->taps);
+                kv[6] = lv[11][j];
+                below[6] = algid_msd_sum_block(lv[10], j, g->taps);
+                kv[7] = lv[12][j];
+                below[7] = 0.0;
+                kv[8] = lv[13][j];
+                below[8] = algid_msd_sum_block(lv[12], j, g->taps);
+                kv[9] = lv[14][j];
+                below[9] = algid_msd_sum_block(lv[13], j, g->taps);
+                kv[10] = lv[15][j];
+                below[10] = algid_msd_sum_block(lv[14], j, g->taps);
+                for (r = 0; r < 3; ++r) {
+                    lanes0[r] = fl[0][r][j];
+                    top[r] = fl[1][r][j];
+                }
+                for (lev = 0; lev < 1; ++lev) {
+                    for (r = 0; r < 3; ++r) fir[lev * 3 + r] = algid_msd_sum_block(fl[lev][r], j, g->taps);
+                }
+            }
+            if (g != NULL) {
+                if (on_grid) {
+                    algid_msd_grid_other(g, kv, below, fir, lanes0, top,
+                                       ((count + (double)b) + 1.0 - 1024.0) * dt, dt,
+                                       other + (start + b) * 2);
+                } else {
+                    for (r = 0; r < 2; ++r) other[(start + b) * 2 + (size_t)r] = theta[(start + b) * 2 + (size_t)r];
+                }
+            }
+        }
         /* the last M values of every level start the next block */
         for (i = 0; i < ALGID_MSD_M; ++i) {
             for (k = 0; k < 16; ++k) lv[k][i] = lv[k][nb + (size_t)i];
@@ -526,7 +683,7 @@ static void algid_msd_restart(algid_msd_window *w)
 
 /* n samples through one estimator: start-up buffer first, then the loop. */
 static void algid_msd_feed(algid_msd_window *w, const double *u, const double *y, size_t n,
-                      double dt, double *theta)
+                      double dt, double *theta, algid_msd_grid *g, double *other)
 {
     size_t i = 0;
     while (i < n && w->n < 8.0) {
@@ -547,9 +704,9 @@ static void algid_msd_feed(algid_msd_window *w, const double *u, const double *y
         ++i;
     }
     if (n - i > ALGID_MSD_BLOCK / 4) {
-        algid_msd_blocks(w, u + i, y + i, n - i, dt, theta + i * 2);
+        algid_msd_blocks(w, u + i, y + i, n - i, dt, theta + i * 2, g, other + i * 2);
     } else if (i < n) {
-        algid_msd_samples(w, u + i, y + i, n - i, dt, theta + i * 2);
+        algid_msd_samples(w, u + i, y + i, n - i, dt, theta + i * 2, g, other + i * 2);
     }
 }
 
@@ -1094,6 +1251,95 @@ static void algid_msd_companion_feed(algid_msd_companion_window *w, const double
     }
 }
 
+/* The rules' telescoped difference: the running sum of the companion's weights
+   minus the estimator's (by lag), newest lag last, reversed. */
+static void algid_msd_grid_taps(double dt, double *taps)
+{
+    double difference[9], running = 0.0;
+    int k;
+    for (k = 0; k < 9; ++k) difference[k] = 0.0;
+    for (k = 0; k < 9; ++k) difference[k] += algid_msd_companion_w[8 - k] * dt;
+    for (k = 0; k < 8; ++k) difference[k] -= algid_msd_w[7 - k] * dt;
+    for (k = 0; k < 8; ++k) {
+        running += difference[k];
+        taps[7 - k] = running;
+    }
+}
+
+/* taps @ a history of 8 samples, oldest first. */
+static double algid_msd_grid_sum(const double *hist, const double *taps)
+{
+    double acc = hist[0] * taps[0];
+    int k;
+    for (k = 1; k < 8; ++k) acc = acc + hist[k] * taps[k];
+    return acc;
+}
+
+/* At the switch: the differences of the companion's window c from the
+   estimator's w, and the propagation starts. */
+static void algid_msd_grid_start(algid_msd_grid *g, const algid_msd_window *w,
+                           const algid_msd_companion_window *c, double dt)
+{
+    double kw[11], kc[11], lw[3], lc[3];
+    int r, lev;
+    algid_msd_grid_taps(dt, g->taps);
+    g->residual[0][0] = c->sum[1] - w->sum[1] - 2.0 * algid_msd_grid_sum(c->hist[1], g->taps);
+    g->residual[0][1] = c->sum[0] - w->sum[0] - 1.0 * algid_msd_grid_sum(c->hist[0], g->taps);
+    kw[0] = w->sum[1];
+    kc[0] = c->sum[1];
+    g->residual[1][0] = c->sum[2] - w->sum[2] - 3.0 * algid_msd_grid_sum(c->hist[2], g->taps);
+    g->residual[1][1] = c->sum[1] - w->sum[1] - 2.0 * algid_msd_grid_sum(c->hist[1], g->taps);
+    g->residual[1][2] = c->sum[0] - w->sum[0] - 1.0 * algid_msd_grid_sum(c->hist[0], g->taps);
+    kw[1] = w->sum[2];
+    kc[1] = c->sum[2];
+    g->residual[2][0] = c->sum[4] - w->sum[4] - 2.0 * algid_msd_grid_sum(c->hist[4], g->taps);
+    g->residual[2][1] = c->sum[3] - w->sum[3] - 1.0 * algid_msd_grid_sum(c->hist[3], g->taps);
+    kw[2] = w->sum[4];
+    kc[2] = c->sum[4];
+    g->residual[3][0] = c->sum[5] - w->sum[5] - 3.0 * algid_msd_grid_sum(c->hist[5], g->taps);
+    g->residual[3][1] = c->sum[4] - w->sum[4] - 2.0 * algid_msd_grid_sum(c->hist[4], g->taps);
+    g->residual[3][2] = c->sum[3] - w->sum[3] - 1.0 * algid_msd_grid_sum(c->hist[3], g->taps);
+    kw[3] = w->sum[5];
+    kc[3] = c->sum[5];
+    g->residual[4][0] = c->sum[6] - w->sum[6] - 1.0 * algid_msd_grid_sum(c->hist[6], g->taps);
+    kw[4] = w->sum[6];
+    kc[4] = c->sum[6];
+    g->residual[5][0] = c->sum[7] - w->sum[7] - 2.0 * algid_msd_grid_sum(c->hist[7], g->taps);
+    g->residual[5][1] = c->sum[6] - w->sum[6] - 1.0 * algid_msd_grid_sum(c->hist[6], g->taps);
+    kw[5] = w->sum[7];
+    kc[5] = c->sum[7];
+    g->residual[6][0] = c->sum[8] - w->sum[8] - 3.0 * algid_msd_grid_sum(c->hist[8], g->taps);
+    g->residual[6][1] = c->sum[7] - w->sum[7] - 2.0 * algid_msd_grid_sum(c->hist[7], g->taps);
+    g->residual[6][2] = c->sum[6] - w->sum[6] - 1.0 * algid_msd_grid_sum(c->hist[6], g->taps);
+    kw[6] = w->sum[8];
+    kc[6] = c->sum[8];
+    kw[7] = w->hist[9][6];
+    kc[7] = c->hist[9][7];
+    g->residual[8][0] = c->sum[9] - w->sum[9] - 1.0 * algid_msd_grid_sum(c->hist[9], g->taps);
+    kw[8] = w->sum[9];
+    kc[8] = c->sum[9];
+    g->residual[9][0] = c->sum[10] - w->sum[10] - 2.0 * algid_msd_grid_sum(c->hist[10], g->taps);
+    g->residual[9][1] = c->sum[9] - w->sum[9] - 1.0 * algid_msd_grid_sum(c->hist[9], g->taps);
+    kw[9] = w->sum[10];
+    kc[9] = c->sum[10];
+    g->residual[10][0] = c->sum[11] - w->sum[11] - 3.0 * algid_msd_grid_sum(c->hist[11], g->taps);
+    g->residual[10][1] = c->sum[10] - w->sum[10] - 2.0 * algid_msd_grid_sum(c->hist[10], g->taps);
+    g->residual[10][2] = c->sum[9] - w->sum[9] - 1.0 * algid_msd_grid_sum(c->hist[9], g->taps);
+    kw[10] = w->sum[11];
+    kc[10] = c->sum[11];
+    algid_msd_algebra(kc, lc);
+    algid_msd_algebra(kw, lw);
+    for (r = 0; r < 3; ++r) g->lane[r] = lc[r] - lw[r];
+    for (lev = 0; lev < 1; ++lev) {
+        for (r = 0; r < 3; ++r) {
+            const int k = 12 + lev * 3 + r;
+            g->level[lev][r] = c->sum[k] - w->sum[k];
+            g->tele[lev][r] = algid_msd_grid_sum(c->hist[k], g->taps);
+        }
+    }
+    g->active = 1.0;
+}
+
 typedef struct {
     double dt;
     double half;    /* samples per half period; 0: never re-anchor */
@@ -1102,6 +1348,7 @@ typedef struct {
     algid_msd_window window[2];  /* A, B */
     algid_msd_companion_window companion[2];  /* the companions of A and B */
     double recent[2][15];  /* their last raw errors (finite; else 0) */
+    algid_msd_grid grid[2];  /* their propagation past the switch */
 } algid_msd_state;
 
 /* The header's size of the state must hold the struct (a negative array size
@@ -1148,18 +1395,38 @@ static void algid_msd_feed_pair(algid_msd_state *st, int k, const double *u, con
 {
     double rows[ALGID_MSD_BLOCK * 2];
     size_t piece, start, m;
-    /* pieces of 16 blocks: the samples and the estimates are still in the cache
-       when the companion reads them */
-    for (piece = 0; piece < n; piece += 16 * ALGID_MSD_BLOCK) {
-        const size_t end = n - piece < 16 * ALGID_MSD_BLOCK ? n : piece + 16 * ALGID_MSD_BLOCK;
+    algid_msd_grid *g = &st->grid[k];
+    algid_msd_window *w = &st->window[k];
+    size_t end;
+    piece = 0;
+    while (piece < n && g->active == 0.0) {
+        /* the full companion, up to the switch */
+        end = n - piece < 16 * ALGID_MSD_BLOCK ? n : piece + 16 * ALGID_MSD_BLOCK;
+        if (w->n < 1024.0 && (double)(end - piece) > 1024.0 - w->n) {
+            end = piece + (size_t)(1024.0 - w->n);
+        }
         algid_msd_feed(&st->window[k], u + piece, y + piece, end - piece, st->dt,
-                       theta + piece * 2);
+                       theta + piece * 2, NULL, NULL);
         for (start = piece; start < end; start += m) {
             m = end - start < ALGID_MSD_BLOCK ? end - start : ALGID_MSD_BLOCK;
             algid_msd_companion_feed(&st->companion[k], u + start, y + start, m, st->dt, rows);
             if (error != NULL) {
                 algid_msd_error(theta + start * 2, rows, m, st->recent[k], error + start);
             }
+        }
+        if (w->n == 1024.0) {
+            algid_msd_grid_start(g, w, &st->companion[k], st->dt);
+        }
+        piece = end;
+    }
+    /* past the switch: the estimator alone, the companion's estimates on the
+       grid (rows), block by block */
+    for (start = piece; start < n; start += m) {
+        m = n - start < ALGID_MSD_BLOCK ? n - start : ALGID_MSD_BLOCK;
+        algid_msd_feed(w, u + start, y + start, m, st->dt, theta + start * 2,
+                       g, rows);
+        if (error != NULL) {
+            algid_msd_error(theta + start * 2, rows, m, st->recent[k], error + start);
         }
     }
 }
@@ -1171,6 +1438,7 @@ static void algid_msd_restart_pair(algid_msd_state *st, int k)
     algid_msd_restart(&st->window[k]);
     algid_msd_companion_restart(&st->companion[k]);
     for (i = 0; i < 15; ++i) st->recent[k][i] = 0.0;
+    st->grid[k].active = 0.0;
 }
 
 size_t algid_msd_state_size(void)

@@ -24,7 +24,7 @@ extern "C" {
 #define ALGID_MSD_MASS_STARTUP_SAMPLES 5
 /* Size of the state in doubles: a buffer `double state[ALGID_MSD_MASS_STATE_DOUBLES]`
    is large enough and suitably aligned (algid_msd_mass_state_size() bytes). */
-#define ALGID_MSD_MASS_STATE_DOUBLES 850
+#define ALGID_MSD_MASS_STATE_DOUBLES 1012
 /* Stack: update works on blocks of ALGID_MSD_MASS_BLOCK samples (default 64:
    about 21 kB of stack); define ALGID_MSD_MASS_BLOCK when compiling the .c for a
    smaller stack (ALGID_MSD_MASS_BLOCK=4: about 3 kB), with the same numbers. */
@@ -61,6 +61,9 @@ int algid_msd_mass_init(void *state, double dt, double reset_period);
    largest over the last 16 samples; NaN where theta is, inf where only the
    companion is undefined.  Unlike algid.estimate, it does not test whether the
    samples determine the parameters (see the user guide).
+   1024 samples after an origin the companion stops: its estimates are then
+   formed every 8 samples from the estimator's integrals, as algid.estimate
+   forms them.
    Returns n (0 if u, y or theta is NULL and n > 0, or state is NULL). */
 size_t algid_msd_mass_update(void *state, const double *u, const double *y, size_t n,
                             double *theta, double *error);
