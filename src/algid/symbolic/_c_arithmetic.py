@@ -535,8 +535,8 @@ def block_loop_function(w):
                   "                }"]
         if w.p > 1:
             lines += [f"                for (lev = 0; lev < {w.p - 1}; ++lev) {{",
-                      f"                    for (r = 0; r < {w.lanes}; ++r) fir[lev * {w.lanes} + r]"
-                      f" = {pre}_sum_block(fl[lev][r], j, g->taps);",
+                      f"                    for (r = 0; r < {w.lanes}; ++r) "
+                      f"fir[lev * {w.lanes} + r] = {pre}_sum_block(fl[lev][r], j, g->taps);",
                       "                }"]
         lines.append("            }")
         lines += _grid_row(w, "(start + b)", "(count + (double)b)", "            ")

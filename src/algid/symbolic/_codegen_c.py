@@ -537,13 +537,13 @@ class _Writer:
             "typedef struct {",
             "    double active;  /* 1 past the switch */",
             f"    double taps[{T}];  /* the telescoped difference of the rules, oldest first */",
-            f"    double residual[{nk}][{powers}];  /* per kernel, the coefficients of t**j / j! */",
+            f"    double residual[{nk}][{powers}];  /* per kernel: coefficients of t**j / j! */",
             f"    double lane[{lanes}];  /* the companion's lanes minus the estimator's */",
             f"    double level[{rows}][{lanes}];  /* ... of filter levels 1 .. p - 1 */",
             f"    double tele[{rows}][{lanes}];  /* the sums of filter levels 0 .. p - 2 */",
             f"}} {pre}_grid;",
             "",
-            f"/* Levels of the kernels (kv order). */",
+            "/* Levels of the kernels (kv order). */",
             f"static const int {pre}_orders[{nk}] = {{{orders}}};",
             "",
             "/* taps @ the samples of a ending at j, oldest first. */",
@@ -815,7 +815,8 @@ class _Writer:
                 "    /* pieces of 16 blocks: the samples and the estimates are still in the cache",
                 "       when the companion reads them */",
                 f"    for (piece = 0; piece < n; piece += 16 * {P}_BLOCK) {{",
-                f"        const size_t end = n - piece < 16 * {P}_BLOCK ? n : piece + 16 * {P}_BLOCK;",
+                f"        const size_t end = n - piece < 16 * {P}_BLOCK ? n : "
+                f"piece + 16 * {P}_BLOCK;",
                 *self._pieces_with_companion(grid)]
             lines.append("    }")
         lines += [

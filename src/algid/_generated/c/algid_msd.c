@@ -146,7 +146,7 @@ static void algid_msd_divide(const double *lanes, double *theta)
 typedef struct {
     double active;  /* 1 past the switch */
     double taps[8];  /* the telescoped difference of the rules, oldest first */
-    double residual[11][3];  /* per kernel, the coefficients of t**j / j! */
+    double residual[11][3];  /* per kernel: coefficients of t**j / j! */
     double lane[3];  /* the companion's lanes minus the estimator's */
     double level[1][3];  /* ... of filter levels 1 .. p - 1 */
     double tele[1][3];  /* the sums of filter levels 0 .. p - 2 */
