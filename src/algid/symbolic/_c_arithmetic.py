@@ -440,8 +440,7 @@ def block_loop_function(w):
         lines.append("    int lev;")
     if w.grid:
         lines += [f"    double kv[{len(w.kernels)}], below[{len(w.kernels)}], "
-                  f"fir[{_grid_levels(w) * w.lanes}], lanes0[{w.lanes}], top[{w.lanes}];",
-                  "    int on_grid;"]
+                  f"fir[{_grid_levels(w) * w.lanes}], lanes0[{w.lanes}], top[{w.lanes}];"]
     lines += [f"    for (k = 0; k < {P}_NI; ++k) s[k] = w->sum[k];",
               f"    for (i = 0; i < {P}_M; ++i) {{"]
     for k, (c, lev) in enumerate(w.chain_ints):
@@ -517,12 +516,15 @@ def block_loop_function(w):
               f"            {pre}_divide(row, theta + (start + b) * {w.n_par});",
               "        }"]
     if w.grid:
-        lines += ["        /* the propagated companion (algid.estimation._error_propagation) */",
-                  "        for (b = 0; b < nb; ++b) {",
-                  "            const size_t j = " + P + "_M + b;",
-                  f"            on_grid = g != NULL && fmod(count + (double)b + 1.0, "
-                  f"{w.grid_step}.0) == 0.0;",
-                  "            if (on_grid) {"]
+        n_par, step = w.n_par, w.grid_step
+        lines += ["        /* the propagated companion (algid.estimation._error_propagation): the",
+                  "           estimates stand in for it, but at the grid samples */",
+                  "        if (g != NULL) {",
+                  f"            for (b = 0; b < nb * {n_par}; ++b) other[start * {n_par} + b] = "
+                  f"theta[start * {n_par} + b];",
+                  f"            for (b = (size_t)fmod({step}.0 - fmod(count + 1.0, {step}.0), "
+                  f"{step}.0); b < nb; b += {step}) {{",
+                  "                const size_t j = " + P + "_M + b;"]
         for idx in range(len(w.kernels)):
             kern = w.kernels[idx]
             row = base[chain_of[(kern.signal, kern.power)]] + kern.order
@@ -538,9 +540,12 @@ def block_loop_function(w):
                       f"                    for (r = 0; r < {w.lanes}; ++r) "
                       f"fir[lev * {w.lanes} + r] = {pre}_sum_block(fl[lev][r], j, g->taps);",
                       "                }"]
-        lines.append("            }")
-        lines += _grid_row(w, "(start + b)", "(count + (double)b)", "            ")
-        lines.append("        }")
+        lines += [f"                {pre}_grid_other(g, kv, below, fir, lanes0, top,",
+                  f"                                 (count + (double)b + 1.0 - "
+                  f"{w.grid_switch}.0) * dt, dt,",
+                  f"                                 other + (start + b) * {n_par});",
+                  "            }",
+                  "        }"]
     lines += ["        /* the last M values of every level start the next block */",
               f"        for (i = 0; i < {P}_M; ++i) {{",
               f"            for (k = 0; k < {w.levels}; ++k) lv[k][i] = lv[k][nb + (size_t)i];"]

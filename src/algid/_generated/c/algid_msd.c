@@ -430,7 +430,6 @@ static void algid_msd_blocks(algid_msd_window *w, const double *u, const double 
     double acc[4];
     int lev;
     double kv[11], below[11], fir[3], lanes0[3], top[3];
-    int on_grid;
     for (k = 0; k < ALGID_MSD_NI; ++k) s[k] = w->sum[k];
     for (i = 0; i < ALGID_MSD_M; ++i) {
         lv[0][i] = w->hist[0][i];
@@ -594,11 +593,12 @@ static void algid_msd_blocks(algid_msd_window *w, const double *u, const double 
             for (r = 0; r < 3; ++r) row[r] = fl[2][r][ALGID_MSD_M + b];
             algid_msd_divide(row, theta + (start + b) * 2);
         }
-        /* the propagated companion (algid.estimation._error_propagation) */
-        for (b = 0; b < nb; ++b) {
-            const size_t j = ALGID_MSD_M + b;
-            on_grid = g != NULL && fmod(count + (double)b + 1.0, 8.0) == 0.0;
-            if (on_grid) {
+        /* the propagated companion (algid.estimation._error_propagation): the
+           estimates stand in for it, but at the grid samples */
+        if (g != NULL) {
+            for (b = 0; b < nb * 2; ++b) other[start * 2 + b] = theta[start * 2 + b];
+            for (b = (size_t)fmod(8.0 - fmod(count + 1.0, 8.0), 8.0); b < nb; b += 8) {
+                const size_t j = ALGID_MSD_M + b;
                 kv[0] = lv[2][j];
                 below[0] = algid_msd_sum_block(lv[1], j, g->taps);
                 kv[1] = lv[3][j];
@@ -628,15 +628,9 @@ static void algid_msd_blocks(algid_msd_window *w, const double *u, const double 
                 for (lev = 0; lev < 1; ++lev) {
                     for (r = 0; r < 3; ++r) fir[lev * 3 + r] = algid_msd_sum_block(fl[lev][r], j, g->taps);
                 }
-            }
-            if (g != NULL) {
-                if (on_grid) {
-                    algid_msd_grid_other(g, kv, below, fir, lanes0, top,
-                                       ((count + (double)b) + 1.0 - 1024.0) * dt, dt,
-                                       other + (start + b) * 2);
-                } else {
-                    for (r = 0; r < 2; ++r) other[(start + b) * 2 + (size_t)r] = theta[(start + b) * 2 + (size_t)r];
-                }
+                algid_msd_grid_other(g, kv, below, fir, lanes0, top,
+                                 (count + (double)b + 1.0 - 1024.0) * dt, dt,
+                                 other + (start + b) * 2);
             }
         }
         /* the last M values of every level start the next block */
@@ -1355,18 +1349,21 @@ typedef struct {
    stops the compilation otherwise). */
 typedef char algid_msd_state_fits[sizeof(algid_msd_state) == ALGID_MSD_STATE_DOUBLES * sizeof(double) ? 1 : -1];
 
-/* The numerical error of n rows of estimates theta against the companion's rows
-   other (as algid.estimation._numerical_error): per row the largest over the
-   parameters of |a - b| / |a| (a = b = 0: 0; a finite, b not: inf; a NaN: NaN),
-   then, when finite, the largest over this row and the 15 before it, whose
-   finite raw values recent holds (non-finite ones count as 0). */
+/* The numerical error of n <= BLOCK rows of estimates theta against the
+   companion's rows other (as algid.estimation._numerical_error): per row the
+   largest over the parameters of |a - b| / |a| (a = b = 0: 0; a finite, b not:
+   inf; a NaN: NaN), then, when finite, the largest over this row and the 15
+   before it, whose finite raw values recent holds (non-finite ones count as 0):
+   maxima of 2, 4, 8, ... rows, each pass reading the previous one's ahead. */
 static void algid_msd_error(const double *theta, const double *other, size_t n,
                        double *recent, double *error)
 {
-    size_t i;
-    int r, k;
+    double level[15 + ALGID_MSD_BLOCK];
+    size_t i, span;
+    int r;
+    for (i = 0; i < 15; ++i) level[i] = recent[i];
     for (i = 0; i < n; ++i) {
-        double raw = 0.0, value, largest;
+        double raw = 0.0;
         for (r = 0; r < 2; ++r) {
             const double a = theta[i * 2 + (size_t)r];
             const double b = other[i * 2 + (size_t)r];
@@ -1376,14 +1373,17 @@ static void algid_msd_error(const double *theta, const double *other, size_t n,
             }
             raw = (rel != rel || raw != raw) ? NAN : (rel > raw ? rel : raw);
         }
-        value = isfinite(raw) ? raw : 0.0;
-        largest = value;
-        for (k = 0; k < 15; ++k) {
-            if (recent[k] > largest) largest = recent[k];
+        error[i] = raw;
+        level[15 + i] = isfinite(raw) ? raw : 0.0;
+    }
+    for (i = 0; i < 15; ++i) recent[i] = level[n + i];
+    for (span = 1; span <= 15; span *= 2) {
+        for (i = 0; i + span < 15 + n; ++i) {
+            if (level[i + span] > level[i]) level[i] = level[i + span];
         }
-        for (k = 0; k < 14; ++k) recent[k] = recent[k + 1];
-        recent[14] = value;
-        error[i] = isfinite(raw) ? largest : raw;
+    }
+    for (i = 0; i < n; ++i) {
+        if (isfinite(error[i])) error[i] = level[i];
     }
 }
 

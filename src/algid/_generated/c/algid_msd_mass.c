@@ -466,7 +466,6 @@ static void algid_msd_mass_blocks(algid_msd_mass_window *w, const double *u, con
     double acc[4];
     int lev;
     double kv[15], below[15], fir[4], lanes0[4], top[4];
-    int on_grid;
     for (k = 0; k < ALGID_MSD_MASS_NI; ++k) s[k] = w->sum[k];
     for (i = 0; i < ALGID_MSD_MASS_M; ++i) {
         lv[0][i] = w->hist[0][i];
@@ -677,11 +676,12 @@ static void algid_msd_mass_blocks(algid_msd_mass_window *w, const double *u, con
             for (r = 0; r < 4; ++r) row[r] = fl[2][r][ALGID_MSD_MASS_M + b];
             algid_msd_mass_divide(row, theta + (start + b) * 3);
         }
-        /* the propagated companion (algid.estimation._error_propagation) */
-        for (b = 0; b < nb; ++b) {
-            const size_t j = ALGID_MSD_MASS_M + b;
-            on_grid = g != NULL && fmod(count + (double)b + 1.0, 8.0) == 0.0;
-            if (on_grid) {
+        /* the propagated companion (algid.estimation._error_propagation): the
+           estimates stand in for it, but at the grid samples */
+        if (g != NULL) {
+            for (b = 0; b < nb * 3; ++b) other[start * 3 + b] = theta[start * 3 + b];
+            for (b = (size_t)fmod(8.0 - fmod(count + 1.0, 8.0), 8.0); b < nb; b += 8) {
+                const size_t j = ALGID_MSD_MASS_M + b;
                 kv[0] = lv[2][j];
                 below[0] = algid_msd_mass_sum_block(lv[1], j, g->taps);
                 kv[1] = lv[3][j];
@@ -719,15 +719,9 @@ static void algid_msd_mass_blocks(algid_msd_mass_window *w, const double *u, con
                 for (lev = 0; lev < 1; ++lev) {
                     for (r = 0; r < 4; ++r) fir[lev * 4 + r] = algid_msd_mass_sum_block(fl[lev][r], j, g->taps);
                 }
-            }
-            if (g != NULL) {
-                if (on_grid) {
-                    algid_msd_mass_grid_other(g, kv, below, fir, lanes0, top,
-                                       ((count + (double)b) + 1.0 - 1024.0) * dt, dt,
-                                       other + (start + b) * 3);
-                } else {
-                    for (r = 0; r < 3; ++r) other[(start + b) * 3 + (size_t)r] = theta[(start + b) * 3 + (size_t)r];
-                }
+                algid_msd_mass_grid_other(g, kv, below, fir, lanes0, top,
+                                 (count + (double)b + 1.0 - 1024.0) * dt, dt,
+                                 other + (start + b) * 3);
             }
         }
         /* the last M values of every level start the next block */
@@ -1544,18 +1538,21 @@ typedef struct {
    stops the compilation otherwise). */
 typedef char algid_msd_mass_state_fits[sizeof(algid_msd_mass_state) == ALGID_MSD_MASS_STATE_DOUBLES * sizeof(double) ? 1 : -1];
 
-/* The numerical error of n rows of estimates theta against the companion's rows
-   other (as algid.estimation._numerical_error): per row the largest over the
-   parameters of |a - b| / |a| (a = b = 0: 0; a finite, b not: inf; a NaN: NaN),
-   then, when finite, the largest over this row and the 15 before it, whose
-   finite raw values recent holds (non-finite ones count as 0). */
+/* The numerical error of n <= BLOCK rows of estimates theta against the
+   companion's rows other (as algid.estimation._numerical_error): per row the
+   largest over the parameters of |a - b| / |a| (a = b = 0: 0; a finite, b not:
+   inf; a NaN: NaN), then, when finite, the largest over this row and the 15
+   before it, whose finite raw values recent holds (non-finite ones count as 0):
+   maxima of 2, 4, 8, ... rows, each pass reading the previous one's ahead. */
 static void algid_msd_mass_error(const double *theta, const double *other, size_t n,
                             double *recent, double *error)
 {
-    size_t i;
-    int r, k;
+    double level[15 + ALGID_MSD_MASS_BLOCK];
+    size_t i, span;
+    int r;
+    for (i = 0; i < 15; ++i) level[i] = recent[i];
     for (i = 0; i < n; ++i) {
-        double raw = 0.0, value, largest;
+        double raw = 0.0;
         for (r = 0; r < 3; ++r) {
             const double a = theta[i * 3 + (size_t)r];
             const double b = other[i * 3 + (size_t)r];
@@ -1565,14 +1562,17 @@ static void algid_msd_mass_error(const double *theta, const double *other, size_
             }
             raw = (rel != rel || raw != raw) ? NAN : (rel > raw ? rel : raw);
         }
-        value = isfinite(raw) ? raw : 0.0;
-        largest = value;
-        for (k = 0; k < 15; ++k) {
-            if (recent[k] > largest) largest = recent[k];
+        error[i] = raw;
+        level[15 + i] = isfinite(raw) ? raw : 0.0;
+    }
+    for (i = 0; i < 15; ++i) recent[i] = level[n + i];
+    for (span = 1; span <= 15; span *= 2) {
+        for (i = 0; i + span < 15 + n; ++i) {
+            if (level[i + span] > level[i]) level[i] = level[i + span];
         }
-        for (k = 0; k < 14; ++k) recent[k] = recent[k + 1];
-        recent[14] = value;
-        error[i] = isfinite(raw) ? largest : raw;
+    }
+    for (i = 0; i < n; ++i) {
+        if (isfinite(error[i])) error[i] = level[i];
     }
 }
 
