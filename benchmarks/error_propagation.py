@@ -1,11 +1,13 @@
 """A cheaper numerical error: the companion's difference propagated on a grid (a study).
 
 Run from the repository root: ``python -m benchmarks.error_propagation [--n 400]
-[--seed 0]``.  It is not (yet) what :func:`algid.estimate` computes: the estimator
-still runs its full companion (:mod:`algid.estimation._numerical_error`), which costs
-about as much as the estimator itself.  This module evaluates, on the plants of
-:mod:`benchmarks.population`, whether the companion's estimate can be had from the
-estimator's own integrals every :data:`GRID` samples instead, with the same honesty.
+[--seed 0]``.  :func:`algid.estimate` computes this propagation (its engines form the
+same numbers within their loops, :mod:`algid.estimation._error_propagation`); the full
+companion, which costs about as much as the estimator itself, runs only with
+``algid.estimation._numerical_error.PROPAGATE`` off.  This module evaluates, on the
+plants of :mod:`benchmarks.population`, whether the companion's estimate formed from the
+estimator's own integrals every :data:`GRID` samples is as honest as the full one, and
+forms it apart, in one block, as a check of the engines.
 
 The design, for an estimator of rule ``q`` and filter order ``p >= 1`` whose companion
 has rule ``q' = q + 1`` (``q - 1`` at the largest rule) and filter order ``p - 1``:
@@ -42,6 +44,7 @@ propagation, and the ratio of the two on the records longer than the switch.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import math
 import sys
 import time
@@ -51,6 +54,7 @@ import numpy as np
 import algid
 import algid.estimation._core as core
 import algid.estimation._core_numpy as core_numpy
+import algid.estimation._numerical_error as numerical_error
 from algid.estimation._error_propagation import GRID, SWITCH, difference_taps, kernels_at, lanes_of
 from algid.estimation._numerical_error import WINDOW, relative_difference, with_companion
 from algid.models._registry import load_model
@@ -154,6 +158,17 @@ def propagated_error(t, f, x, *, points=8, filter_order=2, model="msd"):
     return float(np.max(raw[grid > n - WINDOW])), rest[:, -1].copy()
 
 
+@contextlib.contextmanager
+def _full_companion():
+    """:func:`algid.estimate` with the full companion throughout (no propagation)."""
+    propagate = numerical_error.PROPAGATE
+    numerical_error.PROPAGATE = False
+    try:
+        yield
+    finally:
+        numerical_error.PROPAGATE = propagate
+
+
 def compare(n_plants=400, seed=0):
     """The companion's and the propagated error at the final sample of every plant.
 
@@ -174,7 +189,8 @@ def compare(n_plants=400, seed=0):
     error, companion, propagated, samples, difference = [], [], [], [], 0.0
     for plant in draw_plants(n_plants, seed):
         t, f, x = exact_response(plant)
-        result = algid.estimate(t, f, x)
+        with _full_companion():
+            result = algid.estimate(t, f, x)
         final = np.array([result.B[-1], result.K[-1]])
         actual = float(np.max(np.abs(final / np.array([plant.B, plant.K]) - 1.0)))
         error.append(actual if np.isfinite(actual) else math.inf)
