@@ -180,10 +180,12 @@ def estimate(t, f=None, x=None, *, model="msd", filter_order=DEFAULT_FILTER_ORDE
     numerical_error : bool, optional
         Estimate the numerical error of every estimate (default True): a companion
         estimator with another quadrature rule and filter order runs beside the
-        estimator (:mod:`algid.estimation._numerical_error`), which about doubles the cost; the
-        estimates are the same, except where a check finds that the samples so far do
-        not determine a parameter (NaN there, with an infinite error).  ``False`` skips
-        both (``r.numerical_error`` is then None).
+        estimator (:mod:`algid.estimation._numerical_error`; in full over the first 1024
+        samples, then propagated from the estimator's integrals), which adds about half
+        the estimator's time on long records; the estimates are the same, except where a
+        check finds that the samples so far do not determine a parameter (NaN there,
+        with an infinite error).  ``False`` skips both (``r.numerical_error`` is then
+        None).
     late_origin : bool, optional
         Also run a twin from a time origin 64 samples later and report its estimate
         wherever its numerical error is three times smaller (:mod:`algid.estimation._late_origin`):
