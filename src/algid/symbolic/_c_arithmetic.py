@@ -378,14 +378,20 @@ def _grid_row(w, row, count, pad):
     n_par = w.n_par
     return [f"{pad}if (g != NULL) {{",
             f"{pad}    if (on_grid) {{",
-            f"{pad}        {w.pre}_grid_other(g, kv, below, fir, lanes0, top,",
-            f"{pad}                           ({count} + 1.0 - {w.grid_switch}.0) * dt, dt,",
-            f"{pad}                           other + {row} * {n_par});",
+            *_grid_call(w, count, row, pad + "        "),
             f"{pad}    }} else {{",
             f"{pad}        for (r = 0; r < {n_par}; ++r) other[{row} * {n_par} + (size_t)r] = "
             f"theta[{row} * {n_par} + (size_t)r];",
             f"{pad}    }}",
             f"{pad}}}"]
+
+def _grid_call(w, count, row, pad):
+    """The call that writes the companion's estimates at the grid sample whose count
+    since the origin is ``count`` (before it) into row ``row`` of ``other``."""
+    return [f"{pad}{w.pre}_grid_other(g, kv, below, fir, lanes0, top,",
+            f"{pad}{' ' * (len(w.pre) + 12)}({count} + 1.0 - {w.grid_switch}.0) * dt, dt,",
+            f"{pad}{' ' * (len(w.pre) + 12)}other + {row} * {w.n_par});"]
+
 
 def block_loop_function(w):
     """``<pre>_blocks``: samples after the start-up, in blocks (long chunks).
@@ -540,10 +546,7 @@ def block_loop_function(w):
                       f"                    for (r = 0; r < {w.lanes}; ++r) "
                       f"fir[lev * {w.lanes} + r] = {pre}_sum_block(fl[lev][r], j, g->taps);",
                       "                }"]
-        lines += [f"                {pre}_grid_other(g, kv, below, fir, lanes0, top,",
-                  f"                                 (count + (double)b + 1.0 - "
-                  f"{w.grid_switch}.0) * dt, dt,",
-                  f"                                 other + (start + b) * {n_par});",
+        lines += [*_grid_call(w, "(count + (double)b)", "(start + b)", " " * 16),
                   "            }",
                   "        }"]
     lines += ["        /* the last M values of every level start the next block */",

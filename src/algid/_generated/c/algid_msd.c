@@ -392,8 +392,8 @@ static void algid_msd_samples(algid_msd_window *w, const double *u, const double
         if (g != NULL) {
             if (on_grid) {
                 algid_msd_grid_other(g, kv, below, fir, lanes0, top,
-                                   (count + 1.0 - 1024.0) * dt, dt,
-                                   other + i * 2);
+                                     (count + 1.0 - 1024.0) * dt, dt,
+                                     other + i * 2);
             } else {
                 for (r = 0; r < 2; ++r) other[i * 2 + (size_t)r] = theta[i * 2 + (size_t)r];
             }
@@ -629,8 +629,8 @@ static void algid_msd_blocks(algid_msd_window *w, const double *u, const double 
                     for (r = 0; r < 3; ++r) fir[lev * 3 + r] = algid_msd_sum_block(fl[lev][r], j, g->taps);
                 }
                 algid_msd_grid_other(g, kv, below, fir, lanes0, top,
-                                 (count + (double)b + 1.0 - 1024.0) * dt, dt,
-                                 other + (start + b) * 2);
+                                     ((count + (double)b) + 1.0 - 1024.0) * dt, dt,
+                                     other + (start + b) * 2);
             }
         }
         /* the last M values of every level start the next block */

@@ -428,8 +428,8 @@ static void algid_msd_mass_samples(algid_msd_mass_window *w, const double *u, co
         if (g != NULL) {
             if (on_grid) {
                 algid_msd_mass_grid_other(g, kv, below, fir, lanes0, top,
-                                   (count + 1.0 - 1024.0) * dt, dt,
-                                   other + i * 3);
+                                          (count + 1.0 - 1024.0) * dt, dt,
+                                          other + i * 3);
             } else {
                 for (r = 0; r < 3; ++r) other[i * 3 + (size_t)r] = theta[i * 3 + (size_t)r];
             }
@@ -720,8 +720,8 @@ static void algid_msd_mass_blocks(algid_msd_mass_window *w, const double *u, con
                     for (r = 0; r < 4; ++r) fir[lev * 4 + r] = algid_msd_mass_sum_block(fl[lev][r], j, g->taps);
                 }
                 algid_msd_mass_grid_other(g, kv, below, fir, lanes0, top,
-                                 (count + (double)b + 1.0 - 1024.0) * dt, dt,
-                                 other + (start + b) * 3);
+                                          ((count + (double)b) + 1.0 - 1024.0) * dt, dt,
+                                          other + (start + b) * 3);
             }
         }
         /* the last M values of every level start the next block */
