@@ -136,6 +136,8 @@ class Capture:
         ``T`` of the chain level below every kernel (0 for a kernel of level 0).
     filters : ndarray, shape (p - 1, n_lanes, g)
         ``T`` of the filter levels ``0 .. p - 2`` (level 0: the lanes).
+    lanes : ndarray, shape (n_lanes, g)
+        The estimator's filter level 0 (Cramer's numerators and denominator).
     top : ndarray, shape (n_lanes, g)
         The estimator's filter level ``p - 1``.
     """
@@ -144,6 +146,7 @@ class Capture:
     kernels: np.ndarray
     below: np.ndarray
     filters: np.ndarray
+    lanes: np.ndarray
     top: np.ndarray
 
 
@@ -265,10 +268,13 @@ def capture_levels(propagation, layout, levels, lanes, filters, n0, carried):
     stop = at + GRID * (count - 1) + 1
     kernels = np.empty((len(layout.kernels), count))
     below = np.zeros((len(layout.kernels), count))
+    # the sums of every level below a kernel, all its rows at once (level 0: none)
+    sums = {level: _grid_fir(levels[level - 1], base, count, taps)
+            for level in {level for level, _ in layout.kernels if level}}
     for i, (level, row) in enumerate(layout.kernels):
         kernels[i] = levels[level][row, at:stop:GRID]
-        if level:  # (level 0: no integral, no correction)
-            below[i] = _grid_fir(levels[level - 1][row], base, count, taps)
+        if level:
+            below[i] = sums[level][row]
     stack = (lanes, *filters)
     n_below = propagation.levels.shape[0]
     telescoped = np.empty((n_below, lanes.shape[0], count))
@@ -276,6 +282,7 @@ def capture_levels(propagation, layout, levels, lanes, filters, n0, carried):
         telescoped[k] = _grid_fir(stack[k], base, count, taps)
     propagation.captured.append(Capture(seen=n0 + first + 1 + GRID * np.arange(count),
                                         kernels=kernels, below=below, filters=telescoped,
+                                        lanes=lanes[:, at:stop:GRID].copy(),
                                         top=stack[n_below][:, at:stop:GRID].copy()))
 
 
@@ -307,7 +314,7 @@ def companion_estimates(propagation, model, capture, dt):
             power = power * since / j
         used = levels > j
         theirs[used] += propagation.residuals[used, j, None] * power
-    below = lanes_of(model, theirs) - lanes_of(model, capture.kernels)  # filter level 0
+    below = lanes_of(model, theirs) - capture.lanes  # filter level 0
     previous = propagation.lanes.copy()
     propagation.lanes[:] = below[:, -1]
     for k in range(propagation.levels.shape[0]):  # filter level k + 1
