@@ -175,21 +175,33 @@ def advance_sample_pair(channel_0, channel_1, n0, dt, buffer, offsets, filter_or
 @numba.njit(cache=CACHE, nogil=True)
 def advance(channel_0, channel_1, out, integrals, history, n0, dt, divisors,
             weights, startup, filter_order, from_origin, taps, residuals,
-            switch, lane_difference, level_difference, telescoped, other):
+            switch, lane_difference, level_difference, telescoped, recent,
+            error_out):
     """Advance the state (integrals, history) over the chunk; estimates into out.
 
     The state layout is that of estimation._core.integrator_layout.  With from_origin
     the chunk starts at the time origin and holds at least len(weights) samples.
-    With columns in other (as many as samples), the error propagation is active:
-    the companion's estimates at its grid samples go there, the estimates elsewhere
-    (the other arguments: its state, algid.estimation._error_propagation)."""
+    With samples in error_out (as many as the chunk), the error propagation is
+    active: the numerical error goes there, recent holds the window's last values
+    (estimation._numerical_error); the other arguments are the propagation's state
+    (algid.estimation._error_propagation)."""
     W = max(weights.shape[0] - 1, 0)
     size = channel_0.shape[0]
-    if size == 1 and not from_origin and other.shape[1] == 0:
+    if size == 1 and not from_origin and error_out.shape[0] == 0:
         advance_sample(channel_0[0], channel_1[0], out, integrals, history, n0, dt,
                        divisors, weights, filter_order)
         return
     powers = np.empty(residuals.shape[1])
+    # the window's state: the largest of recent from every sample on (the window of
+    # the chunk's sample c holds recent[c:]), the last two grid samples' values
+    width = recent.shape[0]
+    suffix = np.empty(width)
+    largest = 0.0
+    for i in range(width - 1, -1, -1):
+        largest = max(largest, recent[i])
+        suffix[i] = largest
+    latest = previous = 0.0
+    latest_at = previous_at = -1
     # y<c>_<l>[:W]: the last W values of level l of chain c before the block;
     # y<c>_<l>[W + b]: its value at sample b of the block; all are views into one
     # scratch array (one allocation per call)
@@ -227,6 +239,7 @@ def advance(channel_0, channel_1, out, integrals, history, n0, dt, divisors,
     fe = work[at:at + 4 * blk].reshape((4, blk))
     at += 4 * blk
     fs = work[at:at + filter_order * 4].reshape((filter_order, 4))
+    grid_raw = np.empty(blk // GRID + 1)
     s0_1 = integrals[0]
     y0_0[:W] = history[0]
     s1_1 = integrals[1]
@@ -409,13 +422,11 @@ def advance(channel_0, channel_1, out, integrals, history, n0, dt, divisors,
                 out[0, start + b] = fb[filter_order, 0, W + b] / d
                 out[1, start + b] = fb[filter_order, 1, W + b] / d
                 out[2, start + b] = fb[filter_order, 2, W + b] / d
-        # the companion's estimates at the grid samples (estimation._error_propagation)
-        if other.shape[1]:
-            for b in range(nb):
-                other[0, start + b] = out[0, start + b]
-                other[1, start + b] = out[1, start + b]
-                other[2, start + b] = out[2, start + b]
-            b = (GRID - (n0 + start + 1) % GRID) % GRID
+        # the companion's estimates at the grid samples (estimation._error_propagation),
+        # and their relative differences from the estimates into grid_raw
+        if error_out.shape[0]:
+            first_grid = (GRID - (n0 + start + 1) % GRID) % GRID
+            b = first_grid
             while b < nb:
                 j = W + b
                 since = (n0 + start + b + 1 - switch) * dt
@@ -543,14 +554,71 @@ def advance(channel_0, channel_1, out, integrals, history, n0, dt, divisors,
                     level_difference[lev, 3] = g3
                 d = fb[filter_order - 1, 3, j] + g3
                 if d == 0.0 or not math.isfinite(d):
-                    other[0, start + b] = np.nan
-                    other[1, start + b] = np.nan
-                    other[2, start + b] = np.nan
+                    o0 = np.nan
+                    o1 = np.nan
+                    o2 = np.nan
                 else:
-                    other[0, start + b] = (fb[filter_order - 1, 0, j] + g0) / d
-                    other[1, start + b] = (fb[filter_order - 1, 1, j] + g1) / d
-                    other[2, start + b] = (fb[filter_order - 1, 2, j] + g2) / d
+                    o0 = (fb[filter_order - 1, 0, j] + g0) / d
+                    o1 = (fb[filter_order - 1, 1, j] + g1) / d
+                    o2 = (fb[filter_order - 1, 2, j] + g2) / d
+                raw = 0.0
+                e = out[0, start + b]
+                if e == 0.0:  # 0 / 0 where they are equal, else inf
+                    rel = 0.0 if o0 == 0.0 else np.inf
+                elif not abs(e) < np.inf:
+                    rel = np.nan
+                else:
+                    rel = abs(e - o0) / abs(e)
+                    if rel != rel:  # the companion is NaN: the data do not determine it
+                        rel = np.inf
+                if rel != rel or raw != raw:
+                    raw = np.nan
+                elif rel > raw:
+                    raw = rel
+                e = out[1, start + b]
+                if e == 0.0:  # 0 / 0 where they are equal, else inf
+                    rel = 0.0 if o1 == 0.0 else np.inf
+                elif not abs(e) < np.inf:
+                    rel = np.nan
+                else:
+                    rel = abs(e - o1) / abs(e)
+                    if rel != rel:  # the companion is NaN: the data do not determine it
+                        rel = np.inf
+                if rel != rel or raw != raw:
+                    raw = np.nan
+                elif rel > raw:
+                    raw = rel
+                e = out[2, start + b]
+                if e == 0.0:  # 0 / 0 where they are equal, else inf
+                    rel = 0.0 if o2 == 0.0 else np.inf
+                elif not abs(e) < np.inf:
+                    rel = np.nan
+                else:
+                    rel = abs(e - o2) / abs(e)
+                    if rel != rel:  # the companion is NaN: the data do not determine it
+                        rel = np.inf
+                if rel != rel or raw != raw:
+                    raw = np.nan
+                elif rel > raw:
+                    raw = rel
+                grid_raw[(b - first_grid) // GRID] = raw
                 b += GRID
+            grid = first_grid
+            for b in range(nb):
+                c = start + b
+                if b == grid:
+                    raw = grid_raw[(b - first_grid) // GRID]
+                    grid += GRID
+                    previous = latest
+                    previous_at = latest_at
+                    latest = raw if abs(raw) < np.inf else 0.0
+                    latest_at = c
+                else:
+                    raw = 0.0 if abs(out[0, c]) < np.inf and abs(out[1, c]) < np.inf and abs(out[2, c]) < np.inf else np.nan
+                largest = max(latest, previous)
+                if c < width:
+                    largest = max(largest, suffix[c])
+                error_out[c] = largest if abs(raw) < np.inf else raw
         # the last W values of every integrand start the next block
         for i in range(W):
             y0_0[i] = y0_0[nb + i]
@@ -608,3 +676,10 @@ def advance(channel_0, channel_1, out, integrals, history, n0, dt, divisors,
         for r in range(4):
             integrals[16 + lev * 4 + r] = fs[lev, r]
             history[16 + lev * 4 + r] = fb[lev, r, :W]
+    if error_out.shape[0]:  # the window's last values: recent's, then the chunk's
+        for i in range(width):
+            recent[i] = recent[i + size] if i + size < width else 0.0
+        if latest_at >= 0 and latest_at >= size - width:
+            recent[width - size + latest_at] = latest
+        if previous_at >= 0 and previous_at >= size - width:
+            recent[width - size + previous_at] = previous

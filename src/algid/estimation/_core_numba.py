@@ -188,7 +188,7 @@ def compiled_loop(module):
 
 #: The arguments of the error propagation where it is not active.
 _NOT_PROPAGATED = (np.zeros(1), np.zeros((1, 1)), 0, np.zeros(1), np.zeros((0, 1)),
-                   np.zeros((0, 1)), np.zeros((1, 0)))
+                   np.zeros((0, 1)), np.zeros(0), np.zeros(0))
 
 
 @lru_cache(maxsize=64)
@@ -321,7 +321,7 @@ def pack_pair(state, weights, companion_weights):
     return packed, offsets
 
 
-def advance(state, layout, channels, out, *, from_origin=False, other=None):
+def advance(state, layout, channels, out, *, from_origin=False, error_out=None):
     """Estimates of a chunk into ``out``, in one compiled pass.
 
     The chunk continues the stream, or with ``from_origin`` it holds the first samples
@@ -341,18 +341,20 @@ def advance(state, layout, channels, out, *, from_origin=False, other=None):
         Float64 array the estimates are written into.
     from_origin : bool, optional
         The chunk starts at the time origin (the state holds no sample yet).
-    other : ndarray, shape (n_parameters, m), optional
+    error_out : ndarray, shape (m,), optional
         With the state's error propagation active
-        (:mod:`algid.estimation._error_propagation`): receives the companion's estimates
-        at the grid samples and the estimates elsewhere.
+        (:mod:`algid.estimation._error_propagation`): receives the numerical error
+        (``state.recent_errors`` is advanced), formed from the companion's estimates at
+        the grid samples, for which the estimates stand elsewhere.
     """
     _, _, loop, weights, startup = _fixed(state)
     if from_origin:
         state.n_seen = 0
     propagation = state.propagation
-    if other is not None:
+    if error_out is not None:
         arguments = (propagation.taps, propagation.residuals, propagation.switch,
-                     propagation.lanes, propagation.levels, propagation.telescoped, other)
+                     propagation.lanes, propagation.levels, propagation.telescoped,
+                     state.recent_errors, error_out)
     else:
         arguments = _NOT_PROPAGATED
     loop(*channels, out, state.integrals, state.history, state.n_seen, state.dt,

@@ -494,15 +494,14 @@ def _propagated_piece(state, rows, backend, out, error_out):
     estimates stand for them elsewhere (a relative difference of 0, NaN where the
     estimate is NaN), and the window carries the grid samples' differences."""
     propagation = state.propagation
-    other = np.empty(out.shape)
-    if backend == "numba":
+    if backend == "numba":  # the compiled loop writes the error itself
         from algid.estimation._core_numba import advance as numba_advance
-        numba_advance(state, core.integrator_layout(state.model), rows, out, other=other)
-        block_error, _ = _compiled()
-        block_error(out, other, state.recent_errors, error_out)
+        numba_advance(state, core.integrator_layout(state.model), rows, out,
+                      error_out=error_out)
     else:
         first = state.n_seen
         core.advance_rows(state, rows, out, backend)  # the engine captures the grid samples
+        other = np.empty(out.shape)
         other[...] = out
         for capture in propagation.captured:
             other[:, capture.seen - first - 1] = companion_estimates(

@@ -90,12 +90,11 @@ def _propagation_source(a, layout, n_par):
     operations in the same order, one grid sample at a time), into ``other``; ``other``
     holds the estimates elsewhere."""
     lanes = layout.n_lanes
-    a("        # the companion's estimates at the grid samples (estimation._error_propagation)")
-    a("        if other.shape[1]:")
-    a("            for b in range(nb):")
-    for r in range(n_par):
-        a(f"                other[{r}, start + b] = out[{r}, start + b]")
-    a("            b = (GRID - (n0 + start + 1) % GRID) % GRID")
+    a("        # the companion's estimates at the grid samples (estimation._error_propagation),")
+    a("        # and their relative differences from the estimates into grid_raw")
+    a("        if error_out.shape[0]:")
+    a("            first_grid = (GRID - (n0 + start + 1) % GRID) % GRID")
+    a("            b = first_grid")
     a("            while b < nb:")
     a("                j = W + b")
     a("                since = (n0 + start + b + 1 - switch) * dt")
@@ -144,9 +143,60 @@ def _propagation_source(a, layout, n_par):
         a(f"                    g{r} = h{r} + step")
         a(f"                    level_difference[lev, {r}] = g{r}")
     a(f"                d = fb[filter_order - 1, {n_par}, j] + g{n_par}")
-    _divide(a, "                ", n_par, "d", lambda r: f"other[{r}, start + b]",
+    _divide(a, "                ", n_par, "d", lambda r: f"o{r}",
             lambda r: f"(fb[filter_order - 1, {r}, j] + g{r})")
+    a(f"                raw = {'0.0' if n_par else 'np.nan'}")
+    for r in range(n_par):
+        _relative(a, "                ", f"out[{r}, start + b]", f"o{r}")
+    a("                grid_raw[(b - first_grid) // GRID] = raw")
     a("                b += GRID")
+    _window_source(a, n_par)
+
+
+def _relative(a, indent, estimate, companion):
+    """Lines that take the relative difference of an estimate and the companion's into
+    ``raw`` if larger (NaN if either is NaN), by the rules of
+    :func:`algid.estimation._numerical_error.relative_difference` (in branches: the
+    loop's division raises on zero)."""
+    a(f"{indent}e = {estimate}")
+    a(f"{indent}if e == 0.0:  # 0 / 0 where they are equal, else inf")
+    a(f"{indent}    rel = 0.0 if {companion} == 0.0 else np.inf")
+    a(f"{indent}elif not abs(e) < np.inf:")
+    a(f"{indent}    rel = np.nan")
+    a(f"{indent}else:")
+    a(f"{indent}    rel = abs(e - {companion}) / abs(e)")
+    a(f"{indent}    if rel != rel:  # the companion is NaN: the data do not determine it")
+    a(f"{indent}        rel = np.inf")
+    a(f"{indent}if rel != rel or raw != raw:")
+    a(f"{indent}    raw = np.nan")
+    a(f"{indent}elif rel > raw:")
+    a(f"{indent}    raw = rel")
+
+
+def _window_source(a, n_par):
+    """Lines that write the numerical error of a block's samples: the largest finite
+    relative difference over the last WINDOW samples
+    (:func:`algid.estimation._numerical_error.window_maximum`'s numbers), where the
+    differences are 0 but at the grid samples (the estimates stand for the companion's
+    there: NaN where an estimate is not finite).  Of a window's samples within the chunk
+    only its two grid samples count; of those before it, the suffix maxima of recent."""
+    finite = " and ".join(f"abs(out[{r}, c]) < np.inf" for r in range(n_par)) or "False"
+    a("            grid = first_grid")
+    a("            for b in range(nb):")
+    a("                c = start + b")
+    a("                if b == grid:")
+    a("                    raw = grid_raw[(b - first_grid) // GRID]")
+    a("                    grid += GRID")
+    a("                    previous = latest")
+    a("                    previous_at = latest_at")
+    a("                    latest = raw if abs(raw) < np.inf else 0.0")
+    a("                    latest_at = c")
+    a("                else:")
+    a(f"                    raw = 0.0 if {finite} else np.nan")
+    a("                largest = max(latest, previous)")
+    a("                if c < width:")
+    a("                    largest = max(largest, suffix[c])")
+    a("                error_out[c] = largest if abs(raw) < np.inf else raw")
 
 
 def _divide(a, indent, n_par, denominator, target, numerator):
@@ -271,25 +321,37 @@ def numba_module_source(module, *, header, cache=True) -> str:
            "@numba.njit(cache=CACHE, nogil=True)",
            f"def advance({', '.join(channels)}, out, integrals, history, n0, dt, divisors,",
            "            weights, startup, filter_order, from_origin, taps, residuals,",
-           "            switch, lane_difference, level_difference, telescoped, other):",
+           "            switch, lane_difference, level_difference, telescoped, recent,",
+           "            error_out):",
            '    """Advance the state (integrals, history) over the chunk; estimates into out.',
            "",
            "    The state layout is that of estimation._core.integrator_layout.  With from_origin",
            "    the chunk starts at the time origin and holds at least len(weights) samples.",
-           "    With columns in other (as many as samples), the error propagation is active:",
-           "    the companion's estimates at its grid samples go there, the estimates elsewhere",
-           '    (the other arguments: its state, algid.estimation._error_propagation)."""']
+           "    With samples in error_out (as many as the chunk), the error propagation is",
+           "    active: the numerical error goes there, recent holds the window's last values",
+           "    (estimation._numerical_error); the other arguments are the propagation's state",
+           '    (algid.estimation._error_propagation)."""']
     a = src.append
     # max(.., 0): W + b is then known to be non-negative, and the compiler drops the
     # negative-index wraparound from every access (about a fifth of the loop's time)
     a("    W = max(weights.shape[0] - 1, 0)")
     a(f"    size = {channels[0]}.shape[0]")
-    a("    if size == 1 and not from_origin and other.shape[1] == 0:")
+    a("    if size == 1 and not from_origin and error_out.shape[0] == 0:")
     a(f"        advance_sample({', '.join(c + '[0]' for c in channels)}, out, integrals, history,"
       " n0, dt,")
     a("                       divisors, weights, filter_order)")
     a("        return")
     a("    powers = np.empty(residuals.shape[1])")
+    a("    # the window's state: the largest of recent from every sample on (the window of")
+    a("    # the chunk's sample c holds recent[c:]), the last two grid samples' values")
+    a("    width = recent.shape[0]")
+    a("    suffix = np.empty(width)")
+    a("    largest = 0.0")
+    a("    for i in range(width - 1, -1, -1):")
+    a("        largest = max(largest, recent[i])")
+    a("        suffix[i] = largest")
+    a("    latest = previous = 0.0")
+    a("    latest_at = previous_at = -1")
     a("    # y<c>_<l>[:W]: the last W values of level l of chain c before the block;")
     a("    # y<c>_<l>[W + b]: its value at sample b of the block; all are views into one")
     a("    # scratch array (one allocation per call)")
@@ -313,6 +375,7 @@ def numba_module_source(module, *, header, cache=True) -> str:
     a(f"    fe = work[at:at + {lanes} * blk].reshape(({lanes}, blk))")
     a(f"    at += {lanes} * blk")
     a(f"    fs = work[at:at + filter_order * {lanes}].reshape((filter_order, {lanes}))")
+    a("    grid_raw = np.empty(blk // GRID + 1)")
     k = 0
     for level, rows in enumerate(layout.levels, start=1):
         for c in rows:
@@ -395,4 +458,11 @@ def numba_module_source(module, *, header, cache=True) -> str:
     a(f"        for r in range({lanes}):")
     a(f"            integrals[{k} + lev * {lanes} + r] = fs[lev, r]")
     a(f"            history[{k} + lev * {lanes} + r] = fb[lev, r, :W]")
+    a("    if error_out.shape[0]:  # the window's last values: recent's, then the chunk's")
+    a("        for i in range(width):")
+    a("            recent[i] = recent[i + size] if i + size < width else 0.0")
+    a("        if latest_at >= 0 and latest_at >= size - width:")
+    a("            recent[width - size + latest_at] = latest")
+    a("        if previous_at >= 0 and previous_at >= size - width:")
+    a("            recent[width - size + previous_at] = previous")
     return "\n".join(src) + "\n"
