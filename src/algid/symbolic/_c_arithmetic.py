@@ -372,17 +372,11 @@ def _grid_parameters(w):
 
 
 def _grid_row(w, row, count, pad):
-    """Lines that write row ``row`` of ``other``: the companion's estimates at a grid
-    sample (the kernels, the sums below, the filter's sums, lanes0 and top gathered),
-    the estimates elsewhere."""
-    n_par = w.n_par
-    return [f"{pad}if (g != NULL) {{",
-            f"{pad}    if (on_grid) {{",
-            *_grid_call(w, count, row, pad + "        "),
-            f"{pad}    }} else {{",
-            f"{pad}        for (r = 0; r < {n_par}; ++r) other[{row} * {n_par} + (size_t)r] = "
-            f"theta[{row} * {n_par} + (size_t)r];",
-            f"{pad}    }}",
+    """Lines that write row ``row`` of ``other`` at a grid sample: the companion's
+    estimates (the kernels, the sums below, the filter's sums, lanes0 and top gathered;
+    the other rows are not read)."""
+    return [f"{pad}if (g != NULL && on_grid) {{",
+            *_grid_call(w, count, row, pad + "    "),
             f"{pad}}}"]
 
 def _grid_call(w, count, row, pad):
@@ -522,12 +516,10 @@ def block_loop_function(w):
               f"            {pre}_divide(row, theta + (start + b) * {w.n_par});",
               "        }"]
     if w.grid:
-        n_par, step = w.n_par, w.grid_step
-        lines += ["        /* the propagated companion (algid.estimation._error_propagation): the",
-                  "           estimates stand in for it, but at the grid samples */",
+        step = w.grid_step
+        lines += ["        /* the propagated companion (algid.estimation._error_propagation) at",
+                  "           the grid samples (the estimates stand in for it elsewhere) */",
                   "        if (g != NULL) {",
-                  f"            for (b = 0; b < nb * {n_par}; ++b) other[start * {n_par} + b] = "
-                  f"theta[start * {n_par} + b];",
                   f"            for (b = (size_t)fmod({step}.0 - fmod(count + 1.0, {step}.0), "
                   f"{step}.0); b < nb; b += {step}) {{",
                   "                const size_t j = " + P + "_M + b;"]

@@ -407,6 +407,8 @@ class _Writer:
                 out += self._grid_code()
             out += self._state_struct()
             out += self._error_function()
+            if self.grid:
+                out += self._grid_error_function()
             out += self._pair_feed()
         out += self._api()
         return "\n".join(out)
@@ -527,7 +529,6 @@ class _Writer:
         nk, powers, rows = len(self.kernels), self.powers, max(1, self.p - 1)
         m = self.q - 1
         history = [f"hist[{m - T + 1 + k}]" if m - T + 1 + k < m else "v" for k in range(T)]
-        orders = ", ".join(str(o) for o in self.orders)
         lines = [
             f"/* Past {self.grid_switch} samples from the origin the companion no longer runs:",
             f"   every {self.grid_step} samples its estimates are formed from the estimator's own",
@@ -542,9 +543,6 @@ class _Writer:
             f"    double level[{rows}][{lanes}];  /* ... of filter levels 1 .. p - 1 */",
             f"    double tele[{rows}][{lanes}];  /* the sums of filter levels 0 .. p - 2 */",
             f"}} {pre}_grid;",
-            "",
-            "/* Levels of the kernels (kv order). */",
-            f"static const int {pre}_orders[{nk}] = {{{orders}}};",
             "",
             "/* taps @ the samples of a ending at j, oldest first. */",
             f"static double {pre}_sum_block(const double *a, size_t j, const double *taps)",
@@ -572,14 +570,16 @@ class _Writer:
             "{",
             f"    double c[{nk}], lanes[{lanes}], now[{lanes}], before[{lanes}], power[{powers}];",
             "    double d, step, previous;",
-            "    int i, j, r, lev;",
+            "    int r, lev;",
             "    power[0] = 1.0;",
-            f"    for (j = 1; j < {powers}; ++j) power[j] = power[j - 1] * since / (double)j;",
-            f"    for (i = 0; i < {nk}; ++i) {{",
-            f"        c[i] = kv[i] + (double){pre}_orders[i] * below[i];",
-            f"        for (j = 0; j < {pre}_orders[i]; ++j) c[i] = c[i] + g->residual[i][j] * "
-            "power[j];",
-            "    }",
+            # unrolled (each kernel's own number of terms): the same operations in the
+            # same order, without a loop of a few varying trips per kernel
+            *[f"    power[{j}] = power[{j - 1}] * since / {float(j)!r};"
+              for j in range(1, powers)],
+            *[line for i, order in enumerate(self.orders) for line in (
+                f"    c[{i}] = kv[{i}] + {float(order)!r} * below[{i}];",
+                *[f"    c[{i}] = c[{i}] + g->residual[{i}][{j}] * power[{j}];"
+                  for j in range(order)])],
             f"    {pre}_algebra(c, lanes);",
             f"    for (r = 0; r < {lanes}; ++r) {{",
             "        now[r] = lanes[r] - lanes0[r];",
@@ -773,6 +773,60 @@ class _Writer:
             "",
         ]
 
+    def _grid_error_function(self):
+        pre, n_par, width, step = self.pre, self.n_par, WINDOW - 1, self.grid_step
+        finite = " && ".join(f"fabs(theta[i * {n_par} + {r}]) < INFINITY"
+                             for r in range(n_par)) or "0"
+        return [
+            "/* The numerical error of n rows past the switch, seen samples after the origin",
+            "   before them: the numbers of _error, where the companion's rows are the",
+            "   estimates' but at the grid samples (relative differences of 0 there, NaN for",
+            "   an estimate not finite).  The window of a row then holds two grid rows, and",
+            f"   of the {width} rows before the block (recent) those from its own on. */",
+            f"static void {pre}_grid_error(const double *theta, const double *other, size_t n,",
+            f"{' ' * (len(pre) + 19)}double seen, double *recent, double *error)",
+            "{",
+            f"    double suffix[{width}], largest = 0.0, latest = 0.0, previous = 0.0, raw;",
+            "    size_t i, grid, latest_at = n, previous_at = n;",
+            "    int r;",
+            f"    for (i = {width}; i-- > 0;) {{",
+            "        if (recent[i] > largest) largest = recent[i];",
+            "        suffix[i] = largest;",
+            "    }",
+            f"    grid = (size_t)fmod({step}.0 - fmod(seen + 1.0, {step}.0), {step}.0);",
+            "    for (i = 0; i < n; ++i) {",
+            "        if (i == grid) {",
+            f"            grid += {step};",
+            "            raw = 0.0;",
+            f"            for (r = 0; r < {n_par}; ++r) {{",
+            f"                const double a = theta[i * {n_par} + (size_t)r];",
+            f"                const double b = other[i * {n_par} + (size_t)r];",
+            "                double rel = fabs(a - b) / fabs(a);",
+            "                if (rel != rel && fabs(a) < INFINITY) {",
+            "                    rel = a == b ? 0.0 : INFINITY;",
+            "                }",
+            "                raw = (rel != rel || raw != raw) ? NAN : (rel > raw ? rel : raw);",
+            "            }",
+            "            previous = latest;",
+            "            previous_at = latest_at;",
+            "            latest = isfinite(raw) ? raw : 0.0;",
+            "            latest_at = i;",
+            "        } else {",
+            f"            raw = {finite} ? 0.0 : NAN;",
+            "        }",
+            "        largest = latest > previous ? latest : previous;",
+            f"        if (i < {width} && suffix[i] > largest) largest = suffix[i];",
+            "        error[i] = isfinite(raw) ? largest : raw;",
+            "    }",
+            f"    for (i = 0; i < {width}; ++i) recent[i] = i + n < {width} ? recent[i + n] : 0.0;",
+            f"    if (latest_at < n && latest_at + {width} >= n) "
+            f"recent[{width} + latest_at - n] = latest;",
+            f"    if (previous_at < n && previous_at + {width} >= n) "
+            f"recent[{width} + previous_at - n] = previous;",
+            "}",
+            "",
+        ]
+
     def _pair_feed(self):
         pre, P, n_par, other = self.pre, self.PRE, self.n_par, self.companion.pre
         grid = ", NULL, NULL" if self.grid else ""
@@ -808,12 +862,14 @@ class _Writer:
                 "    /* past the switch: the estimator alone, the companion's estimates on the",
                 "       grid (rows), block by block */",
                 "    for (start = piece; start < n; start += m) {",
+                "        const double seen = w->n;",
                 f"        m = n - start < {P}_BLOCK ? n - start : {P}_BLOCK;",
                 f"        {pre}_feed(w, u + start, y + start, m, st->dt, theta + start * {n_par},",
                 f"{' ' * (len(pre) + 14)}g, rows);",
                 "        if (error != NULL) {",
-                f"            {pre}_error(theta + start * {n_par}, rows, m, st->recent[k], "
-                "error + start);",
+                f"            {pre}_grid_error(theta + start * {n_par}, rows, m, seen, "
+                "st->recent[k],",
+                f"{' ' * (len(pre) + 24)}error + start);",
                 "        }",
                 "    }"]
         else:

@@ -165,9 +165,6 @@ typedef struct {
     double tele[1][4];  /* the sums of filter levels 0 .. p - 2 */
 } algid_msd_mass_grid;
 
-/* Levels of the kernels (kv order). */
-static const int algid_msd_mass_orders[15] = {2, 3, 4, 2, 3, 4, 1, 2, 3, 4, 0, 1, 2, 3, 4};
-
 /* taps @ the samples of a ending at j, oldest first. */
 static double algid_msd_mass_sum_block(const double *a, size_t j, const double *taps)
 {
@@ -200,13 +197,64 @@ static void algid_msd_mass_grid_other(algid_msd_mass_grid *g, const double *kv, 
 {
     double c[15], lanes[4], now[4], before[4], power[4];
     double d, step, previous;
-    int i, j, r, lev;
+    int r, lev;
     power[0] = 1.0;
-    for (j = 1; j < 4; ++j) power[j] = power[j - 1] * since / (double)j;
-    for (i = 0; i < 15; ++i) {
-        c[i] = kv[i] + (double)algid_msd_mass_orders[i] * below[i];
-        for (j = 0; j < algid_msd_mass_orders[i]; ++j) c[i] = c[i] + g->residual[i][j] * power[j];
-    }
+    power[1] = power[0] * since / 1.0;
+    power[2] = power[1] * since / 2.0;
+    power[3] = power[2] * since / 3.0;
+    c[0] = kv[0] + 2.0 * below[0];
+    c[0] = c[0] + g->residual[0][0] * power[0];
+    c[0] = c[0] + g->residual[0][1] * power[1];
+    c[1] = kv[1] + 3.0 * below[1];
+    c[1] = c[1] + g->residual[1][0] * power[0];
+    c[1] = c[1] + g->residual[1][1] * power[1];
+    c[1] = c[1] + g->residual[1][2] * power[2];
+    c[2] = kv[2] + 4.0 * below[2];
+    c[2] = c[2] + g->residual[2][0] * power[0];
+    c[2] = c[2] + g->residual[2][1] * power[1];
+    c[2] = c[2] + g->residual[2][2] * power[2];
+    c[2] = c[2] + g->residual[2][3] * power[3];
+    c[3] = kv[3] + 2.0 * below[3];
+    c[3] = c[3] + g->residual[3][0] * power[0];
+    c[3] = c[3] + g->residual[3][1] * power[1];
+    c[4] = kv[4] + 3.0 * below[4];
+    c[4] = c[4] + g->residual[4][0] * power[0];
+    c[4] = c[4] + g->residual[4][1] * power[1];
+    c[4] = c[4] + g->residual[4][2] * power[2];
+    c[5] = kv[5] + 4.0 * below[5];
+    c[5] = c[5] + g->residual[5][0] * power[0];
+    c[5] = c[5] + g->residual[5][1] * power[1];
+    c[5] = c[5] + g->residual[5][2] * power[2];
+    c[5] = c[5] + g->residual[5][3] * power[3];
+    c[6] = kv[6] + 1.0 * below[6];
+    c[6] = c[6] + g->residual[6][0] * power[0];
+    c[7] = kv[7] + 2.0 * below[7];
+    c[7] = c[7] + g->residual[7][0] * power[0];
+    c[7] = c[7] + g->residual[7][1] * power[1];
+    c[8] = kv[8] + 3.0 * below[8];
+    c[8] = c[8] + g->residual[8][0] * power[0];
+    c[8] = c[8] + g->residual[8][1] * power[1];
+    c[8] = c[8] + g->residual[8][2] * power[2];
+    c[9] = kv[9] + 4.0 * below[9];
+    c[9] = c[9] + g->residual[9][0] * power[0];
+    c[9] = c[9] + g->residual[9][1] * power[1];
+    c[9] = c[9] + g->residual[9][2] * power[2];
+    c[9] = c[9] + g->residual[9][3] * power[3];
+    c[10] = kv[10] + 0.0 * below[10];
+    c[11] = kv[11] + 1.0 * below[11];
+    c[11] = c[11] + g->residual[11][0] * power[0];
+    c[12] = kv[12] + 2.0 * below[12];
+    c[12] = c[12] + g->residual[12][0] * power[0];
+    c[12] = c[12] + g->residual[12][1] * power[1];
+    c[13] = kv[13] + 3.0 * below[13];
+    c[13] = c[13] + g->residual[13][0] * power[0];
+    c[13] = c[13] + g->residual[13][1] * power[1];
+    c[13] = c[13] + g->residual[13][2] * power[2];
+    c[14] = kv[14] + 4.0 * below[14];
+    c[14] = c[14] + g->residual[14][0] * power[0];
+    c[14] = c[14] + g->residual[14][1] * power[1];
+    c[14] = c[14] + g->residual[14][2] * power[2];
+    c[14] = c[14] + g->residual[14][3] * power[3];
     algid_msd_mass_algebra(c, lanes);
     for (r = 0; r < 4; ++r) {
         now[r] = lanes[r] - lanes0[r];
@@ -425,14 +473,10 @@ static void algid_msd_mass_samples(algid_msd_mass_window *w, const double *u, co
         lanes[2] = algid_msd_mass_integrate(&s[22], h[22], lanes[2], dt);
         lanes[3] = algid_msd_mass_integrate(&s[23], h[23], lanes[3], dt);
         algid_msd_mass_divide(lanes, theta + i * 3);
-        if (g != NULL) {
-            if (on_grid) {
-                algid_msd_mass_grid_other(g, kv, below, fir, lanes0, top,
-                                          (count + 1.0 - 1024.0) * dt, dt,
-                                          other + i * 3);
-            } else {
-                for (r = 0; r < 3; ++r) other[i * 3 + (size_t)r] = theta[i * 3 + (size_t)r];
-            }
+        if (g != NULL && on_grid) {
+            algid_msd_mass_grid_other(g, kv, below, fir, lanes0, top,
+                                      (count + 1.0 - 1024.0) * dt, dt,
+                                      other + i * 3);
         }
     }
     w->n = count;
@@ -676,10 +720,9 @@ static void algid_msd_mass_blocks(algid_msd_mass_window *w, const double *u, con
             for (r = 0; r < 4; ++r) row[r] = fl[2][r][ALGID_MSD_MASS_M + b];
             algid_msd_mass_divide(row, theta + (start + b) * 3);
         }
-        /* the propagated companion (algid.estimation._error_propagation): the
-           estimates stand in for it, but at the grid samples */
+        /* the propagated companion (algid.estimation._error_propagation) at
+           the grid samples (the estimates stand in for it elsewhere) */
         if (g != NULL) {
-            for (b = 0; b < nb * 3; ++b) other[start * 3 + b] = theta[start * 3 + b];
             for (b = (size_t)fmod(8.0 - fmod(count + 1.0, 8.0), 8.0); b < nb; b += 8) {
                 const size_t j = ALGID_MSD_MASS_M + b;
                 kv[0] = lv[2][j];
@@ -1576,6 +1619,51 @@ static void algid_msd_mass_error(const double *theta, const double *other, size_
     }
 }
 
+/* The numerical error of n rows past the switch, seen samples after the origin
+   before them: the numbers of _error, where the companion's rows are the
+   estimates' but at the grid samples (relative differences of 0 there, NaN for
+   an estimate not finite).  The window of a row then holds two grid rows, and
+   of the 15 rows before the block (recent) those from its own on. */
+static void algid_msd_mass_grid_error(const double *theta, const double *other, size_t n,
+                                 double seen, double *recent, double *error)
+{
+    double suffix[15], largest = 0.0, latest = 0.0, previous = 0.0, raw;
+    size_t i, grid, latest_at = n, previous_at = n;
+    int r;
+    for (i = 15; i-- > 0;) {
+        if (recent[i] > largest) largest = recent[i];
+        suffix[i] = largest;
+    }
+    grid = (size_t)fmod(8.0 - fmod(seen + 1.0, 8.0), 8.0);
+    for (i = 0; i < n; ++i) {
+        if (i == grid) {
+            grid += 8;
+            raw = 0.0;
+            for (r = 0; r < 3; ++r) {
+                const double a = theta[i * 3 + (size_t)r];
+                const double b = other[i * 3 + (size_t)r];
+                double rel = fabs(a - b) / fabs(a);
+                if (rel != rel && fabs(a) < INFINITY) {
+                    rel = a == b ? 0.0 : INFINITY;
+                }
+                raw = (rel != rel || raw != raw) ? NAN : (rel > raw ? rel : raw);
+            }
+            previous = latest;
+            previous_at = latest_at;
+            latest = isfinite(raw) ? raw : 0.0;
+            latest_at = i;
+        } else {
+            raw = fabs(theta[i * 3 + 0]) < INFINITY && fabs(theta[i * 3 + 1]) < INFINITY && fabs(theta[i * 3 + 2]) < INFINITY ? 0.0 : NAN;
+        }
+        largest = latest > previous ? latest : previous;
+        if (i < 15 && suffix[i] > largest) largest = suffix[i];
+        error[i] = isfinite(raw) ? largest : raw;
+    }
+    for (i = 0; i < 15; ++i) recent[i] = i + n < 15 ? recent[i + n] : 0.0;
+    if (latest_at < n && latest_at + 15 >= n) recent[15 + latest_at - n] = latest;
+    if (previous_at < n && previous_at + 15 >= n) recent[15 + previous_at - n] = previous;
+}
+
 /* n samples through estimator k (0: A, 1: B) and its companion: estimates to
    theta, the numerical error to error (if not NULL; the companion advances
    either way, so that a later error is that of the whole stream). */
@@ -1611,11 +1699,13 @@ static void algid_msd_mass_feed_pair(algid_msd_mass_state *st, int k, const doub
     /* past the switch: the estimator alone, the companion's estimates on the
        grid (rows), block by block */
     for (start = piece; start < n; start += m) {
+        const double seen = w->n;
         m = n - start < ALGID_MSD_MASS_BLOCK ? n - start : ALGID_MSD_MASS_BLOCK;
         algid_msd_mass_feed(w, u + start, y + start, m, st->dt, theta + start * 3,
                             g, rows);
         if (error != NULL) {
-            algid_msd_mass_error(theta + start * 3, rows, m, st->recent[k], error + start);
+            algid_msd_mass_grid_error(theta + start * 3, rows, m, seen, st->recent[k],
+                                      error + start);
         }
     }
 }
