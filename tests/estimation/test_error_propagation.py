@@ -113,3 +113,35 @@ def test_it_is_as_honest_as_the_full_companion(propagated, monkeypatch):
         monkeypatch.setattr(numerical_error, "PROPAGATE", True)
     assert 0.5 < np.median(ratios) < 2.0
     assert np.min(ratios) > 0.05 and np.max(ratios) < 20.0
+
+
+@pytest.mark.parametrize("m", [4, 9, 15, 16, 40, 301])
+@pytest.mark.parametrize("phase", [0, 3, 7])
+def test_the_grid_window_gives_the_full_windows_numbers(m, phase):
+    """The window past the switch read at the grid samples only (``_grid_error``) gives
+    the numbers of the full window over estimates that stand in for the companion's off
+    the grid: with NaN and inf estimates, a NaN companion, zeros, and values before the
+    block (as the full companion leaves them at the switch)."""
+    rng = np.random.default_rng(m * 8 + phase)
+    estimates = rng.standard_normal((2, m))
+    columns = np.arange(phase, m, GRID)
+    companion = estimates[:, columns] * (1 + 1e-3 * rng.standard_normal((2, columns.size)))
+    special = rng.choice(m, size=max(1, m // 6), replace=False)
+    estimates[0, special[::3]] = np.nan
+    estimates[1, special[1::3]] = np.inf
+    estimates[:, special[2::3]] = 0.0
+    if columns.size > 1:
+        companion[1, 1] = np.nan
+        companion[:, 0] = estimates[:, columns[0]]  # equal: a difference of 0
+    other = estimates.copy()
+    other[:, columns] = companion
+    recent = rng.uniform(0, 1e-3, numerical_error.WINDOW - 1)
+    recent[rng.choice(recent.size, 4)] = 0.0
+    full_recent, grid_recent = recent.copy(), recent.copy()
+    full, grid = np.empty(m), np.empty(m)
+    numerical_error.window_maximum(numerical_error.relative_difference(estimates, other),
+                                   full_recent, full)
+    numerical_error._grid_error(estimates, phase, companion, grid_recent, grid)
+    np.testing.assert_array_equal(grid, full)
+    np.testing.assert_array_equal(grid_recent, full_recent)
+    assert np.isnan(grid).any() and np.isfinite(grid).any()

@@ -476,11 +476,8 @@ def _piece(state, rows, backend, out, error_out, scratch=None):
     other = core.advance_rows(state.companion, rows,
                               np.empty(out.shape) if scratch is None else scratch, backend)
     if backend == "numba":
-        block_error, track_extent = _compiled()
-        block_error(out, other, state.recent_errors, error_out)
-        for c, row in enumerate(rows):
-            track_extent(row, state.divisors.item(c), c, state.channel_max,
-                         state.channel_last)
+        _compiled()[0](out, other, state.recent_errors, error_out)
+        _track_channels_compiled(state, rows)
     else:
         _block_error(out, other, state.recent_errors, error_out)
         _track_channels(state, rows)
@@ -498,17 +495,24 @@ def _propagated_piece(state, rows, backend, out, error_out):
         from algid.estimation._core_numba import advance as numba_advance
         numba_advance(state, core.integrator_layout(state.model), rows, out,
                       error_out=error_out)
+        _track_channels_compiled(state, rows)
     else:
         first = state.n_seen
         core.advance_rows(state, rows, out, backend)  # the engine captures the grid samples
-        other = np.empty(out.shape)
-        other[...] = out
-        for capture in propagation.captured:
-            other[:, capture.seen - first - 1] = companion_estimates(
-                propagation, state.model, capture, state.dt)
+        columns = [capture.seen - first - 1 for capture in propagation.captured]
+        companion = [companion_estimates(propagation, state.model, capture, state.dt)
+                     for capture in propagation.captured]
         propagation.captured.clear()
-        _block_error(out, other, state.recent_errors, error_out)
-    _track_channels(state, rows)
+        if out.shape[1] <= SCALAR_SAMPLES:
+            other = out.copy()
+            for at, values in zip(columns, companion):
+                other[:, at] = values
+            _sample_errors(out, other, state.recent_errors, error_out)
+        else:  # the grid samples of the chunk, GRID apart
+            first = int(columns[0][0]) if columns else out.shape[1]
+            _grid_error(out, first, np.concatenate(companion, axis=1) if columns else
+                        out[:, :0], state.recent_errors, error_out)
+        _track_channels(state, rows)
     if state.undetermined:
         _mark_undetermined(state, out, error_out)
 
@@ -523,6 +527,13 @@ def _track_channels(state, rows):
         if size > largest[c]:
             largest[c] = size
         last[c] = newest
+
+
+def _track_channels_compiled(state, rows):
+    """:func:`_track_channels` compiled (one pass over each row)."""
+    track_extent = _compiled()[1]
+    for c, row in enumerate(rows):
+        track_extent(row, state.divisors.item(c), c, state.channel_max, state.channel_last)
 
 
 def _track_values(state, values):
@@ -574,6 +585,54 @@ def _sample_errors(estimates, other, recent, out):
         out[j] = max(largest, value) if finite else raw
         held = held[1:] + [value] if held else held
     recent[:] = held
+
+
+def _grid_error(estimates, first, companion, recent, out):
+    """:func:`_block_error` of a block past the switch, where the companion's estimates
+    are the estimates' but at the grid samples (every :data:`GRID`-th from ``first``).
+
+    The same numbers without a pass over every sample for each window span: off the
+    grid the relative difference is 0 (NaN where an estimate is not finite), so a
+    window's largest value is that of its two grid samples, and for the first
+    ``WINDOW - 1`` samples also that of the values before the block still in it.
+
+    Parameters
+    ----------
+    estimates : ndarray, shape (n_parameters, m)
+    first : int
+        The block's first grid sample.
+    companion : ndarray, shape (n_parameters, g)
+        The companion's estimates at the block's grid samples, ``first``, ``first +
+        GRID``, ...
+    recent : ndarray, shape (WINDOW - 1,)
+        Updated in place (:func:`window_maximum`).
+    out : ndarray, shape (m,)
+    """
+    m, width = out.size, recent.size
+    columns = slice(first, m, GRID)  # (a view: strided, not gathered)
+    on_grid = relative_difference(estimates[:, columns], companion)
+    level = np.where(np.isfinite(on_grid), on_grid, 0.0)
+    # the largest of a sample's window within the block: from each grid sample on, its
+    # value and that of the one before it
+    out[:first] = 0.0
+    if first < m:
+        pair = level.copy()
+        np.maximum(pair[1:], level[:-1], out=pair[1:])
+        out[first:] = np.repeat(pair, GRID)[:m - first]
+    head = min(width, m)
+    before = np.maximum.accumulate(recent[::-1])[::-1]  # recent[i:]'s largest
+    np.maximum(out[:head], before[:head], out=out[:head])
+    # NaN where an estimate is not finite (its relative difference), the grid
+    # samples' own value where that is not finite
+    for row in estimates if estimates.shape[0] else (np.full(m, np.nan),):
+        np.copyto(out, np.nan, where=~np.isfinite(row))
+    grid = out[columns]
+    np.copyto(grid, on_grid, where=~np.isfinite(on_grid))
+    tail = np.zeros(head)  # the last samples' values, for the next block
+    at = np.arange(first, m, GRID)
+    late = at >= m - head
+    tail[at[late] - (m - head)] = level[late]
+    recent[...] = np.concatenate((recent, tail))[head:]
 
 
 @cache
