@@ -191,7 +191,6 @@ def advance(channel_0, channel_1, out, integrals, history, n0, dt, divisors,
         advance_sample(channel_0[0], channel_1[0], out, integrals, history, n0, dt,
                        divisors, weights, filter_order)
         return
-    powers = np.empty(residuals.shape[1])
     # the window's state: the largest of recent from every sample on (the window of
     # the chunk's sample c holds recent[c:]), the last two grid samples' values
     width = recent.shape[0]
@@ -430,11 +429,10 @@ def advance(channel_0, channel_1, out, integrals, history, n0, dt, divisors,
             while b < nb:
                 j = W + b
                 since = (n0 + start + b + 1 - switch) * dt
-                power = 1.0
-                for jj in range(residuals.shape[1]):
-                    if jj:
-                        power = power * since / jj
-                    powers[jj] = power
+                power0 = 1.0
+                power1 = power0 * since / 1.0
+                power2 = power1 * since / 2.0
+                power3 = power2 * since / 3.0
                 base = j - taps.shape[0] + 1
                 t0 = y0_1[base] * taps[0]
                 t1 = y0_2[base] * taps[0]
@@ -466,48 +464,58 @@ def advance(channel_0, channel_1, out, integrals, history, n0, dt, divisors,
                     t13 = t13 + y3_2[base + k] * taps[k]
                     t14 = t14 + y3_3[base + k] * taps[k]
                 c0 = y0_2[j] + 2.0 * t0
-                for jj in range(2):
-                    c0 = c0 + residuals[0, jj] * powers[jj]
+                c0 = c0 + residuals[0, 0] * power0
+                c0 = c0 + residuals[0, 1] * power1
                 c1 = y0_3[j] + 3.0 * t1
-                for jj in range(3):
-                    c1 = c1 + residuals[1, jj] * powers[jj]
+                c1 = c1 + residuals[1, 0] * power0
+                c1 = c1 + residuals[1, 1] * power1
+                c1 = c1 + residuals[1, 2] * power2
                 c2 = y0_4[j] + 4.0 * t2
-                for jj in range(4):
-                    c2 = c2 + residuals[2, jj] * powers[jj]
+                c2 = c2 + residuals[2, 0] * power0
+                c2 = c2 + residuals[2, 1] * power1
+                c2 = c2 + residuals[2, 2] * power2
+                c2 = c2 + residuals[2, 3] * power3
                 c3 = y1_2[j] + 2.0 * t3
-                for jj in range(2):
-                    c3 = c3 + residuals[3, jj] * powers[jj]
+                c3 = c3 + residuals[3, 0] * power0
+                c3 = c3 + residuals[3, 1] * power1
                 c4 = y1_3[j] + 3.0 * t4
-                for jj in range(3):
-                    c4 = c4 + residuals[4, jj] * powers[jj]
+                c4 = c4 + residuals[4, 0] * power0
+                c4 = c4 + residuals[4, 1] * power1
+                c4 = c4 + residuals[4, 2] * power2
                 c5 = y1_4[j] + 4.0 * t5
-                for jj in range(4):
-                    c5 = c5 + residuals[5, jj] * powers[jj]
+                c5 = c5 + residuals[5, 0] * power0
+                c5 = c5 + residuals[5, 1] * power1
+                c5 = c5 + residuals[5, 2] * power2
+                c5 = c5 + residuals[5, 3] * power3
                 c6 = y2_1[j] + 1.0 * t6
-                for jj in range(1):
-                    c6 = c6 + residuals[6, jj] * powers[jj]
+                c6 = c6 + residuals[6, 0] * power0
                 c7 = y2_2[j] + 2.0 * t7
-                for jj in range(2):
-                    c7 = c7 + residuals[7, jj] * powers[jj]
+                c7 = c7 + residuals[7, 0] * power0
+                c7 = c7 + residuals[7, 1] * power1
                 c8 = y2_3[j] + 3.0 * t8
-                for jj in range(3):
-                    c8 = c8 + residuals[8, jj] * powers[jj]
+                c8 = c8 + residuals[8, 0] * power0
+                c8 = c8 + residuals[8, 1] * power1
+                c8 = c8 + residuals[8, 2] * power2
                 c9 = y2_4[j] + 4.0 * t9
-                for jj in range(4):
-                    c9 = c9 + residuals[9, jj] * powers[jj]
+                c9 = c9 + residuals[9, 0] * power0
+                c9 = c9 + residuals[9, 1] * power1
+                c9 = c9 + residuals[9, 2] * power2
+                c9 = c9 + residuals[9, 3] * power3
                 c10 = y3_0[j] + 0.0
                 c11 = y3_1[j] + 1.0 * t11
-                for jj in range(1):
-                    c11 = c11 + residuals[11, jj] * powers[jj]
+                c11 = c11 + residuals[11, 0] * power0
                 c12 = y3_2[j] + 2.0 * t12
-                for jj in range(2):
-                    c12 = c12 + residuals[12, jj] * powers[jj]
+                c12 = c12 + residuals[12, 0] * power0
+                c12 = c12 + residuals[12, 1] * power1
                 c13 = y3_3[j] + 3.0 * t13
-                for jj in range(3):
-                    c13 = c13 + residuals[13, jj] * powers[jj]
+                c13 = c13 + residuals[13, 0] * power0
+                c13 = c13 + residuals[13, 1] * power1
+                c13 = c13 + residuals[13, 2] * power2
                 c14 = y3_4[j] + 4.0 * t14
-                for jj in range(4):
-                    c14 = c14 + residuals[14, jj] * powers[jj]
+                c14 = c14 + residuals[14, 0] * power0
+                c14 = c14 + residuals[14, 1] * power1
+                c14 = c14 + residuals[14, 2] * power2
+                c14 = c14 + residuals[14, 3] * power3
                 P, Q = _regressors_packed((c0, c1, c2, c3, c4, c5, c6, c7, c8, c9, c10, c11, c12, c13, c14,))
                 nums, den = _cramer(P, Q)
                 g0 = nums[0] - fb[0, 0, j]

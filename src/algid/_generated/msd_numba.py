@@ -183,7 +183,6 @@ def advance(channel_0, channel_1, out, integrals, history, n0, dt, divisors,
         advance_sample(channel_0[0], channel_1[0], out, integrals, history, n0, dt,
                        divisors, weights, filter_order)
         return
-    powers = np.empty(residuals.shape[1])
     # the window's state: the largest of recent from every sample on (the window of
     # the chunk's sample c holds recent[c:]), the last two grid samples' values
     width = recent.shape[0]
@@ -381,11 +380,9 @@ def advance(channel_0, channel_1, out, integrals, history, n0, dt, divisors,
             while b < nb:
                 j = W + b
                 since = (n0 + start + b + 1 - switch) * dt
-                power = 1.0
-                for jj in range(residuals.shape[1]):
-                    if jj:
-                        power = power * since / jj
-                    powers[jj] = power
+                power0 = 1.0
+                power1 = power0 * since / 1.0
+                power2 = power1 * since / 2.0
                 base = j - taps.shape[0] + 1
                 t0 = y0_1[base] * taps[0]
                 t1 = y0_2[base] * taps[0]
@@ -409,36 +406,38 @@ def advance(channel_0, channel_1, out, integrals, history, n0, dt, divisors,
                     t9 = t9 + y3_1[base + k] * taps[k]
                     t10 = t10 + y3_2[base + k] * taps[k]
                 c0 = y0_2[j] + 2.0 * t0
-                for jj in range(2):
-                    c0 = c0 + residuals[0, jj] * powers[jj]
+                c0 = c0 + residuals[0, 0] * power0
+                c0 = c0 + residuals[0, 1] * power1
                 c1 = y0_3[j] + 3.0 * t1
-                for jj in range(3):
-                    c1 = c1 + residuals[1, jj] * powers[jj]
+                c1 = c1 + residuals[1, 0] * power0
+                c1 = c1 + residuals[1, 1] * power1
+                c1 = c1 + residuals[1, 2] * power2
                 c2 = y1_2[j] + 2.0 * t2
-                for jj in range(2):
-                    c2 = c2 + residuals[2, jj] * powers[jj]
+                c2 = c2 + residuals[2, 0] * power0
+                c2 = c2 + residuals[2, 1] * power1
                 c3 = y1_3[j] + 3.0 * t3
-                for jj in range(3):
-                    c3 = c3 + residuals[3, jj] * powers[jj]
+                c3 = c3 + residuals[3, 0] * power0
+                c3 = c3 + residuals[3, 1] * power1
+                c3 = c3 + residuals[3, 2] * power2
                 c4 = y2_1[j] + 1.0 * t4
-                for jj in range(1):
-                    c4 = c4 + residuals[4, jj] * powers[jj]
+                c4 = c4 + residuals[4, 0] * power0
                 c5 = y2_2[j] + 2.0 * t5
-                for jj in range(2):
-                    c5 = c5 + residuals[5, jj] * powers[jj]
+                c5 = c5 + residuals[5, 0] * power0
+                c5 = c5 + residuals[5, 1] * power1
                 c6 = y2_3[j] + 3.0 * t6
-                for jj in range(3):
-                    c6 = c6 + residuals[6, jj] * powers[jj]
+                c6 = c6 + residuals[6, 0] * power0
+                c6 = c6 + residuals[6, 1] * power1
+                c6 = c6 + residuals[6, 2] * power2
                 c7 = y3_0[j] + 0.0
                 c8 = y3_1[j] + 1.0 * t8
-                for jj in range(1):
-                    c8 = c8 + residuals[8, jj] * powers[jj]
+                c8 = c8 + residuals[8, 0] * power0
                 c9 = y3_2[j] + 2.0 * t9
-                for jj in range(2):
-                    c9 = c9 + residuals[9, jj] * powers[jj]
+                c9 = c9 + residuals[9, 0] * power0
+                c9 = c9 + residuals[9, 1] * power1
                 c10 = y3_3[j] + 3.0 * t10
-                for jj in range(3):
-                    c10 = c10 + residuals[10, jj] * powers[jj]
+                c10 = c10 + residuals[10, 0] * power0
+                c10 = c10 + residuals[10, 1] * power1
+                c10 = c10 + residuals[10, 2] * power2
                 P, Q = _regressors_packed((c0, c1, c2, c3, c4, c5, c6, c7, c8, c9, c10,))
                 nums, den = _cramer(P, Q)
                 g0 = nums[0] - fb[0, 0, j]

@@ -98,11 +98,11 @@ def _propagation_source(a, layout, n_par):
     a("            while b < nb:")
     a("                j = W + b")
     a("                since = (n0 + start + b + 1 - switch) * dt")
-    a("                power = 1.0")
-    a("                for jj in range(residuals.shape[1]):")
-    a("                    if jj:")
-    a("                        power = power * since / jj")
-    a("                    powers[jj] = power")
+    # the powers since / j! as propagation.companion_estimates forms them, unrolled
+    # (literal divisors: the same numbers, the division by 2.0 a product)
+    a("                power0 = 1.0")
+    for j in range(1, max(1, *(level for level, _ in layout.kernels))):
+        a(f"                power{j} = power{j - 1} * since / {float(j)!r}")
     # the telescoped level below every kernel: one loop over the taps, a sum per kernel
     # (independent sums side by side: the loop is not bound by the additions' latency)
     integrated = [(i, level, c) for i, (level, c) in enumerate(layout.kernels) if level]
@@ -115,8 +115,8 @@ def _propagation_source(a, layout, n_par):
     for i, (level, c) in enumerate(layout.kernels):
         if level:
             a(f"                c{i} = y{c}_{level}[j] + {float(level)!r} * t{i}")
-            a(f"                for jj in range({level}):")
-            a(f"                    c{i} = c{i} + residuals[{i}, jj] * powers[jj]")
+            for j in range(level):
+                a(f"                c{i} = c{i} + residuals[{i}, {j}] * power{j}")
         else:
             a(f"                c{i} = y{c}_{level}[j] + 0.0")
     kernels = ", ".join(f"c{i}" for i in range(len(layout.kernels)))
@@ -341,7 +341,6 @@ def numba_module_source(module, *, header, cache=True) -> str:
       " n0, dt,")
     a("                       divisors, weights, filter_order)")
     a("        return")
-    a("    powers = np.empty(residuals.shape[1])")
     a("    # the window's state: the largest of recent from every sample on (the window of")
     a("    # the chunk's sample c holds recent[c:]), the last two grid samples' values")
     a("    width = recent.shape[0]")
