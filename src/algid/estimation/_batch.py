@@ -181,10 +181,10 @@ def estimate(t, f=None, x=None, *, model="msd", filter_order=DEFAULT_FILTER_ORDE
         Estimate the numerical error of every estimate (default True): a companion
         estimator with another quadrature rule and filter order runs beside the
         estimator (:mod:`algid.estimation._numerical_error`; in full over the first 1024
-        samples, then propagated from the estimator's integrals), which adds about half
-        the estimator's time on long records; the estimates are the same, except where a
-        check finds that the samples so far do not determine a parameter (NaN there,
-        with an infinite error).  ``False`` skips both (``r.numerical_error`` is then
+        samples, then propagated from the estimator's integrals), which adds a third to
+        a half of the estimator's time on long records; the estimates are the same,
+        except where a check finds that the samples so far do not determine a parameter
+        (NaN there, with an infinite error).  ``False`` skips both (``r.numerical_error`` is then
         None).
     late_origin : bool, optional
         Also run a twin from a time origin 64 samples later and report its estimate
