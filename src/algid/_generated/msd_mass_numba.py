@@ -13,7 +13,7 @@ import numpy as np
 
 from algid._generated.msd_mass import cramer, regressors_packed
 from algid.estimation._error_propagation import GRID
-from algid.estimation._numerical_error_numba import sample_error, sample_extent
+from algid.estimation._numerical_error_numba import larger_relative, sample_error, sample_extent
 
 CACHE = True
 BLOCK = 256
@@ -570,45 +570,9 @@ def advance(channel_0, channel_1, out, integrals, history, n0, dt, divisors,
                     o1 = (fb[filter_order - 1, 1, j] + g1) / d
                     o2 = (fb[filter_order - 1, 2, j] + g2) / d
                 raw = 0.0
-                e = out[0, start + b]
-                if e == 0.0:  # 0 / 0 where they are equal, else inf
-                    rel = 0.0 if o0 == 0.0 else np.inf
-                elif not abs(e) < np.inf:
-                    rel = np.nan
-                else:
-                    rel = abs(e - o0) / abs(e)
-                    if rel != rel:  # the companion is NaN: the data do not determine it
-                        rel = np.inf
-                if rel != rel or raw != raw:
-                    raw = np.nan
-                elif rel > raw:
-                    raw = rel
-                e = out[1, start + b]
-                if e == 0.0:  # 0 / 0 where they are equal, else inf
-                    rel = 0.0 if o1 == 0.0 else np.inf
-                elif not abs(e) < np.inf:
-                    rel = np.nan
-                else:
-                    rel = abs(e - o1) / abs(e)
-                    if rel != rel:  # the companion is NaN: the data do not determine it
-                        rel = np.inf
-                if rel != rel or raw != raw:
-                    raw = np.nan
-                elif rel > raw:
-                    raw = rel
-                e = out[2, start + b]
-                if e == 0.0:  # 0 / 0 where they are equal, else inf
-                    rel = 0.0 if o2 == 0.0 else np.inf
-                elif not abs(e) < np.inf:
-                    rel = np.nan
-                else:
-                    rel = abs(e - o2) / abs(e)
-                    if rel != rel:  # the companion is NaN: the data do not determine it
-                        rel = np.inf
-                if rel != rel or raw != raw:
-                    raw = np.nan
-                elif rel > raw:
-                    raw = rel
+                raw = larger_relative(raw, out[0, start + b], o0)
+                raw = larger_relative(raw, out[1, start + b], o1)
+                raw = larger_relative(raw, out[2, start + b], o2)
                 grid_raw[(b - first_grid) // GRID] = raw
                 b += GRID
             grid = first_grid

@@ -15,7 +15,8 @@ import math
 import numba
 import numpy as np
 
-__all__ = ["block_error", "sample_error", "track_extent", "sample_extent"]
+__all__ = ["block_error", "sample_error", "larger_relative", "track_extent",
+           "sample_extent"]
 
 
 # x / 0: inf or NaN, no exception; inlined into their callers (a call per sample costs
@@ -33,6 +34,14 @@ def _relative(a, b):  # pragma: no cover - compiled
 def _larger(raw, rel):  # pragma: no cover - compiled
     """The larger of two relative differences, NaN if either is NaN."""
     return np.nan if (rel != rel or raw != raw) else max(raw, rel)
+
+
+@numba.njit(cache=True, nogil=True, error_model="numpy")
+def larger_relative(raw, a, b):  # pragma: no cover - compiled
+    """The larger of ``raw`` and the relative difference of ``a`` and ``b`` (NaN if
+    either is NaN), compiled with this module's error model: for the generated loops,
+    whose own raises on a division by zero."""
+    return _larger(raw, _relative(a, b))
 
 
 @numba.njit(cache=True, nogil=True, error_model="numpy", inline="always")

@@ -147,30 +147,10 @@ def _propagation_source(a, layout, n_par):
             lambda r: f"(fb[filter_order - 1, {r}, j] + g{r})")
     a(f"                raw = {'0.0' if n_par else 'np.nan'}")
     for r in range(n_par):
-        _relative(a, "                ", f"out[{r}, start + b]", f"o{r}")
+        a(f"                raw = larger_relative(raw, out[{r}, start + b], o{r})")
     a("                grid_raw[(b - first_grid) // GRID] = raw")
     a("                b += GRID")
     _window_source(a, n_par)
-
-
-def _relative(a, indent, estimate, companion):
-    """Lines that take the relative difference of an estimate and the companion's into
-    ``raw`` if larger (NaN if either is NaN), by the rules of
-    :func:`algid.estimation._numerical_error.relative_difference` (in branches: the
-    loop's division raises on zero)."""
-    a(f"{indent}e = {estimate}")
-    a(f"{indent}if e == 0.0:  # 0 / 0 where they are equal, else inf")
-    a(f"{indent}    rel = 0.0 if {companion} == 0.0 else np.inf")
-    a(f"{indent}elif not abs(e) < np.inf:")
-    a(f"{indent}    rel = np.nan")
-    a(f"{indent}else:")
-    a(f"{indent}    rel = abs(e - {companion}) / abs(e)")
-    a(f"{indent}    if rel != rel:  # the companion is NaN: the data do not determine it")
-    a(f"{indent}        rel = np.inf")
-    a(f"{indent}if rel != rel or raw != raw:")
-    a(f"{indent}    raw = np.nan")
-    a(f"{indent}elif rel > raw:")
-    a(f"{indent}    raw = rel")
 
 
 def _window_source(a, n_par):
@@ -312,7 +292,8 @@ def numba_module_source(module, *, header, cache=True) -> str:
            "", header, '"""', "", "import math", "", "import numba", "import numpy as np", "",
            f"from {module.__name__} import cramer, regressors_packed",
            "from algid.estimation._error_propagation import GRID",
-           "from algid.estimation._numerical_error_numba import sample_error, sample_extent", "",
+           "from algid.estimation._numerical_error_numba import larger_relative, sample_error, "
+           "sample_extent", "",
            f"CACHE = {bool(cache)!r}", f"BLOCK = {BLOCK}", "",
            "_regressors_packed = numba.njit(cache=CACHE, nogil=True)(regressors_packed)",
            "_cramer = numba.njit(cache=CACHE, nogil=True)(cramer)", "", "",

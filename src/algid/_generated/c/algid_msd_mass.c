@@ -1581,10 +1581,25 @@ typedef struct {
    stops the compilation otherwise). */
 typedef char algid_msd_mass_state_fits[sizeof(algid_msd_mass_state) == ALGID_MSD_MASS_STATE_DOUBLES * sizeof(double) ? 1 : -1];
 
+/* The largest over the parameters of |a - b| / |a| for a row of estimates a
+   and the companion's b (a = b = 0: 0; a finite, b not: inf; a NaN: NaN). */
+static double algid_msd_mass_raw_error(const double *a, const double *b)
+{
+    double raw = 0.0;
+    int r;
+    for (r = 0; r < 3; ++r) {
+        double rel = fabs(a[r] - b[r]) / fabs(a[r]);
+        if (rel != rel && fabs(a[r]) < INFINITY) {
+            rel = a[r] == b[r] ? 0.0 : INFINITY;
+        }
+        raw = (rel != rel || raw != raw) ? NAN : (rel > raw ? rel : raw);
+    }
+    return raw;
+}
+
 /* The numerical error of n <= BLOCK rows of estimates theta against the
    companion's rows other (as algid.estimation._numerical_error): per row the
-   largest over the parameters of |a - b| / |a| (a = b = 0: 0; a finite, b not:
-   inf; a NaN: NaN), then, when finite, the largest over this row and the 15
+   raw error, then, when finite, the largest over this row and the 15
    before it, whose finite raw values recent holds (non-finite ones count as 0):
    maxima of 2, 4, 8, ... rows, each pass reading the previous one's ahead. */
 static void algid_msd_mass_error(const double *theta, const double *other, size_t n,
@@ -1592,19 +1607,9 @@ static void algid_msd_mass_error(const double *theta, const double *other, size_
 {
     double level[15 + ALGID_MSD_MASS_BLOCK];
     size_t i, span;
-    int r;
     for (i = 0; i < 15; ++i) level[i] = recent[i];
     for (i = 0; i < n; ++i) {
-        double raw = 0.0;
-        for (r = 0; r < 3; ++r) {
-            const double a = theta[i * 3 + (size_t)r];
-            const double b = other[i * 3 + (size_t)r];
-            double rel = fabs(a - b) / fabs(a);
-            if (rel != rel && fabs(a) < INFINITY) {
-                rel = a == b ? 0.0 : INFINITY;
-            }
-            raw = (rel != rel || raw != raw) ? NAN : (rel > raw ? rel : raw);
-        }
+        const double raw = algid_msd_mass_raw_error(theta + i * 3, other + i * 3);
         error[i] = raw;
         level[15 + i] = isfinite(raw) ? raw : 0.0;
     }
@@ -1629,7 +1634,6 @@ static void algid_msd_mass_grid_error(const double *theta, const double *other, 
 {
     double suffix[15], largest = 0.0, latest = 0.0, previous = 0.0, raw;
     size_t i, grid, latest_at = n, previous_at = n;
-    int r;
     for (i = 15; i-- > 0;) {
         if (recent[i] > largest) largest = recent[i];
         suffix[i] = largest;
@@ -1638,16 +1642,7 @@ static void algid_msd_mass_grid_error(const double *theta, const double *other, 
     for (i = 0; i < n; ++i) {
         if (i == grid) {
             grid += 8;
-            raw = 0.0;
-            for (r = 0; r < 3; ++r) {
-                const double a = theta[i * 3 + (size_t)r];
-                const double b = other[i * 3 + (size_t)r];
-                double rel = fabs(a - b) / fabs(a);
-                if (rel != rel && fabs(a) < INFINITY) {
-                    rel = a == b ? 0.0 : INFINITY;
-                }
-                raw = (rel != rel || raw != raw) ? NAN : (rel > raw ? rel : raw);
-            }
+            raw = algid_msd_mass_raw_error(theta + i * 3, other + i * 3);
             previous = latest;
             previous_at = latest_at;
             latest = isfinite(raw) ? raw : 0.0;
