@@ -476,7 +476,8 @@ def _piece(state, rows, backend, out, error_out, scratch=None):
     other = core.advance_rows(state.companion, rows,
                               np.empty(out.shape) if scratch is None else scratch, backend)
     if backend == "numba":
-        _compiled()[0](out, other, state.recent_errors, error_out)
+        block_error = _compiled()[0]
+        block_error(out, other, state.recent_errors, error_out)
         _track_channels_compiled(state, rows)
     else:
         _block_error(out, other, state.recent_errors, error_out)
@@ -497,21 +498,18 @@ def _propagated_piece(state, rows, backend, out, error_out):
                       error_out=error_out)
         _track_channels_compiled(state, rows)
     else:
-        first = state.n_seen
+        first_grid = (-(state.n_seen + 1)) % GRID  # the chunk's first grid sample
         core.advance_rows(state, rows, out, backend)  # the engine captures the grid samples
-        columns = [capture.seen - first - 1 for capture in propagation.captured]
-        companion = [companion_estimates(propagation, state.model, capture, state.dt)
-                     for capture in propagation.captured]
+        companion = np.concatenate(
+            [companion_estimates(propagation, state.model, capture, state.dt)
+             for capture in propagation.captured] or [out[:, :0]], axis=1)
         propagation.captured.clear()
         if out.shape[1] <= SCALAR_SAMPLES:
             other = out.copy()
-            for at, values in zip(columns, companion):
-                other[:, at] = values
+            other[:, first_grid::GRID] = companion
             _sample_errors(out, other, state.recent_errors, error_out)
-        else:  # the grid samples of the chunk, GRID apart
-            first = int(columns[0][0]) if columns else out.shape[1]
-            _grid_error(out, first, np.concatenate(companion, axis=1) if columns else
-                        out[:, :0], state.recent_errors, error_out)
+        else:
+            _grid_error(out, first_grid, companion, state.recent_errors, error_out)
         _track_channels(state, rows)
     if state.undetermined:
         _mark_undetermined(state, out, error_out)
@@ -624,8 +622,10 @@ def _grid_error(estimates, first, companion, recent, out):
     np.maximum(out[:head], before[:head], out=out[:head])
     # NaN where an estimate is not finite (its relative difference), the grid
     # samples' own value where that is not finite
-    for row in estimates if estimates.shape[0] else (np.full(m, np.nan),):
+    for row in estimates:
         np.copyto(out, np.nan, where=~np.isfinite(row))
+    if not estimates.shape[0]:
+        out.fill(np.nan)  # no parameter: no relative difference
     grid = out[columns]
     np.copyto(grid, on_grid, where=~np.isfinite(on_grid))
     tail = np.zeros(head)  # the last samples' values, for the next block
