@@ -87,8 +87,9 @@ def _integrate_sample_source():
 def _propagation_source(a, layout, n_par):
     """Lines that form the companion's estimates at the grid samples of a block, as
     :func:`algid.estimation._error_propagation.companion_estimates` does (the same
-    operations in the same order, one grid sample at a time), into ``other``; ``other``
-    holds the estimates elsewhere."""
+    operations in the same order, one grid sample at a time), their relative differences
+    from the estimates into ``grid_raw``, then the numerical error of the block's samples
+    (:func:`_window_source`)."""
     lanes = layout.n_lanes
     a("        # the companion's estimates at the grid samples (estimation._error_propagation),")
     a("        # and their relative differences from the estimates into grid_raw")
