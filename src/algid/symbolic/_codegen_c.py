@@ -780,6 +780,9 @@ class _Writer:
         ]
 
     def _grid_error_function(self):
+        """``<pre>_grid_error``: the numerical error past the switch, read at the grid
+        rows (the numbers of ``<pre>_error``, as
+        :func:`algid.estimation._numerical_error._grid_error` gives them)."""
         pre, n_par, width, step = self.pre, self.n_par, WINDOW - 1, self.grid_step
         finite = " && ".join(f"fabs(theta[i * {n_par} + {r}]) < INFINITY"
                              for r in range(n_par)) or "0"
