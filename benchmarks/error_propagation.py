@@ -102,6 +102,7 @@ def propagated_error(t, f, x, *, points=8, filter_order=2, model="msd"):
     n_parameters = len(module.PARAMETERS)
     for s in (state, companion):
         core.advance_rows(s, tuple(r[:SWITCH] for r in rows), np.empty((n_parameters, SWITCH)))
+    state.channel_last[:] = [r[SWITCH - 1] for r in rows]  # (divisors 1)
     taps = difference_taps(points, companion.points, dt)
     longer = state if points > companion.points else companion
     # residuals of every chain integrator at the switch
@@ -112,8 +113,8 @@ def propagated_error(t, f, x, *, points=8, filter_order=2, model="msd"):
             residual[level, row] = (companion.integrals[i] - state.integrals[i]
                                     - level * (longer.history[i] @ taps))
     n_lanes, first_filter = layout.n_lanes, layout.n_chain_integrators
-    lane_difference = (lanes_of(module, kernels_at(companion, layout))
-                       - lanes_of(module, kernels_at(state, layout)))
+    lane_difference = (lanes_of(module, kernels_at(companion, layout, state))
+                       - lanes_of(module, kernels_at(state, layout, state)))
     filters = [slice(first_filter + k * n_lanes, first_filter + (k + 1) * n_lanes)
                for k in range(filter_order - 1)]
     level_difference = [companion.integrals[s] - state.integrals[s] for s in filters]

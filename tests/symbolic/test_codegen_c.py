@@ -47,9 +47,14 @@ SETTLE = 0.05
 
 #: A third-order user model, y''' + a y'' + b y' + c y = u.
 THIRD_EQUATION = "y''' + a*y'' + b*y' + c*y = u"
+#: A double integrator: its ``t**3 y`` term is not integrated (a chain of depth 0).
+PURE_EQUATION = "y'' = a*u"
 
 
 def _user_model(name="user"):
+    if name == "pure":
+        return LinearODEModel.from_equation(PURE_EQUATION, parameters="a", input="u",
+                                            output="y", name="pure")
     if name == "third":
         return LinearODEModel.from_equation(THIRD_EQUATION, parameters="a b c", input="u",
                                             output="y", name="third")
@@ -58,7 +63,8 @@ def _user_model(name="user"):
 
 
 def _derivation(name):
-    return derive(_user_model(name) if name in ("user", "third") else builtin_model(name))
+    return derive(_user_model(name) if name in ("user", "third", "pure")
+                  else builtin_model(name))
 
 
 class CEstimator:
@@ -156,7 +162,7 @@ def user_registered():
     from algid._generated import MODULES
 
     names = {}
-    for name in ("user", "third"):
+    for name in ("user", "third", "pure"):
         module_name = f"algid._generated._test_{name}"
         module = types.ModuleType(module_name)
         exec(compile(numpy_module_source(_derivation(name)), module_name, "exec"),
@@ -337,6 +343,24 @@ def test_numerical_error_equals_batch_estimate_in_any_chunking(build, user_regis
     _assert_same_error(error, algid.estimate(t, u, y, model=model,
                                              engine="numpy").numerical_error)
     assert error[-1] < 1e-12  # noise-free and resolved: round-off
+
+
+@needs_cc
+@pytest.mark.parametrize("p", [1, 2])
+def test_an_unintegrated_signal_switches_as_in_python(build, user_registered, p):
+    """``y'' = a*u`` has a kernel of level 0 with no integrator under it: at the switch
+    the propagation forms it from the last sample, as Python does."""
+    c = build("pure", p=p)
+    t = np.arange(3000) * 1e-3
+    u = np.sin(150.0 * t) + 0.3
+    y = 2.0 * (-np.sin(150.0 * t) / 150.0**2 + 0.15 * t**2)  # a = 2
+    c.run(u, y, 1e-3, chunk=1)
+    error = c.error
+    for chunk in (7, 1000, None):
+        c.run(u, y, 1e-3, chunk=chunk)
+        np.testing.assert_array_equal(c.error, error)
+    r = algid.estimate(t, u, y, model="pure", filter_order=p, engine="numpy")
+    _assert_same_error(error[1024:], r.numerical_error[1024:])
 
 
 @needs_cc

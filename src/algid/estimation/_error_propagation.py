@@ -41,8 +41,8 @@ import numpy as np
 from algid.signals._quadrature import integrator_weights
 
 __all__ = ["difference_taps", "lanes_of", "kernels_at", "Propagation", "Capture",
-           "new_propagation", "start", "capture_levels", "companion_estimates", "GRID",
-           "SWITCH"]
+           "new_propagation", "start", "capture_levels", "newest_integrand",
+           "companion_estimates", "GRID", "SWITCH"]
 
 #: The companion's estimate is formed every this many samples (samples seen since the
 #: origin a multiple of it).
@@ -185,11 +185,39 @@ def lanes_of(model, kernels):
                     dtype=float)
 
 
-def kernels_at(state, layout):
-    """The kernels at the state's last sample (level 0: the newest integrand)."""
-    return np.array([state.history[row, -1] if level == 0 else
+def kernels_at(state, layout, newest):
+    """The kernels at the state's last sample.
+
+    Parameters
+    ----------
+    state : EstimatorState
+    layout : IntegratorLayout
+    newest : EstimatorState
+        Has the channels' last values (``channel_last``, as the error's companion
+        state tracks them): a kernel of level 0 is the chain's newest integrand, kept
+        in the history of its first integrator, or formed from them where the chain
+        has none (a signal that enters the equation unintegrated).
+    """
+    first = len(layout.levels[0]) if layout.levels else 0
+    return np.array([(state.history[row, -1] if row < first else
+                      newest_integrand(newest, layout.chains[row])) if level == 0 else
                      state.integrals[layout.level_start(level) + row]
                      for level, row in layout.kernels])
+
+
+def newest_integrand(state, chain):
+    """``tau**power * channel / divisor`` of a chain ``(channel, power, depth)`` at the
+    state's last sample, formed as the engines form it (``tau * tau * ...`` times the
+    divided sample)."""
+    channel, power, _ = chain
+    tau = float(state.n_seen - 1) * state.dt
+    factor = 1.0
+    if power:
+        factor = tau
+        for _ in range(power - 1):
+            factor = factor * tau
+    value = float(state.channel_last[channel])
+    return factor * value if power else value
 
 
 def start(propagation, state, companion, layout):
@@ -215,8 +243,8 @@ def start(propagation, state, companion, layout):
             propagation.residuals[i, j] = (
                 companion.integrals[k] - state.integrals[k]
                 - (level - j) * _grid_fir(longer.history[k], 0, 1, taps)[0])
-    propagation.lanes[:] = (lanes_of(state.model, kernels_at(companion, layout))
-                            - lanes_of(state.model, kernels_at(state, layout)))
+    propagation.lanes[:] = (lanes_of(state.model, kernels_at(companion, layout, state))
+                            - lanes_of(state.model, kernels_at(state, layout, state)))
     n_lanes, first = layout.n_lanes, layout.n_chain_integrators
     for k in range(propagation.levels.shape[0]):
         span = slice(first + k * n_lanes, first + (k + 1) * n_lanes)

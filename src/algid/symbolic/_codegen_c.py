@@ -608,6 +608,13 @@ class _Writer:
         ]
         return lines
 
+    def _unintegrated_kernel(self):
+        """The C names (``u``, ``y``) of the signals of the kernels of level 0 whose
+        chain has no integrator (empty if there are none)."""
+        chain_of = {(sig, pw): c for c, (sig, pw, _) in enumerate(self.chains)}
+        return {"u" if k.signal == self.model.input else "y" for k in self.kernels
+                if k.order == 0 and (chain_of[(k.signal, k.power)], 1) not in self.chain_ints}
+
     def _grid_code(self):
         """The switch: the propagation's state from the estimator's and the companion's
         windows (as algid.estimation._error_propagation.start)."""
@@ -616,6 +623,9 @@ class _Writer:
         longer = "c" if cq > q else "w"
         chain_of = {(sig, pw): c for c, (sig, pw, _) in enumerate(self.chains)}
         n_chain = len(self.chain_ints)
+        # a signal that enters unintegrated has no history: its kernel of level 0 is
+        # formed from the last sample (as algid.estimation._error_propagation does)
+        sample = ", double u, double y" if self._unintegrated_kernel() else ""
         lines = [
             "/* The rules' telescoped difference: the running sum of the companion's weights",
             "   minus the estimator's (by lag), newest lag last, reversed. */",
@@ -644,7 +654,7 @@ class _Writer:
             "/* At the switch: the differences of the companion's window c from the",
             "   estimator's w, and the propagation starts. */",
             f"static void {pre}_grid_start({pre}_grid *g, const {pre}_window *w,",
-            f"{' ' * (len(pre) + 18)}const {other.pre}_window *c, double dt)",
+            f"{' ' * (len(pre) + 18)}const {other.pre}_window *c, double dt{sample})",
             "{",
             f"    double kw[{len(self.kernels)}], kc[{len(self.kernels)}], lw[{lanes}], "
             f"lc[{lanes}];",
@@ -661,10 +671,16 @@ class _Writer:
             if k.order:
                 idx = self.chain_ints.index((ch, k.order))
                 lines += [f"    kw[{i}] = w->sum[{idx}];", f"    kc[{i}] = c->sum[{idx}];"]
-            else:  # the newest integrand of the chain's first integrator
-                idx = self.chain_ints.index((ch, 1))
+            elif (ch, 1) in self.chain_ints:  # the newest integrand of the chain's first
+                idx = self.chain_ints.index((ch, 1))  # integrator
                 lines += [f"    kw[{i}] = w->hist[{idx}][{q - 2}];",
                           f"    kc[{i}] = c->hist[{idx}][{cq - 2}];"]
+            else:  # the last sample's (sample w->n - 1)
+                value = c_loops.level0(self, ch, "((w->n - 1.0) * dt)", "u", "y")
+                lines += [f"    kw[{i}] = {value};", f"    kc[{i}] = kw[{i}];"]
+        # the last sample of a signal that no such kernel takes is not read
+        lines += [f"    (void){v};" for v in ("u", "y")
+                  if sample and v not in self._unintegrated_kernel()]
         lines += [f"    {pre}_algebra(kc, lc);",
                   f"    {pre}_algebra(kw, lw);",
                   f"    for (r = 0; r < {lanes}; ++r) g->lane[r] = lc[r] - lw[r];",
@@ -854,7 +870,8 @@ class _Writer:
                 "        }",
                 *self._pieces_with_companion(grid),
                 f"        if (w->n == {self.grid_switch}.0) {{",
-                f"            {pre}_grid_start(g, w, &st->companion[k], st->dt);",
+                f"            {pre}_grid_start(g, w, &st->companion[k], st->dt"
+                + (", u[end - 1], y[end - 1]);" if self._unintegrated_kernel() else ");"),
                 "        }",
                 "        piece = end;",
                 "    }",
