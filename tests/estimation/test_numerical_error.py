@@ -222,12 +222,13 @@ def test_the_late_twin_does_not_replace_an_undetermined_estimate():
     np.testing.assert_allclose(r.K[63:], 50.0, rtol=1e-8)
 
 
-@pytest.mark.parametrize("quiet, undetermined_until", [(3.0, 4096), (140.0, 196608)])
+@pytest.mark.parametrize("quiet, undetermined_until", [(3.0, 3008), (140.0, 141312)])
 def test_a_stream_that_becomes_excited_is_judged_again(quiet, undetermined_until):
     """Constant for ``quiet`` seconds at 1 kHz, then a sine: B is NaN until the first
-    check after the excitation (from the next sample on), then estimated.  Checks fall
-    on the powers of two up to 65536, then every 65536 samples: after 140 s the stream
-    is judged again at 196608 samples, not at the next power of two (262144)."""
+    check after the excitation (from the next sample on), then estimated.  While B is
+    undetermined the checks fall every 64th of the samples seen (at least every 64):
+    after 3 s every 64 samples (the check at 3008 sees 8 excited samples), after 140 s
+    every 2048 (141312), not at the next check of a determined stream (4096, 196608)."""
     t = np.arange(undetermined_until + 1700) * 1e-3
     f = np.where(t < quiet, 1.0, 1.0 + np.sin(5 * (t - quiet)))
     x = algid.simulate(f, duration=t[-1], initial_state=(1 / 3, 0.0)).x
@@ -239,6 +240,25 @@ def test_a_stream_that_becomes_excited_is_judged_again(quiet, undetermined_until
     assert abs(r.B[-1] / 2.0 - 1) < 1e-6
 
 
+@pytest.mark.parametrize("engine", ENGINES)
+def test_a_quiet_start_delays_the_estimates_by_a_64th_of_it(engine):
+    """5 s of zeros, then the paper's step experiment: batch and every chunking report
+    NaN until the first check after the excitation (5056), then the parameters."""
+    sim = algid.simulate("step", duration=3.0)
+    f, x = np.r_[np.zeros(5000), sim.f], np.r_[np.zeros(5000), sim.x]
+    t = np.arange(f.size) * 1e-3
+    r = algid.estimate(t, f, x, engine=engine)
+    assert np.isnan(r.B[:5056]).all() and np.isfinite(r.B[5056:]).all()
+    assert abs(r.B[-1] / 2 - 1) <= 10 * r.numerical_error[-1] < 1e-2
+    for chunk in (7, 1000):
+        online = algid.OnlineEstimator(dt=1e-3, engine=engine)
+        pieces = [online.update(t[i:i + chunk], f[i:i + chunk], x[i:i + chunk])
+                  for i in range(0, t.size, chunk)]
+        np.testing.assert_array_equal(np.concatenate([p.B for p in pieces]), r.B)
+        np.testing.assert_array_equal(np.concatenate([p.numerical_error for p in pieces]),
+                                      r.numerical_error)
+
+
 def test_next_check():
     from algid.estimation._numerical_error import CHECK_EVERY, FIRST_CHECK, next_check
     assert (FIRST_CHECK, CHECK_EVERY) == (64, 65536)
@@ -246,6 +266,9 @@ def test_next_check():
         [64, 64, 64, 128, 128, 128, 256, 1024, 2048, 65536]
     assert [next_check(n) for n in (65536, 65537, 131071, 131072, 196608, 10**6)] == \
         [131072, 131072, 131072, 196608, 262144, 1048576]
+    # undetermined: every 64th of the largest power of two seen, at least every 64
+    assert [next_check(n, True) for n in (0, 64, 100, 4095, 4096, 65536, 10**6)] == \
+        [64, 128, 128, 4096, 4160, 66560, 1007616]
 
 
 def test_companion_options():

@@ -22,13 +22,17 @@ depends strongly on the filter and the companion's differs.  How well the report
 error bounds the actual one is measured by ``python -m benchmarks.population``.
 
 The companion is advanced with the estimator, on the same samples, so the numerical
-error of a stream is that of the batch estimate, bit for bit; it costs about as much as
-the estimator itself.  With noise, the two filters pass the noise differently: the
-difference then also holds part of the noise's effect.
+error of a stream is that of the batch estimate, bit for bit.  Past
+:data:`~algid.estimation._error_propagation.SWITCH` samples it is no longer run but
+propagated from the estimator's own integrals (:mod:`algid.estimation._error_propagation`):
+the error then adds a third to a half of the estimator's time.  With noise, the two
+filters pass the noise differently: the difference then also holds part of the noise's
+effect.
 
 Data that do not determine a parameter (a constant output leaves ``B`` free) make the
 estimate round-off divided by round-off.  When the estimator has seen 64, 128, 256, ...,
-65536 samples from its origin, and every 65536 samples after that (:func:`next_check`),
+65536 samples from its origin, and every 65536 samples after that (every 64th of
+its age while a parameter is undetermined: :func:`next_check`),
 the test of :mod:`algid.estimation._identifiability` runs on its state (the kernels it holds, the
 largest channel values so far), if the numerical error is above :data:`JUDGED_ABOVE`
 or an estimate is 0; until the next check, the parameters it finds undetermined are
@@ -56,7 +60,7 @@ from algid.signals._quadrature import QUADRATURE_POINTS
 __all__ = ["companion_options", "with_companion", "advance_with_error", "advance_rows_with_error",
            "sample_stepper",
            "relative_difference", "window_maximum", "next_check", "WINDOW", "FIRST_CHECK",
-           "CHECK_EVERY", "JUDGED_ABOVE"]
+           "CHECK_EVERY", "RECHECK_SHARE", "JUDGED_ABOVE"]
 
 
 def companion_options(points: int, filter_order: int) -> tuple:
@@ -242,7 +246,7 @@ def advance_with_error(state, channels, *, backend="numpy", out=None, error_out=
     error_out = core.output_array(error_out, (m,), "error_out")
     if not m:
         return out, error_out, state
-    check = next_check(state.n_seen)
+    check = next_check(state.n_seen, bool(state.undetermined))
     if m <= BLOCK and state.n_seen + m < check:  # one piece (every small chunk of a
         _piece(state, rows, backend, out, error_out)  # stream): no slicing
         return out, error_out, state
@@ -268,7 +272,7 @@ def advance_with_error(state, channels, *, backend="numpy", out=None, error_out=
                 if verdict:  # from the checked sample on
                     _mark_undetermined(state, out[:, stop - 1:stop],
                                        error_out[stop - 1:stop])
-            check = next_check(state.n_seen)
+            check = next_check(state.n_seen, bool(state.undetermined))
         start = stop
     return out, error_out, state
 
@@ -395,9 +399,10 @@ def sample_stepper(state, backend="numpy"):
         seen = state.n_seen
         if span[0] <= seen < span[1]:
             return True
-        if seen < first or seen + 1 >= next_check(seen):
+        check = next_check(seen, bool(state.undetermined))
+        if seen < first or seen + 1 >= check:
             return False
-        last = next_check(seen) - 1
+        last = check - 1
         propagation = state.propagation
         if propagation is not None and seen + 1 >= propagation.switch:
             if not propagation.active or (seen + 1) % GRID == 0:
@@ -414,7 +419,8 @@ def sample_stepper(state, backend="numpy"):
     def buffer(values, out, error_out):
         seen = state.n_seen
         if state.early or companion.early or seen > last_buffered or \
-                companion.n_seen != seen or seen + 1 >= next_check(seen):
+                companion.n_seen != seen or \
+                seen + 1 >= next_check(seen, bool(state.undetermined)):
             return False
         state.startup[:, seen] = values
         companion.startup[:, seen] = values
@@ -439,6 +445,9 @@ FIRST_CHECK = 64
 #: about a fifth of the NumPy backend's throughput, every 65536 nothing measurable (a
 #: batch is advanced in pieces of that size anyway).
 CHECK_EVERY = 65536
+#: While a parameter is undetermined, it is judged again every this share of the
+#: samples seen (:func:`next_check`; a check costs about 0.1 ms).
+RECHECK_SHARE = 64
 #: ... where the numerical error is above this (or not finite), or an estimate is 0;
 #: otherwise the estimate is taken as determined without the test (which costs about
 #: 0.1 ms: so that noisy streams, and estimators re-anchored every few tens of samples,
@@ -446,22 +455,31 @@ CHECK_EVERY = 65536
 JUDGED_ABOVE = 0.1
 
 
-def next_check(n_seen):
+def next_check(n_seen, undetermined=False):
     """The first sample count above ``n_seen`` at which the identifiability is checked.
 
     Powers of two from :data:`FIRST_CHECK` to :data:`CHECK_EVERY`, then the multiples
-    of :data:`CHECK_EVERY`.
+    of :data:`CHECK_EVERY`.  While a parameter is undetermined, more often: the
+    multiples of :data:`RECHECK_SHARE` of the largest power of two up to ``n_seen``
+    (at least :data:`FIRST_CHECK`), so that a stream excited only after a quiet start
+    reports estimates within a 64th of its age, not up to :data:`CHECK_EVERY`
+    samples later.
 
     Parameters
     ----------
     n_seen : int
         Samples seen since the time origin.
+    undetermined : bool, optional
+        Whether the last check left a parameter undetermined.
 
     Returns
     -------
     int
     """
     n_seen = int(n_seen)
+    if undetermined and n_seen >= FIRST_CHECK:
+        every = max(FIRST_CHECK, (1 << (n_seen.bit_length() - 1)) // RECHECK_SHARE)
+        return min(next_check(n_seen), (n_seen // every + 1) * every)
     if n_seen >= CHECK_EVERY:
         return (n_seen // CHECK_EVERY + 1) * CHECK_EVERY
     return max(FIRST_CHECK, 1 << n_seen.bit_length())

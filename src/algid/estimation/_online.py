@@ -392,7 +392,8 @@ class OnlineEstimator:
             Estimates at the given times, computed from the samples up to each of them.
             NaN for the first ``startup_samples`` samples, where the denominator is zero,
             and for parameters the samples do not determine (``numerical_error`` inf;
-            judged at 64, 128, ..., 65536 samples, then every 65536:
+            judged at 64, 128, ..., 65536 samples, then every 65536, and every 64th
+            of the samples seen while undetermined:
             :mod:`algid.estimation._numerical_error`).
 
         Raises
