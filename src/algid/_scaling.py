@@ -56,7 +56,8 @@ def amplitude_scale(arrays):
     -------
     float or None
         1.0 if the largest absolute sample is within :data:`SAFE_AMPLITUDES`; else
-        ``2**k`` bringing it into ``[1, 2)``; None if every sample is zero (no scale
+        ``2**k`` bringing it into ``[1, 2)`` (at most ``2**1023``: a subnormal one
+        comes into ``[2**-51, 1)``); None if every sample is zero (no scale
         can be chosen yet, and none is needed).
     """
     largest = max((max(float(a.max()), -float(a.min())) for a in arrays if a.size),
@@ -67,7 +68,9 @@ def amplitude_scale(arrays):
     if low <= largest <= high:
         return 1.0
     _, exponent = math.frexp(largest)  # largest = mantissa * 2**exponent, mantissa in [0.5, 1)
-    return math.ldexp(1.0, 1 - exponent)
+    # at most 2**1023, the largest power of two: a subnormal largest sample (below
+    # 2**-1022) then lands in [2**-51, 1), inside SAFE_AMPLITUDES
+    return math.ldexp(1.0, min(1 - exponent, 1023))
 
 
 def scalable(module) -> bool:

@@ -55,6 +55,22 @@ def test_an_outlier_of_1e308_is_named_in_batch(sine, signal, capsys, tmp_path):
     assert_one_line_error(code, err, "1e+308", "row 1000")
 
 
+@pytest.mark.parametrize("scale", [1e-310, 1e-315])
+def test_subnormal_amplitudes_are_rescaled(sine, scale, capsys, tmp_path):
+    """Signals below 2**-1022 (subnormal) are brought up by 2**1023, the largest power
+    of two (a scale that overflowed was an OverflowError traceback)."""
+    f, x = sine.f * scale, sine.x * scale
+    reference = algid.estimate(sine.t, sine.f, sine.x)
+    r = algid.estimate(sine.t, f, x)
+    # subnormal samples keep fewer bits: relative steps of 2**-1074 / scale (5e-14,
+    # 5e-9); the estimates move by less (measured 2e-14, 3e-9)
+    assert abs(r.B[-1] / reference.B[-1] - 1) < 2.0**-1074 / scale
+    streamed = algid.OnlineEstimator(rate=1000.0).update(sine.t, f, x)
+    np.testing.assert_array_equal(streamed.B, r.B)
+    code, out, _ = run(capsys, "estimate", str(write_csv(tmp_path / "d.csv", sine.t, f, x)))
+    assert code == 0 and "B" in out
+
+
 @pytest.mark.parametrize("mass, words", [(1e-308, "reaches 1e+308"),
                                          (1e308, "is at most 1e-308"),
                                          (1e-300, "beyond 2**256"),
