@@ -364,6 +364,23 @@ def test_an_unintegrated_signal_switches_as_in_python(build, user_registered, p)
 
 
 @needs_cc
+@pytest.mark.parametrize("scale", [1e-158, 1e-310, 1e154, 1e300])
+def test_extreme_amplitudes_are_rescaled_as_in_python(build, scale):
+    """Samples far from 1 are multiplied by the power of two that the stream chooses
+    (exact): the C then gives Python's numbers where, on the samples as given, its
+    products underflowed (wrong finite estimates with an error of 0 at 1e-158) or
+    overflowed (NaN)."""
+    c = build("msd")
+    t, u, y, _ = _experiment("msd", "step", duration=3.0)
+    r = algid.estimate(t, u * scale, y * scale, engine="numpy")
+    for chunk in (1, 1000, None):
+        est = c.run(u * scale, y * scale, 1e-3, chunk=chunk)
+        np.testing.assert_array_equal(est, _rows(r, ["B", "K"]))
+        _assert_same_error(c.error, r.numerical_error, rtol=0.0)
+    assert abs(est[-1, 0] / 2 - 1) < 1e-6
+
+
+@needs_cc
 def test_numerical_error_of_an_under_resolved_record_equals_batch_estimate(build):
     # a lightly damped mode of 3 rad/s sampled 100 times per period: the numerical
     # error is large, and the C's is the batch one to 1e-10 relative

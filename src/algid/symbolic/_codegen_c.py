@@ -41,6 +41,7 @@ from pathlib import Path
 import sympy as sp
 
 import algid.symbolic._c_arithmetic as c_loops
+from algid._scaling import SAFE_AMPLITUDES
 from algid.errors import ModelError
 from algid.estimation._core import EARLY_POINTS, first_estimate
 from algid.estimation._error_propagation import GRID, SWITCH
@@ -264,7 +265,7 @@ class _Writer:
         m = q - 1
         # doubles of one window and of the whole state (see _struct)
         self.window_doubles = 1 + self.n_int + self.n_int * m + 2 * q
-        self.state_doubles = 4 + 2 * self.window_doubles
+        self.state_doubles = 5 + 2 * self.window_doubles
         self.companion = None
         self.block_macro = None  # the BLOCK of another writer, for a companion's
         self.algebra_pre = self.pre  # whose <pre>_algebra the loops call
@@ -299,7 +300,8 @@ class _Writer:
         own = 8 * (rows * (self.q - 1 + block) + self.width * block)
         if self.companion is None:
             return own
-        return max(own, self.companion.stack_bytes(block)) + 8 * block * self.n_par
+        # with the companion's rows, and update's copies of rescaled samples
+        return max(own, self.companion.stack_bytes(block)) + 8 * block * (self.n_par + 2)
 
     # ------------------------------------------------------------------ files
 
@@ -367,7 +369,10 @@ class _Writer:
             "   yet defined (start-up, zero or non-finite denominator).  Chunks of any size",
             "   give the same numbers (bit for bit when compiled without floating-point",
             "   contraction into fused multiply-adds: ISO modes such as -std=c99 do that;",
-            "   with -std=gnu99 and -march with FMA add -ffp-contract=off).",
+            "   with -std=gnu99 and -march with FMA add -ffp-contract=off).  Samples whose",
+            "   first chunk with a nonzero one peaks outside [2**-64, 2**64] are multiplied",
+            "   by a power of two (exact; as algid.OnlineEstimator), so that amplitudes of",
+            "   1e-300 or 1e300 do not underflow or overflow the estimator's products.",
             "   error (NULL if not wanted) receives n values: the numerical error of each",
             "   row, as algid.estimate reports it (its companion estimator, with a rule of",
             f"   {cq} points and a filter of order {cp}, runs beside every estimator, NULL or",
@@ -498,6 +503,7 @@ class _Writer:
             "    double half;    /* samples per half period; 0: never re-anchor */",
             "    double phase;   /* samples since the last multiple of half */",
             "    double index;   /* index of the current half period, capped at 2 (parity kept) */",
+            "    double scale;   /* the power of two the samples are multiplied by; 0: none yet */",
             f"    {pre}_window window[2];  /* A, B */",
             *companion,
             f"}} {pre}_state;",
@@ -931,7 +937,35 @@ class _Writer:
 
     def _api(self):
         pre, P, q = self.pre, self.PRE, self.q
+        low, high = SAFE_AMPLITUDES
         return [
+            "/* The power of two that the samples are multiplied by, from the first chunk",
+            "   with a nonzero finite sample (as algid.OnlineEstimator): 1 if its largest is",
+            f"   within [{low!r}, {high!r}] (2**-64, 2**64), else the power that brings it",
+            "   into [1, 2) (at most 2**1023); 0 if there is none yet.  Multiplying by a",
+            "   power of two is exact: the estimates are those of the samples as given,",
+            "   unless these would overflow or underflow. */",
+            f"static double {pre}_scale(const double *u, const double *y, size_t n)",
+            "{",
+            "    double largest = 0.0;",
+            "    size_t i;",
+            "    int e;",
+            "    for (i = 0; i < n; ++i) {",
+            "        const double a = fabs(u[i]) > fabs(y[i]) ? fabs(u[i]) : fabs(y[i]);",
+            "        if (a > largest && isfinite(a)) {",
+            "            largest = a;",
+            "        }",
+            "    }",
+            "    if (largest == 0.0) {",
+            "        return 0.0;",
+            "    }",
+            f"    if (largest >= {low!r} && largest <= {high!r}) {{",
+            "        return 1.0;",
+            "    }",
+            "    (void)frexp(largest, &e);",
+            "    return ldexp(1.0, 1 - e > 1023 ? 1023 : 1 - e);",
+            "}",
+            "",
             f"size_t {pre}_state_size(void)",
             "{",
             f"    return sizeof({pre}_state);",
@@ -970,22 +1004,21 @@ class _Writer:
             "    st->half = half;",
             "    st->phase = 0.0;",
             "    st->index = 0.0;",
+            "    st->scale = 0.0;",
             f"    {pre}_restart_pair(st, 0);",
             f"    {pre}_restart_pair(st, 1);",
             f"    return {P}_OK;",
             "}",
             "",
-            f"size_t {pre}_update(void *state, const double *u, const double *y, size_t n,",
-            f"{' ' * (len(pre) + 14)}double *theta, double *error)",
+            "/* update on samples already rescaled. */",
+            f"static void {pre}_advance({pre}_state *st, const double *u, const double *y, "
+            "size_t n,",
+            f"{' ' * (len(pre) + 20)}double *theta, double *error)",
             "{",
-            f"    {pre}_state *st = ({pre}_state *)state;",
             "    size_t pos = 0;",
-            "    if (st == NULL || (n > 0 && (u == NULL || y == NULL || theta == NULL))) {",
-            "        return 0;",
-            "    }",
             "    if (st->half == 0.0) {",
             f"        {pre}_feed_pair(st, 0, u, y, n, theta, error);",
-            "        return n;",
+            "        return;",
             "    }",
             "    /* pieces between multiples of half a period: there neither estimator",
             "       restarts and the reported one does not change */",
@@ -1012,6 +1045,33 @@ class _Writer:
             "            st->phase = 0.0;",
             "            st->index = st->index == 1.0 ? 2.0 : 1.0;",
             "        }",
+            "    }",
+            "}",
+            "",
+            f"size_t {pre}_update(void *state, const double *u, const double *y, size_t n,",
+            f"{' ' * (len(pre) + 14)}double *theta, double *error)",
+            "{",
+            f"    {pre}_state *st = ({pre}_state *)state;",
+            f"    double su[{P}_BLOCK], sy[{P}_BLOCK];",
+            "    size_t pos, i, m;",
+            "    if (st == NULL || (n > 0 && (u == NULL || y == NULL || theta == NULL))) {",
+            "        return 0;",
+            "    }",
+            "    if (st->scale == 0.0) {",
+            f"        st->scale = {pre}_scale(u, y, n);",
+            "    }",
+            "    if (st->scale == 0.0 || st->scale == 1.0) {",
+            f"        {pre}_advance(st, u, y, n, theta, error);",
+            "        return n;",
+            "    }",
+            f"    for (pos = 0; pos < n; pos += m) {{  /* rescaled copies, {P}_BLOCK at a time */",
+            f"        m = n - pos < {P}_BLOCK ? n - pos : {P}_BLOCK;",
+            "        for (i = 0; i < m; ++i) {",
+            "            su[i] = u[pos + i] * st->scale;",
+            "            sy[i] = y[pos + i] * st->scale;",
+            "        }",
+            f"        {pre}_advance(st, su, sy, m, theta + pos * {self.n_par}, "
+            "error == NULL ? NULL : error + pos);",
             "    }",
             "    return n;",
             "}",

@@ -24,9 +24,9 @@ extern "C" {
 #define ALGID_MSD_STARTUP_SAMPLES 5
 /* Size of the state in doubles: a buffer `double state[ALGID_MSD_STATE_DOUBLES]`
    is large enough and suitably aligned (algid_msd_state_size() bytes). */
-#define ALGID_MSD_STATE_DOUBLES 766
+#define ALGID_MSD_STATE_DOUBLES 767
 /* Stack: update works on blocks of ALGID_MSD_BLOCK samples (default 64:
-   about 16 kB of stack); define ALGID_MSD_BLOCK when compiling the .c for a
+   about 17 kB of stack); define ALGID_MSD_BLOCK when compiling the .c for a
    smaller stack (ALGID_MSD_BLOCK=4: about 3 kB), with the same numbers. */
 
 /* Return values of init. */
@@ -53,7 +53,10 @@ int algid_msd_init(void *state, double dt, double reset_period);
    yet defined (start-up, zero or non-finite denominator).  Chunks of any size
    give the same numbers (bit for bit when compiled without floating-point
    contraction into fused multiply-adds: ISO modes such as -std=c99 do that;
-   with -std=gnu99 and -march with FMA add -ffp-contract=off).
+   with -std=gnu99 and -march with FMA add -ffp-contract=off).  Samples whose
+   first chunk with a nonzero one peaks outside [2**-64, 2**64] are multiplied
+   by a power of two (exact; as algid.OnlineEstimator), so that amplitudes of
+   1e-300 or 1e300 do not underflow or overflow the estimator's products.
    error (NULL if not wanted) receives n values: the numerical error of each
    row, as algid.estimate reports it (its companion estimator, with a rule of
    9 points and a filter of order 1, runs beside every estimator, NULL or

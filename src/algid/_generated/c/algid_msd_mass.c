@@ -1571,6 +1571,7 @@ typedef struct {
     double half;    /* samples per half period; 0: never re-anchor */
     double phase;   /* samples since the last multiple of half */
     double index;   /* index of the current half period, capped at 2 (parity kept) */
+    double scale;   /* the power of two the samples are multiplied by; 0: none yet */
     algid_msd_mass_window window[2];  /* A, B */
     algid_msd_mass_companion_window companion[2];  /* the companions of A and B */
     double recent[2][15];  /* their last raw errors (finite; else 0) */
@@ -1715,6 +1716,33 @@ static void algid_msd_mass_restart_pair(algid_msd_mass_state *st, int k)
     st->grid[k].active = 0.0;
 }
 
+/* The power of two that the samples are multiplied by, from the first chunk
+   with a nonzero finite sample (as algid.OnlineEstimator): 1 if its largest is
+   within [5.421010862427522e-20, 1.8446744073709552e+19] (2**-64, 2**64), else the power that brings it
+   into [1, 2) (at most 2**1023); 0 if there is none yet.  Multiplying by a
+   power of two is exact: the estimates are those of the samples as given,
+   unless these would overflow or underflow. */
+static double algid_msd_mass_scale(const double *u, const double *y, size_t n)
+{
+    double largest = 0.0;
+    size_t i;
+    int e;
+    for (i = 0; i < n; ++i) {
+        const double a = fabs(u[i]) > fabs(y[i]) ? fabs(u[i]) : fabs(y[i]);
+        if (a > largest && isfinite(a)) {
+            largest = a;
+        }
+    }
+    if (largest == 0.0) {
+        return 0.0;
+    }
+    if (largest >= 5.421010862427522e-20 && largest <= 1.8446744073709552e+19) {
+        return 1.0;
+    }
+    (void)frexp(largest, &e);
+    return ldexp(1.0, 1 - e > 1023 ? 1023 : 1 - e);
+}
+
 size_t algid_msd_mass_state_size(void)
 {
     return sizeof(algid_msd_mass_state);
@@ -1753,22 +1781,20 @@ int algid_msd_mass_init(void *state, double dt, double reset_period)
     st->half = half;
     st->phase = 0.0;
     st->index = 0.0;
+    st->scale = 0.0;
     algid_msd_mass_restart_pair(st, 0);
     algid_msd_mass_restart_pair(st, 1);
     return ALGID_MSD_MASS_OK;
 }
 
-size_t algid_msd_mass_update(void *state, const double *u, const double *y, size_t n,
-                            double *theta, double *error)
+/* update on samples already rescaled. */
+static void algid_msd_mass_advance(algid_msd_mass_state *st, const double *u, const double *y, size_t n,
+                                  double *theta, double *error)
 {
-    algid_msd_mass_state *st = (algid_msd_mass_state *)state;
     size_t pos = 0;
-    if (st == NULL || (n > 0 && (u == NULL || y == NULL || theta == NULL))) {
-        return 0;
-    }
     if (st->half == 0.0) {
         algid_msd_mass_feed_pair(st, 0, u, y, n, theta, error);
-        return n;
+        return;
     }
     /* pieces between multiples of half a period: there neither estimator
        restarts and the reported one does not change */
@@ -1794,6 +1820,32 @@ size_t algid_msd_mass_update(void *state, const double *u, const double *y, size
             st->phase = 0.0;
             st->index = st->index == 1.0 ? 2.0 : 1.0;
         }
+    }
+}
+
+size_t algid_msd_mass_update(void *state, const double *u, const double *y, size_t n,
+                            double *theta, double *error)
+{
+    algid_msd_mass_state *st = (algid_msd_mass_state *)state;
+    double su[ALGID_MSD_MASS_BLOCK], sy[ALGID_MSD_MASS_BLOCK];
+    size_t pos, i, m;
+    if (st == NULL || (n > 0 && (u == NULL || y == NULL || theta == NULL))) {
+        return 0;
+    }
+    if (st->scale == 0.0) {
+        st->scale = algid_msd_mass_scale(u, y, n);
+    }
+    if (st->scale == 0.0 || st->scale == 1.0) {
+        algid_msd_mass_advance(st, u, y, n, theta, error);
+        return n;
+    }
+    for (pos = 0; pos < n; pos += m) {  /* rescaled copies, ALGID_MSD_MASS_BLOCK at a time */
+        m = n - pos < ALGID_MSD_MASS_BLOCK ? n - pos : ALGID_MSD_MASS_BLOCK;
+        for (i = 0; i < m; ++i) {
+            su[i] = u[pos + i] * st->scale;
+            sy[i] = y[pos + i] * st->scale;
+        }
+        algid_msd_mass_advance(st, su, sy, m, theta + pos * 3, error == NULL ? NULL : error + pos);
     }
     return n;
 }
