@@ -99,8 +99,16 @@ def test_estimates_nan_until_determined():
     ({}, {"y": [1.0, 2.0]}, "no column 'u'"),
     ({}, {"y": [1.0, 2.0], "u": [1.0]}, "different lengths"),
     ({"time": "t"}, {"y": [1.0, 2.0], "u": [1.0, 2.0], "t": [0.0, 0.0]}, "does not increase"),
+    ({"window": 0.0}, None, "window must be a positive number"),
+    ({"window": -1.0}, None, "window must be a positive number"),
+    # refused before the arrays of 8e7 samples are made (a MemoryError or the OOM killer)
+    ({"window": 1e6}, {"y": [1.0, 2.0], "u": [1.0, 2.0]}, "longer than a tracker keeps"),
+    # forgetting faster than windows accumulate: NaN for ever (the 4 parameters need 12)
+    ({"window": WINDOW, "half_life": 0.5}, {"y": [1.0, 2.0], "u": [1.0, 2.0]},
+     "half_life 0.5 s is too short for the window 0.1875 s"),
 ])
 def test_bad_input_one_line(kwargs, chunk, message):
+    """One line, at construction or at the first update (where the rate is known)."""
     with pytest.raises(InputDataError, match=message) as info:
         tracker = Tracker(EQUATION, PARAMETERS, **({"rate": 80.0} | kwargs
                                                    if "time" not in kwargs else kwargs))

@@ -8,6 +8,7 @@ with the numbers (:mod:`algid._memory`) before anything is allocated.
 
 from __future__ import annotations
 
+import math
 import numbers
 
 import numpy as np
@@ -77,6 +78,8 @@ def check_arguments(equation, parameters, *, time, rate, output, window, method,
         raise InputDataError(f"rate must be a number of Hz, got {rate!r}")
     if window is not None and not _is_real(window):
         raise InputDataError(f"window must be a number of seconds, got {window!r}")
+    if window is not None and not (math.isfinite(window) and window > 0):
+        raise InputDataError(f"window must be a positive number of seconds, got {window!r}")
     if not isinstance(method, str) or method not in methods:
         raise InputDataError(f"unknown method {method!r} (choose from {', '.join(methods)})")
     if isinstance(multiplicities, (str, bytes)) or not hasattr(multiplicities, "__iter__"):

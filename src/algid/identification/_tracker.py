@@ -266,6 +266,11 @@ def _lag_weights(overlap):
                      for lag in range(lags + 1)])
 
 
+#: Longest window (samples) a tracker accepts: its state holds a few arrays of a
+#: window's samples.
+MAX_WINDOW_SAMPLES = 2**20
+
+
 class Tracker:
     """The streaming form of :func:`algid.identify`, with forgetting and change alarms.
 
@@ -567,12 +572,18 @@ class Tracker:
                     raise InputDataError(
                         f"no window could be chosen on the first {span:g} s of the stream "
                         f"(identify refuses them); give window=")
+        samples = window / step + 1
+        if samples > MAX_WINDOW_SAMPLES:  # (before any array of that length is made)
+            raise InputDataError(f"window {window:g} s ({samples:.3g} samples) is longer "
+                                 f"than a tracker keeps ({MAX_WINDOW_SAMPLES} samples, "
+                                 f"{(MAX_WINDOW_SAMPLES - 1) * step:.4g} s at this rate)")
         length = int(round(window / step)) + 1
         shortest = min_length(self.multiplicities)
         if length < shortest:
             raise InputDataError(f"window {window:g} s ({length} samples) is shorter than the "
                                  f"kernels of multiplicity {max(self.multiplicities)} need; "
                                  f"use at least {(shortest - 1) * step:.4g} s")
+        self._check_half_life(length, step)
         self.s.update(configured=True, step=step, window=(length - 1) * step, length=length)
         self._start_state()
         warm = {n: self.s.pop(f"warm:{n}") for n in self._signals}
@@ -580,6 +591,27 @@ class Tracker:
         self._samples(times[:cut], {n: v[:cut] for n, v in warm.items()})
         if cut < len(times):
             self._samples(times[cut:], {n: v[cut:] for n, v in warm.items()})
+
+    def _check_half_life(self, length, step):
+        """Refuse a half-life under which even an endless stream never holds the
+        effective windows an estimate needs (it would report NaN only)."""
+        half_life = self.config["half_life"]
+        if half_life is None:
+            return
+        stride = max(1, length // WINDOW_OVERLAP)
+        overlap = -(-length // stride)
+        ratio = 2.0 ** (-stride * step / half_life)  # weight of a window over the next's
+        # (sum w)**2 / sum w**2 of the geometric weights of an endless stream
+        most = (1.0 + ratio) / (1.0 - ratio) / overlap if ratio < 1.0 else 0.0
+        needed = len(self.parameters) + MIN_SPARE_WINDOWS  # (as the solvers require)
+        if most < needed:
+            n = needed * overlap
+            shortest = stride * step * math.log(2.0) / math.log((n + 1) / (n - 1))
+            raise InputDataError(f"half_life {half_life:g} s is too short for the window "
+                                 f"{(length - 1) * step:.4g} s: it leaves at most "
+                                 f"{most:.2g} effective windows where the "
+                                 f"{len(self.parameters)} parameters need {needed}; use at "
+                                 f"least {shortest:.4g} s")
 
     def _choose_window(self, t, step):
         from algid.identification._identify import identify
