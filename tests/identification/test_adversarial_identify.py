@@ -423,3 +423,20 @@ def test_with_parameters_takes_finite_real_numbers_only(second_order, values, fr
     assert "\n" not in str(info.value) and fragment in str(info.value)
     kept = result.with_parameters({"B": np.float32(2.5), "K": np.int64(3)})
     assert kept.values == {"B": 2.5, "K": 3.0}
+
+
+@pytest.mark.parametrize("shape", [(-1, 2), (2, -1)])
+def test_a_two_dimensional_column_is_refused(noisy, shape):
+    """Not raveled into one signal of twice the samples (it ran on them silently)."""
+    record = {name: np.asarray(values) for name, values in noisy[0].items()}
+    n = len(record["t"]) // 2 * 2
+    record = {name: values[:n] for name, values in record.items()}
+    signal = next(name for name in record if name != "t")
+    record[signal] = record[signal].reshape(shape)
+    with pytest.raises(InputDataError, match=rf"column '{signal}' has shape") as info:
+        algid.identify(record, *LINEAR_EQUATION)
+    assert "\n" not in str(info.value)
+    column = dict(record, **{signal: record[signal].reshape(-1, 1)})  # (n, 1): one signal
+    assert algid.identify(column, *LINEAR_EQUATION).values == \
+        algid.identify(dict(column, **{signal: record[signal].reshape(-1)}),
+                       *LINEAR_EQUATION).values

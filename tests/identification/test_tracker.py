@@ -99,6 +99,8 @@ def test_estimates_nan_until_determined():
     ({}, {"y": [1.0, 2.0]}, "no column 'u'"),
     ({}, {"y": [1.0, 2.0], "u": [1.0]}, "different lengths"),
     ({"time": "t"}, {"y": [1.0, 2.0], "u": [1.0, 2.0], "t": [0.0, 0.0]}, "does not increase"),
+    ({}, {"y": [[1.0, 2.0], [3.0, 4.0]], "u": [1.0, 2.0, 3.0, 4.0]}, "has shape \\(2, 2\\)"),
+    ({}, {"y": [1.0, 2.0], "u": [True, False]}, "'u' holds booleans"),
     ({"window": 0.0}, None, "window must be a positive number"),
     ({"window": -1.0}, None, "window must be a positive number"),
     # refused before the arrays of 8e7 samples are made (a MemoryError or the OOM killer)

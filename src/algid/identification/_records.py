@@ -97,6 +97,9 @@ def _column(record, name, index, label):
         values = np.asarray(values)
     except (TypeError, ValueError):
         raise InputDataError(f"record {index}: column {name!r} is not numeric") from None
+    if sum(size > 1 for size in values.shape) > 1:  # (a column vector is one signal)
+        raise InputDataError(f"record {index}: column {name!r} has shape {values.shape}: "
+                             f"give one 1-D array per signal")
     kind = values.dtype.kind
     if kind == "c":
         raise InputDataError(f"record {index}: column {name!r} is complex; give real "

@@ -514,7 +514,19 @@ class Tracker:
                 raise InputDataError(f"no column {name!r} in the chunk (columns: "
                                      f"{', '.join(map(str, chunk.keys()))})")
             try:
-                values = np.asarray(chunk[name], dtype=float).reshape(-1)
+                values = np.asarray(chunk[name])
+            except (TypeError, ValueError):
+                raise InputDataError(f"column {name!r} is not numeric") from None
+            if sum(size > 1 for size in values.shape) > 1:  # (a column vector is one)
+                raise InputDataError(f"column {name!r} has shape {values.shape}: give one "
+                                     f"1-D array per signal")
+            if values.dtype.kind in "bcmM":  # as identify's records
+                raise InputDataError(f"column {name!r} holds "
+                                     + {"b": "booleans", "c": "complex numbers"}.get(
+                                         values.dtype.kind, "dates or durations")
+                                     + ", not measurements")
+            try:
+                values = values.astype(float).reshape(-1)
             except (TypeError, ValueError):
                 raise InputDataError(f"column {name!r} is not numeric") from None
             columns[name] = values
