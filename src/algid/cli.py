@@ -17,6 +17,7 @@ import json
 import math
 import re
 import sys
+from pathlib import Path
 
 from algid.errors import AlgidError, InputDataError, ModelError
 from algid.estimation._options import DEFAULT_QUADRATURE_POINTS, MAX_FILTER_ORDER
@@ -340,6 +341,11 @@ def _require(module, message):
 
 
 def _cmd_simulate(args) -> int:
+    from algid.io import CSV_SUFFIXES
+
+    if Path(args.out).suffix.lower() not in CSV_SUFFIXES:  # estimate reads by extension
+        raise AlgidError(f"--out {args.out}: simulate writes comma-separated text; name the "
+                         f"file .csv or .txt")
     _require("control", "algid simulate needs python-control: pip install 'algid[simulate]'")
     simulation = importlib.import_module("algid.simulation")
     result = simulation.simulate(

@@ -207,6 +207,14 @@ def test_extreme_simulate_options_give_one_line(argv, words, capsys, tmp_path):
     assert not (tmp_path / "o.csv").exists()
 
 
+@pytest.mark.parametrize("name", ["o.mat", "o", "o.csv.gz"])
+def test_simulate_writes_only_to_a_csv_name(name, capsys, tmp_path):
+    """CSV text under a name that estimate reads as another format (or not at all)."""
+    code, _, err = run(capsys, "simulate", "--out", str(tmp_path / name))
+    assert_one_line_error(code, err, "name the file .csv or .txt")
+    assert not (tmp_path / name).exists()
+
+
 def test_negative_numbers_with_an_exponent_are_values(capsys, tmp_path):
     out = tmp_path / "o.csv"
     code, _, err = run(capsys, "simulate", "--v0", "-1e-3", "--amplitude", "-2.5e0",
