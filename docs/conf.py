@@ -40,6 +40,9 @@ extensions = [
 root_doc = "index"
 exclude_patterns = ["_build", "README.md", "**/.ipynb_checkpoints", "_ext", "_templates"]
 templates_path = ["_templates"]
+# no typographic quotes or dashes: the command-line reference (from the parser's help,
+# rendered as prose) must stay copy-pasteable ("--equation", not an en dash)
+smartquotes = False
 source_suffix = {".rst": "restructuredtext", ".md": "myst-nb", ".ipynb": "myst-nb"}
 
 # Every cross-reference must resolve (-W turns a miss into an error).

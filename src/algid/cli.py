@@ -124,8 +124,10 @@ def build_parser() -> argparse.ArgumentParser:
     parser = _Parser(
         prog=PROG,
         description=(
-            "Algebraic identification of continuous-time linear systems: estimate "
-            "B and K of x'' + B x' + K x = f from measured f and x."
+            "Algebraic identification of continuous-time systems: the parameters of an "
+            "ODE linear in them from measured signals (estimate: the paper's B and K of "
+            "x'' + B x' + K x = f; identify and track: your equation; derive and codegen: "
+            "the estimator's equations and C)."
         ),
     )
     parser.add_argument("--version", action="version", version=f"{PROG} {_version()}")
