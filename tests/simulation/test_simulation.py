@@ -577,3 +577,22 @@ def test_nan_sample_is_located():
     values[17] = np.nan
     with pytest.raises(InputDataError, match=r"inputs\[17\]"):
         simulate(values, duration=1.0, rate=100.0)
+
+
+def test_a_callable_pulse_after_a_quiet_start_is_not_stepped_over():
+    """The adaptive integrator, started on a zero input, stepped over a 3 ms pulse at
+    3 s (x identically 0); the first-order hold on the samples sees it, and so must the
+    integration (the same response as the pulse at 1 s, and as the sampled pulse)."""
+    def pulse(at):
+        return lambda t: 100.0 * np.exp(-((t - at) / 0.003) ** 2)
+
+    late = simulate(pulse(3.0), rate=1000, duration=6)
+    early = simulate(pulse(1.0), rate=1000, duration=6)
+    peak = np.max(np.abs(early.x))
+    assert peak > 0.1
+    # from rest, the same response 2 s later (up to the integration's tolerance)
+    np.testing.assert_allclose(late.x[2000:], early.x[:-2000], rtol=0, atol=1e-9 * peak)
+    assert np.all(late.x[:2900] == 0.0)
+    # the first-order hold on 6 samples of the pulse: to a few per cent of it
+    sampled = simulate(pulse(3.0)(late.t), rate=1000, duration=6)
+    np.testing.assert_allclose(late.x, sampled.x, rtol=0, atol=1e-2 * peak)
