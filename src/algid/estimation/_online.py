@@ -120,7 +120,9 @@ class OnlineEstimator:
         step is the mean step of the first chunk (of the first two samples if the
         first chunk is one sample).  Every step of the stream must be within ``1e-4
         dt`` of it, or within what the precision or the decimal rounding of the times
-        explains (see :mod:`algid.estimation._stream_checks`).
+        explains (see :mod:`algid.estimation._stream_checks`).  A step so inferred
+        depends on the first chunk in its last bits: give ``dt`` or ``rate`` for
+        numbers that do not depend on the chunking (see the notes).
     rate : float, optional
         Sampling rate [Hz], ``dt = 1 / rate``.
     reset_period : float, optional
