@@ -1,5 +1,6 @@
 """The ``algid track`` command line."""
 
+import io
 import json
 import os
 import pathlib
@@ -8,6 +9,7 @@ import subprocess
 import sys
 
 import numpy as np
+import pytest
 from benchmarks.synthetic_records import linear_offsets
 
 from algid.cli import main
@@ -46,12 +48,25 @@ def test_bad_input_one_line_exit_2(tmp_path, capsys):
                  ["track", str(tmp_path / "lin.csv"), "--parameters", "B K G t"],
                  ["track", str(tmp_path / "lin.csv"), "--parameters", PARAMETERS,
                   "--window", "-1"],
-                 ["track", str(tmp_path / "lin.csv"), "--parameters", "B K G d Q"]):
+                 ["track", str(tmp_path / "lin.csv"), "--parameters", "B K G d Q"],
+                 # no window completes: the header alone, exit 0, before
+                 ["track", str(tmp_path / "lin.csv"), "--parameters", PARAMETERS,
+                  "--window", "1000"]):
         code = main(argv[:2] + ["--equation", EQUATION] + (argv[2:] or
                                                            ["--parameters", PARAMETERS]))
         err = capsys.readouterr().err
         assert code == 2
         assert err.count("\n") == 1 and err.startswith("algid: error:")
+
+
+@pytest.mark.parametrize("text, words", [("t,u,y\n", "standard input: no samples"),
+                                         ("t,u,y\n0,1,2\n0.0125,1,2\n", "no window")])
+def test_standard_input_that_ends_before_a_report(monkeypatch, capsys, text, words):
+    monkeypatch.setattr(sys, "stdin", io.StringIO(text))
+    code = main(["track", "-", "--equation", EQUATION, "--parameters", PARAMETERS,
+                 "--window", "0.1875"])
+    err = capsys.readouterr().err
+    assert code == 2 and err.count("\n") == 1 and words in err
 
 
 def test_standard_input_live(tmp_path):

@@ -122,7 +122,9 @@ def _file(args, model):
     for start in range(0, n, args.chunk):
         reports.append(tracker.update({k: np.asarray(v)[start:start + args.chunk]
                                        for k, v in record.items()}))
-    t = np.concatenate([r.t for r in reports])
+    t = np.concatenate([r.t for r in reports]) if reports else np.empty(0)
+    if not t.size:
+        raise InputDataError(_nothing(args.file, n, tracker))
     values = np.concatenate([r.values for r in reports])
     stderr = np.concatenate([r.stderr for r in reports])
     alarms = np.concatenate([r.alarms for r in reports])
@@ -147,6 +149,17 @@ def _file(args, model):
     for when in alarms:
         print(f"alarm at t = {when:.6g} s")
     return 0
+
+
+def _nothing(source, n, tracker):
+    """Why a stream that ended gave no report."""
+    if not n:
+        return f"{source}: no samples"
+    if tracker.window is None:
+        return (f"{source}: no window could be chosen on its {n} samples; give a longer "
+                f"record or --window")
+    return (f"{source}: no window completed: {n} samples, the window is "
+            f"{tracker.window:.6g} s")
 
 
 def _header(model):
@@ -181,7 +194,7 @@ def _live(args, model):
     if not args.json:
         _header(model)
         sys.stdout.flush()
-    row = 1
+    row, reported, samples = 1, False, 0
     while True:
         line = sys.stdin.readline()
         if not line:
@@ -195,6 +208,7 @@ def _live(args, model):
                 raise InputDataError(f"{len(fields)} fields, the header has {len(columns)}")
             values = [float(fields[i]) for i in where]
             out = tracker.update({c: [v] for c, v in zip(needed, values)})
+            samples += 1
         except (ValueError, InputDataError) as exc:
             message = " ".join(str(exc).split())
             print(f"algid: warning: standard input row {row} skipped: {message}",
@@ -215,4 +229,7 @@ def _live(args, model):
                 print(f"alarm at t = {when:.6g} s")
         if len(out) or len(out.alarms):
             sys.stdout.flush()
+        reported = reported or len(out) > 0
+    if not reported:
+        raise InputDataError(_nothing("standard input", samples, tracker))
     return 0
