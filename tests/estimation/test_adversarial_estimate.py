@@ -251,6 +251,23 @@ def test_the_large_error_warning_names_the_sampling_only_when_it_is_the_cause(
             assert "does not come from the sampling" in err
 
 
+@pytest.mark.parametrize("scale", [1e300, 1e-300])
+def test_the_warnings_cause_does_not_depend_on_the_units(scale, capsys, tmp_path):
+    """The noise level in units of the largest sample: at 1e300 the squares overflowed
+    (raw RuntimeWarnings, "noise of about nan"), at 1e-300 they underflowed (another
+    cause named)."""
+    noisy = algid.simulate("step", noise_std=0.01, seed=1)
+    lines = []
+    for factor in (1.0, scale):
+        path = write_csv(tmp_path / "d.csv", noisy.t, noisy.f * factor, noisy.x * factor)
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")
+            code, _, err = run(capsys, "estimate", str(path))
+        assert code == 0 and len(err.splitlines()) == 1, err
+        lines.append(err.replace(str(path), "d.csv"))
+    assert lines[1] == lines[0] and "white noise of about" in lines[0]
+
+
 # ----------------------------------------------------------------- model simulation
 
 

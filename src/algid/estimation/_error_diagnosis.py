@@ -11,6 +11,8 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
+
 from algid.identification._records import white_noise_floor
 
 __all__ = ["numerical_error_warning", "NUMERICAL_ERROR_WARNING", "SAMPLING_ERROR_RATIO"]
@@ -62,8 +64,12 @@ def numerical_error_warning(source, error, half_rate_error, output, x):
                  "resample faster")
     else:
         rate = "" if math.isnan(half) else f" (at half the rate it is {half:.1e})"
-        noisy, variance = white_noise_floor(x)
-        spread = float(x.std()) if len(x) else 0.0
+        # in units of the largest sample: the squares of 1e300 overflow, of 1e-300
+        # underflow, and the noise level relative to the rms is the same
+        largest = float(np.max(np.abs(x))) if len(x) else 0.0
+        unit = x / largest if largest > 0 else x
+        noisy, variance = white_noise_floor(unit)
+        spread = float(unit.std()) if len(unit) else 0.0
         if noisy and spread > 0:
             cause = (f"it does not come from the sampling{rate}: {output!r} carries white "
                      f"noise of about {math.sqrt(variance) / spread:.1e} of its rms (a "
