@@ -94,6 +94,26 @@ def test_time_units_out_of_range_are_refused_instead_of_nan(sine, scale):
         algid.estimate(sine.t * scale, sine.f, sine.x)
 
 
+@pytest.mark.parametrize("scale", [1e-20, 1e-34, 1e-38, 1e-60])
+def test_a_record_in_extreme_time_units_is_estimated_or_refused(sine, scale):
+    """The same record with the time in units of ``1/scale`` s (the force rescaled to
+    match): B and K scale with it, or a one-line refusal.  At 1e-34 to 1e-42 Cramer's
+    denominator underflowed to 0 and every estimate was NaN, silently; at 1e-60 the
+    kernels underflowed and the refusal blamed an unexcited K."""
+    t, f = sine.t * scale, sine.f / scale**2
+    if scale >= 1e-20:
+        r = algid.estimate(t, f, sine.x)
+        assert abs(r.B[-1] * scale / sine_true_B(sine) - 1) < 1e-9
+        return
+    with pytest.raises(InputDataError, match="express the time in other units") as info:
+        algid.estimate(t, f, sine.x)
+    assert "not excited" not in one_line(info)
+
+
+def sine_true_B(sine):
+    return algid.estimate(sine.t, sine.f, sine.x).B[-1]
+
+
 # ----------------------------------------------------------------- user models
 
 

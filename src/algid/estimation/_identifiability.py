@@ -195,9 +195,11 @@ def undetermined(module, channels, dt, *, rtol=IDENTIFIABILITY_RTOL, state=None)
                            for c, d in zip(channels, state.divisors)]
                 last = [float(c[-1]) / d for c, d in zip(channels, state.divisors)]
             values, sizes = _kernels_from_state(state, largest, last)
+            nonzero = all(float(v) > 0 for v in largest)
         else:
-            values, sizes = _kernels_at_end(module, [np.asarray(c, dtype=float)
-                                                     for c in channels], dt)
+            arrays = [np.asarray(c, dtype=float) for c in channels]
+            values, sizes = _kernels_at_end(module, arrays, dt)
+            nonzero = all(np.any(a != 0) for a in arrays)
         P, Q, size_p, size_q = _entries(module, values, sizes)
     span = (channels[0].size - 1) * dt
     with np.errstate(over="ignore", under="ignore"):
@@ -215,6 +217,13 @@ def undetermined(module, channels, dt, *, rtol=IDENTIFIABILITY_RTOL, state=None)
             f"channels reach {reach} (as the estimator takes them, after any rescaling by "
             f"a power of two, before any division by the mass): express the signals in "
             f"other units")
+    tiny = np.finfo(float).tiny
+    if nonzero and (np.any(size_p < tiny) or np.any(size_q < tiny)):
+        # no channel is zero, yet an entry's size is subnormal or 0: it underflowed and
+        # lost its digits (the verdict would call it unexcited)
+        raise InputDataError(
+            f"the estimator's integrals underflow over a time span of {span:.4g} s (step "
+            f"{dt:.4g} s): express the time in other units")
     kind, free = _verdict(module, P, Q, size_p, size_q, rtol)
     if kind is None:  # determined, if the products of its entries are in range
         filter_order = 0 if state is None else state.filter_order
@@ -246,9 +255,12 @@ def undetermined(module, channels, dt, *, rtol=IDENTIFIABILITY_RTOL, state=None)
 
 def _cramer_in_range(module, P, Q, span, filter_order):
     """Whether Cramer's numerators and denominator at the end, integrated by the filter
-    (about ``span**p / p!`` times them), are normal floating-point numbers or zero."""
+    (about ``span**p / p!`` times them), are normal floating-point numbers or zero (not
+    the denominator: the verdict found ``P`` regular, so a zero one underflowed)."""
     with np.errstate(over="ignore", under="ignore", invalid="ignore"):
         numerators, denominator = module.cramer(P.tolist(), Q.tolist())
+    if float(denominator) == 0.0:
+        return False
     gain = filter_order * math.log2(span) - math.log2(math.factorial(filter_order))
     for value in (*numerators, denominator):
         value = abs(float(value))
