@@ -430,7 +430,14 @@ def test_bad_chunks_are_refused_and_leave_the_state_unchanged(engine):
 def test_given_step_is_enforced(engine):
     t, f, x = _record(duration=0.05)
     est = OnlineEstimator(dt=2 * H, engine=engine)
-    _one_line_error("not uniformly sampled", est.update, t, f, x)
+    # every step off, and the same: the rate is named
+    _one_line_error(r"steps by [0-9.]+ from stream sample 1 where [0-9.]+ is expected \(a "
+                    r"rate of [0-9.]+ Hz", est.update, t, f, x)
+    step = float(t[1] - t[0])
+    irregular = t.copy()
+    irregular[20:] += step / 2
+    _one_line_error("not uniformly sampled at stream sample 20",
+                    OnlineEstimator(dt=step, engine=engine).update, irregular, f, x)
     est.update(t[0], f[0], x[0])
     _one_line_error("not uniformly sampled at stream sample 1", est.update, t[1], f[1], x[1])
     assert est.n_seen == 1

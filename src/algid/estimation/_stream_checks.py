@@ -205,6 +205,13 @@ def check_chunk(t, f, x, *, n, t_last, dt, scan=None):
         i = int(np.argmax(deviation))
         tolerance = step_tolerance(max(abs(full[0]), abs(full[-1])), dt)
         if deviation[i] > tolerance and _beyond_rounding(full, dt, deviation[i]):
+            off = deviation > tolerance
+            if off.all() and np.ptp(steps) <= tolerance:  # uniform, at another step
+                raise InputDataError(
+                    f"time 't' steps by {_fmt(steps[0])} from stream sample {first + 1} "
+                    f"where {_fmt(dt)} is expected (a rate of {_fmt(1 / steps[0])} Hz, "
+                    f"not {_fmt(1 / dt)})")
+            i = int(np.argmax(off))  # the first step off
             raise InputDataError(
                 f"time 't' is not uniformly sampled at stream sample {first + i + 1}: "
                 f"step {_fmt(steps[i])} where {_fmt(dt)} is expected")
