@@ -217,6 +217,7 @@ def check_experiment(t, f, x, *, names=("t", "f", "x"), min_samples=16):
         from the median step), or input and output are both identically zero.
     """
     t_name, f_name, x_name = names
+    given = getattr(t, "dtype", None)  # (float32 times round to uneven steps)
     t = as_signal(t, name=t_name)
     f = as_signal(f, name=f_name)
     x = as_signal(x, name=x_name)
@@ -250,10 +251,12 @@ def check_experiment(t, f, x, *, names=("t", "f", "x"), min_samples=16):
         # from the mean step h.
         typical = float(np.median(dt))
         i = int(np.argmax(np.abs(dt - typical)))
+        cause = (f"its {given} values round the steps unevenly: give the times as float64"
+                 if given is not None and given.kind == "f" and given.itemsize < 8 else
+                 "the estimator needs uniform sampling (resample first)")
         raise InputDataError(
             f"time {t_name!r} is not uniformly sampled: step {_fmt(dt[i])} at row {i + 1} "
-            f"({t_name}[{i + 1}] - {t_name}[{i}]) where {_fmt(typical)} is expected; the "
-            f"estimator needs uniform sampling (resample first)"
+            f"({t_name}[{i + 1}] - {t_name}[{i}]) where {_fmt(typical)} is expected; {cause}"
         )
 
     if not f.any() and not x.any():

@@ -110,6 +110,12 @@ def test_a_record_in_extreme_time_units_is_estimated_or_refused(sine, scale):
     assert "not excited" not in one_line(info)
 
 
+def test_float32_times_are_named_as_the_cause_of_uneven_steps(sine):
+    t = np.arange(5001, dtype=np.float32) * np.float32(1e-3)
+    with pytest.raises(InputDataError, match="float32 values round the steps unevenly"):
+        algid.estimate(t, np.sin(3 * t), np.cos(3 * t))
+
+
 def sine_true_B(sine):
     return algid.estimate(sine.t, sine.f, sine.x).B[-1]
 
