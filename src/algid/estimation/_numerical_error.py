@@ -30,15 +30,11 @@ filters pass the noise differently: the difference then also holds part of the n
 effect.
 
 Data that do not determine a parameter (a constant output leaves ``B`` free) make the
-estimate round-off divided by round-off.  When the estimator has seen 64, 128, 256, ...,
-65536 samples from its origin, and every 65536 samples after that (every 64th of
-its age while a parameter is undetermined: :func:`next_check`),
-the test of :mod:`algid.estimation._identifiability` runs on its state (the kernels it holds, the
-largest channel values so far), if the numerical error is above :data:`JUDGED_ABOVE`
-or an estimate is 0; until the next check, the parameters it finds undetermined are
-NaN and the numerical error is infinite.  The checks fall on the same samples however
-a stream is cut.  (Batch :func:`algid.estimate` also refuses a record that does not
-determine its parameters at its end.)
+estimate round-off divided by round-off.  At the checks of :func:`next_check` (the
+same samples however a stream is cut) the test of
+:mod:`algid.estimation._identifiability` runs on the state, if the numerical error is
+above :data:`JUDGED_ABOVE` or an estimate is 0; until the next check, the parameters
+it finds undetermined are NaN and the numerical error is infinite.
 """
 
 from __future__ import annotations
