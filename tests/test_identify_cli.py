@@ -68,6 +68,9 @@ def test_text_output_and_rate_and_window(capsys, record_files):
      ["'stderr' is reserved"]),
     (["--parameters", "B K", "--equation", "y'' + B*K*y = u"], ["multiplied together"]),
     (["--parameters", "B K", "--equation", "y'' + B*y' + K*y = z"], ["'z' not found"]),
+    # a parameter left out of --parameters is read as a signal: the error says so
+    (["--parameters", "B K G", "--equation", "y'' + B*y' + K*y = G*u + d"],
+     ["'d' not found", "if 'd' is an unknown, add it to --parameters"]),
     (["--parameters", "B K", "--equation", "y'' + B*y' + K*y = u", "--window", "1000"],
      ["longer than"]),
 ])

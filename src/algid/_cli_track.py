@@ -105,12 +105,13 @@ def track_command(args) -> int:
 
 
 def _file(args, model):
+    from algid.cli import read_model_columns
     from algid.identification._records import TIME_COLUMNS
     from algid.io import read_columns
 
     names = list(model.signals) + ([args.time] if args.time else [])
     optional = () if args.time or args.rate else TIME_COLUMNS
-    record = read_columns(args.file, names, optional=optional)
+    record = read_model_columns(read_columns, args.file, names, model, optional)
     time = args.time or (None if args.rate else next(
         (c for c in TIME_COLUMNS if c in record), None))
     if time is None and args.rate is None:

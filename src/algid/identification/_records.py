@@ -88,8 +88,10 @@ def _as_records(data):
 def _column(record, name, index, label):
     if name not in record:
         available = ", ".join(map(str, record.keys()))
+        hint = (f"; if {name!r} is an unknown, add it to the parameters"
+                if label == "signal" else "")
         raise InputDataError(f"record {index}: no column {name!r} for the {label} "
-                             f"(columns: {available})")
+                             f"(columns: {available}){hint}")
     values = record[name]
     if isinstance(values, np.ma.MaskedArray):  # masked samples are missing, as NaN are
         values = np.ma.filled(values.astype(float), np.nan)
