@@ -309,3 +309,16 @@ def test_gzip_csv_too_large_for_memory_is_refused_by_its_decompressed_size(
         read_experiment(packed)
     monkeypatch.setattr(algid._memory, "available_memory", lambda: 6 * len(text))
     assert read_experiment(packed)[0].size == 20000
+
+
+@pytest.mark.parametrize("row, words", [
+    ("0.001,1,", "column 'x', line 3: an empty cell is not a number"),  # was: 2 fields
+    ("0.001,1", "line 3 has 2 fields but the header has 3 columns"),
+])
+def test_an_empty_last_cell_is_named_as_such(tmp_path, row, words):
+    path = tmp_path / "d.csv"
+    path.write_text(f"t,f,x\n0,1,2\n{row}\n")
+    with pytest.raises(DataFileError, match=words):
+        read_columns(path, ["t", "f", "x"])
+    path.write_text("t,f\n0,1,\n0.001,1,\n")  # a trailing delimiter on every line
+    assert read_columns(path, ["t", "f"])["f"].tolist() == [1.0, 1.0]

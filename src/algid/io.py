@@ -354,6 +354,8 @@ def _read_csv(p, label, wanted, time_name):
             row = _fields(line, delimiter)
         except csv.Error as exc:
             raise DataFileError(f"{label}: line {number}: cannot parse ({exc})") from None
+        if len(row) < ncols and "".join(row) and line.rstrip().endswith(delimiter or " "):
+            row += [""] * (ncols - len(row))  # trailing empty cells ("0.2,1.0,"): named below
         if len(row) != ncols:
             raise DataFileError(
                 f"{label}: line {number} has {len(row)} fields but the header has {ncols} columns"
