@@ -178,6 +178,12 @@ def test_from_equation_errors(equation, match):
         LinearODEModel.from_equation(equation, parameters="B")
 
 
+def test_the_input_and_the_output_must_differ():
+    # (it named the equation's input as an unknown name)
+    with pytest.raises(ModelError, match="the input and the output are the same signal 'x'"):
+        LinearODEModel.from_equation("x'' + B*x' = f", parameters="B", input="x", output="x")
+
+
 def test_unknown_builtin():
     with pytest.raises(ModelError, match="known: msd"):
         builtin_model("nope")

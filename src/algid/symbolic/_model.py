@@ -357,6 +357,9 @@ class LinearODEModel:
         for sig in (output, input):
             if not isinstance(sig, str) or not _NAME.fullmatch(sig):
                 raise ModelError(f"signal name {sig!r} is not a usable identifier")
+        if output == input:
+            raise ModelError(f"the input and the output are the same signal {input!r}: "
+                             f"name two")
         # a derivative of another signal is the likely mistake: say so first
         for sig in _DIFFERENTIATED.findall(check_text(equation)):
             if sig not in (output, input):
