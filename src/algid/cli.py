@@ -405,16 +405,18 @@ def _cmd_estimate(args) -> int:
         raise InputDataError(f"{args.file}: --rate {args.rate:g} Hz puts the times of its "
                              f"{t.size} samples beyond the floating-point range: give the "
                              f"rate in other units")
-    try:
-        t, f, x, _ = check_experiment(t, f, x, names=(time, args.input, args.output))
-    except InputDataError as exc:
-        raise InputDataError(f"{args.file}: {exc}") from None
+    from algid.estimation._core import shortest_record
 
     estimator = importlib.import_module("algid.estimation._batch")
     options = {"model": args.model, "mass": args.mass}
     if args.filter_order is not None:
         options["filter_order"] = args.filter_order
-    result = estimator.estimate(t, f, x, **options)
+    try:  # (the API's shortest record)
+        t, f, x, _ = check_experiment(t, f, x, names=(time, args.input, args.output),
+                                      min_samples=shortest_record(DEFAULT_QUADRATURE_POINTS))
+        result = estimator.estimate(t, f, x, **options)
+    except InputDataError as exc:  # the file named, as the reader's errors name it
+        raise InputDataError(f"{args.file}: {exc}") from None
 
     final = result.final()
     names = tuple(result.parameters)

@@ -110,6 +110,18 @@ def test_a_record_in_extreme_time_units_is_estimated_or_refused(sine, scale):
     assert "not excited" not in one_line(info)
 
 
+def test_the_command_line_takes_the_apis_shortest_record_and_names_the_file(
+        sine, capsys, tmp_path):
+    short = write_csv(tmp_path / "short.csv", sine.t[:12], sine.f[:12], sine.x[:12])
+    algid.estimate(sine.t[:12], sine.f[:12], sine.x[:12])  # the API takes 12 samples
+    code, out, _ = run(capsys, "estimate", str(short))
+    assert code == 0 and "B" in out  # (the command line asked for 16)
+    t = sine.t
+    flat = write_csv(tmp_path / "flat.csv", t, np.ones_like(t), np.full_like(t, 0.5))
+    code, _, err = run(capsys, "estimate", str(flat))
+    assert_one_line_error(code, err, f"{flat}: the data cannot determine B")
+
+
 def test_float32_times_are_named_as_the_cause_of_uneven_steps(sine):
     t = np.arange(5001, dtype=np.float32) * np.float32(1e-3)
     with pytest.raises(InputDataError, match="float32 values round the steps unevenly"):

@@ -297,9 +297,8 @@ def estimate(t, f=None, x=None, *, model="msd", filter_order=DEFAULT_FILTER_ORDE
 
 
 def _min_samples(points):
-    """The shortest record: twice the samples up to the first estimate, at least 8 (12
-    for the rules of 6 to 9 points, which report from the same sample)."""
-    return max(2 * (core.first_estimate(points) + 1), 8)
+    """The shortest record (:func:`algid.estimation._core.shortest_record`)."""
+    return core.shortest_record(points)
 
 
 def _check_takes_pair(module):

@@ -39,7 +39,8 @@ from algid.estimation._backends import require_backend
 from algid.estimation._options import check_filter_order, check_quadrature_points
 
 __all__ = ["EstimatorState", "IntegratorLayout", "integrator_layout", "layout_of", "new_state",
-           "advance", "advance_rows", "output_array", "first_estimate", "EARLY_POINTS"]
+           "advance", "advance_rows", "output_array", "first_estimate", "shortest_record",
+           "EARLY_POINTS"]
 
 #: Rules of more points than this report their first estimates as early as this one,
 #: from the rules of as many points as samples have arrived (:func:`first_estimate`).
@@ -65,6 +66,23 @@ def first_estimate(points: int) -> int:
         ``min(points, EARLY_POINTS) - 1``: the estimates of the samples before it are NaN.
     """
     return min(int(points), EARLY_POINTS) - 1
+
+
+def shortest_record(points: int) -> int:
+    """The fewest samples a batch estimate takes: twice the samples up to the first
+    estimate, at least 8 (12 for the rules of 6 to 9 points, which report from the
+    same sample).
+
+    Parameters
+    ----------
+    points : int
+        Points of the quadrature rule.
+
+    Returns
+    -------
+    int
+    """
+    return max(2 * (first_estimate(points) + 1), 8)
 
 
 @dataclasses.dataclass
