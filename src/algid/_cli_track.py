@@ -16,7 +16,7 @@ import sys
 
 import numpy as np
 
-from algid.errors import InputDataError, ModelError
+from algid.errors import AlgidError, InputDataError, ModelError
 
 __all__ = ["add_track_parser", "track_command", "TRACK_JSON_KEYS"]
 
@@ -67,6 +67,22 @@ def add_track_parser(commands, positive):
     track.set_defaults(handler=track_command)
 
 
+def read_model_columns(path, names, model, optional):
+    """:func:`algid.io.read_columns` of a model's signals (``algid identify`` and
+    ``algid track``): a name of the equation that is not a column may be a parameter
+    left out of ``--parameters``, and the error says so."""
+    from algid.io import read_columns
+
+    try:
+        return read_columns(path, names, optional=optional)
+    except AlgidError as exc:
+        missing = [n for n in model.signals if f"{n!r} not found" in str(exc)]
+        if not missing:
+            raise
+        raise type(exc)(f"{exc}; if {missing[0]!r} is an unknown, add it to "
+                        f"--parameters") from None
+
+
 def _value(x):
     return float(x) if math.isfinite(x) else None
 
@@ -105,13 +121,11 @@ def track_command(args) -> int:
 
 
 def _file(args, model):
-    from algid.cli import read_model_columns
     from algid.identification._records import TIME_COLUMNS
-    from algid.io import read_columns
 
     names = list(model.signals) + ([args.time] if args.time else [])
     optional = () if args.time or args.rate else TIME_COLUMNS
-    record = read_model_columns(read_columns, args.file, names, model, optional)
+    record = read_model_columns(args.file, names, model, optional)
     time = args.time or (None if args.rate else next(
         (c for c in TIME_COLUMNS if c in record), None))
     if time is None and args.rate is None:

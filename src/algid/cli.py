@@ -464,23 +464,10 @@ def _cmd_estimate(args) -> int:
 IDENTIFY_JSON_KEYS = ("stderr", "numerical_error", "window", "n_samples", "warnings")
 
 
-def read_model_columns(read_columns, path, names, model, optional):
-    """``read_columns`` of a model's signals; a name of the equation that is not a
-    column may be a parameter left out of ``--parameters``: the error says so."""
-    try:
-        return read_columns(path, names, optional=optional)
-    except AlgidError as exc:
-        missing = [n for n in model.signals if f"{n!r} not found" in str(exc)]
-        if not missing:
-            raise
-        raise type(exc)(f"{exc}; if {missing[0]!r} is an unknown, add it to "
-                        f"--parameters") from None
-
-
 def _cmd_identify(args) -> int:
+    from algid._cli_track import read_model_columns
     from algid.identification._identify import identify
     from algid.identification._records import TIME_COLUMNS
-    from algid.io import read_columns
     from algid.models._grammar import parse_equation
 
     model = parse_equation(args.equation, args.parameters, output=args.output)
@@ -491,8 +478,7 @@ def _cmd_identify(args) -> int:
     names = list(model.signals) + ([args.time] if args.time else [])
     # a time column is read with --rate too: the two must agree
     optional = () if args.time else TIME_COLUMNS
-    records = [read_model_columns(read_columns, path, names, model, optional)
-               for path in args.files]
+    records = [read_model_columns(path, names, model, optional) for path in args.files]
     result = identify(records, model, time=args.time, rate=args.rate, window=args.window,
                       method=args.method)
     stderr = result.stderr
