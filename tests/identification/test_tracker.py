@@ -116,3 +116,12 @@ def test_bad_input_one_line(kwargs, chunk, message):
                                                    if "time" not in kwargs else kwargs))
         tracker.update(chunk)
     assert "\n" not in str(info.value)
+
+
+def test_a_half_life_of_no_consequence_is_no_forgetting():
+    """2**(-stride/h) rounds to 1 for a huge half-life: nothing to refuse (the check of
+    short half-lives took it as none), the estimates of no forgetting."""
+    record, _ = linear_offsets(0, n=1500)
+    long = Tracker(EQUATION, PARAMETERS, time="t", window=WINDOW, half_life=1e300)
+    np.testing.assert_array_equal(long.update(record).values[-1], Tracker(
+        EQUATION, PARAMETERS, time="t", window=WINDOW).update(record).values[-1])

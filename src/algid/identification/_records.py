@@ -85,6 +85,38 @@ def _as_records(data):
                          "of such mappings")
 
 
+def refuse_unusable(values, what, *, dates=False):
+    """Refuse an array that is not one signal of real measurements.
+
+    Parameters
+    ----------
+    values : ndarray
+        The column as given.
+    what : str
+        Names it at the head of the message (``"record 0: column 'u'"``).
+    dates : bool, optional
+        Whether dates and durations are accepted (a time column of identify's).
+
+    Raises
+    ------
+    InputDataError
+        For a 2-D array (a column vector is one signal), complex numbers, booleans, or
+        dates and durations where they are not accepted.
+    """
+    if sum(size > 1 for size in values.shape) > 1:
+        raise InputDataError(f"{what} has shape {values.shape}: give one 1-D array per "
+                             f"signal")
+    kind = values.dtype.kind
+    if kind == "c":
+        raise InputDataError(f"{what} is complex; give real measurements (e.g. its real "
+                             f"part or its modulus)")
+    if kind == "b":
+        raise InputDataError(f"{what} holds booleans, not measurements (convert with "
+                             f".astype(float))")
+    if kind in "mM" and not dates:
+        raise InputDataError(f"{what} holds dates or durations, not measurements")
+
+
 def _column(record, name, index, label):
     if name not in record:
         available = ", ".join(map(str, record.keys()))
@@ -99,17 +131,8 @@ def _column(record, name, index, label):
         values = np.asarray(values)
     except (TypeError, ValueError):
         raise InputDataError(f"record {index}: column {name!r} is not numeric") from None
-    if sum(size > 1 for size in values.shape) > 1:  # (a column vector is one signal)
-        raise InputDataError(f"record {index}: column {name!r} has shape {values.shape}: "
-                             f"give one 1-D array per signal")
-    kind = values.dtype.kind
-    if kind == "c":
-        raise InputDataError(f"record {index}: column {name!r} is complex; give real "
-                             f"measurements (e.g. its real part or its modulus)")
-    if kind == "b":
-        raise InputDataError(f"record {index}: column {name!r} holds booleans, not "
-                             f"measurements (convert with .astype(float))")
-    if kind in "mM":
+    refuse_unusable(values, f"record {index}: column {name!r}", dates=label == "time")
+    if values.dtype.kind in "mM":
         if label != "time":
             raise InputDataError(f"record {index}: column {name!r} holds dates or "
                                  f"durations, not measurements")

@@ -41,7 +41,13 @@ from algid.identification._arguments import check_arguments, check_model_columns
 from algid.identification._bias_compensation import koopmans_stack
 from algid.identification._change_detection import INCREMENT_CAP, cusum_reference, cusum_threshold
 from algid.identification._identify import WINDOW_OVERLAP, factor_sensitivity, term_rows
-from algid.identification._records import GAP_FACTOR, TIME_COLUMNS, UNIFORM_TOLERANCE, check_rate
+from algid.identification._records import (
+    GAP_FACTOR,
+    TIME_COLUMNS,
+    UNIFORM_TOLERANCE,
+    check_rate,
+    refuse_unusable,
+)
 from algid.identification._tracker_kernels import kernels, solvers
 from algid.identification._window_basis import ROUNDOFF_SEPARABILITY
 from algid.identification._window_covariance import sandwich_stack
@@ -264,6 +270,12 @@ def _lag_weights(overlap):
     lags = 2 * overlap
     return np.array([1.0 if lag <= overlap else 1.0 - (lag - overlap) / (lags - overlap + 1.0)
                      for lag in range(lags + 1)])
+
+
+def _stride_and_overlap(length):
+    """Samples between window starts, and windows that share a sample with one."""
+    stride = max(1, length // WINDOW_OVERLAP)
+    return stride, -(-length // stride)
 
 
 #: Longest window (samples) a tracker accepts: its state holds a few arrays of a
@@ -517,14 +529,7 @@ class Tracker:
                 values = np.asarray(chunk[name])
             except (TypeError, ValueError):
                 raise InputDataError(f"column {name!r} is not numeric") from None
-            if sum(size > 1 for size in values.shape) > 1:  # (a column vector is one)
-                raise InputDataError(f"column {name!r} has shape {values.shape}: give one "
-                                     f"1-D array per signal")
-            if values.dtype.kind in "bcmM":  # as identify's records
-                raise InputDataError(f"column {name!r} holds "
-                                     + {"b": "booleans", "c": "complex numbers"}.get(
-                                         values.dtype.kind, "dates or durations")
-                                     + ", not measurements")
+            refuse_unusable(values, f"column {name!r}")
             try:
                 values = values.astype(float).reshape(-1)
             except (TypeError, ValueError):
@@ -610,11 +615,10 @@ class Tracker:
         half_life = self.config["half_life"]
         if half_life is None:
             return
-        stride = max(1, length // WINDOW_OVERLAP)
-        overlap = -(-length // stride)
+        stride, overlap = _stride_and_overlap(length)
         ratio = 2.0 ** (-stride * step / half_life)  # weight of a window over the next's
         # (sum w)**2 / sum w**2 of the geometric weights of an endless stream
-        most = (1.0 + ratio) / (1.0 - ratio) / overlap if ratio < 1.0 else 0.0
+        most = (1.0 + ratio) / (1.0 - ratio) / overlap if ratio < 1.0 else math.inf
         needed = len(self.parameters) + MIN_SPARE_WINDOWS  # (as the solvers require)
         if most < needed:
             n = needed * overlap
@@ -639,8 +643,7 @@ class Tracker:
         """Constants that follow from the configuration."""
         length = int(self.s["length"])
         self.length = length
-        self.stride = max(1, length // WINDOW_OVERLAP)
-        self.overlap = -(-length // self.stride)
+        self.stride, self.overlap = _stride_and_overlap(length)
         self.lag_weights = _lag_weights(self.overlap)
         self.keep = length + self.lag + 2 * DERIVATIVE_STEPS
         self.k_cusum = cusum_reference()
