@@ -124,7 +124,7 @@ def _file(args, model):
     from algid.identification._records import TIME_COLUMNS
 
     names = list(model.signals) + ([args.time] if args.time else [])
-    optional = () if args.time or args.rate else TIME_COLUMNS
+    optional = () if args.time else TIME_COLUMNS  # (with --rate too: they must agree)
     record = read_model_columns(args.file, names, model, optional)
     time = args.time or (None if args.rate else next(
         (c for c in TIME_COLUMNS if c in record), None))

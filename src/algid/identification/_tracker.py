@@ -46,6 +46,7 @@ from algid.identification._records import (
     TIME_COLUMNS,
     UNIFORM_TOLERANCE,
     check_rate,
+    check_rate_agrees,
     refuse_unusable,
 )
 from algid.identification._tracker_kernels import kernels, solvers
@@ -277,6 +278,10 @@ def _stride_and_overlap(length):
     stride = max(1, length // WINDOW_OVERLAP)
     return stride, -(-length // stride)
 
+
+#: Longest average run between false alarms (tests) that the CUSUM threshold is tuned
+#: to: beyond about 1e13 its run-length recursion loses the precision to place it.
+MAX_RUN_LENGTH = 1e12
 
 #: Longest window (samples) a tracker accepts: its state holds a few arrays of a
 #: window's samples.
@@ -542,6 +547,12 @@ class Tracker:
                 f"{k}: {len(v)}" for k, v in columns.items()) + ")")
         if time is None:
             t = (self.s["seen"] + np.arange(n)) / self.config["rate"]
+            given = next((c for c in TIME_COLUMNS if c in chunk), None)
+            if given is not None and n > 1:  # a time column beside rate= must agree (as
+                stamps = np.asarray(chunk[given])  # identify's), if it holds numbers
+                if stamps.dtype.kind in "iuf":
+                    check_rate_agrees(self.config["rate"], stamps.astype(float).reshape(-1),
+                                      given, "the chunk")
         else:
             t = columns.pop(time)
             # one sample (a live stream): the checks below, on a scalar
@@ -648,8 +659,14 @@ class Tracker:
         self.keep = length + self.lag + 2 * DERIVATIVE_STEPS
         self.k_cusum = cusum_reference()
         test_interval = self.overlap * self.stride * self.s["step"]
-        self.h_cusum = cusum_threshold(
-            max(2.0, 1.0 / (self.config["false_alarm_rate"] * test_interval)), self.k_cusum)
+        rate = self.config["false_alarm_rate"]
+        run_length = max(2.0, 1.0 / (rate * test_interval))
+        if run_length > MAX_RUN_LENGTH:
+            raise InputDataError(f"false_alarm_rate {rate:g} per second is one alarm in "
+                                 f"{run_length:.3g} tests (every {test_interval:.4g} s); the "
+                                 f"threshold is tuned up to {MAX_RUN_LENGTH:.0e}: use at "
+                                 f"least {1.0 / (MAX_RUN_LENGTH * test_interval):.3g}")
+        self.h_cusum = cusum_threshold(run_length, self.k_cusum)
         self.needed = 1 + MIN_SPARE_WINDOWS
         p = len(self.parameters)
         index = {q: i for i, q in enumerate(self.parameters)}
