@@ -107,6 +107,8 @@ def test_estimates_nan_until_determined():
     # beyond the run lengths the CUSUM threshold is tuned to (a LinAlgError)
     ({"window": WINDOW, "false_alarm_rate": 1e-30}, {"y": [1.0, 2.0], "u": [1.0, 2.0]},
      "false_alarm_rate 1e-30 per second is one alarm in"),
+    # inf is no missing sample (it was dropped as NaN is)
+    ({}, {"y": [1.0, float("inf")], "u": [1.0, 2.0]}, "'y' is inf at row 1 of the chunk"),
     ({"window": 0.0}, None, "window must be a positive number"),
     ({"window": -1.0}, None, "window must be a positive number"),
     # refused before the arrays of 8e7 samples are made (a MemoryError or the OOM killer)

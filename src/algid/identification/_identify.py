@@ -520,7 +520,8 @@ def identify(data, equation, parameters=None, *, time=None, rate=None, output=No
     ----------
     data : mapping or list of mappings
         Column name -> samples; a list of records is identified together.  Rows may be
-        missing from a record with a time column (gaps), and NaN samples are dropped.
+        missing from a record with a time column (gaps), and NaN samples are dropped
+        (an infinite one is refused).
     equation : str, Model or module
         The model, e.g. ``"M*q'' + Fv*q' + Fc*sign(q') + off = F"``, or a compiled
         model (:func:`algid.compile_equation`): the same model argument as

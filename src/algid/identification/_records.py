@@ -348,7 +348,12 @@ def prepare_records(data, signals, *, time=None, rate=None, min_length=8):
     for index, record in enumerate(records):
         t, columns = record_columns(record, signals, time=time, rate=rate, index=index,
                                     min_samples=2)
-        valid = np.all([np.isfinite(v) for v in columns.values()], axis=0)
+        for name, values in columns.items():  # NaN marks a missing sample; inf is no
+            infinite = np.flatnonzero(np.isinf(values))  # measurement (an overflow?)
+            if infinite.size:
+                raise InputDataError(f"record {index}: column {name!r} is {values[infinite[0]]} "
+                                     f"at row {infinite[0]}; a missing sample is NaN")
+        valid = np.all([~np.isnan(v) for v in columns.values()], axis=0)
         ranges, median = _split(t, valid, min_length)
         steps.append(median)
         for start, stop in ranges:

@@ -539,6 +539,10 @@ class Tracker:
                 values = values.astype(float).reshape(-1)
             except (TypeError, ValueError):
                 raise InputDataError(f"column {name!r} is not numeric") from None
+            infinite = np.flatnonzero(np.isinf(values))
+            if infinite.size:  # (NaN marks a missing sample, as in identify's records)
+                raise InputDataError(f"column {name!r} is {values[infinite[0]]} at row "
+                                     f"{infinite[0]} of the chunk; a missing sample is NaN")
             columns[name] = values
             same = same and (n is None or len(values) == n)
             n = len(values)
