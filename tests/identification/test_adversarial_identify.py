@@ -449,3 +449,15 @@ def test_an_infinite_sample_is_refused_where_nan_is_a_gap(noisy):
         algid.identify(record, *LINEAR_EQUATION)
     record["y"][700] = np.nan  # a missing sample: a gap
     assert algid.identify(record, *LINEAR_EQUATION).n_samples < len(record["y"])
+
+
+def test_a_record_that_holds_no_window_is_named():
+    """Two records, the second's time in milliseconds: the window chosen is longer than
+    the first, which informs nothing; the result says which."""
+    first, _ = linear_offsets(1)
+    second, _ = linear_offsets(2)
+    second = dict(second, t=np.asarray(second["t"]) * 1000.0)
+    fit = algid.identify([first, second], *LINEAR_EQUATION)
+    assert any(w.startswith("record 0 has no run as long as the window") for w in fit.warnings)
+    both = algid.identify([first, linear_offsets(2)[0]], *LINEAR_EQUATION)
+    assert not any("no run as long" in w for w in both.warnings)

@@ -504,6 +504,18 @@ def _simulated_values(problem, theta, model):
     return True
 
 
+def _idle_records(data, segments, length, step):
+    """Warnings for the records of several that hold no window (a record in other time
+    units than the rest, say, whose estimates it then does not inform)."""
+    if hasattr(data, "keys"):  # one record (as _records reads the data)
+        return []
+    window = (length - 1) * step
+    used = {seg.record for seg in segments if seg.t[-1] - seg.t[0] >= window * (1 - 1e-9)}
+    return [f"record {i} has no run as long as the window ({window:.4g} s): it does not "
+            f"inform the estimates (its time in other units?)"
+            for i in range(len(data)) if i not in used]
+
+
 def _least_squares_misfit(segments, step, equation, parameters, output, length, multiplicities):
     """Misfit of another equation on the same signals, fitted by least squares."""
     problem = _Problem(parse_equation(equation, parameters, output=output), segments, step)
@@ -633,4 +645,5 @@ def identify(data, equation, parameters=None, *, time=None, rate=None, output=No
         numerical_error=dict(zip(model.parameters, fit.numerical_error.tolist())),
         adequacy=adequacy,
         warnings=adequacy.warnings() + fit.separation.warnings(model.parameters,
-                                                               adequacy.adequate))
+                                                               adequacy.adequate)
+        + _idle_records(data, segments, length, step))
