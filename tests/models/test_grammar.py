@@ -81,7 +81,10 @@ def test_like_terms_combine_and_known_constants_are_allowed():
     ("y'' + B*y", "B", "exactly one '='"),
     ("y'' + B*y = u == v", "B", "exactly one '='"),
     ("y'' + B*y = foo(u)", "B", "unknown function foo"),
-    ("y'' + B*y = __import__(u)", "B", "unknown function"),
+    ("y'' + B*y = __import__(u)", "B", "name __import__ is reserved"),
+    # the internal name of a derivative, typed: its order was not bounded (400: minutes)
+    ("y'' + B*y' = __d400__u", "B", "name __d400__u is reserved"),
+    ("__d0__y' + B*y = u", "B", "name __d0__y is reserved"),
     ("y'' + B*y = u.real", "B", "not allowed"),
     ("y'' + B*y = u[0]", "B", "not allowed"),
     ("y'' + B*y = 'u'", "B", "prime must follow"),

@@ -397,6 +397,9 @@ class _Reader:
 
 
 def _replace_primes(equation):
+    typed = re.search(r"\b__\w*", equation)  # (the derivatives' internal names among them,
+    if typed:                                 # whose orders only the primes' check bounds)
+        _fail(equation, f"name {typed.group(0)} is reserved (names starting with __)")
     if re.search(r"\)\s*'", equation):
         _fail(equation, "a derivative of a parenthesised expression is not allowed: only "
                         "a measured signal can be differentiated (write y' not (y**3)')")
