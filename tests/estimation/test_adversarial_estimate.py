@@ -128,6 +128,20 @@ def test_float32_times_are_named_as_the_cause_of_uneven_steps(sine):
         algid.estimate(t, np.sin(3 * t), np.cos(3 * t))
 
 
+def test_signals_of_scales_no_common_unit_serves_are_refused(sine):
+    """An output 1e-120 times the input's scale, in a model that fits it (``c*u``):
+    Cramer's numerator of c underflowed to exactly 0 and c came back 0.0 with an error
+    of 1e-12; now a refusal naming the spread of the channels."""
+    pytest.importorskip("sympy")
+    from algid.models._compiled import compile_equation
+    model = compile_equation("y'' + a*y' + b*y = c*u", "a b c")
+    scale = 1e-120
+    with pytest.raises(InputDataError, match="units closer to one another .*differ by a"):
+        algid.estimate(sine.t, signals={"u": sine.f, "y": sine.x * scale}, model=model)
+    r = algid.estimate(sine.t, signals={"u": sine.f, "y": sine.x * 1e-100}, model=model)
+    assert abs(r.final()["c"] / 1e-100 - 1.0) < 1e-9  # (y'' + 2 y' + 3 y = 1e-100 f)
+
+
 def sine_true_B(sine):
     return algid.estimate(sine.t, sine.f, sine.x).B[-1]
 

@@ -233,10 +233,16 @@ def undetermined(module, channels, dt, *, rtol=IDENTIFIABILITY_RTOL, state=None)
             reach = "" if not getattr(module, "FACTORS", {}) else " with channels reaching " + \
                 ", ".join(f"{name!r} {float(np.max(np.abs(c))):.4g}"
                           for name, c in zip(module.CHANNELS, channels))
+            largest = [float(np.max(np.abs(c))) for c in channels if np.size(c)]
+            spread = max(largest) / min(a for a in largest if a > 0)
+            advice = ("express the time or the signals in other units" if reach else
+                      f"express the time in other units, or the signals in units closer to "
+                      f"one another (their largest values differ by a factor {spread:.3g}, "
+                      f"which no common unit brings into range)" if spread > 2.0**64 else
+                      "express the time in other units")
             raise InputDataError(
                 f"the estimator's products of integrals overflow or underflow over a time "
-                f"span of {span:.4g} s (step {dt:.4g} s){reach}: express the time"
-                f"{' or the signals' if reach else ''} in other units")
+                f"span of {span:.4g} s (step {dt:.4g} s){reach}: {advice}")
     parameters = list(module.PARAMETERS)
     named = " and ".join(parameters[j] for j in free)
     if kind == "silent":
@@ -255,12 +261,13 @@ def undetermined(module, channels, dt, *, rtol=IDENTIFIABILITY_RTOL, state=None)
 
 def _cramer_in_range(module, P, Q, span, filter_order):
     """Whether Cramer's numerators and denominator at the end, integrated by the filter
-    (about ``span**p / p!`` times them), are normal floating-point numbers or zero (not
-    the denominator: the verdict found ``P`` regular, so a zero one underflowed)."""
+    (about ``span**p / p!`` times them), are normal floating-point numbers, not zero:
+    the verdict found ``P`` regular and ``Q`` not zero, so an exact zero underflowed
+    (a true parameter of 0 gives a numerator of round-off, not 0)."""
     with np.errstate(over="ignore", under="ignore", invalid="ignore"):
         numerators, denominator = module.cramer(P.tolist(), Q.tolist())
-    if float(denominator) == 0.0:
-        return False
+    if float(denominator) == 0.0 or any(float(v) == 0.0 for v in numerators):
+        return False  # (exactly 0 from products of entries that are not: underflow)
     gain = filter_order * math.log2(span) - math.log2(math.factorial(filter_order))
     for value in (*numerators, denominator):
         value = abs(float(value))
