@@ -126,7 +126,8 @@ def check_amplitude_range(names, channels, divisors, scale, n_parameters):
     high = math.ldexp(1.0, AMPLITUDE_BITS // n_parameters)
     names = list(names)
     for name, c, size, divisor in zip(names, channels, largest, divisors):
-        held = size * unit / divisor
+        with np.errstate(over="ignore"):  # (a mass of 1e-320: the quotient is inf)
+            held = size * unit / divisor
         # a known mass may shrink a channel as much as it may grow it (symmetric bounds)
         low = 2.0**-1022 if divisor == 1.0 else 1.0 / high
         if held == 0.0 or low <= held <= high:
@@ -142,8 +143,12 @@ def check_amplitude_range(names, channels, divisors, scale, n_parameters):
                 f"{remedy}")
         if held > high:
             row = int(np.argmax(np.abs(c)))
+            with np.errstate(over="ignore"):
+                reached = float(c[row] / divisor)
+            shown = f"{reached:.6g}" if math.isfinite(reached) else \
+                f"{float(c[row]):.6g} / {float(divisor):.6g} (beyond 1.8e308)"
             raise InputDataError(
-                f"signal {name!r}{by} reaches {c[row] / divisor:.6g} (row {row}), beyond "
+                f"signal {name!r}{by} reaches {shown} (row {row}), beyond "
                 f"2**{AMPLITUDE_BITS // n_parameters} times the other signals' unit: the "
                 f"products of the estimator's integrals overflow; {remedy}")
         top = int(np.argmax(largest))

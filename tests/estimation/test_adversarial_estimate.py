@@ -74,7 +74,9 @@ def test_subnormal_amplitudes_are_rescaled(sine, scale, capsys, tmp_path):
 @pytest.mark.parametrize("mass, words", [(1e-308, "reaches 1e+308"),
                                          (1e308, "is at most 1e-308"),
                                          (1e-300, "beyond 2**256"),
-                                         (1e300, "below 2**-256")])
+                                         (1e300, "below 2**-256"),
+                                         # the quotient overflows: no raw warning, no inf
+                                         (1e-320, "reaches 1 / 9.99989e-321 (beyond")])
 def test_an_extreme_mass_is_named(sine, mass, words, capsys, tmp_path):
     with warnings.catch_warnings():
         warnings.simplefilter("error")  # no overflow on the way
