@@ -259,7 +259,7 @@ def estimate(t, f=None, x=None, *, model="msd", filter_order=DEFAULT_FILTER_ORDE
     lowpass_filter = None if lowpass is None else as_lowpass(lowpass)
     backends.choose_engine(engine, 0, lowpass_filter)  # refuse a bad option before the data
     mass = known_mass(module, mass)
-    min_samples = _min_samples(points)
+    min_samples = core.shortest_record(points)
     try:
         n = len(t)
     except TypeError:
@@ -294,11 +294,6 @@ def estimate(t, f=None, x=None, *, model="msd", filter_order=DEFAULT_FILTER_ORDE
                             filter_order=filter_order, quadrature_points=points, mass=mass,
                             mass_scaled=tuple(estimates)[len(module.PARAMETERS):],
                             numerical_error=error)
-
-
-def _min_samples(points):
-    """The shortest record (:func:`algid.estimation._core.shortest_record`)."""
-    return core.shortest_record(points)
 
 
 def _check_takes_pair(module):
@@ -416,7 +411,7 @@ def _estimate_signals(t, signals, *, model, filter_order, quadrature_points,
     # the time axis once (passed as its own companions: t is never identically zero,
     # so only the checks of the time axis can fail), then every signal
     t_checked, _, _, dt = check_experiment(t, t, t, names=("t", "t", "t"),
-                                           min_samples=_min_samples(points))
+                                           min_samples=core.shortest_record(points))
     checked = {name: as_signal(samples, name=str(name)) for name, samples in signals.items()}
     for name, values in checked.items():
         if values.size != t_checked.size:
@@ -436,7 +431,7 @@ def _estimate_signals(t, signals, *, model, filter_order, quadrature_points,
     # causal derivatives: the time origin is the first sample that has one
     start = stream.warmup
     _check_channels_finite(module, channels, start, checked)
-    if t_checked.size - start < _min_samples(points):
+    if t_checked.size - start < core.shortest_record(points):
         raise InputDataError(f"too few samples: {t_checked.size}, of which the first {start} "
                              "have no causal derivative estimate")
     backend = backends.choose_engine(engine, t_checked.size - start, None)
