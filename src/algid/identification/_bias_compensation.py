@@ -70,6 +70,9 @@ def bias_compensated(A, b, grams, bound=np.inf):
 def koopmans(normal, noise, bound=np.inf):
     """The solve of :func:`bias_compensated` from the sums of its equations.
 
+    :func:`koopmans_stack` on a stack of one, its generalised eigenproblem solved by
+    LAPACK's ``sygvd`` (:func:`scipy.linalg.eigh`).
+
     Parameters
     ----------
     normal : numpy.ndarray, shape (p + 1, p + 1)
@@ -88,33 +91,22 @@ def koopmans(normal, noise, bound=np.inf):
     capped : bool
         Whether the variance is the cap ``bound``.
     """
-    from scipy.linalg import eigh
-
-    p = normal.shape[0] - 1
-    d = np.sqrt(np.diag(normal))
-    d[d == 0] = 1.0
-    if not (np.any(noise != 0) and bound > 0):
+    theta_bar, variance, capped = koopmans_stack(
+        normal[None], noise[None], np.array([bound], dtype=float), pencil=_pencil_lapack)
+    if np.isnan(variance[0]):
         return None, None, False
-    try:
-        mu, vectors = eigh(noise / d[:, None] / d[None, :], normal / d[:, None] / d[None, :])
-    except np.linalg.LinAlgError:     # exact equations (no noise): least squares
-        return None, None, False
-    v = vectors[:, -1] / d
-    if mu[-1] > 0 and abs(v[-1]) * d[-1] > 1e-8 and 1.0 / mu[-1] <= bound:
-        return -v / v[-1], 1.0 / mu[-1], False
-    if mu[-1] > 0 and np.isfinite(bound):
-        theta = solve_equilibrated(normal[:p, :p] - bound * noise[:p, :p],
-                                   normal[:p, p] - bound * noise[:p, p])
-        return np.append(theta, -1.0), bound, True
-    return None, None, False
+    return theta_bar[0], variance[0], bool(capped[0])
 
 
-def koopmans_stack(normal, noise, bound):
-    """:func:`koopmans` on a stack of problems (one batched call per step).
+def koopmans_stack(normal, noise, bound, pencil=None):
+    """Koopmans' estimator on a stack of problems (one batched call per step).
 
-    The generalised eigenproblem is reduced by the Cholesky factor of the equilibrated
-    ``normal`` (as LAPACK's ``sygv`` does): the results equal :func:`koopmans`'s to
-    round-off, each problem's independently of the others in the stack.
+    Per problem: the top eigenpair ``(mu, v)`` of the pencil ``(noise, normal)``, both
+    equilibrated by the square roots of ``diag(normal)``, gives ``theta_bar = -v /
+    v[-1]`` and the variance ``1 / mu`` when that is at most ``bound``; above it, the
+    correction of ``bound`` (least squares with a known variance); no correction where
+    the noise is zero, ``bound`` is not positive or ``normal`` is not positive definite.
+    Each problem's result is independent of the others in the stack.
 
     Parameters
     ----------
@@ -122,6 +114,11 @@ def koopmans_stack(normal, noise, bound):
         As in :func:`koopmans`, per problem.
     bound : numpy.ndarray, shape (k,)
         Upper bounds on the output noise variance.
+    pencil : callable, optional
+        The eigensolver of the equilibrated pencils: by default a batched reduction by
+        the Cholesky factor of the equilibrated ``normal`` (as LAPACK's ``sygv`` does;
+        its results equal LAPACK's to round-off), the one the Tracker uses; identify's
+        :func:`koopmans` passes LAPACK's own, one problem at a time.
 
     Returns
     -------
@@ -129,43 +126,40 @@ def koopmans_stack(normal, noise, bound):
         ``(theta, -1)``, NaN where no correction applies.
     variance : numpy.ndarray, shape (k,)
         The noise variance of the correction, NaN where none.
+    capped : numpy.ndarray of bool, shape (k,)
+        Whether the variance is the cap ``bound``.
 
     Examples
     --------
     >>> import numpy as np
     >>> normal = np.array([[[2.0, 1.0], [1.0, 2.0]]])
-    >>> theta_bar, variance = koopmans_stack(normal, np.eye(2)[None], np.array([np.inf]))
-    >>> theta_bar.round(6).tolist(), variance.round(6).tolist()
-    ([[1.0, -1.0]], [1.0])
+    >>> theta_bar, variance, capped = koopmans_stack(normal, np.eye(2)[None],
+    ...                                              np.array([np.inf]))
+    >>> theta_bar.round(6).tolist(), variance.round(6).tolist(), capped.tolist()
+    ([[1.0, -1.0]], [1.0], [False])
     """
     k, q1, _ = normal.shape
     p = q1 - 1
     theta_bar = np.full((k, q1), np.nan)
     variance = np.full(k, np.nan)
+    capped = np.zeros(k, bool)
     diagonal = np.sqrt(np.einsum("kii->ki", normal))
     diagonal[diagonal == 0] = 1.0
-    scale = diagonal[:, :, None] * diagonal[:, None, :]
     eligible = np.any(noise != 0, axis=(1, 2)) & (bound > 0)
-    scaled = np.where(eligible[:, None, None], normal / scale, np.eye(q1))
-    lower, ok = _cholesky_stack(scaled)
+    top, v, ok = (pencil or _pencil_batched)(normal, noise, diagonal, eligible)
     eligible &= ok
     if not np.any(eligible):
-        return theta_bar, variance
-    inverse = np.linalg.inv(lower)
-    reduced = inverse @ (noise / scale) @ np.swapaxes(inverse, 1, 2)
-    mu, vectors = np.linalg.eigh(reduced)
-    v = (np.swapaxes(inverse, 1, 2) @ vectors[:, :, -1:])[:, :, 0] / diagonal
-    top = mu[:, -1]
+        return theta_bar, variance, capped
     with np.errstate(divide="ignore", invalid="ignore"):
         eigen = eligible & (top > 0) & (np.abs(v[:, -1]) * diagonal[:, -1] > 1e-8) \
             & (1.0 / top <= bound)
         theta_bar[eigen] = -v[eigen] / v[eigen, -1:]
         variance[eigen] = 1.0 / top[eigen]
-    capped = np.flatnonzero(eligible & ~eigen & (top > 0) & np.isfinite(bound))
-    if capped.size:   # the eigenvalue exceeds the bound: the correction of the bound
-        cap = bound[capped, None, None]
-        H = normal[capped, :p, :p] - cap * noise[capped, :p, :p]
-        g = normal[capped, :p, p] - cap[:, :, 0] * noise[capped, :p, p]
+    over = np.flatnonzero(eligible & ~eigen & (top > 0) & np.isfinite(bound))
+    if over.size:   # the eigenvalue exceeds the bound: the correction of the bound
+        cap = bound[over, None, None]
+        H = normal[over, :p, :p] - cap * noise[over, :p, :p]
+        g = normal[over, :p, p] - cap[:, :, 0] * noise[over, :p, p]
         d = np.sqrt(np.abs(np.einsum("kii->ki", H)))
         d[d == 0] = 1.0
         H = H / d[:, :, None] / d[:, None, :]
@@ -175,17 +169,57 @@ def koopmans_stack(normal, noise, bound):
         try:
             theta = np.linalg.solve(H, rhs)[:, :, 0] / d
         except np.linalg.LinAlgError:   # some singular: one at a time
-            theta = np.zeros((len(capped), p))
-            for i in range(len(capped)):
+            theta = np.zeros((len(over), p))
+            for i in range(len(over)):
                 try:
                     theta[i] = np.linalg.solve(H[i], rhs[i])[:, 0] / d[i]
                 except np.linalg.LinAlgError:
                     solvable[i] = False
-        keep = capped[solvable]
+        keep = over[solvable]
         theta_bar[keep, :p] = theta[solvable]
         theta_bar[keep, p] = -1.0
         variance[keep] = bound[keep]
-    return theta_bar, variance
+        capped[keep] = True
+    return theta_bar, variance, capped
+
+
+def _pencil_batched(normal, noise, diagonal, eligible):
+    """Top eigenpairs of the equilibrated pencils ``(noise, normal)`` of a stack, by the
+    Cholesky factor ``L`` of the equilibrated ``normal`` (batched ``inv(L) noise
+    inv(L)^T``, its eigenvectors mapped back by ``inv(L)^T``).
+
+    Returns the top eigenvalues, their eigenvectors in the unscaled columns and which
+    problems were solved (``normal`` positive definite), for :func:`koopmans_stack`.
+    """
+    k, q1, _ = normal.shape
+    scale = diagonal[:, :, None] * diagonal[:, None, :]
+    scaled = np.where(eligible[:, None, None], normal / scale, np.eye(q1))
+    lower, ok = _cholesky_stack(scaled)
+    ok &= eligible
+    if not np.any(ok):
+        return np.full(k, np.nan), np.full((k, q1), np.nan), ok
+    inverse = np.linalg.inv(lower)
+    reduced = inverse @ (noise / scale) @ np.swapaxes(inverse, 1, 2)
+    mu, vectors = np.linalg.eigh(reduced)
+    v = (np.swapaxes(inverse, 1, 2) @ vectors[:, :, -1:])[:, :, 0] / diagonal
+    return mu[:, -1], v, ok
+
+
+def _pencil_lapack(normal, noise, diagonal, eligible):
+    """:func:`_pencil_batched` by LAPACK's ``sygvd``, one problem at a time."""
+    from scipy.linalg import eigh
+
+    k, q1, _ = normal.shape
+    top, v, ok = np.full(k, np.nan), np.full((k, q1), np.nan), np.zeros(k, bool)
+    for i in np.flatnonzero(eligible):
+        d = diagonal[i]
+        try:
+            mu, vectors = eigh(noise[i] / d[:, None] / d[None, :],
+                               normal[i] / d[:, None] / d[None, :])
+        except np.linalg.LinAlgError:     # exact equations (no noise): least squares
+            continue
+        top[i], v[i], ok[i] = mu[-1], vectors[:, -1] / d, True
+    return top, v, ok
 
 
 def _cholesky_stack(matrices):

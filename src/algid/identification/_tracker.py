@@ -177,7 +177,7 @@ def _solve_full(R, G, bound, method, separable=None):
     variance = np.full(k, np.nan)
     phi = c.copy()
     if method == "bc" and np.any(ok):
-        theta_bar, variance = koopmans_stack(normal[ok], noise[ok], bound[ok])
+        theta_bar, variance, _ = koopmans_stack(normal[ok], noise[ok], bound[ok])
         corrected = np.isfinite(variance)
         rows = np.flatnonzero(ok)[corrected]
         phi[rows] = theta_bar[corrected, :p]
