@@ -235,7 +235,15 @@ def _lu_inverse(A, out):
 @_jit
 def _koopmans(normal, noise, bound, theta_bar):
     """The bias-compensated solution ``(theta, -1)`` of one window (``theta_bar``) and
-    the noise variance of the correction (NaN: none), as ``koopmans_stack``."""
+    the noise variance of the correction (NaN: none).
+
+    Mirrors the shared NumPy estimator, ``koopmans_stack`` of
+    :mod:`algid.identification._bias_compensation` (its default, Cholesky-reduced
+    pencil): the same equilibration, eligibility, choice of the top eigenpair and
+    correction of the bound, step for step.  Its Cholesky factor, Jacobi eigenvalues and
+    LU inverse are written out here, so its results agree with NumPy's LAPACK ones to
+    round-off, not bit for bit; a change to the estimator is made in both.
+    """
     q = normal.shape[0]
     p = q - 1
     eligible = bound > 0
