@@ -40,6 +40,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from algid.errors import AlgidError, InputDataError
+from algid.identification._methods import METHODS
 
 __all__ = ["Adequacy", "model_adequacy", "missing_terms", "misfit_ratio", "misfit_limit",
            "MISFIT_LIMIT", "MISFIT_FALSE_ALARM", "SHIFT_LIMIT", "EXPLAINED", "POWERS"]
@@ -192,7 +193,8 @@ def model_adequacy(problem, length, fit, solve, method, min_length, stride):
         ``solve(problem, length, multiplicities, instruments, method=...)``: the
         estimate on windows of another length (``algid.identification._identify._solve``).
     method : str
-        Its method (``"iv"``: instruments from the simulated output, as the estimate's).
+        Its method, a name of :data:`algid.identification._methods.METHODS` (an
+        instrumental one: instruments from the simulated output, as the estimate's).
     min_length : int
         Shortest window the multiplicities allow (samples).
     stride : int
@@ -213,10 +215,9 @@ def model_adequacy(problem, length, fit, solve, method, min_length, stride):
         if not min_length <= candidate <= longest:
             continue
         try:
-            instruments = None if method != "iv" else {
+            instruments = None if not METHODS[method].instrumental else {
                 a: problem.rows(candidate, a, "simulated") for a in multiplicities}
-            second = solve(problem, candidate, multiplicities, instruments,
-                           method="bc" if method == "iv" else method)
+            second = solve(problem, candidate, multiplicities, instruments, method=method)
         except (InputDataError, np.linalg.LinAlgError):
             continue
         error = second.stderr

@@ -5,7 +5,8 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["bias_compensated", "koopmans", "koopmans_stack", "solve_equilibrated"]
+__all__ = ["bias_compensated", "least_squares", "koopmans", "koopmans_stack",
+           "solve_equilibrated"]
 
 
 def bias_compensated(A, b, grams, bound=np.inf):
@@ -60,11 +61,34 @@ def bias_compensated(A, b, grams, bound=np.inf):
     noise = grams.sum(axis=0)
     theta_bar, variance, capped = koopmans(phi.T @ phi, noise, bound)
     if theta_bar is None:
-        theta = np.linalg.lstsq(A, b, rcond=None)[0]
-        return theta, A * (b - A @ theta)[:, None], A.T @ A, None, False
+        return least_squares(A, b, grams, bound)
     theta = theta_bar[:p]
     scores = A * (b - A @ theta)[:, None] + variance * (grams @ theta_bar)[:, :p]
     return theta, scores, A.T @ A - variance * noise[:p, :p], variance, capped
+
+
+def least_squares(A, b, grams=None, bound=None):
+    """Plain least squares, with the returns of :func:`bias_compensated` (no correction).
+
+    Parameters
+    ----------
+    A : numpy.ndarray, shape (windows, p)
+        Regressors of the window equations.
+    b : numpy.ndarray, shape (windows,)
+        Their known side.
+    grams, bound : object
+        Unused: the signature of :func:`bias_compensated`.
+
+    Returns
+    -------
+    theta, scores, jacobian : numpy.ndarray
+        The estimate, its estimating equations per window and their derivative.
+    variance : None
+    capped : bool
+        False.
+    """
+    theta = np.linalg.lstsq(A, b, rcond=None)[0]
+    return theta, A * (b - A @ theta)[:, None], A.T @ A, None, False
 
 
 def koopmans(normal, noise, bound=np.inf):

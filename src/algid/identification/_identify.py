@@ -32,14 +32,17 @@ covariance, the window rule and the crossings in full.
 from __future__ import annotations
 
 import types
+from dataclasses import dataclass, field
 from math import comb
+from typing import NamedTuple
 
 import numpy as np
 
 from algid.errors import InputDataError, ModelError
 from algid.identification._adequacy import misfit_ratio, missing_terms, model_adequacy
 from algid.identification._arguments import check_arguments, check_memory, check_model_columns
-from algid.identification._bias_compensation import bias_compensated, solve_equilibrated
+from algid.identification._bias_compensation import solve_equilibrated
+from algid.identification._methods import METHODS
 from algid.identification._records import (
     Segment,
     check_factors,
@@ -80,9 +83,6 @@ from algid.models._model import Model
 __all__ = ["identify", "METHODS", "MULTIPLICITIES", "AGREEMENT", "CROSSING_PASSES",
            "window_criterion", "window_grid"]
 
-#: Solvers: bias-compensated least squares (default), least squares, instrumental variables.
-METHODS = ("ls", "bc", "iv")
-
 #: Kernel multiplicities stacked in every estimate (their difference drives the window rule).
 MULTIPLICITIES = (8, 12)
 
@@ -100,6 +100,44 @@ WINDOW_OVERLAP = 8
 #: Round-off standard error of the solution, per sample of a window, relative to the
 #: known side (in the orthonormal basis of :mod:`algid.identification._window_basis`).
 ROUNDOFF = 4 * np.finfo(float).eps
+
+
+class _Samples(NamedTuple):
+    """A factor's samples per segment, over ``2**exponent`` (the power of two of the
+    largest)."""
+
+    values: list
+    exponent: int
+
+
+@dataclass
+class _Cache:
+    """What the solves of one :class:`_Problem` reuse, one field per kind.
+
+    The measured output never changes: its noise bound stays, and so do the samples of
+    a factor until its crossings are placed again (:meth:`forget_factors`); the samples
+    of the simulated output go at every new simulation (:meth:`forget_simulated`).
+    """
+
+    samples: dict = field(default_factory=dict)   # (factor, which) -> _Samples
+    # factor -> derivative with respect to the measured output per segment (None: the
+    # factor does not read it), in the units of the measured samples
+    sensitivities: dict = field(default_factory=dict)
+    noise_bound: float | None = None
+    excited: bool = False   # check_excited passed
+
+    def forget_factors(self, factors):
+        """Forget the samples and sensitivities of ``factors`` (their crossings moved)."""
+        self.samples = {k: v for k, v in self.samples.items() if k[0] not in factors}
+        self.sensitivities = {k: v for k, v in self.sensitivities.items()
+                              if k not in factors}
+
+    def forget_simulated(self):
+        """Forget the samples of the simulated output (a new simulation); the measured
+        rows' excitation is checked again at the next solve (their crossings have moved
+        since the first check)."""
+        self.samples = {k: v for k, v in self.samples.items() if k[1] == "measured"}
+        self.excited = False
 
 
 class _Problem:
@@ -127,7 +165,7 @@ class _Problem:
         self.parameters = model.parameters
         self.output_exponent = exponent([s.values[model.output] for s in segments])
         self.output_unit = float(np.ldexp(1.0, self.output_exponent))
-        self.factors = {}
+        self.cache = _Cache()
         self._exponents = {}
         self.sign_jumps = {}   # sign factor -> jump of q'' (refined crossings)
         self.first_values = {}  # parameter -> first estimate (the crossings' local fits)
@@ -148,7 +186,7 @@ class _Problem:
     def factor_samples(self, factor, which="measured"):
         """Samples of a factor per segment, over the power of two of its largest."""
         key = (factor, which)
-        if key not in self.factors:
+        if key not in self.cache.samples:
             samples, steps, crossings = [], [], []
             for seg in self.user_segments:
                 values = seg.values if which == "measured" else seg.simulated
@@ -187,9 +225,8 @@ class _Problem:
                     self.crossings[(factor, s)] = [
                         ((time - seg.t[0]) / unit, np.ldexp(size, -e), first, fit * moves)
                         for time, size, first, fit in crossings[s]]
-            self.factors[key] = samples
-            self.factors[(factor, which, "exponent")] = e
-        return self.factors[key]
+            self.cache.samples[key] = _Samples(samples, e)
+        return self.cache.samples[key].values
 
     def exponents(self, which="measured"):
         """Powers of two of the columns of :meth:`rows` and of its known side, and of
@@ -197,9 +234,9 @@ class _Problem:
         unit = int(np.round(np.log2(self.time_unit)))
         own = []
         for term in self.model.terms:
-            if (term.factor, which, "exponent") not in self.factors:
-                self.factor_samples(term.factor, which)
-            own.append(self.factors[(term.factor, which, "exponent")] - term.derivative * unit)
+            self.factor_samples(term.factor, which)
+            own.append(self.cache.samples[(term.factor, which)].exponent
+                       - term.derivative * unit)
         key = (which, tuple(own))
         if key in self._exponents:
             return self._exponents[key]
@@ -280,20 +317,20 @@ class _Problem:
         """Derivative of a factor with respect to the measured output, per segment
         (``None`` where the factor does not read the output's plain samples), both in
         their units (the powers of two of :meth:`factor_samples`)."""
-        key = (factor, "sensitivity")
-        if key not in self.factors:
+        cache = self.cache.sensitivities
+        if factor not in cache:
             output = self.model.output
             self.factor_samples(factor)
-            shift = self.output_exponent - self.factors[(factor, "measured", "exponent")]
+            shift = self.output_exponent - self.cache.samples[(factor, "measured")].exponent
             if output not in factor.signals():
-                self.factors[key] = None
+                cache[factor] = None
             elif factor == Signal(output):
-                self.factors[key] = [np.ones(len(seg)) for seg in self.segments]
+                cache[factor] = [np.ones(len(seg)) for seg in self.segments]
             else:
-                self.factors[key] = [np.ldexp(factor_sensitivity(factor, output, seg.values,
-                                                                 seg.t), shift)
-                                     for seg in self.user_segments]
-        return self.factors[key]
+                cache[factor] = [np.ldexp(factor_sensitivity(factor, output, seg.values,
+                                                             seg.t), shift)
+                                 for seg in self.user_segments]
+        return cache[factor]
 
     def noise_bound(self):
         """An upper bound on the variance of white noise on the output samples (in the
@@ -305,7 +342,7 @@ class _Problem:
         the smallest of ``k = 1 .. 8`` is kept.  Tight when the signal is smooth on the
         sample grid; loose (harmless) at a few samples per period.
         """
-        if "noise_bound" not in self.factors:
+        if self.cache.noise_bound is None:
             y = [np.ldexp(seg.values[self.model.output], -self.output_exponent)
                  for seg in self.segments]
             bounds = []
@@ -314,8 +351,8 @@ class _Problem:
                 count = sum(len(v) for v in d)
                 if count:
                     bounds.append(sum(float(v @ v) for v in d) / count / comb(2 * k, k))
-            self.factors["noise_bound"] = min(bounds) if bounds else np.inf
-        return self.factors["noise_bound"]
+            self.cache.noise_bound = min(bounds) if bounds else np.inf
+        return self.cache.noise_bound
 
     def noise_grams(self, length, multiplicity):
         """Per-window covariance of the noise that unit white output noise puts into
@@ -384,62 +421,86 @@ def factor_sensitivity(factor, output, values, t, h=None):
     return difference / (2 * h) * np.ones(len(t))
 
 
+class _Solution(NamedTuple):
+    """The solve of one multiplicity's window equations (:func:`_solve_multiplicity`),
+    in the orthonormal basis of :class:`WindowBasis`."""
+
+    phi: np.ndarray            # the solution in the basis
+    basis: WindowBasis
+    ids: np.ndarray            # the segment of each window
+    scores: np.ndarray         # the estimating equations per window
+    jacobian: np.ndarray       # their derivative
+    variance: float | None     # the noise variance of a correction (None: none)
+    capped: bool               # whether that variance is the noise bound
+    weights: np.ndarray        # the regressors or instruments of the scores
+    separation: object         # the separability check (highest multiplicity), or None
+    grams: np.ndarray | None   # per-window noise covariances of [A | b] in the basis
+
+
+def _solve_multiplicity(problem, length, a, top, instruments=None, method="ls"):
+    """The window equations of multiplicity ``a`` solved by ``method`` (a name of
+    :data:`METHODS`), or by instrumental variables (``instruments``: the rows of the
+    simulated output); ``top``, the highest multiplicity, is checked for separability."""
+    A, b, ids = problem.rows(length, a)
+    check_finite(problem, A, b)
+    if not problem.cache.excited:  # once: a vanishing term does so at any window
+        check_excited(problem, length, a, A, b)
+        problem.cache.excited = True
+    basis = WindowBasis(A, b)
+    grams = basis.grams(problem.noise_grams(length, a))
+    separation = None
+    if a == top:
+        separation = separability(basis, problem.exact_columns, grams.sum(axis=0))
+        if separation.proportional:
+            raise ModelError(separation.message(problem.parameters))
+    variance, capped = None, False
+    weights = basis.A
+    if instruments is not None:
+        Z = weights = basis.instruments(instruments)
+        phi = solve_equilibrated(Z.T @ basis.A, Z.T @ basis.b)
+        scores, jacobian = Z * (basis.b - basis.A @ phi)[:, None], Z.T @ basis.A
+    else:
+        phi, scores, jacobian, variance, capped = METHODS[method].solve(
+            basis.A, basis.b, grams, problem.noise_bound())
+    return _Solution(phi, basis, ids, scores, jacobian, variance, capped, weights,
+                     separation, grams)
+
+
 def _solve(problem, length, multiplicities, instruments=None, method="ls"):
     """Estimates of every multiplicity on windows of ``length`` samples; the result is
     that of the highest multiplicity (the most accurate quadrature), the others serve
     as its error check."""
+    top = max(multiplicities)
     separate = {}
     for a in multiplicities:
-        A, b, ids = problem.rows(length, a)
-        check_finite(problem, A, b)
-        if not problem.factors.get("excited"):  # once: a vanishing term does so at any window
-            check_excited(problem, length, a, A, b)
-            problem.factors["excited"] = True
-        basis = WindowBasis(A, b)
-        grams = basis.grams(problem.noise_grams(length, a))
-        separation = None
-        if a == max(multiplicities):
-            separation = separability(basis, problem.exact_columns, grams.sum(axis=0))
-            if separation.proportional:
-                raise ModelError(separation.message(problem.parameters))
-        variance, capped = None, False
-        weights = basis.A
-        if instruments is not None:
-            Z = weights = basis.instruments(instruments[a][0])
-            phi = solve_equilibrated(Z.T @ basis.A, Z.T @ basis.b)
-            scores, jacobian = Z * (basis.b - basis.A @ phi)[:, None], Z.T @ basis.A
-        elif method == "bc":
-            phi, scores, jacobian, variance, capped = bias_compensated(
-                basis.A, basis.b, grams, problem.noise_bound())
-        else:
-            phi = np.linalg.lstsq(basis.A, basis.b, rcond=None)[0]
-            scores, jacobian = basis.A * (basis.b - basis.A @ phi)[:, None], \
-                basis.A.T @ basis.A
-        separate[a] = basis.theta(phi)
-        if a == max(multiplicities):
-            kept = (phi, basis, ids, scores, jacobian, variance, capped, weights, separation,
-                    grams)
-    top = max(multiplicities)
-    phi, basis, ids, scores, jacobian, variance, capped, weights, separation, grams = kept
-    del kept
+        current = _solve_multiplicity(problem, length, a, top,
+                                      None if instruments is None else instruments[a][0],
+                                      method)
+        separate[a] = current.basis.theta(current.phi)
+        if a == top:
+            solution = current
+    del current
+    phi, basis, ids = solution.phi, solution.basis, solution.ids
+    variance, capped = solution.variance, solution.capped
     r = basis.b - basis.A @ phi
-    bread = np.linalg.pinv(jacobian)
+    bread = np.linalg.pinv(solution.jacobian)
     theta_s = basis.theta(phi)
     theta_bar = np.append(theta_s, -1.0)   # in the units of the rows (noise_meat)
     stride = max(1, length // WINDOW_OVERLAP)
     noise = None
     if variance is None and not capped:  # least squares: misfit per unit noise variance
-        weight = float(np.einsum("i,wij,j->", np.append(phi, -1.0), grams,
+        weight = float(np.einsum("i,wij,j->", np.append(phi, -1.0), solution.grams,
                                  np.append(phi, -1.0)))
         variance = float(r @ r) / weight if weight > 0 else np.inf
         if not variance <= problem.noise_bound():
             variance, capped = problem.noise_bound(), True
-    del grams   # the per-window noise matrices: their memory for noise_meat's
+    # the per-window noise matrices: their memory for noise_meat's
+    solution = solution._replace(grams=None)
     if variance is not None and np.isfinite(variance) and variance > 0:
         beta = np.ldexp(1.0, -basis.b_shift)
-        noise = variance * beta ** 2 * noise_meat(problem, length, top, theta_bar, weights,
-                                                  stride)
-    covariance = sandwich(bread, hac_meat(scores, ids, int(np.ceil(length / stride))),
+        noise = variance * beta ** 2 * noise_meat(problem, length, top, theta_bar,
+                                                  solution.weights, stride)
+    covariance = sandwich(bread, hac_meat(solution.scores, ids, int(np.ceil(length / stride))),
                           noise, AGREEMENT, floor=ROUNDOFF * length * np.linalg.norm(basis.b))
     columns, known, _ = problem.exponents()
     shift = known - columns
@@ -459,7 +520,7 @@ def _solve(problem, length, multiplicities, instruments=None, method="ls"):
         basis.b ** 2))), 1e-300), basis.shifts - basis.b_shift - shift)
     return WindowFit(theta, covariance,
                 {a: np.ldexp(v, shift) for a, v in separate.items()},
-                scale, r, len(ids), separation)
+                scale, r, len(ids), solution.separation)
 
 
 def _add_derivatives(model, segments, estimator):
@@ -500,7 +561,7 @@ def _simulated_values(problem, theta, model):
             if name == model.output:
                 values[(name, k)] = estimate_derivative(y, seg.t, k, seg.step)
         seg.simulated = values
-    problem.factors = {k: v for k, v in problem.factors.items() if k[1] == "measured"}
+    problem.cache.forget_simulated()
     return True
 
 
@@ -607,19 +668,17 @@ def identify(data, equation, parameters=None, *, time=None, rate=None, output=No
     length = window_length(window, step, problem, multiplicities)
     scores = None
     if length is None:
-        length, scores = choose_window(problem, multiplicities, _solve,
-                                       method="bc" if method == "iv" else method)
-    fit = _solve(problem, length, multiplicities, method="bc" if method == "iv" else method)
+        length, scores = choose_window(problem, multiplicities, _solve, method=method)
+    fit = _solve(problem, length, multiplicities, method=method)
     for _ in range(CROSSING_PASSES):  # again, crossings of sign(q') placed by the model
         # (same window: re-chosen, it varied with the noise and so did its quadrature bias)
         problem.first_values = dict(zip(model.parameters, fit.theta))
         problem.sign_jumps = crossing_jumps(model, problem.first_values)
         if not problem.sign_jumps:
             break
-        problem.factors = {k: v for k, v in problem.factors.items()
-                           if not (isinstance(k, tuple) and k[0] in problem.sign_jumps)}
-        fit = _solve(problem, length, multiplicities, method="bc" if method == "iv" else method)
-    if method == "iv":
+        problem.cache.forget_factors(problem.sign_jumps)
+        fit = _solve(problem, length, multiplicities, method=method)
+    if METHODS[method].instrumental:
         for _ in range(iterations):
             if not _simulated_values(problem, fit.theta, model):
                 raise InputDataError("instrumental variables: the simulated output of the "

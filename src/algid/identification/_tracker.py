@@ -41,6 +41,7 @@ from algid.identification._arguments import check_arguments, check_model_columns
 from algid.identification._bias_compensation import koopmans_stack
 from algid.identification._change_detection import INCREMENT_CAP, cusum_reference, cusum_threshold
 from algid.identification._identify import WINDOW_OVERLAP, factor_sensitivity, term_rows
+from algid.identification._methods import TRACKER_METHODS
 from algid.identification._records import (
     GAP_FACTOR,
     TIME_COLUMNS,
@@ -344,13 +345,14 @@ class Tracker:
     def __init__(self, equation, parameters=None, *, rate=None, time=None, output=None,
                  window=None, half_life=None, method="bc", warmup=DEFAULT_WARMUP,
                  false_alarm_rate=DEFAULT_FALSE_ALARM_RATE, every=None):
-        if method not in ("bc", "ls"):
-            raise InputDataError(f"method must be 'bc' or 'ls' for a tracker, got {method!r} "
-                                 f"(instrumental variables need the whole record)")
+        if method not in TRACKER_METHODS:
+            raise InputDataError(f"method must be {' or '.join(map(repr, TRACKER_METHODS))} "
+                                 f"for a tracker, got {method!r} (instrumental variables "
+                                 f"need the whole record)")
         if isinstance(equation, types.ModuleType):  # a compiled model: its own equation
             equation = model_of(estimator_module(equation, parameters))
         check_arguments(equation, parameters, time=time, rate=rate, output=output,
-                        window=window, method=method, methods=("bc", "ls"),
+                        window=window, method=method, methods=TRACKER_METHODS,
                         multiplicities=(8, 12), name="custom", iterations=1)
         for name, value, allow_none in (("half_life", half_life, True), ("warmup", warmup,
                                         False), ("false_alarm_rate", false_alarm_rate, False),
