@@ -287,7 +287,7 @@ def test_noise_meat_is_the_covariance_of_the_window_equations_noise(uniform):
     """The analytic middle of the sandwich equals ``G M M^T G^T``, with ``M`` the map
     from output noise samples to the window equations built impulse by impulse (a cubic
     term: first order, through the sensitivity ``3 y^2``)."""
-    from algid.identification._identify import WINDOW_OVERLAP, _Problem
+    from algid.identification._identify import WINDOW_OVERLAP, _Cache, _Problem
     from algid.identification._records import prepare_records
     from algid.identification._window_covariance import noise_meat
     from algid.models._grammar import parse_equation
@@ -312,10 +312,10 @@ def test_noise_meat_is_the_covariance_of_the_window_equations_noise(uniform):
         seg = segments[s]
         saved = seg.values[model.output]
         seg.values[model.output] = saved + y_shift
-        problem.factors = {}
+        problem.cache = _Cache()
         A1, b1, ids1 = problem.rows(length, a)
         seg.values[model.output] = saved
-        problem.factors = {}
+        problem.cache = _Cache()
         return np.column_stack([A1, b1]) @ theta_bar
 
     base = np.column_stack([A, b]) @ theta_bar
