@@ -134,8 +134,8 @@ class _Cache:
 
     def forget_simulated(self):
         """Forget the samples of the simulated output (a new simulation); the measured
-        rows' excitation is checked again at the next solve (their crossings have moved
-        since the first check)."""
+        rows' excitation is checked again at the next solve, the crossings having moved
+        since the first check (later repeats find the same)."""
         self.samples = {k: v for k, v in self.samples.items() if k[1] == "measured"}
         self.excited = False
 
