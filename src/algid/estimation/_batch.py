@@ -11,6 +11,7 @@ import numpy as np
 
 import algid.estimation._backends as backends
 import algid.estimation._core as core
+from algid._record_input import is_record, is_timeresponse
 from algid._scaling import amplitude_scale, check_amplitude_range, scalable
 from algid._signal_checks import as_signal, check_experiment, positive_number
 from algid.errors import InputDataError
@@ -32,7 +33,7 @@ from algid.estimation._options import (
 )
 from algid.estimation._result import EstimationResult
 from algid.identification._records import record_columns
-from algid.models._argument import estimator_module, is_record, measured_signals, takes_pair
+from algid.models._argument import estimator_module, measured_signals, takes_pair
 from algid.models._registry import available_models, load_model
 from algid.signals._filters import as_lowpass
 from algid.signals._quadrature import iterated_integrals, startup_samples
@@ -222,7 +223,11 @@ def estimate(t, f=None, x=None, *, model="msd", filter_order=DEFAULT_FILTER_ORDE
     >>> round(r.final()["B"], 6), round(r.final()["K"], 6)
     (2.0, 3.0)
     """
-    if is_record(t):
+    # a TimeResponseData alone is the paper's form (its input and output); with a model,
+    # a record of its labelled signals
+    if is_record(t) and not (is_timeresponse(t) and f is None and x is None):
+        if is_timeresponse(t) and any(_samples_given(v) for v in (f, x)):
+            raise InputDataError("give either a TimeResponseData or the arrays t, f, x, not both")
         if signals is not None:
             raise InputDataError("give a record or signals=, not both")
         module = estimator_module(model if f is None else f, x, output=output)
@@ -245,9 +250,7 @@ def estimate(t, f=None, x=None, *, model="msd", filter_order=DEFAULT_FILTER_ORDE
     if differentiator != "centred" or derivative_window is not None or derivative_extra_orders:
         raise InputDataError("differentiator, derivative_window and derivative_extra_orders "
                              "apply to models given signals= (derivatives inside factors)")
-    if hasattr(t, "time") and hasattr(t, "outputs"):
-        if f is not None or x is not None:
-            raise InputDataError("give either a TimeResponseData or the arrays t, f, x, not both")
+    if is_timeresponse(t):
         t, f, x = _unpack_timeresponse(t)
     elif f is None or x is None:
         raise InputDataError("estimate needs the input f and the output x")
@@ -294,6 +297,14 @@ def estimate(t, f=None, x=None, *, model="msd", filter_order=DEFAULT_FILTER_ORDE
                             filter_order=filter_order, quadrature_points=points, mass=mass,
                             mass_scaled=tuple(estimates)[len(module.PARAMETERS):],
                             numerical_error=error)
+
+
+def _samples_given(value):
+    """Whether an argument in the place of ``f`` or ``x`` holds samples (not a model's
+    name, equation or parameter names)."""
+    if isinstance(value, np.ndarray):
+        return True
+    return isinstance(value, (list, tuple)) and bool(value) and not isinstance(value[0], str)
 
 
 def _check_takes_pair(module):

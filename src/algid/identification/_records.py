@@ -20,14 +20,17 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.signal import savgol_filter
 
+from algid._record_input import (
+    TIME_COLUMNS,
+    as_record,
+    is_record,
+    read_column,
+)
 from algid.errors import InputDataError
 
 __all__ = ["record_columns", "Segment", "prepare_records", "estimate_derivative", "check_rate",
            "check_rate_agrees", "check_factors", "white_noise_floor", "TIME_COLUMNS",
            "GAP_FACTOR", "RATE_TOLERANCE", "STEP_RANGE", "NOISE_ORDERS"]
-
-#: Column names taken as the time axis when neither ``time`` nor ``rate`` is given.
-TIME_COLUMNS = ("t", "time")
 
 #: A step longer than this many median steps is a gap (missing rows).
 GAP_FACTOR = 1.5
@@ -77,44 +80,13 @@ class Segment:
 
 
 def _as_records(data):
-    if isinstance(data, dict) or hasattr(data, "keys"):
-        return [data]
-    if isinstance(data, (list, tuple)) and data and all(hasattr(r, "keys") for r in data):
-        return list(data)
-    raise InputDataError("data must be a mapping of column name -> samples, or a list "
-                         "of such mappings")
-
-
-def refuse_unusable(values, what, *, dates=False):
-    """Refuse an array that is not one signal of real measurements.
-
-    Parameters
-    ----------
-    values : ndarray
-        The column as given.
-    what : str
-        Names it at the head of the message (``"record 0: column 'u'"``).
-    dates : bool, optional
-        Whether dates and durations are accepted (a time column of identify's).
-
-    Raises
-    ------
-    InputDataError
-        For a 2-D array (a column vector is one signal), complex numbers, booleans, or
-        dates and durations where they are not accepted.
-    """
-    if sum(size > 1 for size in values.shape) > 1:
-        raise InputDataError(f"{what} has shape {values.shape}: give one 1-D array per "
-                             f"signal")
-    kind = values.dtype.kind
-    if kind == "c":
-        raise InputDataError(f"{what} is complex; give real measurements (e.g. its real "
-                             f"part or its modulus)")
-    if kind == "b":
-        raise InputDataError(f"{what} holds booleans, not measurements (convert with "
-                             f".astype(float))")
-    if kind in "mM" and not dates:
-        raise InputDataError(f"{what} holds dates or durations, not measurements")
+    if is_record(data):
+        return [as_record(data, "record 0")]
+    if isinstance(data, (list, tuple)) and data and all(is_record(r) for r in data):
+        return [as_record(r, f"record {i}") for i, r in enumerate(data)]
+    raise InputDataError("data must be a record (a mapping of column name -> samples, a "
+                         "pandas DataFrame, an xarray Dataset or a TimeResponseData), or "
+                         "a list of records")
 
 
 def _column(record, name, index, label):
@@ -124,30 +96,8 @@ def _column(record, name, index, label):
                 if label == "signal" else "")
         raise InputDataError(f"record {index}: no column {name!r} for the {label} "
                              f"(columns: {available}){hint}")
-    values = record[name]
-    if isinstance(values, np.ma.MaskedArray):  # masked samples are missing, as NaN are
-        values = np.ma.filled(values.astype(float), np.nan)
-    try:
-        values = np.asarray(values)
-    except (TypeError, ValueError):
-        raise InputDataError(f"record {index}: column {name!r} is not numeric") from None
-    refuse_unusable(values, f"record {index}: column {name!r}", dates=label == "time")
-    if values.dtype.kind in "mM":
-        if label != "time":
-            raise InputDataError(f"record {index}: column {name!r} holds dates or "
-                                 f"durations, not measurements")
-        values = values.reshape(-1)
-        # seconds from the first sample: the difference first, in the column's own
-        # integer unit, so that no precision is lost to the size of the epoch
-        return (values - values[0]) / np.timedelta64(1, "s") if len(values) else \
-            values.astype(float)
-    try:
-        return values.astype(float).reshape(-1)
-    except (TypeError, ValueError):
-        raise InputDataError(f"record {index}: column {name!r} is not numeric") from None
-    except OverflowError:   # Python integers beyond floating point
-        raise InputDataError(f"record {index}: column {name!r} holds numbers too large "
-                             f"for floating point (beyond 1.8e308)") from None
+    return read_column(record[name], f"record {index}: column {name!r}",
+                       time=label == "time")
 
 
 def check_rate(rate, what="rate"):
@@ -253,8 +203,8 @@ def record_columns(record, signals, *, time=None, rate=None, first_sample=0, ind
 
     Parameters
     ----------
-    record : mapping
-        Column name -> samples.
+    record : mapping, pandas.DataFrame, xarray.Dataset or control.TimeResponseData
+        Column name -> samples (:mod:`algid._record_input`).
     signals : sequence of str
         Signals to read.
     time : str, optional
@@ -281,6 +231,7 @@ def record_columns(record, signals, *, time=None, rate=None, first_sample=0, ind
     InputDataError
         A missing or non-numeric column, signals of different lengths, a bad time axis.
     """
+    record = as_record(record, f"record {index}")
     columns = {name: _column(record, name, index, "signal") for name in signals}
     lengths = {len(v) for v in columns.values()}
     if len(lengths) > 1:
@@ -319,8 +270,9 @@ def prepare_records(data, signals, *, time=None, rate=None, min_length=8):
 
     Parameters
     ----------
-    data : mapping or list of mappings
-        Column name -> samples, one mapping per record.
+    data : record or list of records
+        Column name -> samples, one mapping per record (or any record type of
+        :mod:`algid._record_input`).
     signals : sequence of str
         Signals the model reads.
     time : str, optional

@@ -36,6 +36,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.polynomial import chebyshev
 
+from algid._record_input import as_record, is_record, read_column
 from algid.errors import AlgidError, InputDataError
 from algid.identification._arguments import check_arguments, check_model_columns
 from algid.identification._bias_compensation import koopmans_stack
@@ -47,7 +48,6 @@ from algid.identification._records import (
     UNIFORM_TOLERANCE,
     check_rate,
     check_rate_agrees,
-    refuse_unusable,
 )
 from algid.identification._tracker_kernels import kernels, solvers
 from algid.identification._window_basis import ROUNDOFF_SEPARABILITY
@@ -514,8 +514,11 @@ class Tracker:
 
     # ------------------------------------------------------------------ input
     def _read(self, chunk):
-        if not hasattr(chunk, "keys"):
-            raise InputDataError("a chunk must be a mapping of column name -> samples")
+        if not is_record(chunk):
+            raise InputDataError("a chunk must be a record: a mapping of column name -> "
+                                 "samples, a pandas DataFrame, an xarray Dataset or a "
+                                 "TimeResponseData")
+        chunk = as_record(chunk, "the chunk")
         time = self.config["time"]
         if time is None and self.config["rate"] is None:
             time = next((c for c in TIME_COLUMNS if c in chunk), None)
@@ -530,15 +533,7 @@ class Tracker:
             if name not in chunk:
                 raise InputDataError(f"no column {name!r} in the chunk (columns: "
                                      f"{', '.join(map(str, chunk.keys()))})")
-            try:
-                values = np.asarray(chunk[name])
-            except (TypeError, ValueError):
-                raise InputDataError(f"column {name!r} is not numeric") from None
-            refuse_unusable(values, f"column {name!r}")
-            try:
-                values = values.astype(float).reshape(-1)
-            except (TypeError, ValueError):
-                raise InputDataError(f"column {name!r} is not numeric") from None
+            values = read_column(chunk[name], f"column {name!r}")  # (stream times: numbers)
             infinite = np.flatnonzero(np.isinf(values))
             if infinite.size:  # (NaN marks a missing sample, as in identify's records)
                 raise InputDataError(f"column {name!r} is {values[infinite[0]]} at row "
