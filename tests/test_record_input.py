@@ -4,10 +4,10 @@ TimeResponseData; and one reading of a column (masked samples are missing)."""
 
 import numpy as np
 import pytest
+from benchmarks.synthetic_records import LINEAR_EQUATION, linear_offsets
 
 import algid
 from algid._record_input import as_record, read_column
-from benchmarks.synthetic_records import LINEAR_EQUATION, linear_offsets
 
 pd = pytest.importorskip("pandas")
 xr = pytest.importorskip("xarray")

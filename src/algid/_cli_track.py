@@ -121,7 +121,7 @@ def track_command(args) -> int:
 
 
 def _file(args, model):
-    from algid.identification._records import TIME_COLUMNS
+    from algid._record_input import TIME_COLUMNS
 
     names = list(model.signals) + ([args.time] if args.time else [])
     optional = () if args.time else TIME_COLUMNS  # (with --rate too: they must agree)
@@ -187,7 +187,7 @@ def _line(model, t, values, stderr):
 
 def _live(args, model):
     """Rows from standard input, one report per interval, flushed at once."""
-    from algid.identification._records import TIME_COLUMNS
+    from algid._record_input import TIME_COLUMNS
 
     header = sys.stdin.readline()
     if not header.strip():

@@ -1,4 +1,4 @@
-"""The record types every entry point takes, and the reading of one column.
+"""The record layer: the record types every entry point takes, one column, the time axis.
 
 A *record* is a mapping of column name -> samples.  :func:`algid.estimate`,
 :class:`algid.OnlineEstimator`, :func:`algid.identify` and :class:`algid.Tracker` all
@@ -16,20 +16,39 @@ take, through :func:`as_record`:
 
 None of these libraries is imported: the types are recognised by their attributes.
 :func:`read_column` turns one column into float samples with the same refusals and
-messages wherever it is read (masked samples become NaN, that is missing).
+messages wherever it is read (masked samples become NaN, that is missing), and
+:func:`record_columns` reads a record's signals and its sample times: from a time
+column (``t`` or ``time`` by default), or from a sampling rate; a rate given with a
+time column must agree with it (:data:`RATE_TOLERANCE`).  Times of type ``datetime64``
+or ``timedelta64`` become seconds from the first sample.  Cutting a record at its gaps
+is :func:`algid.identify`'s (``algid.identification._records``).
 """
 
 from __future__ import annotations
+
+import math
+import numbers
 
 import numpy as np
 
 from algid.errors import InputDataError
 
-__all__ = ["TIME_COLUMNS", "is_record", "is_timeresponse", "as_record", "read_column",
-           "refuse_unusable"]
+__all__ = ["TIME_COLUMNS", "RATE_TOLERANCE", "STEP_RANGE", "is_record", "is_timeresponse",
+           "as_record", "read_column", "refuse_unusable", "record_columns", "check_rate",
+           "check_rate_agrees"]
 
 #: Column names taken as the time axis when neither ``time`` nor ``rate`` is given.
 TIME_COLUMNS = ("t", "time")
+
+#: A rate and a time column agree when the rate's step is within this fraction of the
+#: column's median step.
+RATE_TOLERANCE = 1e-3
+
+#: Sampling steps (s) accepted: the window integrals divide by powers of the window's
+#: span up to the 2(k+1)-th (noise weights of a k-th derivative), which leave the
+#: floating-point range beyond about 1e-60 and 1e40 s (measured on a second-order
+#: model); this range keeps a wide margin and holds every physical record.
+STEP_RANGE = (1e-30, 1e30)
 
 
 def is_timeresponse(data) -> bool:
@@ -216,3 +235,160 @@ def read_column(values, what, *, time=False):
     except OverflowError:   # Python integers beyond floating point
         raise InputDataError(f"{what} holds numbers too large for floating point "
                              f"(beyond 1.8e308)") from None
+
+
+def _column(record, name, index, label):
+    if name not in record:
+        available = ", ".join(map(str, record.keys()))
+        hint = (f"; if {name!r} is an unknown, add it to the parameters"
+                if label == "signal" else "")
+        raise InputDataError(f"record {index}: no column {name!r} for the {label} "
+                             f"(columns: {available}){hint}")
+    return read_column(record[name], f"record {index}: column {name!r}",
+                       time=label == "time")
+
+
+def check_rate(rate, what="rate"):
+    """The sampling rate as a float, or a one-line error.
+
+    Parameters
+    ----------
+    rate : float
+        Sampling rate (Hz): a real number (not a boolean or a string), positive and
+        finite, whose step lies in :data:`STEP_RANGE`.
+    what : str
+        Name of the argument, for the message.
+
+    Returns
+    -------
+    float
+
+    Raises
+    ------
+    InputDataError
+    """
+    if isinstance(rate, (bool, np.bool_)) or not isinstance(rate, numbers.Real):
+        raise InputDataError(f"{what} must be a number of Hz, got {rate!r}")
+    value = float(rate)
+    if not (math.isfinite(value) and value > 0):
+        raise InputDataError(f"{what} must be a positive finite number of Hz, got {rate!r}")
+    low, high = STEP_RANGE
+    if not low <= 1.0 / value <= high:
+        raise InputDataError(
+            f"{what} {value:g} Hz gives a sampling step of {1.0 / value:.3g} s, outside "
+            f"{low:g} .. {high:g} s: the estimators' integrals would overflow or "
+            f"underflow; express the time in other units")
+    return value
+
+
+def check_rate_agrees(rate, t, name, where):
+    """Refuse a sampling rate that contradicts a time column.
+
+    Parameters
+    ----------
+    rate : float
+        The rate given (Hz).
+    t : numpy.ndarray
+        The time column (s), strictly increasing.
+    name : str
+        The time column's name.
+    where : str
+        Prefix of the message (a record or a file).
+
+    Raises
+    ------
+    InputDataError
+        If ``1 / rate`` differs from the column's median step by more than
+        :data:`RATE_TOLERANCE` of it.
+    """
+    if len(t) < 2:
+        return
+    step = float(np.median(np.diff(t)))
+    if not abs(step * rate - 1.0) <= RATE_TOLERANCE:
+        raise InputDataError(
+            f"{where}: rate {rate:g} Hz contradicts time column {name!r} (sampled at "
+            f"{1.0 / step:.6g} Hz); give the time column or a rate that agrees with it")
+
+
+def _time_axis(record, index, n, time, rate):
+    if rate is not None:
+        rate = check_rate(rate)
+    if time is None:
+        time = next((c for c in TIME_COLUMNS if c in record), None)
+        if time is None and rate is None:
+            raise InputDataError(f"record {index}: no time column ({' or '.join(TIME_COLUMNS)}); "
+                                 f"give time= (a column name) or rate= (Hz)")
+    if time is None:
+        return np.arange(n) / rate, None
+    t = _column(record, time, index, "time")
+    if len(t) != n:
+        raise InputDataError(f"record {index}: time column {time!r} has {len(t)} samples, "
+                             f"the signals {n}")
+    if not np.all(np.isfinite(t)):
+        row = int(np.flatnonzero(~np.isfinite(t))[0])
+        raise InputDataError(f"record {index}: time column {time!r} is not finite at row {row}")
+    steps = np.diff(t)
+    if np.any(steps <= 0):
+        row = int(np.flatnonzero(steps <= 0)[0]) + 1
+        raise InputDataError(f"record {index}: time column {time!r} does not increase at "
+                             f"row {row}")
+    if rate is not None:
+        check_rate_agrees(rate, t, time, f"record {index}")
+    if len(steps):
+        median, low, high = float(np.median(steps)), *STEP_RANGE
+        if not low <= median <= high:
+            raise InputDataError(
+                f"record {index}: time column {time!r} has a step of {median:.3g}, outside "
+                f"{low:g} .. {high:g} s: the window integrals would overflow or "
+                f"underflow; express the time in other units")
+    return t, time
+
+
+def record_columns(record, signals, *, time=None, rate=None, first_sample=0, index=0,
+                   min_samples=0):
+    """The time axis and the named signals of one record, checked as :func:`algid.identify`
+    checks them (no gaps are cut: the estimator needs the record whole).
+
+    Parameters
+    ----------
+    record : mapping, pandas.DataFrame, xarray.Dataset or control.TimeResponseData
+        Column name -> samples (:mod:`algid._record_input`).
+    signals : sequence of str
+        Signals to read.
+    time : str, optional
+        Name of the time column; by default ``t`` or ``time`` if present.
+    rate : float, optional
+        Sampling rate (Hz) when there is no time column.
+    first_sample : int, optional
+        Index of the first sample when the times come from ``rate``: sample ``i`` is at
+        ``(first_sample + i) / rate`` (a stream's later chunk goes on where the previous
+        one ended, at the same times as the whole record).
+    index : int, optional
+        The record's place among several (named in the messages).
+    min_samples : int, optional
+        Fewer samples are refused (before the time axis is read).
+
+    Returns
+    -------
+    t : numpy.ndarray
+    columns : dict
+        Signal name -> samples (float arrays of the same length as ``t``).
+
+    Raises
+    ------
+    InputDataError
+        A missing or non-numeric column, signals of different lengths, a bad time axis.
+    """
+    record = as_record(record, f"record {index}")
+    columns = {name: _column(record, name, index, "signal") for name in signals}
+    lengths = {len(v) for v in columns.values()}
+    if len(lengths) > 1:
+        raise InputDataError(f"record {index}: signals have different lengths "
+                             f"({', '.join(f'{k}: {len(v)}' for k, v in columns.items())})")
+    n = lengths.pop() if lengths else 0
+    if n < min_samples:
+        raise InputDataError(f"record {index}: fewer than {min_samples} samples")
+    t, _ = _time_axis(record, index, n, time, rate)
+    if first_sample and time is None and not any(c in record for c in TIME_COLUMNS):
+        t = (first_sample + np.arange(n)) / check_rate(rate)
+    return t, columns

@@ -11,7 +11,7 @@ import numpy as np
 
 import algid.estimation._backends as backends
 import algid.estimation._core as core
-from algid._record_input import is_record, is_timeresponse
+from algid._record_input import is_record, is_timeresponse, record_columns
 from algid._scaling import amplitude_scale, check_amplitude_range, scalable
 from algid._signal_checks import as_signal, check_experiment, positive_number
 from algid.errors import InputDataError
@@ -32,7 +32,6 @@ from algid.estimation._options import (
     with_mass_scaled,
 )
 from algid.estimation._result import EstimationResult
-from algid.identification._records import record_columns
 from algid.models._argument import estimator_module, measured_signals, takes_pair
 from algid.models._registry import available_models, load_model
 from algid.signals._filters import as_lowpass
@@ -115,7 +114,9 @@ def estimate(t, f=None, x=None, *, model="msd", filter_order=DEFAULT_FILTER_ORDE
     t : array_like or control.TimeResponseData
         Sample times [s], strictly increasing and uniformly spaced.  May be a
         python-control ``TimeResponseData``, whose input and output are then used and
-        ``f``, ``x`` must be omitted.
+        ``f``, ``x`` must be omitted.  In the record form, any record type of
+        :func:`algid.identify` (a mapping, a pandas ``DataFrame``, an xarray
+        ``Dataset``, a ``TimeResponseData`` read by its labels).
     f : array_like
         Model input.  For ``model="msd"`` this is the force per unit mass ``F/m``,
         unless ``mass`` is given, in which case it is the force ``F`` [N].  For

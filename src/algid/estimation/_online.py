@@ -36,11 +36,10 @@ import math
 
 import numpy as np
 
-from algid.identification._records import record_columns
 from algid.models._argument import estimator_module, measured_signals, takes_pair
 from algid._scaling import amplitude_scale, scalable
 from algid._signal_checks import UNIFORM_RTOL, positive_number
-from algid._record_input import is_record
+from algid._record_input import is_record, record_columns
 from algid.errors import InputDataError
 import algid.estimation._core as core
 from algid.estimation._backends import choose_engine

@@ -36,19 +36,20 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.polynomial import chebyshev
 
-from algid._record_input import as_record, is_record, read_column
+from algid._record_input import (
+    TIME_COLUMNS,
+    as_record,
+    check_rate,
+    check_rate_agrees,
+    is_record,
+    read_column,
+)
 from algid.errors import AlgidError, InputDataError
 from algid.identification._arguments import check_arguments, check_model_columns
 from algid.identification._bias_compensation import koopmans_stack
 from algid.identification._change_detection import INCREMENT_CAP, cusum_reference, cusum_threshold
 from algid.identification._identify import WINDOW_OVERLAP, factor_sensitivity, term_rows
-from algid.identification._records import (
-    GAP_FACTOR,
-    TIME_COLUMNS,
-    UNIFORM_TOLERANCE,
-    check_rate,
-    check_rate_agrees,
-)
+from algid.identification._records import GAP_FACTOR, UNIFORM_TOLERANCE
 from algid.identification._tracker_kernels import kernels, solvers
 from algid.identification._window_basis import ROUNDOFF_SEPARABILITY
 from algid.identification._window_covariance import sandwich_stack
@@ -414,10 +415,11 @@ class Tracker:
 
         Parameters
         ----------
-        chunk : mapping
+        chunk : mapping, pandas.DataFrame, xarray.Dataset or control.TimeResponseData
             Column name -> samples (any number, from one), as a record of
             :func:`algid.identify`: the model's signals and the time column (or none,
-            with ``rate``).  Rows holding a NaN break the stream as gaps do.
+            with ``rate``).  Rows holding a NaN (or a masked sample) break the stream as
+            gaps do.
 
         Returns
         -------
