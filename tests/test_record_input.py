@@ -158,3 +158,22 @@ def test_a_masked_column_reads_as_nan_where_masked():
     assert np.array_equal(column, [1.0, np.nan, 3.0], equal_nan=True)
     assert np.array_equal(read_column(np.array(["2020-01-01T00:00:00", "2020-01-01T00:00:02"],
                                                dtype="datetime64[s]"), "t", time=True), [0, 2])
+
+
+def test_estimate_on_a_record_names_the_users_column_and_refuses_a_second_model():
+    """It named the paper's 'f' for the user's 'u', and ignored model= beside an equation."""
+    sim = algid.simulate("sine", m=1, c=2, k=3, seed=0, duration=1.0)
+    u = sim.f.copy()
+    u[10] = np.nan
+    record = {"t": sim.t, "u": u, "y": sim.x}
+    equation = ("y'' + B*y' + K*y = u", "B K")
+    with pytest.raises(algid.InputDataError, match=r"^record 0: column 'u' has NaN at row 10"):
+        algid.estimate(record, *equation)
+    online = algid.OnlineEstimator(*equation, engine="numpy")
+    with pytest.raises(algid.InputDataError, match=r"stream sample 0: column 'u' has NaN at "
+                                                   r"row 10"):
+        online.update(record)
+    with pytest.raises(algid.InputDataError, match="the model is given twice"):
+        algid.estimate(dict(record, u=sim.f), *equation, model="msd")
+    named = algid.estimate({"t": sim.t, "f": sim.f, "x": sim.x}, model="msd")
+    assert np.array_equal(named.B, algid.estimate(sim.t, sim.f, sim.x).B, equal_nan=True)

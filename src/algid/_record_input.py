@@ -35,7 +35,7 @@ from algid.errors import InputDataError
 
 __all__ = ["TIME_COLUMNS", "RATE_TOLERANCE", "STEP_RANGE", "is_record", "is_timeresponse",
            "as_record", "read_column", "refuse_unusable", "record_columns", "check_rate",
-           "check_rate_agrees"]
+           "check_rate_agrees", "refuse_nonfinite"]
 
 #: Column names taken as the time axis when neither ``time`` nor ``rate`` is given.
 TIME_COLUMNS = ("t", "time")
@@ -392,3 +392,29 @@ def record_columns(record, signals, *, time=None, rate=None, first_sample=0, ind
     if first_sample and time is None and not any(c in record for c in TIME_COLUMNS):
         t = (first_sample + np.arange(n)) / check_rate(rate)
     return t, columns
+
+
+def refuse_nonfinite(columns, what):
+    """Refuse a NaN or infinite sample where every sample is needed (the estimator of
+    :func:`algid.estimate`; :func:`algid.identify` takes NaN as a gap).
+
+    Parameters
+    ----------
+    columns : dict
+        Column name -> float samples.
+    what : str
+        Names the record or chunk at the head of the message (``"record 0"``).
+
+    Raises
+    ------
+    InputDataError
+        Naming the column, the value and its row.
+    """
+    for name, values in columns.items():
+        bad = np.flatnonzero(~np.isfinite(values))
+        if bad.size:
+            row = int(bad[0])
+            value = "NaN" if np.isnan(values[row]) else "inf" if values[row] > 0 else "-inf"
+            raise InputDataError(f"{what}: column {name!r} has {value} at row {row}; "
+                                 f"the estimator needs every sample (identify takes NaN as "
+                                 f"a gap)")

@@ -11,7 +11,7 @@ import numpy as np
 
 import algid.estimation._backends as backends
 import algid.estimation._core as core
-from algid._record_input import is_record, is_timeresponse, record_columns
+from algid._record_input import is_record, is_timeresponse, record_columns, refuse_nonfinite
 from algid._scaling import amplitude_scale, check_amplitude_range, scalable
 from algid._signal_checks import as_signal, check_experiment, positive_number
 from algid.errors import InputDataError
@@ -36,6 +36,9 @@ from algid.models._argument import estimator_module, measured_signals, takes_pai
 from algid.models._registry import available_models, load_model
 from algid.signals._filters import as_lowpass
 from algid.signals._quadrature import iterated_integrals, startup_samples
+
+#: The model of ``estimate(t, f, x)`` when none is named: the paper's.
+DEFAULT_MODEL = "msd"
 
 __all__ = ["estimate", "available_models", "load_model", "kernel_values",
            "DEFAULT_FILTER_ORDER", "DEFAULT_QUADRATURE_POINTS",
@@ -92,7 +95,7 @@ def _unpack_timeresponse(data):
     return t, u, y
 
 
-def estimate(t, f=None, x=None, *, model="msd", filter_order=DEFAULT_FILTER_ORDER, mass=None,
+def estimate(t, f=None, x=None, *, model=None, filter_order=DEFAULT_FILTER_ORDER, mass=None,
              quadrature_points=None, lowpass=None, engine="auto",
              signals=None, differentiator="centred", derivative_window=None,
              derivative_extra_orders=0, numerical_error=True, late_origin=False,
@@ -126,7 +129,9 @@ def estimate(t, f=None, x=None, *, model="msd", filter_order=DEFAULT_FILTER_ORDE
     model : str or module, optional
         ``"msd"`` (``x'' + B x' + K x = f``, default) or ``"msd_mass"``
         (``m x'' + c x' + k x = F``); see :func:`available_models`.  Also a generated
-        module (:func:`algid.symbolic._codegen.compile_model`).
+        module (:func:`algid.symbolic._codegen.compile_model`).  In the record form
+        the model is the argument after the record; ``model=`` names it only when that
+        argument is omitted (both are refused).
     filter_order : int, optional
         ``p`` of the invariant low-pass filter ``1/s**p`` applied to numerators and
         denominator alike (0 = none).  Default 2.
@@ -231,8 +236,13 @@ def estimate(t, f=None, x=None, *, model="msd", filter_order=DEFAULT_FILTER_ORDE
             raise InputDataError("give either a TimeResponseData or the arrays t, f, x, not both")
         if signals is not None:
             raise InputDataError("give a record or signals=, not both")
-        module = estimator_module(model if f is None else f, x, output=output)
+        if f is not None and model is not None:
+            raise InputDataError(f"the model is given twice: {f!r} (after the record) and "
+                                 f"model={model!r}; give it once")
+        module = estimator_module(DEFAULT_MODEL if f is None and model is None else
+                                  model if f is None else f, x, output=output)
         t, columns = record_columns(t, measured_signals(module), time=time, rate=rate)
+        refuse_nonfinite(columns, "record 0")
         model, f, x = module, None, None
         if takes_pair(module):
             f, x = columns[module.INPUT], columns[module.OUTPUT]
@@ -241,6 +251,8 @@ def estimate(t, f=None, x=None, *, model="msd", filter_order=DEFAULT_FILTER_ORDE
     elif time is not None or rate is not None or output is not None:
         raise InputDataError("time=, rate= and output= go with a record (a mapping of "
                              "named columns)")
+    if model is None:
+        model = DEFAULT_MODEL
     if signals is not None:
         return _estimate_signals(t, signals, model=model, filter_order=filter_order,
                                  quadrature_points=quadrature_points, engine=engine,
