@@ -289,6 +289,12 @@ MAX_RUN_LENGTH = 1e12
 MAX_WINDOW_SAMPLES = 2**20
 
 
+class TrackerSetupError(InputDataError):
+    """A refusal of the tracker's configuration once the stream shows its sampling step
+    (a window, half-life or false-alarm rate that cannot work at it): no later sample
+    can change it, unlike a refusal of the samples of one chunk."""
+
+
 class Tracker:
     """The streaming form of :func:`algid.identify`, with forgetting and change alarms.
 
@@ -598,18 +604,18 @@ class Tracker:
                     break
                 tried += 1
                 if tried > 3:
-                    raise InputDataError(
+                    raise TrackerSetupError(
                         f"no window could be chosen on the first {span:g} s of the stream "
                         f"(identify refuses them); give window=")
         samples = window / step + 1
         if samples > MAX_WINDOW_SAMPLES:  # (before any array of that length is made)
-            raise InputDataError(f"window {window:g} s ({samples:.3g} samples) is longer "
+            raise TrackerSetupError(f"window {window:g} s ({samples:.3g} samples) is longer "
                                  f"than a tracker keeps ({MAX_WINDOW_SAMPLES} samples, "
                                  f"{(MAX_WINDOW_SAMPLES - 1) * step:.4g} s at this rate)")
         length = int(round(window / step)) + 1
         shortest = min_length(self.multiplicities)
         if length < shortest:
-            raise InputDataError(f"window {window:g} s ({length} samples) is shorter than the "
+            raise TrackerSetupError(f"window {window:g} s ({length} samples) is shorter than the "
                                  f"kernels of multiplicity {max(self.multiplicities)} need; "
                                  f"use at least {(shortest - 1) * step:.4g} s")
         self._check_half_life(length, step)
@@ -635,7 +641,7 @@ class Tracker:
         if most < needed:
             n = needed * overlap
             shortest = stride * step * math.log(2.0) / math.log((n + 1) / (n - 1))
-            raise InputDataError(f"half_life {half_life:g} s is too short for the window "
+            raise TrackerSetupError(f"half_life {half_life:g} s is too short for the window "
                                  f"{(length - 1) * step:.4g} s: it leaves at most "
                                  f"{most:.2g} effective windows where the "
                                  f"{len(self.parameters)} parameters need {needed}; use at "
@@ -663,7 +669,7 @@ class Tracker:
         rate = self.config["false_alarm_rate"]
         run_length = max(2.0, 1.0 / (rate * test_interval))
         if run_length > MAX_RUN_LENGTH:
-            raise InputDataError(f"false_alarm_rate {rate:g} per second is one alarm in "
+            raise TrackerSetupError(f"false_alarm_rate {rate:g} per second is one alarm in "
                                  f"{run_length:.3g} tests (every {test_interval:.4g} s); the "
                                  f"threshold is tuned up to {MAX_RUN_LENGTH:.0e}: use at "
                                  f"least {1.0 / (MAX_RUN_LENGTH * test_interval):.3g}")
