@@ -610,14 +610,14 @@ class Tracker:
         samples = window / step + 1
         if samples > MAX_WINDOW_SAMPLES:  # (before any array of that length is made)
             raise TrackerSetupError(f"window {window:g} s ({samples:.3g} samples) is longer "
-                                 f"than a tracker keeps ({MAX_WINDOW_SAMPLES} samples, "
-                                 f"{(MAX_WINDOW_SAMPLES - 1) * step:.4g} s at this rate)")
+                                    f"than a tracker keeps ({MAX_WINDOW_SAMPLES} samples, "
+                                    f"{(MAX_WINDOW_SAMPLES - 1) * step:.4g} s at this rate)")
         length = int(round(window / step)) + 1
         shortest = min_length(self.multiplicities)
         if length < shortest:
             raise TrackerSetupError(f"window {window:g} s ({length} samples) is shorter than the "
-                                 f"kernels of multiplicity {max(self.multiplicities)} need; "
-                                 f"use at least {(shortest - 1) * step:.4g} s")
+                                    f"kernels of multiplicity {max(self.multiplicities)} need; "
+                                    f"use at least {(shortest - 1) * step:.4g} s")
         self._check_half_life(length, step)
         self.s.update(configured=True, step=step, window=(length - 1) * step, length=length)
         self._start_state()
@@ -642,10 +642,10 @@ class Tracker:
             n = needed * overlap
             shortest = stride * step * math.log(2.0) / math.log((n + 1) / (n - 1))
             raise TrackerSetupError(f"half_life {half_life:g} s is too short for the window "
-                                 f"{(length - 1) * step:.4g} s: it leaves at most "
-                                 f"{most:.2g} effective windows where the "
-                                 f"{len(self.parameters)} parameters need {needed}; use at "
-                                 f"least {shortest:.4g} s")
+                                    f"{(length - 1) * step:.4g} s: it leaves at most "
+                                    f"{most:.2g} effective windows where the "
+                                    f"{len(self.parameters)} parameters need {needed}; use at "
+                                    f"least {shortest:.4g} s")
 
     def _choose_window(self, t, step):
         from algid.identification._identify import identify
@@ -667,12 +667,16 @@ class Tracker:
         self.k_cusum = cusum_reference()
         test_interval = self.overlap * self.stride * self.s["step"]
         rate = self.config["false_alarm_rate"]
-        run_length = max(2.0, 1.0 / (rate * test_interval))
+        run_length = 1.0 / (rate * test_interval)
+        if run_length < 2.0:   # (the CUSUM's threshold is tuned from two tests up)
+            raise TrackerSetupError(f"false_alarm_rate {rate:g} per second is more than one "
+                                    f"alarm in two tests (every {test_interval:.4g} s); use "
+                                    f"at most {0.5 / test_interval:.3g}")
         if run_length > MAX_RUN_LENGTH:
             raise TrackerSetupError(f"false_alarm_rate {rate:g} per second is one alarm in "
-                                 f"{run_length:.3g} tests (every {test_interval:.4g} s); the "
-                                 f"threshold is tuned up to {MAX_RUN_LENGTH:.0e}: use at "
-                                 f"least {1.0 / (MAX_RUN_LENGTH * test_interval):.3g}")
+                                    f"{run_length:.3g} tests (every {test_interval:.4g} s); the "
+                                    f"threshold is tuned up to {MAX_RUN_LENGTH:.0e}: use at "
+                                    f"least {1.0 / (MAX_RUN_LENGTH * test_interval):.3g}")
         self.h_cusum = cusum_threshold(run_length, self.k_cusum)
         self.needed = 1 + MIN_SPARE_WINDOWS
         p = len(self.parameters)
