@@ -103,3 +103,53 @@ def test_standard_input_live(tmp_path):
     reports = [first] + rest
     assert [r["t"] for r in reports] == expected.t.tolist()
     assert reports[-1]["K"] == expected["K"][-1]
+
+
+def _live_rows(n=400):
+    record, _ = linear_offsets(0, n=n)
+    return record, "".join(f"{float(t)!r},{float(u)!r},{float(y)!r}\n"
+                           for t, u, y in zip(record["t"], record["u"], record["y"]))
+
+
+def test_standard_input_with_a_rate_checks_the_time_column(monkeypatch, capsys):
+    """--rate beside a time column that contradicts it: refused as in a file (the live
+    stream dropped the column: estimates off by the rates' ratio, exit 0)."""
+    record, rows = _live_rows()
+    rate = 1.0 / float(np.median(np.diff(record["t"])))
+    monkeypatch.setattr(sys, "stdin", io.StringIO("t,u,y\n" + rows))
+    code = main(["track", "-", "--equation", EQUATION, "--parameters", PARAMETERS,
+                 "--window", "0.1875", "--rate", str(rate * 2)])
+    captured = capsys.readouterr()
+    assert code == 2 and captured.err.count("\n") == 1
+    assert "contradicts time column 't'" in captured.err
+    # the right rate: the same reports as with the column
+    outputs = []
+    for extra in (["--rate", repr(rate)], []):
+        monkeypatch.setattr(sys, "stdin", io.StringIO("t,u,y\n" + rows))
+        assert main(["track", "-", "--equation", EQUATION, "--parameters", PARAMETERS,
+                     "--window", "0.1875", "--json"] + extra) == 0
+        outputs.append([json.loads(line)["K"] for line in
+                        capsys.readouterr().out.splitlines()])
+    with_rate, with_column = (np.array(o, dtype=float) for o in outputs)  # (None: NaN)
+    assert np.isfinite(with_rate).sum() > 10
+    assert np.allclose(with_rate, with_column, rtol=1e-9, equal_nan=True)
+
+
+def test_standard_input_with_a_byte_order_mark(monkeypatch, capsys):
+    """A UTF-8 BOM before the header was 'no time column'."""
+    _, rows = _live_rows()
+    monkeypatch.setattr(sys, "stdin", io.StringIO("\ufefft,u,y\n" + rows))
+    assert main(["track", "-", "--equation", EQUATION, "--parameters", PARAMETERS,
+                 "--window", "0.1875", "--json"]) == 0
+    assert capsys.readouterr().out.strip()
+
+
+def test_standard_input_refuses_a_window_its_rate_cannot_hold(monkeypatch, capsys):
+    """A window too short at the stream's rate was a warning per row, every row skipped."""
+    _, rows = _live_rows()
+    monkeypatch.setattr(sys, "stdin", io.StringIO("t,u,y\n" + rows))
+    code = main(["track", "-", "--equation", EQUATION, "--parameters", PARAMETERS,
+                 "--window", "0.05"])
+    captured = capsys.readouterr()
+    assert code == 2 and captured.err.count("\n") == 1
+    assert "is shorter than the kernels" in captured.err

@@ -121,7 +121,7 @@ def track_command(args) -> int:
 
 
 def _file(args, model):
-    from algid.identification._records import TIME_COLUMNS
+    from algid._record_input import TIME_COLUMNS
 
     names = list(model.signals) + ([args.time] if args.time else [])
     optional = () if args.time else TIME_COLUMNS  # (with --rate too: they must agree)
@@ -185,17 +185,34 @@ def _line(model, t, values, stderr):
     return f"{t:10.4f}" + "".join(f"  {v:>13.6g}  {s:>10.2g}" for v, s in zip(values, stderr))
 
 
+def _rate_agrees(rate, stamps, name):
+    """Refuse --rate beside a time column of standard input that contradicts it."""
+    from algid._record_input import check_rate_agrees
+
+    try:
+        check_rate_agrees(rate, np.array(stamps), name, "standard input")
+    except InputDataError as exc:
+        raise _StreamRefused(str(exc)) from None
+
+
+class _StreamRefused(InputDataError):
+    """A refusal of the whole stream (not of one row, which is skipped)."""
+
+
 def _live(args, model):
     """Rows from standard input, one report per interval, flushed at once."""
-    from algid.identification._records import TIME_COLUMNS
+    from algid._record_input import TIME_COLUMNS
 
-    header = sys.stdin.readline()
+    header = sys.stdin.readline().removeprefix("\ufeff")  # (a UTF-8 byte-order mark)
     if not header.strip():
         raise InputDataError("standard input: no header line (the column names)")
     delimiter = "," if "," in header else (";" if ";" in header else None)
     columns = [c.strip() for c in header.strip().split(delimiter)]
-    time = args.time or (None if args.rate else next(
-        (c for c in TIME_COLUMNS if c in columns), None))
+    stamps = args.time or next((c for c in TIME_COLUMNS if c in columns), None)
+    time = None if args.rate and not args.time else stamps
+    # beside --rate a time column must agree with it, as in a file: its first steps are
+    # checked (the tracker sees one row at a time)
+    check = stamps if args.rate and stamps in columns else None
     needed = list(model.signals) + ([time] if time else [])
     missing = [c for c in needed if c not in columns]
     if missing:
@@ -206,6 +223,9 @@ def _live(args, model):
                              "or --rate HZ")
     where = [columns.index(c) for c in needed]
     tracker = _tracker(args, model, time)
+    from algid.identification._tracker import STEP_SAMPLES, TrackerSetupError
+
+    first_stamps = []
     if not args.json:
         _header(model)
         sys.stdout.flush()
@@ -222,8 +242,14 @@ def _live(args, model):
             if len(fields) != len(columns):
                 raise InputDataError(f"{len(fields)} fields, the header has {len(columns)}")
             values = [float(fields[i]) for i in where]
+            if check is not None and len(first_stamps) <= STEP_SAMPLES:
+                first_stamps.append(float(fields[columns.index(check)]))
+                if len(first_stamps) > STEP_SAMPLES:
+                    _rate_agrees(args.rate, first_stamps, check)
             out = tracker.update({c: [v] for c, v in zip(needed, values)})
             samples += 1
+        except (_StreamRefused, TrackerSetupError):
+            raise
         except (ValueError, InputDataError) as exc:
             message = " ".join(str(exc).split())
             print(f"algid: warning: standard input row {row} skipped: {message}",

@@ -466,8 +466,8 @@ IDENTIFY_JSON_KEYS = ("stderr", "numerical_error", "window", "n_samples", "warni
 
 def _cmd_identify(args) -> int:
     from algid._cli_track import read_model_columns
+    from algid._record_input import TIME_COLUMNS
     from algid.identification._identify import identify
-    from algid.identification._records import TIME_COLUMNS
     from algid.models._grammar import parse_equation
 
     model = parse_equation(args.equation, args.parameters, output=args.output)

@@ -22,8 +22,8 @@ import numpy as np
 
 import algid._memory as memory
 from algid._memory import check_fits
+from algid._record_input import check_rate, check_rate_agrees
 from algid.errors import DataFileError, InputDataError
-from algid.identification._records import check_rate, check_rate_agrees
 
 __all__ = ["read_experiment", "read_columns", "CSV_SUFFIXES", "MAT_SUFFIXES",
            "GZIP_SUFFIXES"]
@@ -70,7 +70,7 @@ def read_experiment(path, *, time="t", input="f", output="x", rate=None):
         number for CSV files).
     InputDataError
         If ``rate`` is not a positive finite number whose step lies in
-        :data:`algid.identification._records.STEP_RANGE`, or contradicts the file's time column.
+        :data:`algid._record_input.STEP_RANGE`, or contradicts the file's time column.
 
     Examples
     --------

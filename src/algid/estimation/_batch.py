@@ -11,6 +11,7 @@ import numpy as np
 
 import algid.estimation._backends as backends
 import algid.estimation._core as core
+from algid._record_input import is_record, is_timeresponse, record_columns, refuse_nonfinite
 from algid._scaling import amplitude_scale, check_amplitude_range, scalable
 from algid._signal_checks import as_signal, check_experiment, positive_number
 from algid.errors import InputDataError
@@ -31,11 +32,13 @@ from algid.estimation._options import (
     with_mass_scaled,
 )
 from algid.estimation._result import EstimationResult
-from algid.identification._records import record_columns
-from algid.models._argument import estimator_module, is_record, measured_signals, takes_pair
+from algid.models._argument import estimator_module, measured_signals, takes_pair
 from algid.models._registry import available_models, load_model
 from algid.signals._filters import as_lowpass
 from algid.signals._quadrature import iterated_integrals, startup_samples
+
+#: The model of ``estimate(t, f, x)`` when none is named: the paper's.
+DEFAULT_MODEL = "msd"
 
 __all__ = ["estimate", "available_models", "load_model", "kernel_values",
            "DEFAULT_FILTER_ORDER", "DEFAULT_QUADRATURE_POINTS",
@@ -92,7 +95,7 @@ def _unpack_timeresponse(data):
     return t, u, y
 
 
-def estimate(t, f=None, x=None, *, model="msd", filter_order=DEFAULT_FILTER_ORDER, mass=None,
+def estimate(t, f=None, x=None, *, model=None, filter_order=DEFAULT_FILTER_ORDER, mass=None,
              quadrature_points=None, lowpass=None, engine="auto",
              signals=None, differentiator="centred", derivative_window=None,
              derivative_extra_orders=0, numerical_error=True, late_origin=False,
@@ -114,7 +117,9 @@ def estimate(t, f=None, x=None, *, model="msd", filter_order=DEFAULT_FILTER_ORDE
     t : array_like or control.TimeResponseData
         Sample times [s], strictly increasing and uniformly spaced.  May be a
         python-control ``TimeResponseData``, whose input and output are then used and
-        ``f``, ``x`` must be omitted.
+        ``f``, ``x`` must be omitted.  In the record form, any record type of
+        :func:`algid.identify` (a mapping, a pandas ``DataFrame``, an xarray
+        ``Dataset``, a ``TimeResponseData`` read by its labels).
     f : array_like
         Model input.  For ``model="msd"`` this is the force per unit mass ``F/m``,
         unless ``mass`` is given, in which case it is the force ``F`` [N].  For
@@ -124,7 +129,9 @@ def estimate(t, f=None, x=None, *, model="msd", filter_order=DEFAULT_FILTER_ORDE
     model : str or module, optional
         ``"msd"`` (``x'' + B x' + K x = f``, default) or ``"msd_mass"``
         (``m x'' + c x' + k x = F``); see :func:`available_models`.  Also a generated
-        module (:func:`algid.symbolic._codegen.compile_model`).
+        module (:func:`algid.symbolic._codegen.compile_model`).  In the record form
+        the model is the argument after the record; ``model=`` names it only when that
+        argument is omitted (both are refused).
     filter_order : int, optional
         ``p`` of the invariant low-pass filter ``1/s**p`` applied to numerators and
         denominator alike (0 = none).  Default 2.
@@ -222,11 +229,20 @@ def estimate(t, f=None, x=None, *, model="msd", filter_order=DEFAULT_FILTER_ORDE
     >>> round(r.final()["B"], 6), round(r.final()["K"], 6)
     (2.0, 3.0)
     """
-    if is_record(t):
+    # a TimeResponseData alone is the paper's form (its input and output); with a model,
+    # a record of its labelled signals
+    if is_record(t) and not (is_timeresponse(t) and f is None and x is None):
+        if is_timeresponse(t) and any(_samples_given(v) for v in (f, x)):
+            raise InputDataError("give either a TimeResponseData or the arrays t, f, x, not both")
         if signals is not None:
             raise InputDataError("give a record or signals=, not both")
-        module = estimator_module(model if f is None else f, x, output=output)
+        if f is not None and model is not None:
+            raise InputDataError(f"the model is given twice: {f!r} (after the record) and "
+                                 f"model={model!r}; give it once")
+        module = estimator_module(DEFAULT_MODEL if f is None and model is None else
+                                  model if f is None else f, x, output=output)
         t, columns = record_columns(t, measured_signals(module), time=time, rate=rate)
+        refuse_nonfinite(columns, "record 0")
         model, f, x = module, None, None
         if takes_pair(module):
             f, x = columns[module.INPUT], columns[module.OUTPUT]
@@ -235,6 +251,8 @@ def estimate(t, f=None, x=None, *, model="msd", filter_order=DEFAULT_FILTER_ORDE
     elif time is not None or rate is not None or output is not None:
         raise InputDataError("time=, rate= and output= go with a record (a mapping of "
                              "named columns)")
+    if model is None:
+        model = DEFAULT_MODEL
     if signals is not None:
         return _estimate_signals(t, signals, model=model, filter_order=filter_order,
                                  quadrature_points=quadrature_points, engine=engine,
@@ -245,9 +263,7 @@ def estimate(t, f=None, x=None, *, model="msd", filter_order=DEFAULT_FILTER_ORDE
     if differentiator != "centred" or derivative_window is not None or derivative_extra_orders:
         raise InputDataError("differentiator, derivative_window and derivative_extra_orders "
                              "apply to models given signals= (derivatives inside factors)")
-    if hasattr(t, "time") and hasattr(t, "outputs"):
-        if f is not None or x is not None:
-            raise InputDataError("give either a TimeResponseData or the arrays t, f, x, not both")
+    if is_timeresponse(t):
         t, f, x = _unpack_timeresponse(t)
     elif f is None or x is None:
         raise InputDataError("estimate needs the input f and the output x")
@@ -294,6 +310,14 @@ def estimate(t, f=None, x=None, *, model="msd", filter_order=DEFAULT_FILTER_ORDE
                             filter_order=filter_order, quadrature_points=points, mass=mass,
                             mass_scaled=tuple(estimates)[len(module.PARAMETERS):],
                             numerical_error=error)
+
+
+def _samples_given(value):
+    """Whether an argument in the place of ``f`` or ``x`` holds samples (not a model's
+    name, equation or parameter names)."""
+    if isinstance(value, np.ndarray):
+        return True
+    return isinstance(value, (list, tuple)) and bool(value) and not isinstance(value[0], str)
 
 
 def _check_takes_pair(module):

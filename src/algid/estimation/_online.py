@@ -36,10 +36,10 @@ import math
 
 import numpy as np
 
-from algid.identification._records import record_columns
-from algid.models._argument import estimator_module, is_record, measured_signals, takes_pair
+from algid.models._argument import estimator_module, measured_signals, takes_pair
 from algid._scaling import amplitude_scale, scalable
 from algid._signal_checks import UNIFORM_RTOL, positive_number
+from algid._record_input import is_record, record_columns, refuse_nonfinite
 from algid.errors import InputDataError
 import algid.estimation._core as core
 from algid.estimation._backends import choose_engine
@@ -421,6 +421,7 @@ class OnlineEstimator:
             t, columns = record_columns(t, measured_signals(self._module),
                                         time=self._time_column, rate=rate,
                                         first_sample=self.n_seen)
+            refuse_nonfinite(columns, f"the chunk starting at stream sample {self.n_seen}")
             if self._takes_pair:
                 f, x = columns[self._module.INPUT], columns[self._module.OUTPUT]
             else:

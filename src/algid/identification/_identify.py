@@ -591,10 +591,12 @@ def identify(data, equation, parameters=None, *, time=None, rate=None, output=No
 
     Parameters
     ----------
-    data : mapping or list of mappings
-        Column name -> samples; a list of records is identified together.  Rows may be
-        missing from a record with a time column (gaps), and NaN samples are dropped
-        (an infinite one is refused).
+    data : record or list of records
+        A record: a mapping of column name -> samples, a pandas ``DataFrame`` (time as
+        a column or as its index), an xarray ``Dataset`` or a python-control
+        ``TimeResponseData``; a list of records is identified together.  Rows may be
+        missing from a record with a time column (gaps), and NaN (or masked) samples
+        are dropped (an infinite one is refused).
     equation : str, Model or module
         The model, e.g. ``"M*q'' + Fv*q' + Fc*sign(q') + off = F"``, or a compiled
         model (:func:`algid.compile_equation`): the same model argument as
@@ -605,7 +607,7 @@ def identify(data, equation, parameters=None, *, time=None, rate=None, output=No
         Name of the time column; by default a column ``t`` or ``time``.
     rate : float, optional
         Sampling rate (Hz) of records without a time column (with one, it must agree
-        with it: :data:`algid.identification._records.RATE_TOLERANCE`).
+        with it: :data:`algid._record_input.RATE_TOLERANCE`).
     output : str, optional
         Output signal; by default the signal of highest derivative order.
     window : float, optional

@@ -1,11 +1,7 @@
-"""Measured records for :func:`algid.identify`: checks, time axis, gaps, derivatives.
+"""Measured records for :func:`algid.identify`: gaps, segments, derivatives.
 
-A record is a mapping of signal name -> samples.  Its sample times come from a time
-column, from a sampling rate, or from a column named ``t`` or ``time``; a rate given
-with a time column must agree with it (:data:`RATE_TOLERANCE`), and the time column is
-used.  Times of type ``datetime64`` or ``timedelta64`` become seconds from the first
-sample (subtracted before the conversion, so that no precision is lost).  Complex,
-boolean and date-valued signals are refused.  A record is cut
+Records are read by the record layer (:mod:`algid._record_input`: the record types,
+the columns, the time axis, the rate), as for every entry point.  A record is cut
 into *segments* of contiguous samples at every gap (a time step larger than 1.5 times
 the median step, i.e. missing rows) and at every row holding a NaN: windows never
 straddle a segment boundary.
@@ -14,20 +10,16 @@ straddle a segment boundary.
 from __future__ import annotations
 
 import math
-import numbers
 from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.signal import savgol_filter
 
+from algid._record_input import as_record, is_record, record_columns
 from algid.errors import InputDataError
 
-__all__ = ["record_columns", "Segment", "prepare_records", "estimate_derivative", "check_rate",
-           "check_rate_agrees", "check_factors", "white_noise_floor", "TIME_COLUMNS",
-           "GAP_FACTOR", "RATE_TOLERANCE", "STEP_RANGE", "NOISE_ORDERS"]
-
-#: Column names taken as the time axis when neither ``time`` nor ``rate`` is given.
-TIME_COLUMNS = ("t", "time")
+__all__ = ["Segment", "prepare_records", "estimate_derivative", "check_factors",
+           "white_noise_floor", "GAP_FACTOR", "NOISE_ORDERS"]
 
 #: A step longer than this many median steps is a gap (missing rows).
 GAP_FACTOR = 1.5
@@ -36,17 +28,6 @@ GAP_FACTOR = 1.5
 #: fraction of a step from the uniform grid (times stored in single precision, as in
 #: the EMPS files, are off by about 3e-5 of a step).
 UNIFORM_TOLERANCE = 1e-4
-
-#: A rate and a time column agree when the rate's step is within this fraction of the
-#: column's median step.
-RATE_TOLERANCE = 1e-3
-
-#: Sampling steps (s) accepted: the window integrals divide by powers of the window's
-#: span up to the 2(k+1)-th (noise weights of a k-th derivative), which leave the
-#: floating-point range beyond about 1e-60 and 1e40 s (measured on a second-order
-#: model); this range keeps a wide margin and holds every physical record.
-STEP_RANGE = (1e-30, 1e30)
-
 
 @dataclass
 class Segment:
@@ -77,222 +58,13 @@ class Segment:
 
 
 def _as_records(data):
-    if isinstance(data, dict) or hasattr(data, "keys"):
-        return [data]
-    if isinstance(data, (list, tuple)) and data and all(hasattr(r, "keys") for r in data):
-        return list(data)
-    raise InputDataError("data must be a mapping of column name -> samples, or a list "
-                         "of such mappings")
-
-
-def refuse_unusable(values, what, *, dates=False):
-    """Refuse an array that is not one signal of real measurements.
-
-    Parameters
-    ----------
-    values : ndarray
-        The column as given.
-    what : str
-        Names it at the head of the message (``"record 0: column 'u'"``).
-    dates : bool, optional
-        Whether dates and durations are accepted (a time column of identify's).
-
-    Raises
-    ------
-    InputDataError
-        For a 2-D array (a column vector is one signal), complex numbers, booleans, or
-        dates and durations where they are not accepted.
-    """
-    if sum(size > 1 for size in values.shape) > 1:
-        raise InputDataError(f"{what} has shape {values.shape}: give one 1-D array per "
-                             f"signal")
-    kind = values.dtype.kind
-    if kind == "c":
-        raise InputDataError(f"{what} is complex; give real measurements (e.g. its real "
-                             f"part or its modulus)")
-    if kind == "b":
-        raise InputDataError(f"{what} holds booleans, not measurements (convert with "
-                             f".astype(float))")
-    if kind in "mM" and not dates:
-        raise InputDataError(f"{what} holds dates or durations, not measurements")
-
-
-def _column(record, name, index, label):
-    if name not in record:
-        available = ", ".join(map(str, record.keys()))
-        hint = (f"; if {name!r} is an unknown, add it to the parameters"
-                if label == "signal" else "")
-        raise InputDataError(f"record {index}: no column {name!r} for the {label} "
-                             f"(columns: {available}){hint}")
-    values = record[name]
-    if isinstance(values, np.ma.MaskedArray):  # masked samples are missing, as NaN are
-        values = np.ma.filled(values.astype(float), np.nan)
-    try:
-        values = np.asarray(values)
-    except (TypeError, ValueError):
-        raise InputDataError(f"record {index}: column {name!r} is not numeric") from None
-    refuse_unusable(values, f"record {index}: column {name!r}", dates=label == "time")
-    if values.dtype.kind in "mM":
-        if label != "time":
-            raise InputDataError(f"record {index}: column {name!r} holds dates or "
-                                 f"durations, not measurements")
-        values = values.reshape(-1)
-        # seconds from the first sample: the difference first, in the column's own
-        # integer unit, so that no precision is lost to the size of the epoch
-        return (values - values[0]) / np.timedelta64(1, "s") if len(values) else \
-            values.astype(float)
-    try:
-        return values.astype(float).reshape(-1)
-    except (TypeError, ValueError):
-        raise InputDataError(f"record {index}: column {name!r} is not numeric") from None
-    except OverflowError:   # Python integers beyond floating point
-        raise InputDataError(f"record {index}: column {name!r} holds numbers too large "
-                             f"for floating point (beyond 1.8e308)") from None
-
-
-def check_rate(rate, what="rate"):
-    """The sampling rate as a float, or a one-line error.
-
-    Parameters
-    ----------
-    rate : float
-        Sampling rate (Hz): a real number (not a boolean or a string), positive and
-        finite, whose step lies in :data:`STEP_RANGE`.
-    what : str
-        Name of the argument, for the message.
-
-    Returns
-    -------
-    float
-
-    Raises
-    ------
-    InputDataError
-    """
-    if isinstance(rate, (bool, np.bool_)) or not isinstance(rate, numbers.Real):
-        raise InputDataError(f"{what} must be a number of Hz, got {rate!r}")
-    value = float(rate)
-    if not (math.isfinite(value) and value > 0):
-        raise InputDataError(f"{what} must be a positive finite number of Hz, got {rate!r}")
-    low, high = STEP_RANGE
-    if not low <= 1.0 / value <= high:
-        raise InputDataError(
-            f"{what} {value:g} Hz gives a sampling step of {1.0 / value:.3g} s, outside "
-            f"{low:g} .. {high:g} s: the estimators' integrals would overflow or "
-            f"underflow; express the time in other units")
-    return value
-
-
-def check_rate_agrees(rate, t, name, where):
-    """Refuse a sampling rate that contradicts a time column.
-
-    Parameters
-    ----------
-    rate : float
-        The rate given (Hz).
-    t : numpy.ndarray
-        The time column (s), strictly increasing.
-    name : str
-        The time column's name.
-    where : str
-        Prefix of the message (a record or a file).
-
-    Raises
-    ------
-    InputDataError
-        If ``1 / rate`` differs from the column's median step by more than
-        :data:`RATE_TOLERANCE` of it.
-    """
-    if len(t) < 2:
-        return
-    step = float(np.median(np.diff(t)))
-    if not abs(step * rate - 1.0) <= RATE_TOLERANCE:
-        raise InputDataError(
-            f"{where}: rate {rate:g} Hz contradicts time column {name!r} (sampled at "
-            f"{1.0 / step:.6g} Hz); give the time column or a rate that agrees with it")
-
-
-def _time_axis(record, index, n, time, rate):
-    if rate is not None:
-        rate = check_rate(rate)
-    if time is None:
-        time = next((c for c in TIME_COLUMNS if c in record), None)
-        if time is None and rate is None:
-            raise InputDataError(f"record {index}: no time column ({' or '.join(TIME_COLUMNS)}); "
-                                 f"give time= (a column name) or rate= (Hz)")
-    if time is None:
-        return np.arange(n) / rate, None
-    t = _column(record, time, index, "time")
-    if len(t) != n:
-        raise InputDataError(f"record {index}: time column {time!r} has {len(t)} samples, "
-                             f"the signals {n}")
-    if not np.all(np.isfinite(t)):
-        row = int(np.flatnonzero(~np.isfinite(t))[0])
-        raise InputDataError(f"record {index}: time column {time!r} is not finite at row {row}")
-    steps = np.diff(t)
-    if np.any(steps <= 0):
-        row = int(np.flatnonzero(steps <= 0)[0]) + 1
-        raise InputDataError(f"record {index}: time column {time!r} does not increase at "
-                             f"row {row}")
-    if rate is not None:
-        check_rate_agrees(rate, t, time, f"record {index}")
-    if len(steps):
-        median, low, high = float(np.median(steps)), *STEP_RANGE
-        if not low <= median <= high:
-            raise InputDataError(
-                f"record {index}: time column {time!r} has a step of {median:.3g}, outside "
-                f"{low:g} .. {high:g} s: the window integrals would overflow or "
-                f"underflow; express the time in other units")
-    return t, time
-
-
-def record_columns(record, signals, *, time=None, rate=None, first_sample=0, index=0,
-                   min_samples=0):
-    """The time axis and the named signals of one record, checked as :func:`algid.identify`
-    checks them (no gaps are cut: the estimator needs the record whole).
-
-    Parameters
-    ----------
-    record : mapping
-        Column name -> samples.
-    signals : sequence of str
-        Signals to read.
-    time : str, optional
-        Name of the time column; by default ``t`` or ``time`` if present.
-    rate : float, optional
-        Sampling rate (Hz) when there is no time column.
-    first_sample : int, optional
-        Index of the first sample when the times come from ``rate``: sample ``i`` is at
-        ``(first_sample + i) / rate`` (a stream's later chunk goes on where the previous
-        one ended, at the same times as the whole record).
-    index : int, optional
-        The record's place among several (named in the messages).
-    min_samples : int, optional
-        Fewer samples are refused (before the time axis is read).
-
-    Returns
-    -------
-    t : numpy.ndarray
-    columns : dict
-        Signal name -> samples (float arrays of the same length as ``t``).
-
-    Raises
-    ------
-    InputDataError
-        A missing or non-numeric column, signals of different lengths, a bad time axis.
-    """
-    columns = {name: _column(record, name, index, "signal") for name in signals}
-    lengths = {len(v) for v in columns.values()}
-    if len(lengths) > 1:
-        raise InputDataError(f"record {index}: signals have different lengths "
-                             f"({', '.join(f'{k}: {len(v)}' for k, v in columns.items())})")
-    n = lengths.pop() if lengths else 0
-    if n < min_samples:
-        raise InputDataError(f"record {index}: fewer than {min_samples} samples")
-    t, _ = _time_axis(record, index, n, time, rate)
-    if first_sample and time is None and not any(c in record for c in TIME_COLUMNS):
-        t = (first_sample + np.arange(n)) / check_rate(rate)
-    return t, columns
+    if is_record(data):
+        return [as_record(data, "record 0")]
+    if isinstance(data, (list, tuple)) and data and all(is_record(r) for r in data):
+        return [as_record(r, f"record {i}") for i, r in enumerate(data)]
+    raise InputDataError("data must be a record (a mapping of column name -> samples, a "
+                         "pandas DataFrame, an xarray Dataset or a TimeResponseData), or "
+                         "a list of records")
 
 
 def _split(t, valid, min_length):
@@ -319,8 +91,9 @@ def prepare_records(data, signals, *, time=None, rate=None, min_length=8):
 
     Parameters
     ----------
-    data : mapping or list of mappings
-        Column name -> samples, one mapping per record.
+    data : record or list of records
+        Column name -> samples, one mapping per record (or any record type of
+        :mod:`algid._record_input`).
     signals : sequence of str
         Signals the model reads.
     time : str, optional

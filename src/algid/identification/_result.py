@@ -177,7 +177,8 @@ class IdentificationResult:
                 f"{self.window:.4g} s, {self.n_samples} samples, {self.method}{warned})")
 
     @classmethod
-    def from_values(cls, equation, values, *, output=None, time=None, rate=None):
+    def from_values(cls, equation, values, *, parameters=None, output=None, time=None,
+                    rate=None):
         """A result holding parameter values of your choosing, to simulate and validate.
 
         Everything a result of :func:`algid.identify` offers for validation
@@ -192,6 +193,10 @@ class IdentificationResult:
             ``values`` (its other names are signals, read from the records).
         values : mapping
             Parameter name -> value, for every parameter of the model.
+        parameters : str or sequence of str, optional
+            The model's parameters, when they must be stated: by default the keys of
+            ``values``, and a name left out of them that multiplies a signal as a
+            parameter would (``k*y``) is refused as a value missing.
         output : str, optional
             The output signal (default: the signal of highest derivative order).
         time : str, optional
@@ -217,8 +222,13 @@ class IdentificationResult:
         if not isinstance(values, Mapping):
             raise InputDataError(f"values must be a mapping of parameter name -> value, "
                                  f"got {type(values).__name__}")
-        model = equation if isinstance(equation, Model) else parse_equation(
-            equation, list(values), output=output)
+        if isinstance(equation, Model):
+            model = equation
+        else:
+            model = parse_equation(equation, list(values) if parameters is None else
+                                   parameters, output=output)
+            if parameters is None:
+                _refuse_unvalued(model)
         n = len(model.parameters)
         blank = cls(model=model, values=dict.fromkeys(model.parameters, math.nan),
                     covariance=np.full((n, n), np.nan), window=math.nan, n_samples=0,
@@ -534,3 +544,26 @@ def _check_fit_samples(fit_samples, order, n):
         raise InputDataError(f"fit_samples must be in {order + 1}..{n // 2} (at most half "
                              f"the record's {n} samples), got {fit_samples}")
     return int(fit_samples)
+
+
+def _refuse_unvalued(model):
+    """Refuse a name that appears nowhere else and multiplies a signal that does (``k*y``),
+    as a parameter would: a parameter whose value was left out (read as a signal)."""
+    from algid.models._expression import Product, Signal
+
+    for term in model.terms:
+        if term.parameter is not None or not isinstance(term.factor, Product):
+            continue
+        for factor in term.factor.factors:
+            if not isinstance(factor, Signal) or factor.derivative or \
+                    factor.name == model.output:
+                continue
+            others = {name for f in term.factor.factors if f is not factor
+                      for name in f.signals()}
+            elsewhere = {name for other in model.terms if other is not term
+                         for name in other.factor.signals()} | {model.output}
+            if factor.name not in elsewhere and others & elsewhere:
+                raise InputDataError(
+                    f"no value for {factor.name!r}, which multiplies {term.factor} as a "
+                    f"parameter would; give its value, or parameters= naming the "
+                    f"parameters if {factor.name!r} is a signal")

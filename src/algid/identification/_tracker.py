@@ -36,20 +36,21 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.polynomial import chebyshev
 
+from algid._record_input import (
+    TIME_COLUMNS,
+    as_record,
+    check_rate,
+    check_rate_agrees,
+    is_record,
+    read_column,
+)
 from algid.errors import AlgidError, InputDataError
 from algid.identification._arguments import check_arguments, check_model_columns
 from algid.identification._bias_compensation import koopmans_stack
 from algid.identification._change_detection import INCREMENT_CAP, cusum_reference, cusum_threshold
 from algid.identification._identify import WINDOW_OVERLAP, factor_sensitivity, term_rows
 from algid.identification._methods import TRACKER_METHODS
-from algid.identification._records import (
-    GAP_FACTOR,
-    TIME_COLUMNS,
-    UNIFORM_TOLERANCE,
-    check_rate,
-    check_rate_agrees,
-    refuse_unusable,
-)
+from algid.identification._records import GAP_FACTOR, UNIFORM_TOLERANCE
 from algid.identification._tracker_kernels import kernels, solvers
 from algid.identification._window_basis import ROUNDOFF_SEPARABILITY
 from algid.identification._window_covariance import sandwich_stack
@@ -289,6 +290,12 @@ MAX_RUN_LENGTH = 1e12
 MAX_WINDOW_SAMPLES = 2**20
 
 
+class TrackerSetupError(InputDataError):
+    """A refusal of the tracker's configuration once the stream shows its sampling step
+    (a window, half-life or false-alarm rate that cannot work at it): no later sample
+    can change it, unlike a refusal of the samples of one chunk."""
+
+
 class Tracker:
     """The streaming form of :func:`algid.identify`, with forgetting and change alarms.
 
@@ -416,10 +423,11 @@ class Tracker:
 
         Parameters
         ----------
-        chunk : mapping
+        chunk : mapping, pandas.DataFrame, xarray.Dataset or control.TimeResponseData
             Column name -> samples (any number, from one), as a record of
             :func:`algid.identify`: the model's signals and the time column (or none,
-            with ``rate``).  Rows holding a NaN break the stream as gaps do.
+            with ``rate``).  Rows holding a NaN (or a masked sample) break the stream as
+            gaps do.
 
         Returns
         -------
@@ -516,8 +524,11 @@ class Tracker:
 
     # ------------------------------------------------------------------ input
     def _read(self, chunk):
-        if not hasattr(chunk, "keys"):
-            raise InputDataError("a chunk must be a mapping of column name -> samples")
+        if not is_record(chunk):
+            raise InputDataError("a chunk must be a record: a mapping of column name -> "
+                                 "samples, a pandas DataFrame, an xarray Dataset or a "
+                                 "TimeResponseData")
+        chunk = as_record(chunk, "the chunk")
         time = self.config["time"]
         if time is None and self.config["rate"] is None:
             time = next((c for c in TIME_COLUMNS if c in chunk), None)
@@ -532,15 +543,7 @@ class Tracker:
             if name not in chunk:
                 raise InputDataError(f"no column {name!r} in the chunk (columns: "
                                      f"{', '.join(map(str, chunk.keys()))})")
-            try:
-                values = np.asarray(chunk[name])
-            except (TypeError, ValueError):
-                raise InputDataError(f"column {name!r} is not numeric") from None
-            refuse_unusable(values, f"column {name!r}")
-            try:
-                values = values.astype(float).reshape(-1)
-            except (TypeError, ValueError):
-                raise InputDataError(f"column {name!r} is not numeric") from None
+            values = read_column(chunk[name], f"column {name!r}")  # (stream times: numbers)
             infinite = np.flatnonzero(np.isinf(values))
             if infinite.size:  # (NaN marks a missing sample, as in identify's records)
                 raise InputDataError(f"column {name!r} is {values[infinite[0]]} at row "
@@ -603,20 +606,20 @@ class Tracker:
                     break
                 tried += 1
                 if tried > 3:
-                    raise InputDataError(
+                    raise TrackerSetupError(
                         f"no window could be chosen on the first {span:g} s of the stream "
                         f"(identify refuses them); give window=")
         samples = window / step + 1
         if samples > MAX_WINDOW_SAMPLES:  # (before any array of that length is made)
-            raise InputDataError(f"window {window:g} s ({samples:.3g} samples) is longer "
-                                 f"than a tracker keeps ({MAX_WINDOW_SAMPLES} samples, "
-                                 f"{(MAX_WINDOW_SAMPLES - 1) * step:.4g} s at this rate)")
+            raise TrackerSetupError(f"window {window:g} s ({samples:.3g} samples) is longer "
+                                    f"than a tracker keeps ({MAX_WINDOW_SAMPLES} samples, "
+                                    f"{(MAX_WINDOW_SAMPLES - 1) * step:.4g} s at this rate)")
         length = int(round(window / step)) + 1
         shortest = min_length(self.multiplicities)
         if length < shortest:
-            raise InputDataError(f"window {window:g} s ({length} samples) is shorter than the "
-                                 f"kernels of multiplicity {max(self.multiplicities)} need; "
-                                 f"use at least {(shortest - 1) * step:.4g} s")
+            raise TrackerSetupError(f"window {window:g} s ({length} samples) is shorter than the "
+                                    f"kernels of multiplicity {max(self.multiplicities)} need; "
+                                    f"use at least {(shortest - 1) * step:.4g} s")
         self._check_half_life(length, step)
         self.s.update(configured=True, step=step, window=(length - 1) * step, length=length)
         self._start_state()
@@ -640,11 +643,11 @@ class Tracker:
         if most < needed:
             n = needed * overlap
             shortest = stride * step * math.log(2.0) / math.log((n + 1) / (n - 1))
-            raise InputDataError(f"half_life {half_life:g} s is too short for the window "
-                                 f"{(length - 1) * step:.4g} s: it leaves at most "
-                                 f"{most:.2g} effective windows where the "
-                                 f"{len(self.parameters)} parameters need {needed}; use at "
-                                 f"least {shortest:.4g} s")
+            raise TrackerSetupError(f"half_life {half_life:g} s is too short for the window "
+                                    f"{(length - 1) * step:.4g} s: it leaves at most "
+                                    f"{most:.2g} effective windows where the "
+                                    f"{len(self.parameters)} parameters need {needed}; use at "
+                                    f"least {shortest:.4g} s")
 
     def _choose_window(self, t, step):
         from algid.identification._identify import identify
@@ -666,12 +669,16 @@ class Tracker:
         self.k_cusum = cusum_reference()
         test_interval = self.overlap * self.stride * self.s["step"]
         rate = self.config["false_alarm_rate"]
-        run_length = max(2.0, 1.0 / (rate * test_interval))
+        run_length = 1.0 / (rate * test_interval)
+        if run_length < 2.0:   # (the CUSUM's threshold is tuned from two tests up)
+            raise TrackerSetupError(f"false_alarm_rate {rate:g} per second is more than one "
+                                    f"alarm in two tests (every {test_interval:.4g} s); use "
+                                    f"at most {0.5 / test_interval:.3g}")
         if run_length > MAX_RUN_LENGTH:
-            raise InputDataError(f"false_alarm_rate {rate:g} per second is one alarm in "
-                                 f"{run_length:.3g} tests (every {test_interval:.4g} s); the "
-                                 f"threshold is tuned up to {MAX_RUN_LENGTH:.0e}: use at "
-                                 f"least {1.0 / (MAX_RUN_LENGTH * test_interval):.3g}")
+            raise TrackerSetupError(f"false_alarm_rate {rate:g} per second is one alarm in "
+                                    f"{run_length:.3g} tests (every {test_interval:.4g} s); the "
+                                    f"threshold is tuned up to {MAX_RUN_LENGTH:.0e}: use at "
+                                    f"least {1.0 / (MAX_RUN_LENGTH * test_interval):.3g}")
         self.h_cusum = cusum_threshold(run_length, self.k_cusum)
         self.needed = 1 + MIN_SPARE_WINDOWS
         p = len(self.parameters)

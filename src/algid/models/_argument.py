@@ -11,7 +11,7 @@ import types
 from algid.errors import ModelError
 from algid.models._registry import available_models, load_model
 
-__all__ = ["estimator_module", "measured_signals", "is_record", "takes_pair"]
+__all__ = ["estimator_module", "measured_signals", "takes_pair"]
 
 
 def estimator_module(model, parameters=None, *, output=None):
@@ -72,10 +72,3 @@ def measured_signals(module) -> tuple:
     from algid.models._compiled import ChannelStream
 
     return tuple(ChannelStream(module, 1.0).signals)
-
-
-def is_record(data) -> bool:
-    """Whether ``data`` is a record: a mapping of column name -> samples (a dict, a
-    NumPy structured array's fields are not; a pandas DataFrame is)."""
-    return isinstance(data, dict) or (hasattr(data, "keys") and hasattr(data, "__getitem__")
-                                      and not hasattr(data, "outputs"))

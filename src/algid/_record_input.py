@@ -1,0 +1,420 @@
+"""The record layer: the record types every entry point takes, one column, the time axis.
+
+A *record* is a mapping of column name -> samples.  :func:`algid.estimate`,
+:class:`algid.OnlineEstimator`, :func:`algid.identify` and :class:`algid.Tracker` all
+take, through :func:`as_record`:
+
+- a mapping (``dict``, or anything with ``keys()`` and ``[]``);
+- a pandas ``DataFrame``: its columns, and its index as a time column when the index
+  holds times (floats, dates or durations, or any index named ``t`` or ``time``); a
+  plain row-number index is not time;
+- an xarray ``Dataset``: its data variables and coordinates (a dimension coordinate
+  ``time`` is the time column);
+- a python-control ``TimeResponseData``: ``t`` and the inputs and outputs by their
+  labels (the default labels ``u[0]``, ``y[0]`` of a single input and output are also
+  readable as ``u`` and ``y``).
+
+None of these libraries is imported: the types are recognised by their attributes.
+:func:`read_column` turns one column into float samples with the same refusals and
+messages wherever it is read (masked samples become NaN, that is missing), and
+:func:`record_columns` reads a record's signals and its sample times: from a time
+column (``t`` or ``time`` by default), or from a sampling rate; a rate given with a
+time column must agree with it (:data:`RATE_TOLERANCE`).  Times of type ``datetime64``
+or ``timedelta64`` become seconds from the first sample.  Cutting a record at its gaps
+is :func:`algid.identify`'s (``algid.identification._records``).
+"""
+
+from __future__ import annotations
+
+import math
+import numbers
+
+import numpy as np
+
+from algid.errors import InputDataError
+
+__all__ = ["TIME_COLUMNS", "RATE_TOLERANCE", "STEP_RANGE", "is_record", "is_timeresponse",
+           "as_record", "read_column", "refuse_unusable", "record_columns", "check_rate",
+           "check_rate_agrees", "refuse_nonfinite"]
+
+#: Column names taken as the time axis when neither ``time`` nor ``rate`` is given.
+TIME_COLUMNS = ("t", "time")
+
+#: A rate and a time column agree when the rate's step is within this fraction of the
+#: column's median step.
+RATE_TOLERANCE = 1e-3
+
+#: Sampling steps (s) accepted: the window integrals divide by powers of the window's
+#: span up to the 2(k+1)-th (noise weights of a k-th derivative), which leave the
+#: floating-point range beyond about 1e-60 and 1e40 s (measured on a second-order
+#: model); this range keeps a wide margin and holds every physical record.
+STEP_RANGE = (1e-30, 1e30)
+
+
+def is_timeresponse(data) -> bool:
+    """Whether ``data`` is a python-control ``TimeResponseData`` (by its attributes)."""
+    return hasattr(data, "time") and hasattr(data, "outputs") and hasattr(data, "inputs")
+
+
+def _is_dataframe(data):
+    return hasattr(data, "columns") and hasattr(data, "index") and hasattr(data, "iloc")
+
+
+def _is_dataset(data):
+    return hasattr(data, "data_vars") and hasattr(data, "coords") and hasattr(data, "dims")
+
+
+def is_record(data) -> bool:
+    """Whether ``data`` is a record of named columns (any of the types in the module's
+    description).
+
+    Parameters
+    ----------
+    data : object
+
+    Returns
+    -------
+    bool
+    """
+    return (isinstance(data, dict) or is_timeresponse(data) or _is_dataframe(data)
+            or _is_dataset(data) or (hasattr(data, "keys") and hasattr(data, "__getitem__")))
+
+
+def as_record(data, what="record"):
+    """The record as a mapping of column name -> samples.
+
+    Parameters
+    ----------
+    data : mapping, pandas.DataFrame, xarray.Dataset or control.TimeResponseData
+        See the module's description.
+    what : str, optional
+        Names the record in messages (``"record 0"``).
+
+    Returns
+    -------
+    mapping
+        ``data`` itself when it is a plain mapping; else a ``dict`` of its columns.
+
+    Raises
+    ------
+    InputDataError
+        A DataFrame whose time index contradicts its time column, a TimeResponseData
+        of several traces.
+    """
+    if is_timeresponse(data):
+        return _timeresponse_columns(data, what)
+    if _is_dataframe(data):
+        return _dataframe_columns(data, what)
+    if _is_dataset(data):
+        return {str(name): np.asarray(variable) for name, variable in data.variables.items()}
+    return data
+
+
+def _series_values(series):
+    """A pandas column as an array; a nullable numeric column's missing values as NaN."""
+    dtype = series.dtype
+    if not isinstance(dtype, np.dtype) and getattr(dtype, "kind", "O") in "iuf":
+        return series.to_numpy(dtype=float, na_value=np.nan)
+    return series.to_numpy()
+
+
+def _dataframe_columns(frame, what):
+    columns = {name: _series_values(frame[name]) for name in frame.columns}
+    index = frame.index
+    if getattr(index, "nlevels", 1) != 1 or type(index).__name__ == "RangeIndex":
+        return columns
+    kind = getattr(index.dtype, "kind", "O")
+    if not (kind in "fmM" or index.name in TIME_COLUMNS):
+        return columns     # row numbers (a filtered frame keeps its old ones): not time
+    name = "t" if index.name is None else index.name
+    stamps = index.to_numpy()
+    if name in columns:
+        same = np.asarray(columns[name])
+        if same.shape != stamps.shape or not np.array_equal(same, stamps):
+            raise InputDataError(f"{what}: the DataFrame's index and its column {name!r} "
+                                 f"both hold times, and they differ; drop one")
+    columns[name] = stamps
+    return columns
+
+
+def _timeresponse_columns(response, what):
+    inputs, outputs = np.asarray(response.inputs), np.asarray(response.outputs)
+    t = np.asarray(response.time)
+    if inputs.ndim > 2 or outputs.ndim > 2:
+        raise InputDataError(f"{what}: the TimeResponseData holds several traces "
+                             f"(inputs {inputs.shape}, outputs {outputs.shape}); give one "
+                             f"trace at a time")
+    columns = {}
+    for labels, values, default in ((response.input_labels, inputs, "u"),
+                                    (response.output_labels, outputs, "y")):
+        count = values.shape[0] if values.ndim == 2 else int(values.size > 0)
+        labels = list(labels or (f"{default}[{i}]" for i in range(count)))
+        values = values.reshape(len(labels), -1) if values.size else values
+        for label, row in zip(labels, values):
+            columns[label] = row
+        if len(labels) == 1 and labels[0] == f"{default}[0]":
+            columns.setdefault(default, values[0])
+    columns.setdefault("t", t)
+    return columns
+
+
+def refuse_unusable(values, what, *, dates=False):
+    """Refuse an array that is not one signal of real measurements.
+
+    Parameters
+    ----------
+    values : ndarray
+        The column as given.
+    what : str
+        Names it at the head of the message (``"record 0: column 'u'"``).
+    dates : bool, optional
+        Whether dates and durations are accepted (a time column).
+
+    Raises
+    ------
+    InputDataError
+        For a 2-D array (a column vector is one signal), complex numbers, booleans, or
+        dates and durations where they are not accepted.
+    """
+    if sum(size > 1 for size in values.shape) > 1:
+        raise InputDataError(f"{what} has shape {values.shape}: give one 1-D array per "
+                             f"signal")
+    kind = values.dtype.kind
+    if kind == "c":
+        raise InputDataError(f"{what} is complex; give real measurements (e.g. its real "
+                             f"part or its modulus)")
+    if kind == "b":
+        raise InputDataError(f"{what} holds booleans, not measurements (convert with "
+                             f".astype(float))")
+    if kind in "mM" and not dates:
+        raise InputDataError(f"{what} holds dates or durations, not measurements")
+
+
+def read_column(values, what, *, time=False):
+    """One column as 1-D float samples, or a one-line refusal.
+
+    Parameters
+    ----------
+    values : array_like
+        The column as given (a masked array's masked samples become NaN: missing).
+    what : str
+        Names the column at the head of messages (``"record 0: column 'u'"``).
+    time : bool, optional
+        A time column: dates and durations are accepted and become seconds from the
+        first sample (the difference taken first, in the column's own integer unit, so
+        that no precision is lost to the size of the epoch).
+
+    Returns
+    -------
+    numpy.ndarray
+
+    Raises
+    ------
+    InputDataError
+        Not numeric, 2-D, complex, boolean, dates (for a signal), or numbers beyond
+        floating point.
+    """
+    if isinstance(values, np.ma.MaskedArray):  # masked samples are missing, as NaN are
+        try:
+            values = np.ma.filled(values.astype(float), np.nan)
+        except (TypeError, ValueError):
+            raise InputDataError(f"{what} is not numeric") from None
+    try:
+        values = np.asarray(values)
+    except (TypeError, ValueError):
+        raise InputDataError(f"{what} is not numeric") from None
+    refuse_unusable(values, what, dates=time)
+    if values.dtype.kind in "mM":
+        values = values.reshape(-1)
+        return (values - values[0]) / np.timedelta64(1, "s") if len(values) else \
+            values.astype(float)
+    try:
+        return values.astype(float).reshape(-1)
+    except (TypeError, ValueError):
+        raise InputDataError(f"{what} is not numeric") from None
+    except OverflowError:   # Python integers beyond floating point
+        raise InputDataError(f"{what} holds numbers too large for floating point "
+                             f"(beyond 1.8e308)") from None
+
+
+def _column(record, name, index, label):
+    if name not in record:
+        available = ", ".join(map(str, record.keys()))
+        hint = (f"; if {name!r} is an unknown, add it to the parameters"
+                if label == "signal" else "")
+        raise InputDataError(f"record {index}: no column {name!r} for the {label} "
+                             f"(columns: {available}){hint}")
+    return read_column(record[name], f"record {index}: column {name!r}",
+                       time=label == "time")
+
+
+def check_rate(rate, what="rate"):
+    """The sampling rate as a float, or a one-line error.
+
+    Parameters
+    ----------
+    rate : float
+        Sampling rate (Hz): a real number (not a boolean or a string), positive and
+        finite, whose step lies in :data:`STEP_RANGE`.
+    what : str
+        Name of the argument, for the message.
+
+    Returns
+    -------
+    float
+
+    Raises
+    ------
+    InputDataError
+    """
+    if isinstance(rate, (bool, np.bool_)) or not isinstance(rate, numbers.Real):
+        raise InputDataError(f"{what} must be a number of Hz, got {rate!r}")
+    value = float(rate)
+    if not (math.isfinite(value) and value > 0):
+        raise InputDataError(f"{what} must be a positive finite number of Hz, got {rate!r}")
+    low, high = STEP_RANGE
+    if not low <= 1.0 / value <= high:
+        raise InputDataError(
+            f"{what} {value:g} Hz gives a sampling step of {1.0 / value:.3g} s, outside "
+            f"{low:g} .. {high:g} s: the estimators' integrals would overflow or "
+            f"underflow; express the time in other units")
+    return value
+
+
+def check_rate_agrees(rate, t, name, where):
+    """Refuse a sampling rate that contradicts a time column.
+
+    Parameters
+    ----------
+    rate : float
+        The rate given (Hz).
+    t : numpy.ndarray
+        The time column (s), strictly increasing.
+    name : str
+        The time column's name.
+    where : str
+        Prefix of the message (a record or a file).
+
+    Raises
+    ------
+    InputDataError
+        If ``1 / rate`` differs from the column's median step by more than
+        :data:`RATE_TOLERANCE` of it.
+    """
+    if len(t) < 2:
+        return
+    step = float(np.median(np.diff(t)))
+    if not abs(step * rate - 1.0) <= RATE_TOLERANCE:
+        raise InputDataError(
+            f"{where}: rate {rate:g} Hz contradicts time column {name!r} (sampled at "
+            f"{1.0 / step:.6g} Hz); give the time column or a rate that agrees with it")
+
+
+def _time_axis(record, index, n, time, rate):
+    if rate is not None:
+        rate = check_rate(rate)
+    if time is None:
+        time = next((c for c in TIME_COLUMNS if c in record), None)
+        if time is None and rate is None:
+            raise InputDataError(f"record {index}: no time column ({' or '.join(TIME_COLUMNS)}); "
+                                 f"give time= (a column name) or rate= (Hz)")
+    if time is None:
+        return np.arange(n) / rate, None
+    t = _column(record, time, index, "time")
+    if len(t) != n:
+        raise InputDataError(f"record {index}: time column {time!r} has {len(t)} samples, "
+                             f"the signals {n}")
+    if not np.all(np.isfinite(t)):
+        row = int(np.flatnonzero(~np.isfinite(t))[0])
+        raise InputDataError(f"record {index}: time column {time!r} is not finite at row {row}")
+    steps = np.diff(t)
+    if np.any(steps <= 0):
+        row = int(np.flatnonzero(steps <= 0)[0]) + 1
+        raise InputDataError(f"record {index}: time column {time!r} does not increase at "
+                             f"row {row}")
+    if rate is not None:
+        check_rate_agrees(rate, t, time, f"record {index}")
+    if len(steps):
+        median, low, high = float(np.median(steps)), *STEP_RANGE
+        if not low <= median <= high:
+            raise InputDataError(
+                f"record {index}: time column {time!r} has a step of {median:.3g}, outside "
+                f"{low:g} .. {high:g} s: the window integrals would overflow or "
+                f"underflow; express the time in other units")
+    return t, time
+
+
+def record_columns(record, signals, *, time=None, rate=None, first_sample=0, index=0,
+                   min_samples=0):
+    """The time axis and the named signals of one record, checked as :func:`algid.identify`
+    checks them (no gaps are cut: the estimator needs the record whole).
+
+    Parameters
+    ----------
+    record : mapping, pandas.DataFrame, xarray.Dataset or control.TimeResponseData
+        Column name -> samples (:mod:`algid._record_input`).
+    signals : sequence of str
+        Signals to read.
+    time : str, optional
+        Name of the time column; by default ``t`` or ``time`` if present.
+    rate : float, optional
+        Sampling rate (Hz) when there is no time column.
+    first_sample : int, optional
+        Index of the first sample when the times come from ``rate``: sample ``i`` is at
+        ``(first_sample + i) / rate`` (a stream's later chunk goes on where the previous
+        one ended, at the same times as the whole record).
+    index : int, optional
+        The record's place among several (named in the messages).
+    min_samples : int, optional
+        Fewer samples are refused (before the time axis is read).
+
+    Returns
+    -------
+    t : numpy.ndarray
+    columns : dict
+        Signal name -> samples (float arrays of the same length as ``t``).
+
+    Raises
+    ------
+    InputDataError
+        A missing or non-numeric column, signals of different lengths, a bad time axis.
+    """
+    record = as_record(record, f"record {index}")
+    columns = {name: _column(record, name, index, "signal") for name in signals}
+    lengths = {len(v) for v in columns.values()}
+    if len(lengths) > 1:
+        raise InputDataError(f"record {index}: signals have different lengths "
+                             f"({', '.join(f'{k}: {len(v)}' for k, v in columns.items())})")
+    n = lengths.pop() if lengths else 0
+    if n < min_samples:
+        raise InputDataError(f"record {index}: fewer than {min_samples} samples")
+    t, _ = _time_axis(record, index, n, time, rate)
+    if first_sample and time is None and not any(c in record for c in TIME_COLUMNS):
+        t = (first_sample + np.arange(n)) / check_rate(rate)
+    return t, columns
+
+
+def refuse_nonfinite(columns, what):
+    """Refuse a NaN or infinite sample where every sample is needed (the estimator of
+    :func:`algid.estimate`; :func:`algid.identify` takes NaN as a gap).
+
+    Parameters
+    ----------
+    columns : dict
+        Column name -> float samples.
+    what : str
+        Names the record or chunk at the head of the message (``"record 0"``).
+
+    Raises
+    ------
+    InputDataError
+        Naming the column, the value and its row.
+    """
+    for name, values in columns.items():
+        bad = np.flatnonzero(~np.isfinite(values))
+        if bad.size:
+            row = int(bad[0])
+            value = "NaN" if np.isnan(values[row]) else "inf" if values[row] > 0 else "-inf"
+            raise InputDataError(f"{what}: column {name!r} has {value} at row {row}; "
+                                 f"the estimator needs every sample (identify takes NaN as "
+                                 f"a gap)")
