@@ -36,9 +36,13 @@ def test_file_json_equals_the_tracker(tmp_path, capsys):
     assert set(payload) == {"t", "B", "K", "G", "d", "stderr", "alarms", "window", "half_life"}
     expected = Tracker(EQUATION, PARAMETERS, time="t", window=0.1875, half_life=3.0,
                        every=1.0).update(record)
-    assert payload["t"] == expected.t.tolist()
-    assert payload["K"][-1] == expected["K"][-1]
-    assert payload["stderr"]["K"][-1] == expected.stderr[-1, 1]
+    # and the end of the stream (its last line was the last multiple of --every)
+    end = Tracker(EQUATION, PARAMETERS, time="t", window=0.1875, half_life=3.0).update(record)
+    assert end.t[-1] > expected.t[-1]
+    assert payload["t"] == expected.t.tolist() + [end.t[-1]]
+    assert payload["K"][:-1] == [None if np.isnan(k) else k for k in expected["K"]]
+    assert payload["K"][-1] == end["K"][-1]
+    assert payload["stderr"]["K"][-1] == end.stderr[-1, 1]
     assert payload["half_life"] == 3.0 and abs(payload["window"] - 0.1875) < 1e-12
 
 
@@ -97,12 +101,13 @@ def test_standard_input_live(tmp_path):
         process.kill()
     assert err.count("\n") == 1 and "row 502 skipped" in err
     # the skipped row left the state intact: the same reports as the clean stream
-    expected = Tracker(EQUATION, PARAMETERS, time="t", window=0.1875, every=1.0).update(
-        {k: np.array([float(r.split(",")[i]) for r in rows]) for i, k in
-         enumerate(("t", "u", "y"))})
+    clean = {k: np.array([float(r.split(",")[i]) for r in rows]) for i, k in
+             enumerate(("t", "u", "y"))}
+    expected = Tracker(EQUATION, PARAMETERS, time="t", window=0.1875, every=1.0).update(clean)
+    end = Tracker(EQUATION, PARAMETERS, time="t", window=0.1875).update(clean)
     reports = [first] + rest
-    assert [r["t"] for r in reports] == expected.t.tolist()
-    assert reports[-1]["K"] == expected["K"][-1]
+    assert [r["t"] for r in reports] == expected.t.tolist() + [end.t[-1]]   # and the end
+    assert reports[-2]["K"] == expected["K"][-1] and reports[-1]["K"] == end["K"][-1]
 
 
 def _live_rows(n=400):

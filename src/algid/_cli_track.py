@@ -1,8 +1,8 @@
 """The ``algid track`` command: :class:`algid.Tracker` on a file or on standard input.
 
 ``algid track FILE ...`` streams the file in chunks of ``--chunk`` rows and prints the
-estimates every ``--every`` seconds of stream time (``--json``: one object with the
-lists).  ``algid track - ...`` reads CSV rows from standard input as they arrive (a
+estimates every ``--every`` seconds of stream time and at its end (``--json``: one object
+with the lists).  ``algid track - ...`` reads CSV rows from standard input as they arrive (a
 header line first) and prints a report line per interval, flushed at once (``--json``:
 one object per line); a malformed row is reported on standard error and skipped, the
 tracker's state intact.
@@ -90,8 +90,39 @@ def _value(x):
 def _tracker(args, model, time):
     from algid.identification._tracker import Tracker
 
+    # every window end comes out; _Reports picks those to print (and the last one)
     return Tracker(model, rate=args.rate, time=time, window=args.window,
-                   half_life=args.half_life, every=args.every)
+                   half_life=args.half_life)
+
+
+class _Reports:
+    """The window ends to print: those that cross a multiple of ``--every`` seconds (as
+    ``Tracker(every=...)`` reports them), and the stream's last one when it ends.
+
+    Parameters
+    ----------
+    every : float
+        The reporting interval (s of stream time).
+    """
+
+    def __init__(self, every):
+        self.every = every
+        self.previous = -math.inf   # floor(end / every) of the last window end seen
+        self.unprinted = None       # (update, row) of the last end when not printed
+
+    def select(self, out):
+        """Rows of ``out`` (a TrackUpdate) to print now."""
+        crossed = np.floor(out.t / self.every)
+        rows = np.flatnonzero(crossed > np.concatenate([[self.previous], crossed[:-1]]))
+        if len(out):
+            self.previous = float(crossed[-1])
+            self.unprinted = None if rows.size and rows[-1] == len(out) - 1 else (
+                out, len(out) - 1)
+        return rows
+
+    def final(self):
+        """``(update, row)`` of the stream's last window end if it was not printed."""
+        return self.unprinted
 
 
 def track_command(args) -> int:
@@ -133,16 +164,20 @@ def _file(args, model):
                              f"give --time COL or --rate HZ")
     tracker = _tracker(args, model, time)
     n = len(record[names[0]])
-    reports = []
+    printed, alarms, chosen = [], [], _Reports(args.every)
     for start in range(0, n, args.chunk):
-        reports.append(tracker.update({k: np.asarray(v)[start:start + args.chunk]
-                                       for k, v in record.items()}))
-    t = np.concatenate([r.t for r in reports]) if reports else np.empty(0)
-    if not t.size:
+        out = tracker.update({k: np.asarray(v)[start:start + args.chunk]
+                              for k, v in record.items()})
+        printed.extend((out, row) for row in chosen.select(out))
+        alarms.append(out.alarms)
+    if chosen.final() is not None:   # the end of the stream
+        printed.append(chosen.final())
+    if not printed:
         raise InputDataError(_nothing(args.file, n, tracker))
-    values = np.concatenate([r.values for r in reports])
-    stderr = np.concatenate([r.stderr for r in reports])
-    alarms = np.concatenate([r.alarms for r in reports])
+    t = np.array([out.t[row] for out, row in printed])
+    values = np.array([out.values[row] for out, row in printed])
+    stderr = np.array([out.stderr[row] for out, row in printed])
+    alarms = np.concatenate(alarms)
     if args.json:
         payload = {"t": t.tolist()}
         for i, p in enumerate(model.parameters):
@@ -164,6 +199,21 @@ def _file(args, model):
     for when in alarms:
         print(f"alarm at t = {when:.6g} s")
     return 0
+
+
+def _print_row(args, model, out, i, alarms):
+    """One report line of standard input; with ``--json`` it carries the alarms raised
+    since the last line (and empties ``alarms``)."""
+    if args.json:
+        payload = {"t": float(out.t[i])}
+        payload.update({p: _value(v) for p, v in zip(model.parameters, out.values[i])})
+        payload["stderr"] = {p: _value(v) for p, v in zip(model.parameters, out.stderr[i])}
+        payload["alarms"] = list(alarms)
+        alarms.clear()
+        print(json.dumps(payload, allow_nan=False))
+    else:
+        print(_line(model, out.t[i], out.values[i], out.stderr[i]))
+    sys.stdout.flush()
 
 
 def _nothing(source, n, tracker):
@@ -230,6 +280,7 @@ def _live(args, model):
         _header(model)
         sys.stdout.flush()
     row, reported, samples = 1, False, 0
+    chosen, alarms = _Reports(args.every), []   # (alarms not yet printed, with --json)
     while True:
         line = sys.stdin.readline()
         if not line:
@@ -255,22 +306,19 @@ def _live(args, model):
             print(f"algid: warning: standard input row {row} skipped: {message}",
                   file=sys.stderr, flush=True)
             continue
-        for i in range(len(out)):
-            if args.json:
-                payload = {"t": float(out.t[i])}
-                payload.update({p: _value(v) for p, v in zip(model.parameters, out.values[i])})
-                payload["stderr"] = {p: _value(v)
-                                     for p, v in zip(model.parameters, out.stderr[i])}
-                payload["alarms"] = out.alarms.tolist()
-                print(json.dumps(payload, allow_nan=False))
-            else:
-                print(_line(model, out.t[i], out.values[i], out.stderr[i]))
+        alarms.extend(out.alarms.tolist())
+        rows = chosen.select(out)
+        for i in rows:
+            _print_row(args, model, out, i, alarms)
         if not args.json:
             for when in out.alarms:
                 print(f"alarm at t = {when:.6g} s")
-        if len(out) or len(out.alarms):
+        if rows.size or len(out.alarms):
             sys.stdout.flush()
-        reported = reported or len(out) > 0
+        reported = reported or rows.size > 0
+    if chosen.final() is not None:   # the end of the stream
+        _print_row(args, model, *chosen.final(), alarms)
+        reported = True
     if not reported:
         raise InputDataError(_nothing("standard input", samples, tracker))
     return 0
