@@ -126,7 +126,8 @@ def read(path):
         if value is None or value.dtype.kind != "U" or value.shape != ():
             raise InputDataError(f"{path}: not a saved tracker (no {name})")
         texts[name] = str(value)
-    header = _header(path, texts["header"])
+        if name == "header":   # (an older format has no checksum: named as such)
+            header = _header(path, texts["header"])
     if any(not name.startswith("s/") for name in members):
         extra = next(name for name in members if not name.startswith("s/"))
         raise InputDataError(f"{path}: not a saved tracker (member {extra!r})")
@@ -312,8 +313,12 @@ def check_state(path, tracker, scalars, arrays):
                                 f"{array.shape}, not float64 of {len(shape)} dimension"
                                 f"{'s' if len(shape) != 1 else ''}")
         for axis, (size, want) in enumerate(zip(array.shape, shape)):
-            want = lengths.setdefault(want, size) if isinstance(want, str) else want
-            if size != want:
+            if isinstance(want, str):   # a length that arrays share
+                held, first = lengths.setdefault(want, (size, key))
+                if size != held:
+                    raise InputDataError(f"{path}: array {key!r} has {size} samples where "
+                                        f"{first!r} has {held} (they must agree)")
+            elif size != want:
                 raise InputDataError(f"{path}: array {key!r} has shape {array.shape}; this "
                                     f"tracker's has {want} along axis {axis}")
         array = np.ascontiguousarray(array, dtype=np.float64)   # (native byte order)
@@ -321,7 +326,7 @@ def check_state(path, tracker, scalars, arrays):
             raise InputDataError(f"{path}: array {key!r} holds non-finite values")
         state[key] = array
     if configured:
-        _check_counters(path, tracker, scalars, lengths)
+        _check_counters(path, tracker, scalars, {k: v[0] for k, v in lengths.items()})
     tracker.s.update(state)
 
 
