@@ -109,3 +109,28 @@ def test_damaged_cache_index_is_compiled_again(cache_env, monkeypatch, capfd):
             except pickle.UnpicklingError:
                 pass
     assert fresh >= 1
+
+
+def test_built_in_loops_skip_a_cache_others_can_write(monkeypatch, capfd):
+    """The built-in loops' cache is checked as well (the reason forced: the package's
+    own ``__pycache__`` is not touched); nothing compiles until a first call."""
+    from numba.core.caching import NullCache
+
+    from algid._generated import NUMBA_MODULES
+
+    name = NUMBA_MODULES["msd"]
+    loops = __import__(name, fromlist=["advance"])
+    held = {key: f._cache for key, f in vars(loops).items()
+            if hasattr(getattr(f, "_cache", None), "cache_path")}
+    assert held
+    monkeypatch.setattr(core_numba, "_machine_code_unsafe",
+                        lambda module: "/x/__pycache__ is writable by others (mode 0777)")
+    capfd.readouterr()
+    try:
+        assert core_numba._built_in_loops(name) is loops
+        assert all(isinstance(getattr(loops, key)._cache, NullCache) for key in held)
+        err = capfd.readouterr().err
+        assert err.count("\n") == 1 and "not used" in err and "in memory" in err
+    finally:
+        for key, functions_cache in held.items():
+            getattr(loops, key)._cache = functions_cache

@@ -13,6 +13,18 @@ of its algebra are written once to files named by a hash of their text, in
 process that uses the same model loads it instead of compiling.  Where no cache
 directory is usable the loop is compiled in memory.  A compilation to come is announced
 by one line on standard error.
+
+numba's cache files are pickles, and loading one runs what it says: a cache that
+another user could write (the directory, its ``__pycache__``, a file there, numba's
+place for it under ``$NUMBA_CACHE_DIR``, or a parent that lets others rename them) is
+not read, the loop is compiled in memory and one line on standard error says why; the
+default directory is created private (0700).  The same check guards numba's cache of
+the built-in models' loops (``__pycache__`` beside ``algid/_generated``, or numba's
+user-wide cache).  A cache file that cannot be loaded (cut short, damaged) is
+compiled anew instead of raising.  Not covered: the other functions algid compiles
+with ``cache=True`` (tracker kernels, signal checks, numerical error), which numba
+caches beside the installed package (writable by whoever can change its code) or
+under ``$NUMBA_CACHE_DIR``: keep that directory private.
 """
 
 from __future__ import annotations
@@ -271,11 +283,29 @@ def _recompile_if_damaged(module):
     return module
 
 
+def _built_in_loops(name):
+    """The loops of a model generated at derivation time; numba's cache of them (in
+    ``__pycache__`` beside the package's file, else numba's user-wide cache or
+    ``$NUMBA_CACHE_DIR``) is not read where others could have written it."""
+    loops = importlib.import_module(name)
+    reason = _machine_code_unsafe(loops)
+    if reason is None:
+        return _recompile_if_damaged(loops)
+    from numba.core.caching import NullCache
+
+    for function in vars(loops).values():   # before their first call: nothing read
+        if hasattr(getattr(function, "_cache", None), "cache_path"):
+            function._cache = NullCache()
+    print(f"algid: numba's cache of {name} is not used ({reason}); compiling it in memory",
+          file=sys.stderr, flush=True)
+    return loops
+
+
 @cache
 def _loops_of(module):
     """The module of the compiled loops of a generated module."""
     if MODULES.get(module.MODEL) == module.__name__:
-        return importlib.import_module(NUMBA_MODULES[module.MODEL])
+        return _built_in_loops(NUMBA_MODULES[module.MODEL])
     directory, reason = _cache_dir_and_reason()
     if directory is not None:
         try:
