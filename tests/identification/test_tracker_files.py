@@ -206,3 +206,13 @@ def test_older_format_refused(saved, tmp_path):
     members = {k: v for k, v in members.items() if k != "checksum"}
     members["header"] = np.array(json.dumps(header))
     refused(rewrite(tmp_path / "old.npz", members, checksum=False), "format 'algid.Tracker/2'")
+
+
+@pytest.mark.parametrize("key, value", [("ring_count", 2**70), ("seen", -1),
+                                        ("configured", 1), ("row_valid", "yes")])
+def test_scalars_out_of_range(saved, tmp_path, key, value):
+    members = contents(saved[0])
+    header = json.loads(str(members["header"]))
+    header["scalars"][key] = value
+    members["header"] = np.array(json.dumps(header))
+    refused(rewrite(tmp_path / "scalar.npz", members), f"scalar '{key}'")

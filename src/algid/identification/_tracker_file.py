@@ -143,7 +143,7 @@ def _header(path, text):
     """The parsed header, its structure and the types of its entries checked."""
     try:
         header = json.loads(text)
-    except ValueError:
+    except (ValueError, RecursionError):
         header = None
     if not isinstance(header, dict) or "format" not in header:
         raise InputDataError(f"{path}: not a saved tracker (its header is not one)")
@@ -183,7 +183,10 @@ def _header(path, text):
 SCALARS = {"seen": "count", "last_time": "time", "configured": "bool", "alarms": "count"}
 
 #: Scalars present in some states only (tries of the window's choice).
-OPTIONAL = {"warm_tries": "count"}
+OPTIONAL = {"warm_tries": "tries"}
+
+#: Largest counter accepted (a sample count far beyond any stream, within int64).
+_MAX_COUNT = 2**62
 
 #: Scalars of a configured state.
 CONFIGURED = {"step": "positive", "window": "positive", "length": "count",
@@ -196,8 +199,9 @@ CONFIGURED = {"step": "positive", "window": "positive", "length": "count",
 def _scalar_ok(rule, value):
     if rule == "bool":
         return isinstance(value, bool)
-    if rule == "count":
-        return isinstance(value, int) and not isinstance(value, bool) and value >= 0
+    if rule in ("count", "tries"):   # (int64 in the compiled loops; tries: at most 3)
+        return isinstance(value, int) and not isinstance(value, bool) \
+            and 0 <= value <= (3 if rule == "tries" else _MAX_COUNT)
     if not isinstance(value, float):
         return False
     return {"positive": math.isfinite(value) and value > 0,
