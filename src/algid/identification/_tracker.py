@@ -451,8 +451,9 @@ class Tracker:
                            np.array(out["alarms"], dtype=float))
 
     def save(self, path):
-        """Write the whole state to a NumPy ``.npz`` file (arrays, a JSON header and a
-        checksum of both).
+        """Write the whole state to a NumPy ``.npz`` file.
+
+        The file holds the arrays, a JSON header and a SHA-256 checksum of both.
 
         Parameters
         ----------
