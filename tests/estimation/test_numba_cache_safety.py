@@ -37,11 +37,14 @@ def test_directory_others_can_write_is_not_used(cache_env, monkeypatch, capfd):
         os.chmod(shared / "user_models", 0o700)
         os.chmod(target, mode)
         assert core_numba.user_cache_dir() is None
-    os.chmod(shared / "user_models", 0o700)
+    os.chmod(shared / "user_models", 0o755)
     (shared / "user_models" / "planted.nbi").write_bytes(b"")
     os.chmod(shared / "user_models" / "planted.nbi", 0o666)   # a file others can replace
     assert core_numba.user_cache_dir() is None
-    os.chmod(shared / "user_models" / "planted.nbi", 0o600)
+    os.chmod(shared / "user_models", 0o700)   # ... unless they cannot enter the directory
+    assert core_numba.user_cache_dir() == str(shared / "user_models")
+    os.chmod(shared / "user_models", 0o755)
+    os.chmod(shared / "user_models" / "planted.nbi", 0o644)
     assert core_numba.user_cache_dir() == str(shared / "user_models")
     os.chmod(shared, 0o777)
     model = compile_equation("y' + a*y = u", "a", name="shared_dir")
@@ -60,7 +63,7 @@ def test_default_directory_is_created_private(cache_env, monkeypatch):
         assert stat.S_IMODE(os.stat(path).st_mode) == 0o700
 
 
-def test_machine_code_under_a_shared_numba_cache_dir_is_not_used(cache_env, monkeypatch,
+def test_machine_code_in_a_pycache_others_can_write_is_not_used(cache_env, monkeypatch,
                                                                  capfd):
     monkeypatch.setenv("ALGID_CACHE_DIR", str(cache_env / "mine"))
     model = compile_equation("y' + a*y = u", "a", name="shared_pycache")

@@ -65,6 +65,7 @@ def _shared(path, entries=False):
         names = [""] + (sorted(os.listdir(path)) if entries else [])
     except OSError:
         return None   # (not there yet: numba creates it, with our umask)
+    private = False
     for name in names:
         place = os.path.join(path, name) if name else path
         try:
@@ -73,8 +74,10 @@ def _shared(path, entries=False):
             continue
         if st.st_uid != os.geteuid():
             return f"{place} belongs to another user (uid {st.st_uid})"
-        if st.st_mode & 0o022:
+        # (the modes of files in a directory others cannot enter do not matter)
+        if st.st_mode & 0o022 and not private:
             return f"{place} is writable by others (mode {stat.S_IMODE(st.st_mode):04o})"
+        private = private or not (name or st.st_mode & 0o011)
     return None
 
 
@@ -201,6 +204,8 @@ def _cached_loop(module, directory):
                                       f"from {algebra} import cramer, regressors_packed\n")
     loop_source = loop_source.replace("\nCACHE = False\n", "\nCACHE = True\n")
     loop_name = f"{algebra}_numba_{_digest(loop_source)}"
+    with contextlib.suppress(OSError):   # private before numba makes it (with the umask)
+        os.mkdir(os.path.join(directory, "__pycache__"), mode=0o700)
     _write_once(os.path.join(directory, algebra + ".py"), source)
     _write_once(os.path.join(directory, loop_name + ".py"), loop_source)
     if algebra not in sys.modules:
@@ -289,7 +294,9 @@ def _built_in_loops(name):
     ``$NUMBA_CACHE_DIR``) is not read where others could have written it."""
     loops = importlib.import_module(name)
     reason = _machine_code_unsafe(loops)
-    if reason is None:
+    # a cache as writable as the package's own code (a group-writable install) is no
+    # way in that the code is not
+    if reason is None or _shared(os.path.dirname(os.path.abspath(loops.__file__))):
         return _recompile_if_damaged(loops)
     from numba.core.caching import NullCache
 
