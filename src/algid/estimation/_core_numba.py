@@ -20,8 +20,8 @@ place for it under ``$NUMBA_CACHE_DIR``, or a parent that lets others rename the
 not read, the loop is compiled in memory and one line on standard error says why; the
 default directory is created private (0700).  The same check guards numba's cache of
 the built-in models' loops (``__pycache__`` beside ``algid/_generated``, or numba's
-user-wide cache), unless the package's own folder is as writable.  A cache file that cannot be loaded (cut short, damaged) is
-compiled anew instead of raising.  Not covered: the other functions algid compiles
+user-wide cache), unless the package's own folder is as writable.  A cache file that
+cannot be loaded (cut short, damaged) is compiled anew instead of raising.  Not covered: the other functions algid compiles
 with ``cache=True`` (tracker kernels, signal checks, numerical error), which numba
 caches beside the installed package (writable by whoever can change its code) or
 under ``$NUMBA_CACHE_DIR``: keep that directory private.
