@@ -14,17 +14,17 @@ process that uses the same model loads it instead of compiling.  Where no cache
 directory is usable the loop is compiled in memory.  A compilation to come is announced
 by one line on standard error.
 
-numba's cache files are pickles, and loading one runs what it says: a cache that
-another user could write (the directory, its ``__pycache__``, a file there, numba's
-place for it under ``$NUMBA_CACHE_DIR``, or a parent that lets others rename them) is
-not read, the loop is compiled in memory and one line on standard error says why; the
-default directory is created private (0700).  The same check guards numba's cache of
-the built-in models' loops (``__pycache__`` beside ``algid/_generated``, or numba's
-user-wide cache), unless the package's own folder is as writable.  A cache file that
-cannot be loaded (cut short, damaged) is compiled anew instead of raising.  Not covered: the other functions algid compiles
-with ``cache=True`` (tracker kernels, signal checks, numerical error), which numba
-caches beside the installed package (writable by whoever can change its code) or
-under ``$NUMBA_CACHE_DIR``: keep that directory private.
+numba's cache files are pickles, and loading one runs what it says: a cache that another
+user could write (the directory, its ``__pycache__``, a file there, numba's place for it
+under ``$NUMBA_CACHE_DIR``, or a parent that lets others rename them) is not read, the
+loop is compiled in memory and one line on standard error says why; the default
+directory is created private (0700).  The same check guards numba's cache of the built-in
+models' loops (``__pycache__`` beside ``algid/_generated``, or numba's user-wide cache),
+unless the package's own folder is as writable.  A cache file that cannot be loaded (cut
+short, damaged) is compiled anew instead of raising.  Not covered: the other functions
+algid compiles with ``cache=True`` (tracker kernels, signal checks, numerical error),
+which numba caches beside the installed package (writable by whoever can change its
+code) or under ``$NUMBA_CACHE_DIR``: keep that directory private.
 """
 
 from __future__ import annotations
