@@ -244,11 +244,15 @@ def build_parser() -> argparse.ArgumentParser:
     export = actions.add_parser(
         "export", help="write a record as CSV files into a folder",
         description=("Write a shipped record as plain CSV files (header line, time column "
-                     "t, exact values) into DIR, with the records' provenance note; "
-                     "files of the same names are replaced."))
+                     "t, exact values) into DIR, with the records' provenance note. "
+                     "A file of the same name already in DIR is an error unless --force "
+                     "is given; a symbolic link there is never written through (--force "
+                     "replaces it by the file)."))
     export.add_argument("name", choices=("silverbox", "emps"), metavar="NAME",
                         help="silverbox or emps (see `algid datasets list`)")
     export.add_argument("folder", metavar="DIR", help="folder to write into (created if missing)")
+    export.add_argument("--force", action="store_true",
+                        help="replace files (or links) of the same names in DIR")
     export.set_defaults(handler=_cmd_datasets_export)
 
     der = commands.add_parser(
@@ -519,7 +523,7 @@ def _cmd_datasets_list(args) -> int:
 def _cmd_datasets_export(args) -> int:
     from algid.datasets import export
 
-    for path in export(args.name, args.folder):
+    for path in export(args.name, args.folder, overwrite=args.force):
         print(f"wrote {path}")
     return 0
 

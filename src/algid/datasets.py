@@ -37,9 +37,12 @@ benchmark community, which asks users to cite the papers above.
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import gzip
 import io
+import os
+import stat
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from importlib import resources
@@ -363,14 +366,50 @@ def _csv_text(columns):
     return "\n".join(lines) + "\n"
 
 
-def export(name, folder) -> list:
+def _write_new(path, text, encoding, overwrite):
+    """Write ``text`` to ``path`` without following a link there.
+
+    Without ``overwrite``, ``path`` is created (``O_EXCL``: a file, a link or a dangling
+    link already there is an error, never written through); with it, the text goes to a
+    new file in the same folder that then replaces whatever ``path`` was (a link is
+    replaced, not followed).
+    """
+    data = text.encode(encoding)
+    flags = os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_NOFOLLOW", 0) \
+        | getattr(os, "O_BINARY", 0)
+    target = path if not overwrite else path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    descriptor = os.open(target, flags, 0o666)
+    try:
+        with os.fdopen(descriptor, "wb") as handle:
+            handle.write(data)
+        if overwrite:
+            os.replace(target, path)
+    except BaseException:
+        if overwrite:
+            with contextlib.suppress(OSError):
+                os.unlink(target)
+        raise
+
+
+def _holds(path, text):
+    """Whether ``path`` is a regular file (not a link) that holds ``text``."""
+    try:
+        if not stat.S_ISREG(os.lstat(path).st_mode):
+            return False
+        return path.read_bytes() == text.encode("utf-8")
+    except OSError:
+        return False
+
+
+def export(name, folder, *, overwrite=False) -> list:
     """Write a shipped record as plain CSV files that ``algid identify`` reads directly.
 
     Every file has a header line and a time column ``t`` [s] (the Silverbox record,
     stored without one, gets ``t = row / 610.35``); the values are written exactly
     (each float as its shortest round-trip text).  The records' provenance note is
-    written beside them as ``algid-datasets-README.md``.  Existing files of the same
-    names are replaced.
+    written beside them as ``algid-datasets-README.md``.  A file of the same name is
+    replaced only with ``overwrite=True``; a symbolic link there is never written
+    through (with ``overwrite``, it is replaced by the file).
 
     Parameters
     ----------
@@ -378,6 +417,9 @@ def export(name, folder) -> list:
         The record (see :data:`EXPORTS` for the files each writes).
     folder : str or os.PathLike
         Folder to write into; created if missing.
+    overwrite : bool
+        Replace files (or links) of the same names already in ``folder``; without it,
+        nothing is written when one exists.
 
     Returns
     -------
@@ -389,7 +431,8 @@ def export(name, folder) -> list:
     InputDataError
         If ``name`` is not one of :data:`EXPORTS`.
     AlgidError
-        If the folder or a file cannot be written.
+        If the folder or a file cannot be written, or a file of the same name exists
+        (without ``overwrite``).
 
     Examples
     --------
@@ -408,14 +451,27 @@ def export(name, folder) -> list:
         raise InputDataError(f"unknown dataset {name!r} (known: {', '.join(EXPORTS)})")
     target = Path(folder)
     written = []
+    tables = _export_tables(name)
+    note = _data_file("README.md").read_text(encoding="utf-8")
+    # the note of an export of the other record into the same folder stays as it is
+    same_note = _holds(target / EXPORT_NOTE, note)
+    names = [file_name for file_name, _ in tables] + ([] if same_note else [EXPORT_NOTE])
+    if not overwrite:   # all checked first: nothing written when one would be replaced
+        for file_name in names:
+            if os.path.lexists(target / file_name):
+                raise AlgidError(f"{target / file_name}: exists; not replaced without "
+                                 f"overwrite=True (--force on the command line)")
     try:
         target.mkdir(parents=True, exist_ok=True)
-        for file_name, columns in _export_tables(name):
+        for file_name, columns in tables:
             path = target / file_name
-            path.write_text(_csv_text(columns), encoding="ascii")
+            _write_new(path, _csv_text(columns), "ascii", overwrite)
             written.append(path)
-        note = _data_file("README.md").read_text(encoding="utf-8")
-        (target / EXPORT_NOTE).write_text(note, encoding="utf-8")
+        if not same_note:
+            _write_new(target / EXPORT_NOTE, note, "utf-8", overwrite)
+    except FileExistsError as exc:   # (created meanwhile, or a link: never followed)
+        raise AlgidError(f"{exc.filename or target}: exists; not replaced without "
+                         f"overwrite=True (--force on the command line)") from None
     except OSError as exc:
         raise AlgidError(f"{exc.filename or target}: cannot write "
                          f"({exc.strerror or exc})") from None

@@ -13,13 +13,27 @@ of its algebra are written once to files named by a hash of their text, in
 process that uses the same model loads it instead of compiling.  Where no cache
 directory is usable the loop is compiled in memory.  A compilation to come is announced
 by one line on standard error.
+
+numba's cache files are pickles, and loading one runs what it says: a cache that another
+user could write (the directory, its ``__pycache__``, a file there, numba's place for it
+under ``$NUMBA_CACHE_DIR``, or a parent that lets others rename them) is not read, the
+loop is compiled in memory and one line on standard error says why; the default
+directory is created private (0700).  The same check guards numba's cache of the built-in
+models' loops (``__pycache__`` beside ``algid/_generated``, or numba's user-wide cache),
+unless the package's own folder is as writable.  A cache file that cannot be loaded (cut
+short, damaged) is compiled anew instead of raising.  Not covered: the other functions
+algid compiles with ``cache=True`` (tracker kernels, signal checks, numerical error),
+which numba caches beside the installed package (writable by whoever can change its
+code) or under ``$NUMBA_CACHE_DIR``: keep that directory private.
 """
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import importlib
 import os
+import stat
 import sys
 from functools import cache, lru_cache
 
@@ -34,13 +48,111 @@ __all__ = ["advance", "bound_sample", "bound_sample_pair", "pack_pair", "PAIR_AR
            "compiled_loop", "user_cache_dir", "machine_code_cached"]
 
 
+def _cache_base():
+    base = os.environ.get("ALGID_CACHE_DIR")
+    if base is None:
+        numba_dir = os.environ.get("NUMBA_CACHE_DIR")
+        base = os.path.join(numba_dir, "algid") if numba_dir else os.path.join(
+            os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"),
+                                                             ".cache"), "algid")
+    return base
+
+
+def _shared(path, entries=False):
+    """Why another user could change ``path`` (a directory, or with ``entries`` also
+    the files in it), or None: it, or they, must be ours and writable by us only."""
+    try:
+        names = [""] + (sorted(os.listdir(path)) if entries else [])
+    except OSError:
+        return None   # (not there yet: numba creates it, with our umask)
+    private = False
+    for name in names:
+        place = os.path.join(path, name) if name else path
+        try:
+            st = os.lstat(place) if name else os.stat(place)
+        except OSError:
+            continue
+        if st.st_uid != os.geteuid():
+            return f"{place} belongs to another user (uid {st.st_uid})"
+        # (the modes of files in a directory others cannot enter do not matter)
+        if st.st_mode & 0o022 and not private:
+            return f"{place} is writable by others (mode {stat.S_IMODE(st.st_mode):04o})"
+        private = private or not (name or st.st_mode & 0o011)
+    return None
+
+
+def _ancestors_shared(path):
+    """Why another user could rename ``path`` away (a parent writable by others without
+    the sticky bit of ``/tmp``, or owned by another user but root), or None."""
+    parent = os.path.dirname(os.path.realpath(path))
+    while True:
+        try:
+            st = os.stat(parent)
+        except OSError:
+            return None
+        if st.st_mode & 0o022 and not st.st_mode & stat.S_ISVTX:
+            return f"{parent} is writable by others (mode {stat.S_IMODE(st.st_mode):04o})"
+        if st.st_uid not in (0, os.geteuid()):
+            return f"{parent} belongs to another user (uid {st.st_uid})"
+        if parent == os.path.dirname(parent):
+            return None
+        parent = os.path.dirname(parent)
+
+
+def _unsafe_reason(base, directory):
+    """Why the cache in ``directory`` (under ``base``) could hold files written by
+    someone else, or None.
+
+    numba's cache index is a pickle, loaded (code run) when the loop is first called:
+    the directory, its ``__pycache__`` and their files must be ours and writable by us
+    only, and the parents of ``base`` must not let others rename it.
+    """
+    real = os.path.realpath(directory)
+    return (_shared(os.path.realpath(base)) or _shared(real, entries=True)
+            or _shared(os.path.join(real, "__pycache__"), entries=True)
+            or _ancestors_shared(base))
+
+
+def _machine_code_unsafe(module):
+    """Why numba's cache of the functions of ``module`` (``__pycache__`` beside the file,
+    or under ``$NUMBA_CACHE_DIR``) could hold files written by someone else, or None."""
+    for path in sorted({function._cache.cache_path for function in vars(module).values()
+                        if hasattr(getattr(function, "_cache", None), "cache_path")}):
+        reason = _shared(path, entries=True) or _ancestors_shared(path)
+        if reason:
+            return reason
+    return None
+
+
+def _cache_dir_and_reason():
+    """The cache directory of user models, or None and why none is used."""
+    base = _cache_base()
+    if not base:
+        return None, "the cache is turned off (ALGID_CACHE_DIR is empty)"
+    directory = os.path.join(base, "user_models")
+    try:   # private when we create them (the parents above: the user's umask)
+        os.makedirs(base, mode=0o700, exist_ok=True)
+        if not os.path.isdir(directory):
+            os.mkdir(directory, mode=0o700)
+    except OSError as exc:
+        return None, f"{directory} cannot be created ({exc.strerror or exc})"
+    if not os.access(directory, os.W_OK | os.X_OK):
+        return None, f"{directory} is not writable"
+    reason = _unsafe_reason(base, directory)
+    if reason:
+        return None, f"{reason}: the cache is not used"
+    return directory, None
+
+
 def user_cache_dir():
     """Directory where the compiled loops of user models are cached, or None.
 
     ``$ALGID_CACHE_DIR`` if it is set (set to an empty string, it turns the cache off);
     else ``algid`` under ``$NUMBA_CACHE_DIR`` if that is set; else
-    ``$XDG_CACHE_HOME/algid`` (default ``~/.cache/algid``).  None if the directory
-    cannot be created or written.
+    ``$XDG_CACHE_HOME/algid`` (default ``~/.cache/algid``).  Created private (mode
+    0700).  None if the directory cannot be created or written, or if another user
+    could write into it (it, a parent or a file there belongs to another user or is
+    writable by others): numba's cache holds pickles that run code when loaded.
 
     Returns
     -------
@@ -48,20 +160,7 @@ def user_cache_dir():
         The directory of the cached sources (numba keeps its machine code beside them,
         or under ``$NUMBA_CACHE_DIR``).
     """
-    base = os.environ.get("ALGID_CACHE_DIR")
-    if base is None:
-        numba_dir = os.environ.get("NUMBA_CACHE_DIR")
-        base = os.path.join(numba_dir, "algid") if numba_dir else os.path.join(
-            os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"),
-                                                             ".cache"), "algid")
-    if not base:
-        return None
-    directory = os.path.join(base, "user_models")
-    try:
-        os.makedirs(directory, exist_ok=True)
-    except OSError:
-        return None
-    return directory if os.access(directory, os.W_OK | os.X_OK) else None
+    return _cache_dir_and_reason()[0]
 
 
 def _digest(text):
@@ -92,7 +191,8 @@ def _module_from_file(name, path):
 
 def _cached_loop(module, directory):
     """The loops of a model compiled in memory, loaded from files in ``directory`` so
-    that numba caches its machine code; None if its texts are not as generated."""
+    that numba caches its machine code; None if its texts are not as generated, or why
+    numba's cache of them is not used (a str)."""
     source = getattr(module, "GENERATED_SOURCE", None)
     loop_source = module.NUMBA_SOURCE
     algebra_import = f"from {module.__name__} import cramer, regressors_packed\n"
@@ -104,13 +204,21 @@ def _cached_loop(module, directory):
                                       f"from {algebra} import cramer, regressors_packed\n")
     loop_source = loop_source.replace("\nCACHE = False\n", "\nCACHE = True\n")
     loop_name = f"{algebra}_numba_{_digest(loop_source)}"
+    with contextlib.suppress(OSError):   # private before numba makes it (with the umask)
+        os.mkdir(os.path.join(directory, "__pycache__"), mode=0o700)
     _write_once(os.path.join(directory, algebra + ".py"), source)
     _write_once(os.path.join(directory, loop_name + ".py"), loop_source)
-    if not machine_code_cached(directory, loop_name):
-        _announce_compilation(module, f"once: numba caches it in {directory}")
     if algebra not in sys.modules:
         _module_from_file(algebra, os.path.join(directory, algebra + ".py"))
-    return _module_from_file(loop_name, os.path.join(directory, loop_name + ".py"))
+    loops = _module_from_file(loop_name, os.path.join(directory, loop_name + ".py"))
+    # (numba reads its cache at the first call only: the modules made, nothing loaded)
+    reason = _machine_code_unsafe(sys.modules[algebra]) or _machine_code_unsafe(loops)
+    if reason:
+        return reason
+    if not machine_code_cached(directory, loop_name):
+        _announce_compilation(module, f"once: numba caches it in {directory}")
+    _recompile_if_damaged(sys.modules[algebra])
+    return _recompile_if_damaged(loops)
 
 
 def machine_code_cached(directory, loop_name):
@@ -131,9 +239,10 @@ def machine_code_cached(directory, loop_name):
     bool
     """
     places = [os.path.join(directory, "__pycache__")]
-    if os.environ.get("NUMBA_CACHE_DIR"):  # numba mirrors the source's path there
-        places.append(os.path.join(os.environ["NUMBA_CACHE_DIR"],
-                                   os.path.abspath(directory).lstrip(os.sep)))
+    if os.environ.get("NUMBA_CACHE_DIR"):  # numba's place there: <folder>_<sha1 of path>
+        source = os.path.abspath(directory)
+        places.append(os.path.join(os.environ["NUMBA_CACHE_DIR"], os.path.basename(source)
+                                   + "_" + hashlib.sha1(source.encode()).hexdigest()))
     for place in places:
         try:
             names = os.listdir(place)
@@ -152,20 +261,70 @@ def _announce_compilation(module, how):
           file=sys.stderr, flush=True)
 
 
+def _recompile_if_damaged(module):
+    """Make the compiled functions of ``module`` compile anew where numba's cache file
+    of them cannot be loaded (cut short, damaged), instead of raising from its
+    unpickling; the index is removed so that numba writes a fresh one."""
+    for function in list(vars(module).values()):
+        functions_cache = getattr(function, "_cache", None)
+        load = getattr(functions_cache, "load_overload", None)
+        index = getattr(getattr(functions_cache, "_cache_file", None), "_index_path", None)
+        if load is None or index is None or getattr(load, "_algid_guarded", False):
+            continue
+
+        def guarded(signature, target_context, _load=load, _index=index, _name=module.__name__):
+            try:
+                return _load(signature, target_context)
+            except Exception as exc:  # noqa: BLE001 - anything unpickling damaged bytes raises
+                print(f"algid: numba's cache file {_index} cannot be loaded "
+                      f"({type(exc).__name__}); compiling {_name} again", file=sys.stderr,
+                      flush=True)
+                with contextlib.suppress(OSError):
+                    os.unlink(_index)
+                return None
+
+        guarded._algid_guarded = True
+        functions_cache.load_overload = guarded
+    return module
+
+
+def _built_in_loops(name):
+    """The loops of a model generated at derivation time; numba's cache of them (in
+    ``__pycache__`` beside the package's file, else numba's user-wide cache or
+    ``$NUMBA_CACHE_DIR``) is not read where others could have written it."""
+    loops = importlib.import_module(name)
+    reason = _machine_code_unsafe(loops)
+    # a cache as writable as the package's own code (a group-writable install) is no
+    # way in that the code is not
+    if reason is None or _shared(os.path.dirname(os.path.abspath(loops.__file__))):
+        return _recompile_if_damaged(loops)
+    from numba.core.caching import NullCache
+
+    for function in vars(loops).values():   # before their first call: nothing read
+        if hasattr(getattr(function, "_cache", None), "cache_path"):
+            function._cache = NullCache()
+    print(f"algid: numba's cache of {name} is not used ({reason}); compiling it in memory",
+          file=sys.stderr, flush=True)
+    return loops
+
+
 @cache
 def _loops_of(module):
     """The module of the compiled loops of a generated module."""
     if MODULES.get(module.MODEL) == module.__name__:
-        return importlib.import_module(NUMBA_MODULES[module.MODEL])
-    directory = user_cache_dir()
+        return _built_in_loops(NUMBA_MODULES[module.MODEL])
+    directory, reason = _cache_dir_and_reason()
     if directory is not None:
         try:
             loops = _cached_loop(module, directory)
         except OSError:  # the directory went away or is full: compile in memory
-            loops = None
+            loops, reason = None, f"{directory} cannot be written"
+        if isinstance(loops, str):
+            loops, reason = None, f"{loops}: numba's cache is not used"
         if loops is not None:
             return loops
-    _announce_compilation(module, "in memory: no cache directory is writable")
+        reason = reason or "its source is not as generated"
+    _announce_compilation(module, f"in memory: {reason}")
     return module_from_source(module.NUMBA_SOURCE, module.__name__ + "_numba")
 
 

@@ -21,14 +21,14 @@ the innovations of windows that share no sample (:mod:`algid.identification`'s
 ``_change_detection``), tuned to a false-alarm rate per second of stream time.
 
 The state is bounded by the window and the number of parameters, whatever the stream's
-length; :meth:`Tracker.save` writes it to a NumPy ``.npz`` file (arrays and a JSON
-header, no pickled object) and :meth:`Tracker.load` continues it bit for bit.  See the
+length; :meth:`Tracker.save` writes it to a NumPy ``.npz`` file (arrays, a JSON header
+and their checksum, no pickled object) and :meth:`Tracker.load` checks it
+(:mod:`algid.identification._tracker_file`) and continues it bit for bit.  See the
 user guide, "Tracking on a stream", for the details and the measured figures.
 """
 
 from __future__ import annotations
 
-import json
 import math
 import types
 from dataclasses import dataclass, field
@@ -45,6 +45,7 @@ from algid._record_input import (
     read_column,
 )
 from algid.errors import AlgidError, InputDataError
+from algid.identification import _tracker_file
 from algid.identification._arguments import check_arguments, check_model_columns
 from algid.identification._bias_compensation import koopmans_stack
 from algid.identification._change_detection import INCREMENT_CAP, cusum_reference, cusum_threshold
@@ -85,9 +86,6 @@ DETERMINED_LEAK = 1e-6
 
 #: Steps seen before the sampling step of a time column is fixed (their median).
 STEP_SAMPLES = 16
-
-_FORMAT = "algid.Tracker/2"
-
 
 @dataclass
 class TrackUpdate:
@@ -463,24 +461,15 @@ class Tracker:
                            np.array(out["alarms"], dtype=float))
 
     def save(self, path):
-        """Write the whole state to a NumPy ``.npz`` file (arrays and a JSON header).
+        """Write the whole state to a NumPy ``.npz`` file.
+
+        The file holds the arrays, a JSON header and a SHA-256 checksum of both.
 
         Parameters
         ----------
         path : str or path-like
         """
-        arrays, scalars = {}, {}
-        for key, value in self.s.items():
-            if isinstance(value, np.ndarray):
-                arrays[f"s/{key}"] = value
-            else:
-                value = value.item() if isinstance(value, np.generic) else value
-                scalars[key] = float(value) if isinstance(value, float) else value
-        header = {"format": _FORMAT, "config": self.config, "scalars": {
-            k: (repr(v) if isinstance(v, float) else v) for k, v in scalars.items()},
-            "floats": [k for k, v in scalars.items() if isinstance(v, float)]}
-        with open(path, "wb") as f:
-            np.savez(f, header=np.array(json.dumps(header)), **arrays)
+        _tracker_file.write(path, self.config, self.s)
 
     @classmethod
     def load(cls, path):
@@ -497,29 +486,21 @@ class Tracker:
         Raises
         ------
         InputDataError
-            A file that is not a saved tracker.
+            A file that is not a saved tracker, altered after it was saved (its checksum),
+            or whose arrays do not fit its model and configuration (one line naming the
+            file and the array).
         """
+        config, scalars, arrays = _tracker_file.read(path)
         try:
-            with np.load(path, allow_pickle=False) as data:
-                header = json.loads(str(data["header"]))
-                arrays = {k[2:]: data[k] for k in data.files if k.startswith("s/")}
-        except (OSError, ValueError, KeyError) as exc:
-            raise InputDataError(f"{path}: not a saved tracker ({exc})") from None
-        if header.get("format") != _FORMAT:
-            raise InputDataError(f"{path}: not a saved tracker (format "
-                                 f"{header.get('format')!r})")
-        config = header["config"]
-        tracker = cls(config["equation"], config["parameters"], rate=config["rate"],
-                      time=config["time"], output=config["output"], window=config["window"],
-                      half_life=config["half_life"], method=config["method"],
-                      warmup=config["warmup"], false_alarm_rate=config["false_alarm_rate"],
-                      every=config["every"])
+            tracker = cls(config["equation"], config["parameters"], rate=config["rate"],
+                          time=config["time"], output=config["output"],
+                          window=config["window"], half_life=config["half_life"],
+                          method=config["method"], warmup=config["warmup"],
+                          false_alarm_rate=config["false_alarm_rate"], every=config["every"])
+        except AlgidError as exc:
+            raise InputDataError(f"{path}: its configuration is refused: {exc}") from None
         tracker.config = config
-        scalars = {k: (float(v) if k in header["floats"] else v)
-                   for k, v in header["scalars"].items()}
-        tracker.s = {**scalars, **arrays}
-        if tracker.s["configured"]:
-            tracker._derive()
+        _tracker_file.check_state(path, tracker, scalars, arrays)
         return tracker
 
     # ------------------------------------------------------------------ input
