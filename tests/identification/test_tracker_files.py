@@ -73,18 +73,18 @@ def test_save_and_load_continue_bit_for_bit(saved, tmp_path):
     loaded = Tracker.load(path)
     for key, value in contents(path).items():
         if key.startswith("s/"):
-            assert loaded.s[key[2:]].tobytes() == value.tobytes(), key
+            assert loaded.state.flat()[key[2:]].tobytes() == value.tobytes(), key
 
 
 def test_state_before_the_window_is_chosen(tmp_path):
     record, _ = linear_offsets(4, n=100)
     tracker = Tracker(EQUATION, NAMES, time="t", warmup=5.0)
     feed(tracker, record, 0, 100)
-    assert not tracker.s["configured"]
+    assert not tracker.state.configured
     tracker.save(tmp_path / "warm.npz")
     restored = Tracker.load(tmp_path / "warm.npz")
-    assert restored.s.keys() == tracker.s.keys()
-    assert np.array_equal(restored.s["warm:y"], tracker.s["warm:y"])
+    assert restored.state.flat().keys() == tracker.state.flat().keys()
+    assert np.array_equal(restored.state.warmup.signals["y"], tracker.state.warmup.signals["y"])
 
 
 @pytest.mark.parametrize("key", ["U", "ring_rows", "buf_t", "buf:y", "fac:0", "R"])

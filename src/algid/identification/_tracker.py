@@ -53,6 +53,15 @@ from algid.identification._identify import WINDOW_OVERLAP, factor_sensitivity, t
 from algid.identification._methods import TRACKER_METHODS
 from algid.identification._records import GAP_FACTOR, UNIFORM_TOLERANCE
 from algid.identification._tracker_kernels import kernels, solvers
+from algid.identification._tracker_state import (
+    MAX_WINDOW_SAMPLES,
+    Pending,
+    Segment,
+    Sums,
+    Tests,
+    TrackerState,
+    Warmup,
+)
 from algid.identification._window_basis import ROUNDOFF_SEPARABILITY
 from algid.identification._window_covariance import sandwich_stack
 from algid.identification._window_kernels import (
@@ -283,9 +292,6 @@ def _stride_and_overlap(length):
 #: to: beyond about 1e13 its run-length recursion loses the precision to place it.
 MAX_RUN_LENGTH = 1e12
 
-#: Longest window (samples) a tracker accepts: its state holds a few arrays of a
-#: window's samples.
-MAX_WINDOW_SAMPLES = 2**20
 
 
 class TrackerSetupError(InputDataError):
@@ -388,14 +394,14 @@ class Tracker:
                        if model.output in term.factor.signals() and i not in self._sign_terms]
         self._needs_derivatives = model.needs_derivatives   # (a property: computed)
         self.lag = DERIVATIVE_STEPS // 2 if self._needs_derivatives else 0
-        self.s = {"seen": 0, "last_time": -np.inf, "configured": False, "alarms": 0,
-                  "warm_t": np.empty(0), **{f"warm:{n}": np.empty(0) for n in self._signals}}
+        self.state = TrackerState(
+            warmup=Warmup(signals={n: np.empty(0) for n in self._signals}))
 
     # ------------------------------------------------------------------ public
     @property
     def window(self):
         """The window length (s), or None before it is chosen."""
-        return self.s.get("window")
+        return self.state.window
 
     @property
     def half_life(self):
@@ -405,7 +411,7 @@ class Tracker:
     @property
     def alarm_count(self):
         """Alarms raised since the start of the stream."""
-        return int(self.s["alarms"])
+        return int(self.state.alarms)
 
     def state_size(self):
         """Floating-point numbers in the state (bounded whatever the stream's length).
@@ -414,7 +420,7 @@ class Tracker:
         -------
         int
         """
-        return int(sum(np.size(v) for v in self.s.values()))
+        return self.state.size()
 
     def update(self, chunk):
         """Stream the next samples.
@@ -440,11 +446,11 @@ class Tracker:
         """
         t, columns = self._read(chunk)
         self._out = {"t": [], "values": [], "stderr": [], "error": [], "alarms": []}
-        if not self.s["configured"]:
-            self.s["warm_t"] = np.concatenate([self.s["warm_t"], t])
+        warm = self.state.warmup
+        if warm is not None:   # (not configured)
+            warm.t = np.concatenate([warm.t, t])
             for name in self._signals:
-                self.s[f"warm:{name}"] = np.concatenate([self.s[f"warm:{name}"],
-                                                         columns[name]])
+                warm.signals[name] = np.concatenate([warm.signals[name], columns[name]])
             self._configure()
         else:
             self._pending(t, columns)
@@ -469,7 +475,7 @@ class Tracker:
         ----------
         path : str or path-like
         """
-        _tracker_file.write(path, self.config, self.s)
+        _tracker_file.write(path, self.config, self.state.flat())
 
     @classmethod
     def load(cls, path):
@@ -536,7 +542,7 @@ class Tracker:
             raise InputDataError("the columns of the chunk have different lengths (" + ", ".join(
                 f"{k}: {len(v)}" for k, v in columns.items()) + ")")
         if time is None:
-            t = (self.s["seen"] + np.arange(n)) / self.config["rate"]
+            t = (self.state.seen + np.arange(n)) / self.config["rate"]
             given = next((c for c in TIME_COLUMNS if c in chunk), None)
             if given is not None and n > 1:  # a time column beside rate= must agree (as
                 stamps = np.asarray(chunk[given])  # identify's), if it holds numbers
@@ -546,26 +552,27 @@ class Tracker:
         else:
             t = columns.pop(time)
             # one sample (a live stream): the checks below, on a scalar
-            if not (n == 1 and math.isfinite(t[0]) and t[0] > self.s["last_time"]):
+            if not (n == 1 and math.isfinite(t[0]) and t[0] > self.state.last_time):
                 self._check_times(time, t)
-        self.s["seen"] += n
+        self.state.seen += n
         if n:
-            self.s["last_time"] = float(t[-1])
+            self.state.last_time = float(t[-1])
         return t, columns
 
     def _check_times(self, time, t):
         if not np.all(np.isfinite(t)):
             raise InputDataError(f"time column {time!r} is not finite in the chunk")
-        previous = np.concatenate([[self.s["last_time"]], t])
+        previous = np.concatenate([[self.state.last_time], t])
         if np.any(np.diff(previous) <= 0):
             row = int(np.flatnonzero(np.diff(previous) <= 0)[0])
             raise InputDataError(f"time column {time!r} does not increase at t = "
-                                 f"{t[row]:.9g} (row {self.s['seen'] + row} of the stream)")
+                                 f"{t[row]:.9g} (row {self.state.seen + row} of the stream)")
 
     # ------------------------------------------------------------------ configuration
     def _configure(self):
         """Fix the step and the window once enough samples arrived; replay them."""
-        t = self.s["warm_t"]
+        warm = self.state.warmup
+        t = warm.t
         if self.config["rate"] is not None:
             step = 1.0 / self.config["rate"]
         elif len(t) > STEP_SAMPLES:
@@ -575,11 +582,11 @@ class Tracker:
         window = self.config["window"]
         cut = len(t)
         if window is None:
-            tried = int(self.s.get("warm_tries", 0))
+            tried = warm.tries
             while True:
                 span = self.config["warmup"] * 2 ** tried
                 if t[-1] - t[0] < span:
-                    self.s["warm_tries"] = tried
+                    warm.tries = tried
                     return
                 cut = int(np.searchsorted(t, t[0] + span, side="left")) + 1
                 window = self._choose_window(t[:cut], step)
@@ -602,13 +609,14 @@ class Tracker:
                                     f"kernels of multiplicity {max(self.multiplicities)} need; "
                                     f"use at least {(shortest - 1) * step:.4g} s")
         self._check_half_life(length, step)
-        self.s.update(configured=True, step=step, window=(length - 1) * step, length=length)
+        state = self.state
+        state.step, state.window, state.length = step, (length - 1) * step, length
+        state.warmup = None
         self._start_state()
-        warm = {n: self.s.pop(f"warm:{n}") for n in self._signals}
-        times = self.s.pop("warm_t")
-        self._samples(times[:cut], {n: v[:cut] for n, v in warm.items()})
+        times, held = warm.t, warm.signals   # replayed: the window's choice on the first
+        self._samples(times[:cut], {n: v[:cut] for n, v in held.items()})
         if cut < len(times):
-            self._samples(times[cut:], {n: v[cut:] for n, v in warm.items()})
+            self._samples(times[cut:], {n: v[cut:] for n, v in held.items()})
 
     def _check_half_life(self, length, step):
         """Refuse a half-life under which even an endless stream never holds the
@@ -633,22 +641,22 @@ class Tracker:
     def _choose_window(self, t, step):
         from algid.identification._identify import identify
 
-        record = {name: self.s[f"warm:{name}"][:len(t)] for name in self._signals}
+        record = {name: self.state.warmup.signals[name][:len(t)] for name in self._signals}
         record["__t"] = t
         try:
             return identify(record, self.model, time="__t", method=self.config["method"]).window
         except AlgidError:
             return None
 
-    def _derive(self):
-        """Constants that follow from the configuration."""
-        length = int(self.s["length"])
+    def _derive(self, length, step):
+        """Constants that follow from the configuration: the window of ``length``
+        samples, the sampling ``step`` (s)."""
         self.length = length
         self.stride, self.overlap = _stride_and_overlap(length)
         self.lag_weights = _lag_weights(self.overlap)
         self.keep = length + self.lag + 2 * DERIVATIVE_STEPS
         self.k_cusum = cusum_reference()
-        test_interval = self.overlap * self.stride * self.s["step"]
+        test_interval = self.overlap * self.stride * step
         rate = self.config["false_alarm_rate"]
         run_length = 1.0 / (rate * test_interval)
         if run_length < 2.0:   # (the CUSUM's threshold is tuned from two tests up)
@@ -705,36 +713,32 @@ class Tracker:
             self._taps[k] = np.ascontiguousarray(rows.T)   # row i: the estimate at sample i
 
     def _start_state(self):
-        self._derive()
+        state = self.state
+        self._derive(state.length, state.step)
         p = len(self.parameters)
         lags = 2 * self.overlap
-        s = self.s
         m = len(self.multiplicities)
         q = p * (p + 1)
-        s.update(R=np.zeros((m, p + 1, p + 1)), G=np.zeros((m, p + 1, p + 1)),
-                 U=np.zeros((lags + 1, q, q)), W=np.zeros(2), bound=np.zeros((2, 8)),
-                 last_end=np.nan,
-                 cusum=0.0, previous_test=np.full(p + 2, np.nan), last_report=-np.inf,
-                 ring_rows=np.zeros((lags, q)), ring_times=np.zeros(lags), ring_count=0,
-                 row_time=-np.inf, row_valid=True)
-        s.update(pend_t=np.empty(0), **{f"pend:{name}": np.empty(0) for name in self._signals})
+        state.sums = Sums(R=np.zeros((m, p + 1, p + 1)), G=np.zeros((m, p + 1, p + 1)),
+                          U=np.zeros((lags + 1, q, q)), W=np.zeros(2),
+                          bound=np.zeros((2, 8)), ring_rows=np.zeros((lags, q)),
+                          ring_times=np.zeros(lags))
+        state.tests = Tests(previous_test=np.full(p + 2, np.nan))
+        state.row_time, state.row_valid = -np.inf, True
+        state.pending = Pending(signals={name: np.empty(0) for name in self._signals})
         self._new_segment()
 
     def _new_segment(self):
-        s = self.s
-        s.update(seg_n=0, seg_first=0, seg_ready=0, next_window=0, bound_upto=0,
-                 buf_t=np.empty(0), ring_count=0, previous_test=np.full(len(self.parameters)
-                                                                        + 2, np.nan))
-        for name in self._signals:
-            s[f"buf:{name}"] = np.empty(0)
-        for name, k in self._needs_derivatives:
-            s[f"der:{name}:{k}"] = np.empty(0)
-        for i in range(len(self.model.terms)):
-            s[f"fac:{i}"] = np.empty(0)
-            s[f"sen:{i}"] = np.empty(0)
-            if i in self._sign_terms:
-                s[f"steps_t:{i}"] = np.empty(0)
-                s[f"steps_s:{i}"] = np.empty(0)
+        state = self.state
+        state.sums.ring_count = 0
+        state.tests.previous_test = np.full(len(self.parameters) + 2, np.nan)
+        terms = range(len(self.model.terms))
+        state.segment = Segment(
+            signals={name: np.empty(0) for name in self._signals},
+            derivatives={(name, k): np.empty(0) for name, k in self._needs_derivatives},
+            factors=[np.empty(0) for _ in terms], sensitivities=[np.empty(0) for _ in terms],
+            sign_times={i: np.empty(0) for i in self._sign_terms},
+            sign_steps={i: np.empty(0) for i in self._sign_terms})
 
     # ------------------------------------------------------------------ samples
     def _pending(self, t, columns):
@@ -744,39 +748,40 @@ class Tracker:
         before the segment holds ``next_window * stride + length + lag`` samples (gaps
         only delay it): short chunks cost one append until then.
         """
-        s = self.s
-        s["pend_t"] = np.concatenate([s["pend_t"], t])
+        s = self.state
+        seg = s.segment
+        s.pending.t = np.concatenate([s.pending.t, t])
         for name in self._signals:
-            s[f"pend:{name}"] = np.concatenate([s[f"pend:{name}"], columns[name]])
-        needed = s["next_window"] * self.stride + self.length + self.lag
+            s.pending.signals[name] = np.concatenate([s.pending.signals[name], columns[name]])
+        needed = seg.next_window * self.stride + self.length + self.lag
         if self.lag:
             needed = max(needed, DERIVATIVE_STEPS + 1)
-        if s["seg_n"] + len(s["pend_t"]) >= needed:
+        if seg.n + len(s.pending.t) >= needed:
             self._flush()
 
     def _flush(self):
-        s = self.s
-        t = s["pend_t"]
-        columns = {name: s[f"pend:{name}"] for name in self._signals}
-        s["pend_t"] = np.empty(0)
+        s = self.state
+        t = s.pending.t
+        columns = {name: s.pending.signals[name] for name in self._signals}
+        s.pending.t = np.empty(0)
         for name in self._signals:
-            s[f"pend:{name}"] = np.empty(0)
+            s.pending.signals[name] = np.empty(0)
         self._samples(t, columns)
 
     def _samples(self, t, columns):
         """Cut the samples at gaps and NaN rows (as identify's records are cut); feed each
         run of valid rows to its segment."""
-        s = self.s
+        s = self.state
         n = len(t)
         if not n:
             return
         valid = np.all([np.isfinite(columns[name]) for name in self._signals], axis=0)
-        rows_before = np.concatenate([[s["row_time"]], t[:-1]])
-        valid_before = np.concatenate([[s["row_valid"]], valid[:-1]])
-        cut = (t - rows_before > GAP_FACTOR * s["step"]) | ~valid_before
-        s["row_time"], s["row_valid"] = float(t[-1]), bool(valid[-1])
+        rows_before = np.concatenate([[s.row_time], t[:-1]])
+        valid_before = np.concatenate([[s.row_valid], valid[:-1]])
+        cut = (t - rows_before > GAP_FACTOR * s.step) | ~valid_before
+        s.row_time, s.row_valid = float(t[-1]), bool(valid[-1])
         if valid.all() and not cut[1:].any():   # the common case: one run
-            if cut[0] and s["seg_n"]:
+            if cut[0] and s.segment.n:
                 self._new_segment()
             self._extend(t, columns)
             return
@@ -784,16 +789,16 @@ class Tracker:
         for start, stop in zip(edges[::2], edges[1::2]):
             pieces = [start, *(start + 1 + np.flatnonzero(cut[start + 1:stop])), stop]
             for a, b in zip(pieces[:-1], pieces[1:]):
-                if cut[a] and s["seg_n"]:
+                if cut[a] and s.segment.n:
                     self._new_segment()
                 self._extend(t[a:b], {name: columns[name][a:b] for name in self._signals})
 
     def _extend(self, t, columns):
-        s = self.s
-        s["buf_t"] = np.concatenate([s["buf_t"], t])
+        seg = self.state.segment
+        seg.t = np.concatenate([seg.t, t])
         for name in self._signals:
-            s[f"buf:{name}"] = np.concatenate([s[f"buf:{name}"], columns[name]])
-        s["seg_n"] += len(t)
+            seg.signals[name] = np.concatenate([seg.signals[name], columns[name]])
+        seg.n += len(t)
         self._derivatives()
         self._factors()
         self._windows()
@@ -801,16 +806,17 @@ class Tracker:
 
     def _derivatives(self):
         """Derivatives inside factors, for the samples whose centred window arrived."""
-        s = self.s
-        n, first = s["seg_n"], s["seg_first"]
+        s = self.state
+        seg = s.segment
+        n, first = seg.n, seg.first
         half = DERIVATIVE_STEPS // 2
         for name, k in self._needs_derivatives:
-            key = f"der:{name}:{k}"
-            done = first + len(s[key])
+            key = (name, k)
+            done = first + len(seg.derivatives[key])
             final = n - half if n > DERIVATIVE_STEPS else 0   # samples with a final estimate
             if final <= done:
                 continue
-            y, t = s[f"buf:{name}"], s["buf_t"]
+            y, t = seg.signals[name], seg.t
             values = np.empty(final - done)
             width = DERIVATIVE_STEPS + 1
             for i in range(done, min(final, half)):   # the first window's edge taps
@@ -823,24 +829,24 @@ class Tracker:
                 step = (t[lo + DERIVATIVE_STEPS] - t[lo]) / DERIVATIVE_STEPS
                 values[interior - done] = np.einsum("ij,j->i", yw, self._taps[k][half]) \
                     / step ** k
-            s[key] = np.concatenate([s[key], values])
+            seg.derivatives[key] = np.concatenate([seg.derivatives[key], values])
 
     def _factors(self):
         """Factor values (and output sensitivities) of the samples ready for windows."""
-        s = self.s
-        first = s["seg_first"]
-        ready = s["seg_n"] - self.lag if self.lag else s["seg_n"]
-        if self.lag and s["seg_n"] <= DERIVATIVE_STEPS:
+        s = self.state
+        seg = s.segment
+        first = seg.first
+        ready = seg.n - self.lag if self.lag else seg.n
+        if self.lag and seg.n <= DERIVATIVE_STEPS:
             ready = 0
-        done = s["seg_ready"]
+        done = seg.ready
         if ready <= done:
             return
         lo, hi = done - first, ready - first
-        t = s["buf_t"][lo:hi]
-        values = {name: s[f"buf:{name}"][lo:hi] for name in self._signals}
+        t = seg.t[lo:hi]
+        values = {name: seg.signals[name][lo:hi] for name in self._signals}
         for name, k in self._needs_derivatives:
-            key = f"der:{name}:{k}"
-            values[(name, k)] = s[key][lo:hi]
+            values[(name, k)] = seg.derivatives[(name, k)][lo:hi]
         output = self.model.output
         h = 1e-6 * np.maximum(np.abs(values[output]), 1e-300)
         with np.errstate(all="ignore"):
@@ -856,72 +862,72 @@ class Tracker:
                                      f"{t[row]:.6g} s: the data leave its domain")
             if i in self._sign_terms:
                 self._sign_steps(i, z, t, lo)
-            s[f"fac:{i}"] = np.concatenate([s[f"fac:{i}"], z])
+            seg.factors[i] = np.concatenate([seg.factors[i], z])
             if i in self._noisy:
                 sens = np.ones(len(t)) if i in self._output_terms else \
                     factor_sensitivity(term.factor, output, values, t, h)
-                s[f"sen:{i}"] = np.concatenate([s[f"sen:{i}"], sens])
-        s["seg_ready"] = ready
+                seg.sensitivities[i] = np.concatenate([seg.sensitivities[i], sens])
+        seg.ready = ready
 
     def _sign_steps(self, i, v, t, lo):
         """Steps of ``sign(v)`` between the new samples and the one before them."""
-        s = self.s
+        seg = self.state.segment
         if lo > 0:
-            v = np.concatenate([s[f"fac:{i}"][lo - 1:lo], v])
-            t = np.concatenate([s["buf_t"][lo - 1:lo], t])
+            v = np.concatenate([seg.factors[i][lo - 1:lo], v])
+            t = np.concatenate([seg.t[lo - 1:lo], t])
         z = np.sign(v)
         at = np.flatnonzero(z[1:] != z[:-1])
         fraction = v[at] / (v[at] - v[at + 1])
-        s[f"steps_t:{i}"] = np.concatenate([s[f"steps_t:{i}"],
+        seg.sign_times[i] = np.concatenate([seg.sign_times[i],
                                             t[at] + fraction * (t[at + 1] - t[at])])
-        s[f"steps_s:{i}"] = np.concatenate([s[f"steps_s:{i}"], z[at + 1] - z[at]])
+        seg.sign_steps[i] = np.concatenate([seg.sign_steps[i], z[at + 1] - z[at]])
 
     def _trim(self):
         """Drop the samples no window or derivative will read again (bounded state)."""
-        s = self.s
-        start = min(s["next_window"] * self.stride, s["bound_upto"] - 8,
-                    s["seg_n"] - self.keep)
-        drop = max(0, start - s["seg_first"])
+        seg = self.state.segment
+        start = min(seg.next_window * self.stride, seg.bound_upto - 8,
+                    seg.n - self.keep)
+        drop = max(0, start - seg.first)
         if drop < 4 * self.keep:   # in blocks: fewer copies
             return
-        t0 = s["buf_t"][drop]
-        s["buf_t"] = s["buf_t"][drop:]
+        t0 = seg.t[drop]
+        seg.t = seg.t[drop:]
         for name in self._signals:
-            s[f"buf:{name}"] = s[f"buf:{name}"][drop:]
+            seg.signals[name] = seg.signals[name][drop:]
         for name, k in self._needs_derivatives:
-            key = f"der:{name}:{k}"
-            s[key] = s[key][drop:]
+            seg.derivatives[(name, k)] = seg.derivatives[(name, k)][drop:]
         for i in range(len(self.model.terms)):
-            s[f"fac:{i}"] = s[f"fac:{i}"][drop:]
+            seg.factors[i] = seg.factors[i][drop:]
             if i in self._noisy:
-                s[f"sen:{i}"] = s[f"sen:{i}"][drop:]
+                seg.sensitivities[i] = seg.sensitivities[i][drop:]
             if i in self._sign_terms:
-                keep = s[f"steps_t:{i}"] >= t0
-                s[f"steps_t:{i}"] = s[f"steps_t:{i}"][keep]
-                s[f"steps_s:{i}"] = s[f"steps_s:{i}"][keep]
-        s["seg_first"] += drop
+                keep = seg.sign_times[i] >= t0
+                seg.sign_times[i] = seg.sign_times[i][keep]
+                seg.sign_steps[i] = seg.sign_steps[i][keep]
+        seg.first += drop
 
     # ------------------------------------------------------------------ windows
     def _windows(self):
-        s = self.s
+        s = self.state
+        seg = s.segment
         L, stride = self.length, self.stride
-        count = (s["seg_ready"] - L) // stride + 1 if s["seg_ready"] >= L else 0
-        first_window = s["next_window"]
+        count = (seg.ready - L) // stride + 1 if seg.ready >= L else 0
+        first_window = seg.next_window
         if count <= first_window:
             return
-        starts = np.arange(first_window, count) * stride - s["seg_first"]
+        starts = np.arange(first_window, count) * stride - seg.first
         n = len(starts)
         rows, grams = self._rows_and_grams(starts)
-        ends = s["buf_t"][starts + L - 1]
+        ends = seg.t[starts + L - 1]
         squares, ranges = self._bound_squares(starts)
         m, q1 = len(self.multiplicities), len(self.parameters) + 1
         sums = {"R": np.empty((n, m, q1, q1)), "G": np.empty((n, m, q1, q1)),
                 "W": np.empty((n, 2)), "bound": np.empty((n, 2, 8)), "decay": np.empty(n)}
         window_sums = kernels()[0]
-        window_sums(rows, grams, ends, float(s["last_end"]), self._half_life, squares, ranges,
-                    s["R"], s["G"], s["W"], s["bound"], sums["R"], sums["G"], sums["W"],
+        window_sums(rows, grams, ends, float(s.sums.last_end), self._half_life, squares, ranges,
+                    s.sums.R, s.sums.G, s.sums.W, s.sums.bound, sums["R"], sums["G"], sums["W"],
                     sums["bound"], sums["decay"])
-        s["last_end"] = float(ends[-1])
+        s.sums.last_end = float(ends[-1])
         indices = first_window + np.arange(n)
         tested = indices % self.overlap == 0
         every = self.config["every"]
@@ -929,7 +935,7 @@ class Tracker:
             report = np.ones(n, bool)
         else:   # a window end that crosses a multiple of ``every`` since the last report
             crossed = np.floor(ends / every)
-            report = crossed > np.concatenate([[np.floor(s["last_report"] / every)],
+            report = crossed > np.concatenate([[np.floor(s.tests.last_report / every)],
                                                crossed[:-1]])
         n_eff = sums["W"][:, 0] ** 2 / sums["W"][:, 1] / self.overlap
         wanted = (tested | report) & (n_eff >= self.needed)   # enough for one parameter
@@ -945,17 +951,17 @@ class Tracker:
         for w in np.flatnonzero(tested):
             self._test(ends[w], rows[top, w], theta[w], residual[w], kappa[w], n_eff[w])
         if np.any(report):
-            s["last_report"] = float(ends[report][-1])
+            s.tests.last_report = float(ends[report][-1])
         self._out["t"].extend(ends[report].tolist())
         self._out["values"].extend(theta[report])
         self._out["stderr"].extend(stderr[report])
         self._out["error"].extend(error[report])
-        s["next_window"] = count
+        seg.next_window = count
 
     def _solve_numpy(self, rows, ends, sums, bounds, n_eff, wanted, report):
         """Estimates, standard errors, numerical errors, CUSUM residuals and long-run
         variance factors of a chunk's window ends, in batched NumPy calls."""
-        s = self.s
+        s = self.state
         n = len(ends)
         q1 = len(self.parameters) + 1
         top = self.multiplicities.index(max(self.multiplicities))
@@ -987,11 +993,11 @@ class Tracker:
             lower[where[solved["ok"][k:]]] = solved["theta"][k:][solved["ok"][k:]]
         bars = np.concatenate([values, -np.ones((n, 1))], axis=1)
         hac, trace = np.zeros((n, p, p)), np.zeros(n)
-        ring = np.array([s["ring_count"]], dtype=np.int64)
+        ring = np.array([s.sums.ring_count], dtype=np.int64)
         kernels()[1](np.ascontiguousarray(rows[top]), ends, sums["decay"], self._half_life,
-                     bars, self.lag_weights, s["U"], s["ring_rows"], s["ring_times"], ring,
+                     bars, self.lag_weights, s.sums.U, s.sums.ring_rows, s.sums.ring_times, ring,
                      hac, trace)
-        s["ring_count"] = int(ring[0])
+        s.sums.ring_count = int(ring[0])
         solved = np.flatnonzero(np.isfinite(values[:, 0]))
         stderr = np.full((n, p), np.nan)
         kappa = np.full(n, np.nan)
@@ -1012,7 +1018,7 @@ class Tracker:
     def _solve_compiled(self, compiled, rows, ends, sums, bounds, n_eff, wanted, report):
         """:meth:`_solve_numpy` window after window in compiled loops."""
         solve_windows, window_stderr = compiled[:2]
-        s = self.s
+        s = self.state
         n, p = len(ends), len(self.parameters)
         top = self.multiplicities.index(max(self.multiplicities))
         low = self.multiplicities.index(min(self.multiplicities))
@@ -1025,11 +1031,11 @@ class Tracker:
                       full, jacobian, mapping, lower)
         bars = np.concatenate([values, -np.ones((n, 1))], axis=1)
         hac, trace = np.zeros((n, p, p)), np.zeros(n)
-        ring = np.array([s["ring_count"]], dtype=np.int64)
+        ring = np.array([s.sums.ring_count], dtype=np.int64)
         kernels()[1](np.ascontiguousarray(rows[top]), ends, sums["decay"], self._half_life,
-                     bars, self.lag_weights, s["U"], s["ring_rows"], s["ring_times"], ring,
+                     bars, self.lag_weights, s.sums.U, s.sums.ring_rows, s.sums.ring_times, ring,
                      hac, trace)
-        s["ring_count"] = int(ring[0])
+        s.sums.ring_count = int(ring[0])
         stderr, kappa, residual = np.empty((n, p)), np.empty(n), np.empty(n)
         window_stderr(sums["R"], top, sums["W"], bars, hac, trace,
                       full, jacobian, mapping, kept, theta, float(self.lag_weights.sum()),
@@ -1040,18 +1046,19 @@ class Tracker:
     def _bound_squares(self, starts):
         """Squared output differences (orders 1 to 8) at the samples the windows add to
         the noise bound (identify's), and each window's range of them."""
-        s = self.s
-        ends = starts + self.length + s["seg_first"]   # in the segment's samples
-        upto = np.maximum.accumulate(np.concatenate([[max(s["bound_upto"], 0)], ends]))
+        s = self.state
+        seg = s.segment
+        ends = starts + self.length + seg.first   # in the segment's samples
+        upto = np.maximum.accumulate(np.concatenate([[max(seg.bound_upto, 0)], ends]))
         first = np.maximum(upto[:-1], 8)
         lo = int(first[0])
         hi = max(int(ends[-1]), lo)
-        s["bound_upto"] = int(upto[-1])
+        seg.bound_upto = int(upto[-1])
         ranges = np.stack([np.minimum(first, np.maximum(ends, first)) - lo,
                            np.maximum(ends, first) - lo], axis=1).astype(np.int64)
         squares = np.zeros((hi - lo, 8))
         if hi > lo:   # repeated differences (as identify's), elementwise: any chunking
-            d = s[f"buf:{self.model.output}"][lo - 8 - s["seg_first"]:hi - s["seg_first"]]
+            d = seg.signals[self.model.output][lo - 8 - seg.first:hi - seg.first]
             compiled = solvers()
             if compiled is not None:   # the same operations, in a compiled loop
                 compiled[4](d, squares)
@@ -1093,31 +1100,31 @@ class Tracker:
 
     def _test(self, end, row, theta, residual, kappa, n_eff):
         """The CUSUM step of a window that shares no sample with the last tested one."""
-        s = self.s
+        s = self.state
         p = len(self.parameters)
-        previous = s["previous_test"]
+        previous = s.tests.previous_test
         if np.all(np.isfinite(previous)):
             innovation = float(row @ np.append(previous[:p], -1.0))
             variance = previous[p] * (1.0 + p * previous[p + 1])
             if variance > 0:
                 increment = min(innovation ** 2 / variance, INCREMENT_CAP)
-                s["cusum"] = max(0.0, s["cusum"] + increment - self.k_cusum)
-                if s["cusum"] > self.h_cusum:
-                    s["cusum"] = 0.0
-                    s["alarms"] += 1
+                s.tests.cusum = max(0.0, s.tests.cusum + increment - self.k_cusum)
+                if s.tests.cusum > self.h_cusum:
+                    s.tests.cusum = 0.0
+                    s.alarms += 1
                     self._out["alarms"].append(float(end))
         if np.all(np.isfinite(theta)):
-            s["previous_test"] = np.concatenate([theta, [residual, kappa / max(n_eff, 1e-300)
+            s.tests.previous_test = np.concatenate([theta, [residual, kappa / max(n_eff, 1e-300)
                                                          / self.overlap]])
         else:
-            s["previous_test"] = np.full(p + 2, np.nan)
+            s.tests.previous_test = np.full(p + 2, np.nan)
 
     def _window_samples(self, starts):
         """Per window: the indices of its samples, its step (span / (length - 1)), whether
         it is uniform, and its times."""
         L = self.length
         index = starts[:, None] + np.arange(L)
-        tw = self.s["buf_t"][index]
+        tw = self.state.segment.t[index]
         step = (tw[:, -1] - tw[:, 0]) / (L - 1)
         if self.config["rate"] is not None:
             return index, step, np.ones(len(starts), bool), tw
@@ -1128,36 +1135,36 @@ class Tracker:
     def _rows_and_grams_compiled(self, window_rows, step_integrals, starts):
         """:meth:`_rows_and_grams` window after window in a compiled loop (the exact
         integrals of steps and irregular windows as there)."""
-        s = self.s
+        seg = self.state.segment
         L = self.length
         n, m, q1 = len(starts), len(self.multiplicities), len(self.parameters) + 1
         terms = self.model.terms
         first, last = int(starts[0]), int(starts[-1]) + L
-        tw0, tw1 = s["buf_t"][starts], s["buf_t"][starts + L - 1]
+        tw0, tw1 = seg.t[starts], seg.t[starts + L - 1]
         step = (tw1 - tw0) / (L - 1)
         if self.config["rate"] is not None:
             irregular = np.zeros(n, bool)
         else:
-            tw = s["buf_t"][starts[:, None] + np.arange(L)]
+            tw = seg.t[starts[:, None] + np.arange(L)]
             grid = tw[:, :1] + step[:, None] * np.arange(L)
             irregular = np.max(np.abs(tw - grid), axis=1) > UNIFORM_TOLERANCE * step
         integrals = np.empty((m, len(terms), n))
         for i in self._sign_terms:   # each window from its own start: any chunking
-            levels = np.sign(s[f"fac:{i}"][starts])
+            levels = np.sign(seg.factors[i][starts])
             for x, a in enumerate(self.multiplicities):
-                step_integrals(s["buf_t"], starts, L, levels, s[f"steps_t:{i}"],
-                               s[f"steps_s:{i}"], self._primitives[(a, terms[i].derivative)],
+                step_integrals(seg.t, starts, L, levels, seg.sign_times[i],
+                               seg.sign_steps[i], self._primitives[(a, terms[i].derivative)],
                                terms[i].derivative, integrals[x, i])
         for j in np.flatnonzero(irregular):
-            tw = s["buf_t"][starts[j]:starts[j] + L]
+            tw = seg.t[starts[j]:starts[j] + L]
             for i, term in enumerate(terms):
                 if i not in self._sign_terms:
-                    zw = s[f"fac:{i}"][starts[j]:starts[j] + L]
+                    zw = seg.factors[i][starts[j]:starts[j] + L]
                     for x, a in enumerate(self.multiplicities):
                         integrals[x, i, j] = float(
                             window_sample_weights(tw, None, L, a, term.derivative)[0] @ zw)
-        fac = np.stack([s[f"fac:{i}"][first:last] for i in range(len(terms))])
-        sen = np.stack([s[f"sen:{i}"][first:last] for i in self._noisy]) if self._noisy \
+        fac = np.stack([seg.factors[i][first:last] for i in range(len(terms))])
+        sen = np.stack([seg.sensitivities[i][first:last] for i in self._noisy]) if self._noisy \
             else np.zeros((0, last - first))
         rows, grams = np.empty((m, n, q1)), np.empty((m, n, q1, q1))
         table = self._term_table
@@ -1167,11 +1174,11 @@ class Tracker:
                     rows, grams)
         noisy = self._noisy_columns
         for j in np.flatnonzero(irregular):   # as in _rows_and_grams
-            tw = s["buf_t"][starts[j]:starts[j] + L]
+            tw = seg.t[starts[j]:starts[j] + L]
             for y, (c1, w1, k1, i1) in enumerate(noisy):
                 for c2, w2, k2, i2 in noisy[y:]:
-                    pw = s[f"sen:{i1}"][starts[j]:starts[j] + L] \
-                        * s[f"sen:{i2}"][starts[j]:starts[j] + L]
+                    pw = seg.sensitivities[i1][starts[j]:starts[j] + L] \
+                        * seg.sensitivities[i2][starts[j]:starts[j] + L]
                     for x, a in enumerate(self.multiplicities):
                         g = window_sample_weights(tw, None, L, a, k1) \
                             * window_sample_weights(tw, None, L, a, k2)
@@ -1187,7 +1194,8 @@ class Tracker:
         compiled = solvers()
         if compiled is not None:
             return self._rows_and_grams_compiled(compiled[2], compiled[3], starts)
-        s = self.s
+        s = self.state
+        seg = s.segment
         L = self.length
         index, step, uniform, tw = self._window_samples(starts)
         irregular = np.flatnonzero(~uniform)
@@ -1196,15 +1204,15 @@ class Tracker:
         for i, term in enumerate(self.model.terms):
             k = term.derivative
             if i in self._sign_terms:   # each window from its own start: any chunking
-                levels = np.sign(s[f"fac:{i}"][starts])
-                times = s[f"steps_t:{i}"]
+                levels = np.sign(seg.factors[i][starts])
+                times = seg.sign_times[i]
                 inside = (times > tw[0, 0]) & (times < tw[-1, -1])
                 for x, a in enumerate(self.multiplicities):
                     integrals[x].append(step_window_integrals(
-                        s["buf_t"][starts[0]:starts[-1] + L], 0.0, times[inside],
-                        s[f"steps_s:{i}"][inside], L, a, k, self.stride, levels=levels))
+                        seg.t[starts[0]:starts[-1] + L], 0.0, times[inside],
+                        seg.sign_steps[i][inside], L, a, k, self.stride, levels=levels))
                 continue
-            zw = s[f"fac:{i}"][index]
+            zw = seg.factors[i][index]
             scale = step ** k
             for x, a in enumerate(self.multiplicities):
                 w = np.einsum("ij,j->i", zw, self._unit_weights[(a, k)]) / scale
@@ -1220,7 +1228,7 @@ class Tracker:
         noisy = self._noisy_columns
         for y, (c1, w1, k1, i1) in enumerate(noisy):
             for c2, w2, k2, i2 in noisy[y:]:
-                pw = s[f"sen:{i1}"][index] * s[f"sen:{i2}"][index]
+                pw = seg.sensitivities[i1][index] * seg.sensitivities[i2][index]
                 scale = step ** -(k1 + k2) * (w1 * w2)
                 for x, a in enumerate(self.multiplicities):
                     g = self._unit_weights[(a, k1)] * self._unit_weights[(a, k2)]
@@ -1236,7 +1244,7 @@ class Tracker:
         step, uniform, tw = self._window_steps(starts)
         for x, (c1, w1, k1, i1) in enumerate(noisy):
             for c2, w2, k2, i2 in noisy[x:]:
-                product = s[f"sen:{i1}"] * s[f"sen:{i2}"]
+                product = seg.sensitivities[i1] * seg.sensitivities[i2]
                 pw = np.lib.stride_tricks.sliding_window_view(product, L)[starts]
                 g = self._unit_weights[(a, k1)] * self._unit_weights[(a, k2)]
                 v = np.einsum("ij,j->i", pw, g) * step ** -(k1 + k2) * (w1 * w2)

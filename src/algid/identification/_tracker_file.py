@@ -22,6 +22,7 @@ import zipfile
 import numpy as np
 
 from algid.errors import AlgidError, InputDataError
+from algid.identification._tracker_state import MAX_WINDOW_SAMPLES, TrackerState
 
 __all__ = ["FORMAT", "write", "read", "check_state", "state_layout"]
 
@@ -47,7 +48,8 @@ def _checksum(header_text, arrays):
 
 
 def write(path, config, state):
-    """Write ``state`` (the tracker's dict) and ``config`` to ``path``.
+    """Write ``state`` (the tracker's, flat: :meth:`TrackerState.flat`) and ``config``
+    to ``path``.
 
     Parameters
     ----------
@@ -290,9 +292,7 @@ def check_state(path, tracker, scalars, arrays):
     for key, value in scalars.items():
         if not _scalar_ok({**rules, **OPTIONAL}[key], value):
             raise InputDataError(f"{path}: scalar {key!r} is {value!r}")
-    tracker.s = dict(scalars)
     if configured:
-        from algid.identification._tracker import MAX_WINDOW_SAMPLES
         from algid.identification._window_rule import min_length
 
         length = scalars["length"]
@@ -302,7 +302,7 @@ def check_state(path, tracker, scalars, arrays):
                                 f"{scalars['step']!r} s is not {scalars['window']!r} s or "
                                 f"not one a tracker uses")
         try:
-            tracker._derive()
+            tracker._derive(length, scalars["step"])
         except AlgidError as exc:
             raise InputDataError(f"{path}: {exc}") from None
     layout = state_layout(tracker, configured)
@@ -331,7 +331,9 @@ def check_state(path, tracker, scalars, arrays):
         state[key] = array
     if configured:
         _check_counters(path, tracker, scalars, {k: v[0] for k, v in lengths.items()})
-    tracker.s.update(state)
+    tracker.state = TrackerState.from_flat(
+        {**scalars, **state}, tracker._signals, tracker._needs_derivatives,
+        len(tracker.model.terms), tracker._sign_terms)
 
 
 def _check_counters(path, tracker, s, lengths):
