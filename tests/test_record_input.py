@@ -177,3 +177,25 @@ def test_estimate_on_a_record_names_the_users_column_and_refuses_a_second_model(
         algid.estimate(dict(record, u=sim.f), *equation, model="msd")
     named = algid.estimate({"t": sim.t, "f": sim.f, "x": sim.x}, model="msd")
     assert np.array_equal(named.B, algid.estimate(sim.t, sim.f, sim.x).B, equal_nan=True)
+
+
+def test_hostile_frames_are_refused_in_one_line(record):
+    frame = pd.DataFrame(record)
+    for data, message in (
+            (pd.concat([frame, frame[["y"]]], axis=1), "several columns named 'y'"),
+            (frame["y"], "is a pandas Series, one signal"),
+            (pd.DataFrame(np.column_stack([record["t"]] * 40)),
+             r"no column 'y' .*columns: 0, 1, .*, 11, \.\.\. \(40 columns\)")):
+        with pytest.raises(algid.InputDataError, match=message):
+            algid.identify(data, *LINEAR_EQUATION)
+        with pytest.raises(algid.InputDataError, match=message.replace("for", "in")):
+            algid.Tracker(*LINEAR_EQUATION, window=0.1875, rate=80).update(data)
+
+
+def test_dates_with_a_time_zone_are_read_as_utc(record, reference):
+    frame = pd.DataFrame({"y": record["y"], "u": record["u"]},
+                         index=pd.date_range("2020-03-29 00:59:59", periods=len(record["t"]),
+                                             freq="12500us", tz="Europe/Paris"))
+    fit = algid.identify(frame, *LINEAR_EQUATION)   # (across a change to summer time)
+    for name, value in reference.values.items():
+        assert fit.values[name] == pytest.approx(value, rel=1e-9, abs=1e-12)

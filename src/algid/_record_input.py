@@ -35,7 +35,7 @@ from algid.errors import InputDataError
 
 __all__ = ["TIME_COLUMNS", "RATE_TOLERANCE", "STEP_RANGE", "is_record", "is_timeresponse",
            "as_record", "read_column", "refuse_unusable", "record_columns", "check_rate",
-           "check_rate_agrees", "refuse_nonfinite"]
+           "check_rate_agrees", "refuse_nonfinite", "column_list"]
 
 #: Column names taken as the time axis when neither ``time`` nor ``rate`` is given.
 TIME_COLUMNS = ("t", "time")
@@ -58,6 +58,10 @@ def is_timeresponse(data) -> bool:
 
 def _is_dataframe(data):
     return hasattr(data, "columns") and hasattr(data, "index") and hasattr(data, "iloc")
+
+
+def _is_series(data):
+    return hasattr(data, "index") and hasattr(data, "iloc") and not hasattr(data, "columns")
 
 
 def _is_dataset(data):
@@ -103,6 +107,9 @@ def as_record(data, what="record"):
     """
     if is_timeresponse(data):
         return _timeresponse_columns(data, what)
+    if _is_series(data):
+        raise InputDataError(f"{what} is a pandas Series, one signal: give a DataFrame (e.g. "
+                             f"series.to_frame()) or a mapping of column name -> samples")
     if _is_dataframe(data):
         return _dataframe_columns(data, what)
     if _is_dataset(data):
@@ -110,16 +117,24 @@ def as_record(data, what="record"):
     return data
 
 
-def _series_values(series):
-    """A pandas column as an array; a nullable numeric column's missing values as NaN."""
-    dtype = series.dtype
-    if not isinstance(dtype, np.dtype) and getattr(dtype, "kind", "O") in "iuf":
-        return series.to_numpy(dtype=float, na_value=np.nan)
-    return series.to_numpy()
+def _series_values(values):
+    """A pandas column or index as an array: a nullable numeric one's missing values as
+    NaN, dates with a time zone as UTC dates."""
+    dtype = values.dtype
+    if getattr(dtype, "tz", None) is not None:
+        values = values.tz_convert(None) if hasattr(values, "tz_convert") else \
+            values.dt.tz_convert(None)
+    elif not isinstance(dtype, np.dtype) and getattr(dtype, "kind", "O") in "iuf":
+        return values.to_numpy(dtype=float, na_value=np.nan)
+    return values.to_numpy()
 
 
 def _dataframe_columns(frame, what):
-    columns = {name: _series_values(frame[name]) for name in frame.columns}
+    names = list(frame.columns)
+    repeated = next((name for i, name in enumerate(names) if name in names[:i]), None)
+    if repeated is not None:
+        raise InputDataError(f"{what}: the DataFrame has several columns named {repeated!r}")
+    columns = {name: _series_values(frame[name]) for name in names}
     index = frame.index
     if getattr(index, "nlevels", 1) != 1 or type(index).__name__ == "RangeIndex":
         return columns
@@ -127,7 +142,7 @@ def _dataframe_columns(frame, what):
     if not (kind in "fmM" or index.name in TIME_COLUMNS):
         return columns     # row numbers (a filtered frame keeps its old ones): not time
     name = "t" if index.name is None else index.name
-    stamps = index.to_numpy()
+    stamps = _series_values(index)
     if name in columns:
         same = np.asarray(columns[name])
         if same.shape != stamps.shape or not np.array_equal(same, stamps):
@@ -156,6 +171,23 @@ def _timeresponse_columns(response, what):
             columns.setdefault(default, values[0])
     columns.setdefault("t", t)
     return columns
+
+
+def column_list(record, most=12):
+    """The record's column names for a message (the first ``most``, and their count).
+
+    Parameters
+    ----------
+    record : mapping
+    most : int, optional
+
+    Returns
+    -------
+    str
+    """
+    names = list(map(str, record.keys()))
+    return ", ".join(names[:most]) + (f", ... ({len(names)} columns)"
+                                      if len(names) > most else "")
 
 
 def refuse_unusable(values, what, *, dates=False):
@@ -239,7 +271,7 @@ def read_column(values, what, *, time=False):
 
 def _column(record, name, index, label):
     if name not in record:
-        available = ", ".join(map(str, record.keys()))
+        available = column_list(record)
         hint = (f"; if {name!r} is an unknown, add it to the parameters"
                 if label == "signal" else "")
         raise InputDataError(f"record {index}: no column {name!r} for the {label} "

@@ -41,6 +41,7 @@ from algid._record_input import (
     as_record,
     check_rate,
     check_rate_agrees,
+    column_list,
     is_record,
     read_column,
 )
@@ -529,7 +530,7 @@ class Tracker:
         for name in self._signals + ([time] if time is not None else []):
             if name not in chunk:
                 raise InputDataError(f"no column {name!r} in the chunk (columns: "
-                                     f"{', '.join(map(str, chunk.keys()))})")
+                                     f"{column_list(chunk)})")
             values = read_column(chunk[name], f"column {name!r}")  # (stream times: numbers)
             infinite = np.flatnonzero(np.isinf(values))
             if infinite.size:  # (NaN marks a missing sample, as in identify's records)
