@@ -156,3 +156,16 @@ def test_module_docstrings_are_short():
         if len(doc.splitlines()) > MAX_DOCSTRING_LINES:
             found[name] = len(doc.splitlines())
     assert not found, f"module docstrings over {MAX_DOCSTRING_LINES} lines: {found}"
+
+
+def test_import_algid_leaves_numba_and_scipy_s_heavy_subpackages_unimported():
+    """They cost a second of CPU at start-up; the calls that need them import them."""
+    import subprocess
+    import sys
+
+    heavy = ["numba", "scipy.signal", "scipy.stats", "scipy.interpolate", "scipy.integrate",
+             "scipy.optimize", "scipy.sparse", "control", "sympy", "matplotlib"]
+    code = ("import sys, algid; print(' '.join(m for m in %r if m in sys.modules))" % heavy)
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         env={"PYTHONPATH": str(SRC), "PATH": ""}, check=True)
+    assert out.stdout.split() == []

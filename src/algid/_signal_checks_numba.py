@@ -18,6 +18,10 @@ def _signal_scan():
     :func:`algid._signal_checks.check_experiment` that looks at the values."""
     import numba
 
+    from algid._compile_notice import watch
+
+    watch()
+
     # reductions in any order (vectorised); the result does not depend on the order:
     # a sum of x * 0 is NaN if and only if some x is not finite
     @numba.njit("float64(float64[::1], float64[::1], float64[::1])", cache=True, nogil=True,

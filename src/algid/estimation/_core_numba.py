@@ -40,9 +40,12 @@ from functools import cache, lru_cache
 import numba  # noqa: F401 - ImportError here: the backend is not available
 import numpy as np
 
+from algid._compile_notice import mark_said, watch
 from algid._generated import MODULES, NUMBA_MODULES
 from algid.models._registry import module_from_source
 from algid.signals._quadrature import integrator_weights
+
+watch()   # a line on stderr while numba compiles these for more than a second
 
 __all__ = ["advance", "bound_sample", "bound_sample_pair", "pack_pair", "PAIR_ARRAYS",
            "compiled_loop", "user_cache_dir", "machine_code_cached"]
@@ -256,6 +259,7 @@ def machine_code_cached(directory, loop_name):
 def _announce_compilation(module, how):
     # numba compiles a user model's loop at its first call, silently, for tens of
     # seconds to minutes: say so on stderr, so that it is not taken for a hang
+    mark_said()   # (the compile-event listener need not say it again)
     print(f"algid: compiling the numba loop of model {module.MODEL!r} at its first use "
           f"({how}); this can take a minute or more; engine='numpy' starts at once",
           file=sys.stderr, flush=True)

@@ -16,7 +16,6 @@ NumPy and SciPy only.
 from __future__ import annotations
 
 import numpy as np
-import scipy.linalg
 
 from algid.errors import InputDataError
 from algid.estimation._sensitivity import SENSITIVITY_PARAMETERS, check_input, output_sensitivities
@@ -65,7 +64,9 @@ def covariance_from_sensitivities(S, noise_std):
     if diag.min() <= 1e-13 * diag.max():
         raise InputDataError("the sensitivities are linearly dependent: the parameters "
                              "are not identifiable from these data (no excitation?)")
-    Rinv = scipy.linalg.solve_triangular(R, np.eye(R.shape[0]))
+    from scipy.linalg import solve_triangular
+
+    Rinv = solve_triangular(R, np.eye(R.shape[0]))
     cov_scaled = Rinv @ Rinv.T
     return cov_scaled / np.outer(scale, scale) * noise_std**2
 

@@ -15,6 +15,10 @@ import math
 import numba
 import numpy as np
 
+from algid._compile_notice import watch
+
+watch()   # a line on stderr while numba compiles these for more than a second
+
 __all__ = ["block_error", "sample_error", "larger_relative", "track_extent",
            "sample_extent"]
 

@@ -324,6 +324,10 @@ def compiled_scan():
     and within ``tolerance`` of ``dt`` (unless NaN)."""
     import numba
 
+    from algid._compile_notice import watch
+
+    watch()
+
     # reductions in any order (vectorised); the result does not depend on the order:
     # a sum of v * 0 is NaN if and only if some v is not finite
     @numba.njit("boolean(float64[::1], float64[::1], float64[::1], float64, float64, float64)",
@@ -541,6 +545,10 @@ def compiled_within():
     numba): ``within(f, x, limit_f, limit_x)`` is True when every ``|f| <= limit_f``
     and ``|x| <= limit_x`` (False for NaN)."""
     import numba
+
+    from algid._compile_notice import watch
+
+    watch()
 
     @numba.njit("boolean(float64[::1], float64[::1], float64, float64)", cache=True,
                 nogil=True)

@@ -32,7 +32,6 @@ import math
 from functools import lru_cache
 
 import numpy as np
-from scipy.special import erf
 
 __all__ = ["VARIANCE_RATIO", "INCREMENT_CAP", "cusum_reference", "average_run_length",
            "cusum_threshold"]
@@ -65,6 +64,8 @@ def cusum_reference(rho=VARIANCE_RATIO):
 def _chi2_cdf(x):
     """Distribution function of chi-square with one degree of freedom, capped at
     :data:`INCREMENT_CAP` (all the mass beyond it there)."""
+    from scipy.special import erf
+
     return np.where(x >= INCREMENT_CAP, 1.0, erf(np.sqrt(np.maximum(x, 0.0) / 2.0)))
 
 

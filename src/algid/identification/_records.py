@@ -13,7 +13,6 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.signal import savgol_filter
 
 from algid._record_input import as_record, is_record, record_columns
 from algid.errors import InputDataError
@@ -172,6 +171,8 @@ def estimate_derivative(y, t, order, step=None, span=None):
         span = min(span + (span % 2 == 0), n - (n % 2 == 0))
         polyorder = min(max(3, order + 1), span - 1)
         if span > polyorder >= order:
+            from scipy.signal import savgol_filter
+
             return savgol_filter(y, span, polyorder, deriv=order, delta=step)
     out = np.asarray(y, dtype=float)
     for _ in range(order):

@@ -30,7 +30,6 @@ The user guide, "How identify works", has the derivation and the fallbacks in fu
 from __future__ import annotations
 
 import numpy as np
-from scipy.interpolate import CubicHermiteSpline
 
 from algid.identification._window_kernels import sign_changes, sign_samples
 from algid.models._expression import Call, Power, Product, Signal, Sum
@@ -213,6 +212,8 @@ def _motion_residuals(position, t, jump, forcing, damping):
     The running integrals are those of cubic Hermite interpolants (with the samples'
     ``numpy.gradient`` as slopes for the forcing and the position; the trapezoid rule
     with its end correction), and are interpolated at ``tc`` the same way."""
+    from scipy.interpolate import CubicHermiteSpline
+
     forced = CubicHermiteSpline(t, forcing, np.gradient(forcing, t)).antiderivative()(t)
     once = CubicHermiteSpline(t, forced, forcing)           # int g
     twice = once.antiderivative()(t)

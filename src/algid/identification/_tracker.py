@@ -46,7 +46,6 @@ from algid._record_input import (
     read_column,
 )
 from algid.errors import AlgidError, InputDataError
-from algid.identification import _tracker_file
 from algid.identification._arguments import check_arguments, check_model_columns
 from algid.identification._bias_compensation import koopmans_stack
 from algid.identification._change_detection import INCREMENT_CAP, cusum_reference, cusum_threshold
@@ -476,6 +475,8 @@ class Tracker:
         ----------
         path : str or path-like
         """
+        from algid.identification import _tracker_file  # (zipfile, hashlib: on use)
+
         _tracker_file.write(path, self.config, self.state.flat())
 
     @classmethod
@@ -497,6 +498,8 @@ class Tracker:
             or whose arrays do not fit its model and configuration (one line naming the
             file and the array).
         """
+        from algid.identification import _tracker_file
+
         config, scalars, arrays = _tracker_file.read(path)
         try:
             tracker = cls(config["equation"], config["parameters"], rate=config["rate"],

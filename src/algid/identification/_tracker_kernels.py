@@ -22,6 +22,7 @@ bit for bit the compiled results.
 
 from __future__ import annotations
 
+import importlib.util
 import math
 import os
 from functools import cache
@@ -33,13 +34,11 @@ __all__ = ["USE_NUMBA", "window_sums", "window_scores", "window_scores_numpy", "
 
 
 def _numba_available():
+    """Whether numba is installed (found, not imported: importing it takes a third of a
+    second, paid at the first compiled call instead)."""
     if os.environ.get("ALGID_TRACKER_NUMPY", "") not in ("", "0"):
         return False
-    try:
-        import numba  # noqa: F401
-    except ImportError:
-        return False
-    return True
+    return importlib.util.find_spec("numba") is not None
 
 
 #: Whether :func:`kernels` compiles the recurrences with numba.
@@ -249,6 +248,10 @@ def window_scores_numpy(rows, ends, decays, half_life, bars, lag_weights, U, rin
 @cache
 def _compiled():
     import numba
+
+    from algid._compile_notice import watch
+
+    watch()
 
     jit = numba.njit(cache=True, nogil=True)
     return jit(window_sums), jit(window_scores)

@@ -32,8 +32,11 @@ import math
 import numba
 import numpy as np
 
+from algid._compile_notice import watch
 from algid.identification._window_basis import ROUNDOFF_SEPARABILITY
 from algid.identification._window_covariance import INDEFINITE_RTOL
+
+watch()   # a line on stderr while numba compiles these for more than a second
 
 __all__ = ["solve_windows", "window_stderr", "window_rows", "step_integrals",
            "difference_squares", "noise_bounds"]

@@ -24,7 +24,6 @@ from functools import lru_cache
 
 import numpy as np
 from numpy.polynomial import chebyshev
-from scipy.signal import fftconvolve
 
 from algid._generated.modulating import MAX_MULTIPLICITY, TERM_KERNELS
 from algid.errors import ModelError
@@ -95,6 +94,8 @@ def uniform_window_integrals(z, step, length, multiplicity, derivative, stride=1
     if length <= 64:
         full = np.correlate(z, g, mode="valid")
     else:
+        from scipy.signal import fftconvolve
+
         full = fftconvolve(z, g[::-1], mode="valid")
     return full[::stride]
 

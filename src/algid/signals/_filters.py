@@ -30,11 +30,10 @@ their relative accuracy.  NumPy and SciPy only.
 from __future__ import annotations
 
 import numbers
-from fractions import Fraction
+import sys
 from functools import cache
 
 import numpy as np
-import scipy.signal
 
 from algid.errors import InputDataError
 from algid.signals._quadrature import check_quadrature_points
@@ -89,6 +88,8 @@ def _shifted_lagrange(order: int, lo: int) -> np.ndarray:
     ``l_i`` is the Lagrange basis polynomial of the nodes ``0, ..., order - 1``
     (``l_i(j) = delta_ij``); exact rational arithmetic, rounded once at the end.
     """
+    from fractions import Fraction  # (exact weights; imported on first use)
+
     nodes = range(order)
     out = np.empty((order, order))
     for i in nodes:
@@ -376,11 +377,14 @@ def as_lowpass(spec):
     """
     if isinstance(spec, LowpassFilter):
         return spec
-    if isinstance(spec, scipy.signal.dlti):
+    # a scipy.signal system comes from an imported scipy.signal (not imported otherwise:
+    # it costs half a second)
+    signal = sys.modules.get("scipy.signal")
+    if signal is not None and isinstance(spec, signal.dlti):
         raise InputDataError(f"lowpass must be a continuous-time filter, got a discrete-time "
                              f"system with dt={spec.dt!r}")
-    if isinstance(spec, scipy.signal.lti):
-        if isinstance(spec, scipy.signal.StateSpace):
+    if signal is not None and isinstance(spec, signal.lti):
+        if isinstance(spec, signal.StateSpace):
             A, b, c = _from_state_space(spec.A, spec.B, spec.C, spec.D)
             return _checked(LowpassFilter(A, b, c), None)
         tf = spec.to_tf()
@@ -415,7 +419,9 @@ def as_lowpass(spec):
                              f"(a low-pass filter needs more poles than zeros)")
     roots = np.roots(den)
     _check_stable(roots)
-    A, B, C, _ = scipy.signal.tf2ss(num / den[0], den / den[0])
+    from scipy.signal import tf2ss
+
+    A, B, C, _ = tf2ss(num / den[0], den / den[0])
     return _checked(LowpassFilter(A, B[:, 0], C[0]), roots)
 
 

@@ -12,8 +12,6 @@ from __future__ import annotations
 import bisect
 
 import numpy as np
-from scipy.interpolate import CubicSpline
-from scipy.signal import firwin, resample_poly
 
 from algid.errors import InputDataError
 
@@ -97,6 +95,9 @@ class Interpolant:
     """
 
     def __init__(self, t, values, interpolation):
+        from scipy.interpolate import CubicSpline
+        from scipy.signal import firwin, resample_poly
+
         if interpolation == "bandlimited":
             step = (t[-1] - t[0]) / (len(t) - 1)
             taps = firwin(2 * FILTER_HALF_LENGTH * UPSAMPLING + 1, 1.0 / UPSAMPLING,

@@ -35,8 +35,6 @@ import math
 import numbers
 
 import numpy as np
-from scipy.integrate import solve_ivp
-from scipy.optimize import least_squares
 
 from algid._memory import check_fits
 from algid.errors import InputDataError, ModelError
@@ -403,6 +401,8 @@ def _integrate(equation, t, initial_state, method, rtol, atol, substeps=4):
             return equation(time, x)
 
         with np.errstate(over="ignore", invalid="ignore"):  # a diverging model: NaN below
+            from scipy.integrate import solve_ivp
+
             solution = solve_ivp(rhs, (t[0], t[-1]), state, method=method, t_eval=t,
                                  rtol=rtol, atol=atol)
     except _Exhausted as stop:
@@ -575,5 +575,7 @@ def fit_initial_state(model, parameters, time, inputs, measured_output, n_sample
     def residual(state):
         simulated = _integrate(equation, head, state, method, rtol, atol, substeps)[0]
         return np.where(np.isfinite(simulated), simulated - y[:m], 1e6 * scale)
+
+    from scipy.optimize import least_squares
 
     return least_squares(residual, guess, x_scale="jac").x

@@ -28,7 +28,6 @@ derivative of the output (``sign(q')``); otherwise a central difference along th
 from __future__ import annotations
 
 import numpy as np
-from scipy.integrate import solve_ivp
 
 __all__ = ["integrate_switched"]
 
@@ -166,6 +165,8 @@ def integrate_switched(equation, t, state, method, rtol, atol, tick):
     modes, sliding = pieces.start(now, state)
     while filled < len(t):
         rhs, events, owners = pieces.piece(modes, sliding)
+        from scipy.integrate import solve_ivp
+
         solution = solve_ivp(rhs, (now, t[-1]), state, method=method, t_eval=t[filled:],
                              events=events or None, rtol=rtol, atol=atol)
         # an event before the first sample time leaves no sample: SciPy then gives a list
