@@ -165,7 +165,7 @@ def test_import_algid_leaves_numba_and_scipy_s_heavy_subpackages_unimported():
 
     heavy = ["numba", "scipy.signal", "scipy.stats", "scipy.interpolate", "scipy.integrate",
              "scipy.optimize", "scipy.sparse", "control", "sympy", "matplotlib"]
-    code = ("import sys, algid; print(' '.join(m for m in %r if m in sys.modules))" % heavy)
+    code = f"import sys, algid; print(' '.join(m for m in {heavy!r} if m in sys.modules))"
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                          env={"PYTHONPATH": str(SRC), "PATH": ""}, check=True)
     assert out.stdout.split() == []

@@ -120,7 +120,7 @@ user = compile_model(derive(LinearODEModel.from_equation(
     "x'' + a*x' + b*x = f", parameters="a b", name="user_msd")))
 t = np.arange(800) * 1e-3
 fast = estimate(t, np.sin(3 * t), 0.1 * np.sin(3 * t - 0.4), model=user, engine="numba")
-loop = core_numba.compiled_loop(user)
+loop = core_numba._loops_of(user).advance
 print(json.dumps({"hits": sum(loop.stats.cache_hits.values()), "a": fast.a[-1]}))
 """
 

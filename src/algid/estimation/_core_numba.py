@@ -48,7 +48,7 @@ from algid.signals._quadrature import integrator_weights
 watch()   # a line on stderr while numba compiles these for more than a second
 
 __all__ = ["advance", "bound_sample", "bound_sample_pair", "pack_pair", "PAIR_ARRAYS",
-           "compiled_loop", "user_cache_dir", "machine_code_cached"]
+           "user_cache_dir", "machine_code_cached"]
 
 
 def _cache_base():
@@ -330,23 +330,6 @@ def _loops_of(module):
         reason = reason or "its source is not as generated"
     _announce_compilation(module, f"in memory: {reason}")
     return module_from_source(module.NUMBA_SOURCE, module.__name__ + "_numba")
-
-
-def compiled_loop(module):
-    """The compiled ``advance`` loop of a generated module.
-
-    Parameters
-    ----------
-    module : module
-        Generated estimator module: a built-in one, or one with ``NUMBA_SOURCE``
-        (:func:`algid.symbolic._codegen.compile_model`).
-
-    Returns
-    -------
-    callable
-        The numba-compiled loop (cached per module).
-    """
-    return _loops_of(module).advance
 
 
 #: The arguments of the error propagation where it is not active.

@@ -79,6 +79,7 @@ from algid.models._compiled import model_of
 from algid.models._expression import Call, Signal
 from algid.models._grammar import parse_equation
 from algid.models._model import Model
+from algid.signals._differentiation import algebraic_derivative
 
 __all__ = ["identify", "METHODS", "MULTIPLICITIES", "AGREEMENT", "CROSSING_PASSES",
            "window_criterion", "window_grid"]
@@ -285,11 +286,6 @@ class _Problem:
         if not blocks_a:
             raise InputDataError(f"no segment holds a window of {length} samples")
         return np.vstack(blocks_a), np.concatenate(blocks_b), np.concatenate(ids)
-
-    def to_parameters(self, theta, which="measured"):
-        """Parameter values from a solution of :meth:`rows`."""
-        columns, known, _ = self.exponents(which)
-        return np.ldexp(theta, known - columns)
 
     def to_rows(self, theta, which="measured"):
         """The solution of :meth:`rows` that parameter values make."""
@@ -530,12 +526,7 @@ def _add_derivatives(model, segments, estimator):
 
 
 def _derivative_estimate(y, t, order, step):
-    """Derivative inside a nonlinear factor: the algebraic differentiator when the
-    installed algid has it, else a local polynomial (Savitzky-Golay) derivative."""
-    try:
-        from algid.signals._differentiation import algebraic_derivative
-    except ImportError:
-        return estimate_derivative(y, t, order, step)
+    """Derivative inside a nonlinear factor: the algebraic differentiator."""
     if step is not None:
         return algebraic_derivative(y, step, derivative=order)
     return algebraic_derivative(y, time=t, derivative=order)

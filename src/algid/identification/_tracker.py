@@ -62,7 +62,7 @@ from algid.identification._tracker_state import (
     TrackerState,
     Warmup,
 )
-from algid.identification._window_basis import ROUNDOFF_SEPARABILITY
+from algid.identification._window_basis import DETERMINED_LEAK, ROUNDOFF_SEPARABILITY
 from algid.identification._window_covariance import sandwich_stack
 from algid.identification._window_kernels import (
     TERM_KERNELS,
@@ -88,10 +88,6 @@ DEFAULT_FALSE_ALARM_RATE = 1e-3
 
 #: Steps of the (centred) differentiator of derivatives inside factors.
 DERIVATIVE_STEPS = 20
-
-#: Largest share of a parameter's unit direction in the null space of the equations at
-#: which it still counts as determined (round-off leaves about 1e-15).
-DETERMINED_LEAK = 1e-6
 
 #: Steps seen before the sampling step of a time column is fixed (their median).
 STEP_SAMPLES = 16
@@ -407,11 +403,6 @@ class Tracker:
     def half_life(self):
         """The forgetting half-life (s), or None."""
         return self.config["half_life"]
-
-    @property
-    def alarm_count(self):
-        """Alarms raised since the start of the stream."""
-        return int(self.state.alarms)
 
     def state_size(self):
         """Floating-point numbers in the state (bounded whatever the stream's length).
@@ -927,7 +918,7 @@ class Tracker:
         m, q1 = len(self.multiplicities), len(self.parameters) + 1
         sums = {"R": np.empty((n, m, q1, q1)), "G": np.empty((n, m, q1, q1)),
                 "W": np.empty((n, 2)), "bound": np.empty((n, 2, 8)), "decay": np.empty(n)}
-        window_sums = kernels()[0]
+        window_sums = kernels().window_sums
         window_sums(rows, grams, ends, float(s.sums.last_end), self._half_life, squares, ranges,
                     s.sums.R, s.sums.G, s.sums.W, s.sums.bound, sums["R"], sums["G"], sums["W"],
                     sums["bound"], sums["decay"])
@@ -965,7 +956,6 @@ class Tracker:
     def _solve_numpy(self, rows, ends, sums, bounds, n_eff, wanted, report):
         """Estimates, standard errors, numerical errors, CUSUM residuals and long-run
         variance factors of a chunk's window ends, in batched NumPy calls."""
-        s = self.state
         n = len(ends)
         q1 = len(self.parameters) + 1
         top = self.multiplicities.index(max(self.multiplicities))
@@ -996,12 +986,7 @@ class Tracker:
                 array[ok] = solved[key][:k][good]
             lower[where[solved["ok"][k:]]] = solved["theta"][k:][solved["ok"][k:]]
         bars = np.concatenate([values, -np.ones((n, 1))], axis=1)
-        hac, trace = np.zeros((n, p, p)), np.zeros(n)
-        ring = np.array([s.sums.ring_count], dtype=np.int64)
-        kernels()[1](np.ascontiguousarray(rows[top]), ends, sums["decay"], self._half_life,
-                     bars, self.lag_weights, s.sums.U, s.sums.ring_rows, s.sums.ring_times, ring,
-                     hac, trace)
-        s.sums.ring_count = int(ring[0])
+        hac, trace = self._scores(rows[top], ends, sums["decay"], bars)
         solved = np.flatnonzero(np.isfinite(values[:, 0]))
         stderr = np.full((n, p), np.nan)
         kappa = np.full(n, np.nan)
@@ -1019,10 +1004,22 @@ class Tracker:
                 / sums["W"][solved, 0]
         return theta, stderr, error, residual, kappa
 
+    def _scores(self, rows, ends, decays, bars):
+        """The lagged products of the windows' scores (their overlap and forgetting) in
+        the state, and each window's HAC middle and its trace."""
+        sums = self.state.sums
+        n, p = bars.shape[0], bars.shape[1] - 1
+        hac, trace = np.zeros((n, p, p)), np.zeros(n)
+        ring = np.array([sums.ring_count], dtype=np.int64)
+        kernels().window_scores(np.ascontiguousarray(rows), ends, decays, self._half_life, bars,
+                                self.lag_weights, sums.U, sums.ring_rows, sums.ring_times,
+                                ring, hac, trace)
+        sums.ring_count = int(ring[0])
+        return hac, trace
+
     def _solve_compiled(self, compiled, rows, ends, sums, bounds, n_eff, wanted, report):
         """:meth:`_solve_numpy` window after window in compiled loops."""
-        solve_windows, window_stderr = compiled[:2]
-        s = self.state
+        solve_windows, window_stderr = compiled.solve_windows, compiled.window_stderr
         n, p = len(ends), len(self.parameters)
         top = self.multiplicities.index(max(self.multiplicities))
         low = self.multiplicities.index(min(self.multiplicities))
@@ -1034,12 +1031,7 @@ class Tracker:
                       self.config["method"] == "bc", MIN_SPARE_WINDOWS, theta, values, kept,
                       full, jacobian, mapping, lower)
         bars = np.concatenate([values, -np.ones((n, 1))], axis=1)
-        hac, trace = np.zeros((n, p, p)), np.zeros(n)
-        ring = np.array([s.sums.ring_count], dtype=np.int64)
-        kernels()[1](np.ascontiguousarray(rows[top]), ends, sums["decay"], self._half_life,
-                     bars, self.lag_weights, s.sums.U, s.sums.ring_rows, s.sums.ring_times, ring,
-                     hac, trace)
-        s.sums.ring_count = int(ring[0])
+        hac, trace = self._scores(rows[top], ends, sums["decay"], bars)
         stderr, kappa, residual = np.empty((n, p)), np.empty(n), np.empty(n)
         window_stderr(sums["R"], top, sums["W"], bars, hac, trace,
                       full, jacobian, mapping, kept, theta, float(self.lag_weights.sum()),
@@ -1065,7 +1057,7 @@ class Tracker:
             d = seg.signals[self.model.output][lo - 8 - seg.first:hi - seg.first]
             compiled = solvers()
             if compiled is not None:   # the same operations, in a compiled loop
-                compiled[4](d, squares)
+                compiled.difference_squares(d, squares)
                 return squares, ranges
             for k in range(8):
                 d = d[1:] - d[:-1]
@@ -1077,7 +1069,7 @@ class Tracker:
         compiled = solvers()
         if compiled is not None:
             bounds = np.empty(len(sums))
-            compiled[5](sums, self._central, bounds)
+            compiled.noise_bounds(sums, self._central, bounds)
             return bounds
         counts = sums[:, 1]
         with np.errstate(divide="ignore", invalid="ignore"):
@@ -1197,7 +1189,8 @@ class Tracker:
         covariance unit white output noise puts into them, per multiplicity."""
         compiled = solvers()
         if compiled is not None:
-            return self._rows_and_grams_compiled(compiled[2], compiled[3], starts)
+            return self._rows_and_grams_compiled(compiled.window_rows,
+                                                 compiled.step_integrals, starts)
         s = self.state
         seg = s.segment
         L = self.length
@@ -1245,18 +1238,3 @@ class Tracker:
                     if (c1, k1, i1) != (c2, k2, i2):
                         grams[x, :, c2, c1] += v
         return rows, grams
-        step, uniform, tw = self._window_steps(starts)
-        for x, (c1, w1, k1, i1) in enumerate(noisy):
-            for c2, w2, k2, i2 in noisy[x:]:
-                product = seg.sensitivities[i1] * seg.sensitivities[i2]
-                pw = np.lib.stride_tricks.sliding_window_view(product, L)[starts]
-                g = self._unit_weights[(a, k1)] * self._unit_weights[(a, k2)]
-                v = np.einsum("ij,j->i", pw, g) * step ** -(k1 + k2) * (w1 * w2)
-                for j in np.flatnonzero(~uniform):
-                    g = window_sample_weights(tw[j], None, L, a, k1) \
-                        * window_sample_weights(tw[j], None, L, a, k2)
-                    v[j] = float(g[0] @ pw[j]) * (w1 * w2)
-                grams[:, c1, c2] += v
-                if (c1, k1, i1) != (c2, k2, i2):
-                    grams[:, c2, c1] += v
-        return grams

@@ -25,12 +25,14 @@ from __future__ import annotations
 import importlib.util
 import math
 import os
+from collections.abc import Callable
 from functools import cache
+from typing import NamedTuple
 
 import numpy as np
 
-__all__ = ["USE_NUMBA", "window_sums", "window_scores", "window_scores_numpy", "kernels",
-           "solvers"]
+__all__ = ["USE_NUMBA", "Recurrences", "Solvers", "window_sums", "window_scores",
+           "window_scores_numpy", "kernels", "solvers"]
 
 
 def _numba_available():
@@ -43,6 +45,25 @@ def _numba_available():
 
 #: Whether :func:`kernels` compiles the recurrences with numba.
 USE_NUMBA = _numba_available()
+
+
+class Recurrences(NamedTuple):
+    """The per-window recurrences of the tracker."""
+
+    window_sums: Callable
+    window_scores: Callable
+
+
+class Solvers(NamedTuple):
+    """The compiled per-window solves and window equations
+    (:mod:`algid.identification._tracker_solve`)."""
+
+    solve_windows: Callable
+    window_stderr: Callable
+    window_rows: Callable
+    step_integrals: Callable
+    difference_squares: Callable
+    noise_bounds: Callable
 
 
 def window_sums(rows, grams, ends, last_end, half_life, squares, ranges, R, G, W, bound,
@@ -254,7 +275,7 @@ def _compiled():
     watch()
 
     jit = numba.njit(cache=True, nogil=True)
-    return jit(window_sums), jit(window_scores)
+    return Recurrences(jit(window_sums), jit(window_scores))
 
 
 def kernels():
@@ -262,11 +283,11 @@ def kernels():
 
     Returns
     -------
-    tuple of callable
+    Recurrences
         :func:`window_sums` and :func:`window_scores` (compiled), or
         :func:`window_sums` and :func:`window_scores_numpy`.
     """
-    return _compiled() if USE_NUMBA else (window_sums, window_scores_numpy)
+    return _compiled() if USE_NUMBA else Recurrences(window_sums, window_scores_numpy)
 
 
 @cache
@@ -280,8 +301,8 @@ def _compiled_solvers():
         window_stderr,
     )
 
-    return (solve_windows, window_stderr, window_rows, step_integrals, difference_squares,
-            noise_bounds)
+    return Solvers(solve_windows, window_stderr, window_rows, step_integrals,
+                   difference_squares, noise_bounds)
 
 
 def solvers():
@@ -290,8 +311,6 @@ def solvers():
 
     Returns
     -------
-    tuple of callable or None
-        ``solve_windows``, ``window_stderr``, ``window_rows``, ``step_integrals``,
-        ``difference_squares`` and ``noise_bounds``.
+    Solvers or None
     """
     return _compiled_solvers() if USE_NUMBA else None

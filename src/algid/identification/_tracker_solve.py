@@ -33,7 +33,7 @@ import numba
 import numpy as np
 
 from algid._compile_notice import watch
-from algid.identification._window_basis import ROUNDOFF_SEPARABILITY
+from algid.identification._window_basis import DETERMINED_LEAK, ROUNDOFF_SEPARABILITY
 from algid.identification._window_covariance import INDEFINITE_RTOL
 
 watch()   # a line on stderr while numba compiles these for more than a second
@@ -41,9 +41,6 @@ watch()   # a line on stderr while numba compiles these for more than a second
 __all__ = ["solve_windows", "window_stderr", "window_rows", "step_integrals",
            "difference_squares", "noise_bounds"]
 
-#: Largest share of a parameter's unit direction in the null space at which it counts
-#: as determined (as the NumPy path's ``DETERMINED_LEAK``).
-DETERMINED_LEAK = 1e-6
 
 _SWEEPS = 60   # Jacobi sweeps (a few suffice at p <= 12)
 

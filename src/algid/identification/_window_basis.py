@@ -35,11 +35,15 @@ from algid.errors import InputDataError
 __all__ = ["WindowBasis", "Separability", "separability", "check_excited", "check_finite",
            "exponent",
            "ROUNDOFF_SEPARABILITY", "FREE_RATIO", "WEAK_RATIO", "FREE_NOISE_RATIO",
-           "WEAK_NOISE_RATIO", "COLLINEAR"]
+           "WEAK_NOISE_RATIO", "COLLINEAR", "DETERMINED_LEAK"]
 
 #: Smallest singular value of the unit-column regressors below which terms count as
 #: proportional whatever the misfit (round-off of window sums is about 1e-15).
 ROUNDOFF_SEPARABILITY = 1e-10
+
+#: Largest share of a parameter's unit direction in the null space of the equations at
+#: which it still counts as determined (round-off leaves about 1e-15; the tracker's).
+DETERMINED_LEAK = 1e-6
 
 #: Separability ratio below which the weakest parameter combination counts as free.
 FREE_RATIO = 1.5

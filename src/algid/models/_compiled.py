@@ -5,12 +5,12 @@
 derivation and generator as the built-in models, run in memory) and returns the
 generated module, which :func:`algid.estimate` takes as ``model``.  Its channels are the
 model's factors: measured signals, the constant 1 of an offset, time, and nonlinear
-factors such as ``V2**3`` or ``sign(q')``.  :func:`channel_samples` computes their
-samples from the measured signals; a derivative inside a nonlinear factor is estimated
-by the algebraic differentiator (:func:`algid.signals.algebraic_derivative`),
-centred on each sample (it looks ahead by half its window) or causal.
-:class:`ChannelStream` computes them chunk by chunk, with the causal differentiator,
-for :class:`algid.OnlineEstimator`.
+factors such as ``V2**3`` or ``sign(q')``.  :class:`ChannelStream` computes their
+samples from the measured signals, chunk by chunk; a derivative inside a nonlinear
+factor is estimated by the algebraic differentiator
+(:func:`algid.signals.algebraic_derivative`), centred on each sample (it looks ahead
+by half its window; a whole record in one call) or causal (for
+:class:`algid.OnlineEstimator`).
 
 Compiling needs SymPy (``algid[derive]``); estimating with the result needs NumPy only.
 """
@@ -24,8 +24,7 @@ from algid.errors import InputDataError, ModelError
 from algid.models._grammar import parse_equation
 from algid.models._model import channel_names
 
-__all__ = ["compile_equation", "channel_samples", "channel_stream", "ChannelStream",
-           "model_of"]
+__all__ = ["compile_equation", "channel_stream", "ChannelStream", "model_of"]
 
 
 def compile_equation(equation, parameters, *, output=None, name="custom"):
@@ -90,48 +89,6 @@ def model_of(module):
                           name=module.MODEL)
 
 
-def channel_samples(module, signals, time, dt, *, differentiator="centred",
-                    derivative_window=None, derivative_extra_orders=0):
-    """Samples of the channels of a generated estimator, in ``CHANNELS`` order.
-
-    Parameters
-    ----------
-    module : module
-        A generated estimator.
-    signals : mapping
-        Measured signal name -> samples (1-D, checked, uniformly sampled).
-    time : numpy.ndarray
-        Sample times (for the channel ``time``).
-    dt : float
-        Sampling step (for derivatives inside nonlinear factors).
-    differentiator : {"centred", "causal"}, optional
-        How a derivative inside a nonlinear factor is estimated
-        (:func:`algid.signals.algebraic_derivative`): with the window centred
-        on each sample (default; it looks ahead by about half the window), or causal
-        (the window ``[t - T, t]``, as :class:`algid.OnlineEstimator` does; it lags by
-        :attr:`ChannelStream.delay` and the first :attr:`ChannelStream.warmup` samples
-        of such channels are NaN).
-    derivative_window : float, optional
-        The differentiator's window ``T`` [s]; default
-        ``DEFAULT_WINDOW_STEPS * dt``.
-    derivative_extra_orders : int, optional
-        See :class:`ChannelStream`.
-
-    Returns
-    -------
-    tuple of numpy.ndarray
-
-    Raises
-    ------
-    InputDataError
-        A signal the model needs is missing, or a bad differentiator option.
-    """
-    stream = channel_stream(module, dt, differentiator=differentiator,
-                            derivative_window=derivative_window,
-                            derivative_extra_orders=derivative_extra_orders)
-    return stream.update(signals, time)
-
-
 def channel_stream(module, dt, *, differentiator="centred", derivative_window=None,
                    derivative_extra_orders=0):
     """A fresh :class:`ChannelStream` of a generated estimator, its options checked.
@@ -143,11 +100,16 @@ def channel_stream(module, dt, *, differentiator="centred", derivative_window=No
     dt : float
         Sampling step.
     differentiator : {"centred", "causal"}, optional
-        As for :func:`channel_samples`.
+        How a derivative inside a nonlinear factor is estimated
+        (:func:`algid.signals.algebraic_derivative`): with the window centred on each
+        sample (default; it looks ahead by about half the window), or causal (the
+        window ``[t - T, t]``, as :class:`algid.OnlineEstimator` does; it lags by
+        :attr:`ChannelStream.delay` and the first :attr:`ChannelStream.warmup` samples
+        of such channels are NaN).
     derivative_window : float, optional
-        As for :func:`channel_samples`.
+        The differentiator's window ``T`` [s]; default ``DEFAULT_WINDOW_STEPS * dt``.
     derivative_extra_orders : int, optional
-        As for :func:`channel_samples`.
+        See :class:`ChannelStream`.
 
     Returns
     -------
@@ -193,7 +155,7 @@ class ChannelStream:
         ``k + 2``, hence no delay on smooth signals, at the price of more noise.
     centred : bool, optional
         Estimate the derivatives with the window centred on each sample instead (a
-        whole record in one call: :func:`channel_samples` with ``"centred"``).
+        whole record in one call: :func:`channel_stream` with ``"centred"``).
 
     Attributes
     ----------
