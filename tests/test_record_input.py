@@ -199,3 +199,18 @@ def test_dates_with_a_time_zone_are_read_as_utc(record, reference):
     fit = algid.identify(frame, *LINEAR_EQUATION)   # (across a change to summer time)
     for name, value in reference.values.items():
         assert fit.values[name] == pytest.approx(value, rel=1e-9, abs=1e-12)
+
+
+def test_text_is_refused_everywhere_as_the_paper_s_form_refuses_it(record):
+    """identify and the tracker took numbers stored as text; estimate(t, f, x) did not."""
+    text = dict(record, y=record["y"].astype(str))
+    message = r"column 'y' is not numeric: row 0 holds '"
+    with pytest.raises(algid.InputDataError, match=message):
+        algid.identify(text, *LINEAR_EQUATION)
+    with pytest.raises(algid.InputDataError, match=message):
+        algid.Tracker(*LINEAR_EQUATION, window=0.1875).update(text)
+    mixed = dict(record, y=np.array([*record["y"][:5], "n/a", *record["y"][6:]], dtype=object))
+    with pytest.raises(algid.InputDataError, match=r"is not numeric: row 5 holds 'n/a'"):
+        algid.identify(mixed, *LINEAR_EQUATION)
+    with pytest.raises(algid.InputDataError, match=r"signal 'x' is not numeric: row 0"):
+        algid.estimate(record["t"], record["u"], record["y"].astype(str))

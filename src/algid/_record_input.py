@@ -35,7 +35,7 @@ from algid.errors import InputDataError
 
 __all__ = ["TIME_COLUMNS", "RATE_TOLERANCE", "STEP_RANGE", "is_record", "is_timeresponse",
            "as_record", "read_column", "refuse_unusable", "record_columns", "check_rate",
-           "check_rate_agrees", "refuse_nonfinite", "column_list"]
+           "check_rate_agrees", "refuse_nonfinite", "column_list", "first_non_number"]
 
 #: Column names taken as the time axis when neither ``time`` nor ``rate`` is given.
 TIME_COLUMNS = ("t", "time")
@@ -190,6 +190,34 @@ def column_list(record, most=12):
                                       if len(names) > most else "")
 
 
+def first_non_number(arr):
+    """The first item of an array that is no number (numbers stored as text are text).
+
+    Parameters
+    ----------
+    arr : numpy.ndarray
+        Of text or of objects.
+
+    Returns
+    -------
+    tuple or None
+        ``(row, item)``, or None if every item is a number.
+    """
+    if arr.dtype.kind in "US":
+        items = [item.decode("latin-1") if isinstance(item, bytes) else str(item)
+                 for item in arr.tolist()]
+        for row, item in enumerate(items):
+            try:
+                float(item)
+            except ValueError:
+                return row, item
+        return 0, items[0]  # numbers stored as text are still text
+    for row, item in enumerate(arr.tolist()):
+        if not isinstance(item, numbers.Real):
+            return row, item
+    return None
+
+
 def refuse_unusable(values, what, *, dates=False):
     """Refuse an array that is not one signal of real measurements.
 
@@ -256,6 +284,10 @@ def read_column(values, what, *, time=False):
     except (TypeError, ValueError):
         raise InputDataError(f"{what} is not numeric") from None
     refuse_unusable(values, what, dates=time)
+    if values.dtype.kind in "USO":   # as the paper's form refuses them (as_signal)
+        bad = first_non_number(values.reshape(-1))
+        if bad is not None:
+            raise InputDataError(f"{what} is not numeric: row {bad[0]} holds {bad[1]!r}")
     if values.dtype.kind in "mM":
         values = values.reshape(-1)
         return (values - values[0]) / np.timedelta64(1, "s") if len(values) else \

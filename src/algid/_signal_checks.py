@@ -14,6 +14,7 @@ import numbers
 
 import numpy as np
 
+from algid._record_input import first_non_number
 from algid.errors import InputDataError
 
 __all__ = ["integer_value", "as_signal", "check_experiment", "positive_number", "step_tolerance",
@@ -93,23 +94,6 @@ def _fmt(value) -> str:
     return f"{float(value):.10g}"
 
 
-def _first_non_number(arr):
-    """Return (row, item) of the first item that is no number, or None if all are."""
-    if arr.dtype.kind in "US":
-        items = [item.decode("latin-1") if isinstance(item, bytes) else str(item)
-                 for item in arr.tolist()]
-        for row, item in enumerate(items):
-            try:
-                float(item)
-            except ValueError:
-                return row, item
-        return 0, items[0]  # numbers stored as text are still text
-    for row, item in enumerate(arr.tolist()):
-        if not isinstance(item, numbers.Real):
-            return row, item
-    return None
-
-
 def as_signal(values, *, name) -> np.ndarray:
     """Convert a sampled signal to a 1-D float64 array, refusing unusable data.
 
@@ -169,7 +153,7 @@ def as_signal(values, *, name) -> np.ndarray:
     if kind not in "iuf":
         if kind in "US" and not isinstance(values, np.ndarray):
             arr = np.asarray(values, dtype=object)  # keep the types of the items
-        bad = _first_non_number(arr)
+        bad = first_non_number(arr)
         if bad is not None:
             row, item = bad
             raise InputDataError(f"signal {name!r} is not numeric: row {row} holds {item!r}")
