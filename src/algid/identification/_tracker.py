@@ -466,9 +466,9 @@ class Tracker:
         ----------
         path : str or path-like
         """
-        from algid.identification import _tracker_file  # (zipfile, hashlib: on use)
+        from algid.identification._tracker_file import write  # (zipfile, hashlib: on use)
 
-        _tracker_file.write(path, self.config, self.state.flat())
+        write(path, self.config, self.state.flat())
 
     @classmethod
     def load(cls, path):
@@ -489,9 +489,9 @@ class Tracker:
             or whose arrays do not fit its model and configuration (one line naming the
             file and the array).
         """
-        from algid.identification import _tracker_file
+        from algid.identification._tracker_file import check_state, read
 
-        config, scalars, arrays = _tracker_file.read(path)
+        config, scalars, arrays = read(path)
         try:
             tracker = cls(config["equation"], config["parameters"], rate=config["rate"],
                           time=config["time"], output=config["output"],
@@ -501,7 +501,7 @@ class Tracker:
         except AlgidError as exc:
             raise InputDataError(f"{path}: its configuration is refused: {exc}") from None
         tracker.config = config
-        _tracker_file.check_state(path, tracker, scalars, arrays)
+        check_state(path, tracker, scalars, arrays)
         return tracker
 
     # ------------------------------------------------------------------ input
