@@ -306,7 +306,8 @@ def _live(args, model):
             print(f"algid: warning: standard input row {row} skipped: {message}",
                   file=sys.stderr, flush=True)
             continue
-        alarms.extend(out.alarms.tolist())
+        if args.json:   # (printed at once otherwise)
+            alarms.extend(out.alarms.tolist())
         rows = chosen.select(out)
         for i in rows:
             _print_row(args, model, out, i, alarms)
