@@ -47,31 +47,41 @@ def convergence_time(t, estimate, true_value, rtol):
 class EstimationResult:
     """Estimates of a model's parameters over time.
 
-    Attributes
+    Made by :func:`algid.estimate` and :class:`algid.OnlineEstimator`; every parameter
+    below is also an attribute of the same name.
+
+    Parameters
     ----------
     t : ndarray
         Sample times (as given).
     estimates : dict
         Parameter name -> ndarray of estimates over ``t``; NaN where not yet defined.
         Each is also an attribute: ``r.B``, ``r.K``, ...
+    model : str
+        The model's name.
+    filter_order : int
+        ``p`` of the invariant low-pass filter ``1/s**p``.
+    quadrature_points : int, optional
+        Points of the quadrature rule.
+    mass : float or None, optional
+        The known mass, when given.
+    mass_scaled : tuple of str, optional
+        The estimates that are a model parameter times the known mass (``c``, ``k``).
+    numerical_error : ndarray or None, optional
+        Estimated relative error of the estimates at every sample of ``t``, the largest
+        over the parameters (:mod:`algid.estimation._numerical_error`): NaN where the estimates
+        are NaN, inf where the data do not determine them (those estimates are then
+        NaN).  None if not computed.
+
+    Attributes
+    ----------
     parameters : tuple of str
         Names of the estimated quantities, in order (model parameters, then ``c``, ``k``
         when the mass was given).
     t_valid : float
         First instant with a defined estimate (NaN if none).
     n_samples : int
-    model : str
-    filter_order : int
-    quadrature_points : int
-        Points of the quadrature rule.
-    mass : float or None
-    mass_scaled : tuple of str
-        The estimates that are a model parameter times the known mass (``c``, ``k``).
-    numerical_error : ndarray or None
-        Estimated relative error of the estimates at every sample of ``t``, the largest
-        over the parameters (:mod:`algid.estimation._numerical_error`): NaN where the estimates
-        are NaN, inf where the data do not determine them (those estimates are then
-        NaN).  None if not computed.
+        Samples of ``t``.
 
     Examples
     --------

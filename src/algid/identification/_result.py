@@ -71,7 +71,10 @@ class Validation:
 class IdentificationResult:
     """Parameters identified on records, their uncertainty and validation helpers.
 
-    Attributes
+    Made by :func:`algid.identify` (or :meth:`from_values`); every parameter below is
+    also an attribute of the same name.
+
+    Parameters
     ----------
     model : Model
         The parsed model.
