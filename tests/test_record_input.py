@@ -214,3 +214,24 @@ def test_text_is_refused_everywhere_as_the_paper_s_form_refuses_it(record):
         algid.identify(mixed, *LINEAR_EQUATION)
     with pytest.raises(algid.InputDataError, match=r"signal 'x' is not numeric: row 0"):
         algid.estimate(record["t"], record["u"], record["y"].astype(str))
+
+
+def test_a_frame_with_columns_named_like_a_timeresponse_is_a_frame(record, reference):
+    """Columns time, inputs, outputs are attributes of a DataFrame: it was read as a
+    TimeResponseData (an AttributeError)."""
+    frame = pd.DataFrame({"time": record["t"], "u": record["u"], "y": record["y"],
+                          "inputs": 0.0, "outputs": 0.0})
+    assert _same_fit(algid.identify(frame, *LINEAR_EQUATION), reference)
+
+
+def test_empty_text_and_object_booleans():
+    with pytest.raises(algid.InputDataError, match="holds booleans"):
+        read_column(np.array([True, 1.0], dtype=object), "column 'u'")
+    assert read_column(np.array([], dtype="U3"), "column 'u'").size == 0
+
+
+def test_the_stream_takes_a_timeresponse_in_the_paper_s_form():
+    sim = algid.simulate("sine", m=1, c=2, k=3, seed=0, duration=1.0)
+    online = algid.OnlineEstimator(engine="numpy")
+    assert online.update(sim.to_timeresponse()).B[-1] == algid.estimate(
+        sim.t, sim.f, sim.x, engine="numpy").B[-1]

@@ -87,12 +87,11 @@ def _value(x):
     return float(x) if math.isfinite(x) else None
 
 
-def _tracker(args, model, time):
+def _tracker(args, model, time, every):
     from algid.identification._tracker import Tracker
 
-    # every window end comes out; _Reports picks those to print (and the last one)
     return Tracker(model, rate=args.rate, time=time, window=args.window,
-                   half_life=args.half_life)
+                   half_life=args.half_life, every=every)
 
 
 class _Reports:
@@ -162,12 +161,12 @@ def _file(args, model):
     if time is None and args.rate is None:
         raise InputDataError(f"{args.file}: no time column ({' or '.join(TIME_COLUMNS)}); "
                              f"give --time COL or --rate HZ")
-    tracker = _tracker(args, model, time)
+    tracker = _tracker(args, model, time, args.every)
     n = len(record[names[0]])
     printed, alarms, chosen = [], [], _Reports(args.every)
-    for start in range(0, n, args.chunk):
+    for start in range(0, n, args.chunk):   # (the last chunk reports its every window end)
         out = tracker.update({k: np.asarray(v)[start:start + args.chunk]
-                              for k, v in record.items()})
+                              for k, v in record.items()}, last=start + args.chunk >= n)
         printed.extend((out, row) for row in chosen.select(out))
         alarms.append(out.alarms)
     if chosen.final() is not None:   # the end of the stream
@@ -272,7 +271,9 @@ def _live(args, model):
         raise InputDataError("standard input: no time column (t or time); give --time COL "
                              "or --rate HZ")
     where = [columns.index(c) for c in needed]
-    tracker = _tracker(args, model, time)
+    # every window end comes out (the stream's end is not known before it comes);
+    # _Reports picks those to print
+    tracker = _tracker(args, model, time, None)
     from algid.identification._tracker import STEP_SAMPLES, TrackerSetupError
 
     first_stamps = []

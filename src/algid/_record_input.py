@@ -6,8 +6,8 @@ take, through :func:`as_record`:
 
 - a mapping (``dict``, or anything with ``keys()`` and ``[]``);
 - a pandas ``DataFrame``: its columns, and its index as a time column when the index
-  holds times (floats, dates or durations, or any index named ``t`` or ``time``); a
-  plain row-number index is not time;
+  holds times (floats, dates or durations, or integers in an index named ``t`` or
+  ``time``); a plain row-number index (a ``RangeIndex``, named or not) is not time;
 - an xarray ``Dataset``: its data variables and coordinates (a dimension coordinate
   ``time`` is the time column);
 - a python-control ``TimeResponseData``: ``t`` and the inputs and outputs by their
@@ -34,6 +34,7 @@ import numpy as np
 from algid.errors import InputDataError
 
 __all__ = ["TIME_COLUMNS", "RATE_TOLERANCE", "STEP_RANGE", "is_record", "is_timeresponse",
+           "timeresponse_pair",
            "as_record", "read_column", "refuse_unusable", "record_columns", "check_rate",
            "check_rate_agrees", "refuse_nonfinite", "column_list", "first_non_number"]
 
@@ -52,8 +53,11 @@ STEP_RANGE = (1e-30, 1e30)
 
 
 def is_timeresponse(data) -> bool:
-    """Whether ``data`` is a python-control ``TimeResponseData`` (by its attributes)."""
-    return hasattr(data, "time") and hasattr(data, "outputs") and hasattr(data, "inputs")
+    """Whether ``data`` is a python-control ``TimeResponseData`` (by its attributes; a
+    DataFrame's columns ``time``, ``inputs``, ``outputs`` are attributes too)."""
+    return (not _is_dataframe(data) and not _is_dataset(data)
+            and all(hasattr(data, name) for name in ("time", "outputs", "inputs",
+                                                     "output_labels", "input_labels")))
 
 
 def _is_dataframe(data):
@@ -152,6 +156,33 @@ def _dataframe_columns(frame, what):
     return columns
 
 
+def timeresponse_pair(response):
+    """``t, u, y`` of a python-control ``TimeResponseData`` of one input and one output
+    (the paper's form ``estimate(t, f, x)``).
+
+    Parameters
+    ----------
+    response : control.TimeResponseData
+
+    Returns
+    -------
+    t, u, y : numpy.ndarray
+
+    Raises
+    ------
+    InputDataError
+        Not one input and one output.
+    """
+    t = np.asarray(response.time, dtype=float)
+    u = np.asarray(response.inputs, dtype=float)
+    y = np.asarray(response.outputs, dtype=float)
+    if u.ndim != 1 or y.ndim != 1:
+        raise InputDataError(
+            f"TimeResponseData must have one input and one output (got input shape {u.shape}, "
+            f"output shape {y.shape}); squeeze it or pick the signals")
+    return t, u, y
+
+
 def _timeresponse_columns(response, what):
     inputs, outputs = np.asarray(response.inputs), np.asarray(response.outputs)
     t = np.asarray(response.time)
@@ -211,7 +242,7 @@ def first_non_number(arr):
                 float(item)
             except ValueError:
                 return row, item
-        return 0, items[0]  # numbers stored as text are still text
+        return (0, items[0]) if items else None  # numbers stored as text are still text
     for row, item in enumerate(arr.tolist()):
         if not isinstance(item, numbers.Real):
             return row, item
@@ -285,6 +316,10 @@ def read_column(values, what, *, time=False):
         raise InputDataError(f"{what} is not numeric") from None
     refuse_unusable(values, what, dates=time)
     if values.dtype.kind in "USO":   # as the paper's form refuses them (as_signal)
+        if values.dtype.kind == "O" and any(isinstance(v, (bool, np.bool_))
+                                            for v in values.reshape(-1).tolist()):
+            raise InputDataError(f"{what} holds booleans, not measurements (convert with "
+                                 f".astype(float))")
         bad = first_non_number(values.reshape(-1))
         if bad is not None:
             raise InputDataError(f"{what} is not numeric: row {bad[0]} holds {bad[1]!r}")

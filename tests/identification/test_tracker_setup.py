@@ -1,5 +1,6 @@
 """Refusals of a tracker's configuration once the stream shows its step."""
 
+import numpy as np
 import pytest
 from benchmarks.synthetic_records import LINEAR_EQUATION, linear_offsets
 
@@ -20,3 +21,36 @@ def test_a_false_alarm_rate_beyond_one_per_two_tests_is_refused(rate, accepted):
     with pytest.raises(TrackerSetupError, match=r"more than one alarm in two tests \(every "
                                                 r"[0-9.]+ s\); use at most [0-9.]+"):
         tracker.update(record)
+
+
+def test_a_setup_refusal_leaves_the_tracker_as_it_was():
+    """The refusal came after the state was marked configured: every later call raised an
+    AttributeError."""
+    record, _ = linear_offsets(0, n=800)
+    tracker = algid.Tracker(*LINEAR_EQUATION, window=0.1875, false_alarm_rate=1e3)
+    for rows in (slice(0, 400), slice(400, 800)):
+        with pytest.raises(TrackerSetupError, match="more than one alarm in two tests"):
+            tracker.update({k: v[rows] for k, v in record.items()})
+        assert not tracker.state.configured and tracker.state_size() > 0
+
+
+def test_a_rate_beside_a_named_time_column_must_agree_with_it():
+    """With time= and rate= the rate was used and the column's steps made every row a gap:
+    no output, no word."""
+    record, _ = linear_offsets(0, n=800)
+    with pytest.raises(algid.InputDataError, match="contradicts time column 't'"):
+        algid.Tracker(*LINEAR_EQUATION, window=0.1875, time="t", rate=160).update(record)
+    out = algid.Tracker(*LINEAR_EQUATION, window=0.1875, time="t", rate=80).update(record)
+    assert len(out) > 0
+
+
+def test_last_reports_the_stream_s_last_window_end():
+    record, _ = linear_offsets(0, n=800)
+    every = algid.Tracker(*LINEAR_EQUATION, window=0.1875, every=1.0)
+    first = every.update({k: v[:700] for k, v in record.items()})
+    end = every.update({k: v[700:] for k, v in record.items()}, last=True)
+    whole = algid.Tracker(*LINEAR_EQUATION, window=0.1875).update(record)
+    assert first.t[-1] < 8.5 < end.t[0] and end.t[-1] == whole.t[-1]
+    completed = whole.t >= end.t[0]   # every window end the last chunk completed
+    assert np.array_equal(end.t, whole.t[completed])
+    assert np.array_equal(end.values, whole.values[completed], equal_nan=True)

@@ -11,7 +11,13 @@ import numpy as np
 
 import algid.estimation._backends as backends
 import algid.estimation._core as core
-from algid._record_input import is_record, is_timeresponse, record_columns, refuse_nonfinite
+from algid._record_input import (
+    is_record,
+    is_timeresponse,
+    record_columns,
+    refuse_nonfinite,
+    timeresponse_pair,
+)
 from algid._scaling import amplitude_scale, check_amplitude_range, scalable
 from algid._signal_checks import as_signal, check_experiment, positive_number
 from algid.errors import InputDataError
@@ -82,17 +88,6 @@ def kernel_values(module, signals, tau, dt, *, points=DEFAULT_QUADRATURE_POINTS)
         for level, arr in enumerate(iterated_integrals(weighted, dt, depth, points=points)):
             values[module.kernel_name(signal, power, level)] = arr
     return values
-
-
-def _unpack_timeresponse(data):
-    t = np.asarray(data.time, dtype=float)
-    u = np.asarray(data.inputs, dtype=float)
-    y = np.asarray(data.outputs, dtype=float)
-    if u.ndim != 1 or y.ndim != 1:
-        raise InputDataError(
-            f"TimeResponseData must have one input and one output (got input shape {u.shape}, "
-            f"output shape {y.shape}); squeeze it or pick the signals")
-    return t, u, y
 
 
 def estimate(t, f=None, x=None, *, model=None, filter_order=DEFAULT_FILTER_ORDER, mass=None,
@@ -264,7 +259,7 @@ def estimate(t, f=None, x=None, *, model=None, filter_order=DEFAULT_FILTER_ORDER
         raise InputDataError("differentiator, derivative_window and derivative_extra_orders "
                              "apply to models given signals= (derivatives inside factors)")
     if is_timeresponse(t):
-        t, f, x = _unpack_timeresponse(t)
+        t, f, x = timeresponse_pair(t)
     elif f is None or x is None:
         raise InputDataError("estimate needs the input f and the output x")
     module = load_model(model)

@@ -39,7 +39,13 @@ import numpy as np
 from algid.models._argument import estimator_module, measured_signals, takes_pair
 from algid._scaling import amplitude_scale, scalable
 from algid._signal_checks import UNIFORM_RTOL, positive_number
-from algid._record_input import is_record, record_columns, refuse_nonfinite
+from algid._record_input import (
+    is_record,
+    is_timeresponse,
+    record_columns,
+    refuse_nonfinite,
+    timeresponse_pair,
+)
 from algid.errors import InputDataError
 import algid.estimation._core as core
 from algid.estimation._backends import choose_engine
@@ -414,7 +420,10 @@ class OnlineEstimator:
         a nonzero sample when their amplitude is extreme (:mod:`algid._scaling`); the
         estimates do not change, bit for bit, and stay equal to the batch ones.
         """
-        if is_record(t):
+        if is_timeresponse(t) and self._takes_pair and f is None and x is None \
+                and signals is None:   # the paper's form, as estimate takes it
+            t, f, x = timeresponse_pair(t)
+        elif is_record(t):
             if f is not None or x is not None or signals is not None:
                 raise InputDataError("give a record chunk alone, without f, x or signals")
             rate = None if self._given_dt is None else 1.0 / self._given_dt

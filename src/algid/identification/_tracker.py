@@ -290,6 +290,12 @@ MAX_RUN_LENGTH = 1e12
 
 
 
+def _seconds(value):
+    """An optional duration as a float (NumPy scalars too: the configuration is saved
+    as JSON)."""
+    return None if value is None else float(value)
+
+
 class TrackerSetupError(InputDataError):
     """A refusal of the tracker's configuration once the stream shows its sampling step
     (a window, half-life or false-alarm rate that cannot work at it): no later sample
@@ -377,9 +383,10 @@ class Tracker:
         self.multiplicities = check_multiplicities(model, (8, 12))
         self.config = {"equation": model.equation, "parameters": list(model.parameters),
                        "output": model.output, "rate": None if rate is None else
-                       check_rate(rate), "time": time, "window": window,
-                       "half_life": half_life, "method": method, "warmup": float(warmup),
-                       "false_alarm_rate": float(false_alarm_rate), "every": every}
+                       check_rate(rate), "time": time, "window": _seconds(window),
+                       "half_life": _seconds(half_life), "method": method,
+                       "warmup": float(warmup), "false_alarm_rate": float(false_alarm_rate),
+                       "every": _seconds(every)}
         if rate is None and time is None:
             self.config["time"] = None   # found in the first chunk (t or time)
         self.parameters = tuple(model.parameters)
@@ -413,7 +420,7 @@ class Tracker:
         """
         return self.state.size()
 
-    def update(self, chunk):
+    def update(self, chunk, *, last=False):
         """Stream the next samples.
 
         Parameters
@@ -423,6 +430,9 @@ class Tracker:
             :func:`algid.identify`: the model's signals and the time column (or none,
             with ``rate``).  Rows holding a NaN (or a masked sample) break the stream as
             gaps do.
+        last : bool, optional
+            The chunk ends the stream: every window end it completes is reported,
+            whatever ``every`` (the stream's last one among them).
 
         Returns
         -------
@@ -433,10 +443,15 @@ class Tracker:
         ------
         InputDataError
             Missing or non-numeric columns, columns of different lengths, times that do
-            not increase.
+            not increase (the state is left as it was), dates as times (give seconds,
+            or ``rate``).  Once the step is known, a window, half-life or false-alarm
+            rate that cannot work at it is a ``TrackerSetupError`` (an
+            ``InputDataError``), raised again by every later call: no sample can
+            change it.
         """
         t, columns = self._read(chunk)
         self._out = {"t": [], "values": [], "stderr": [], "error": [], "alarms": []}
+        self._every = None if last else self.config["every"]
         warm = self.state.warmup
         if warm is not None:   # (not configured)
             warm.t = np.concatenate([warm.t, t])
@@ -549,6 +564,8 @@ class Tracker:
             # one sample (a live stream): the checks below, on a scalar
             if not (n == 1 and math.isfinite(t[0]) and t[0] > self.state.last_time):
                 self._check_times(time, t)
+                if self.config["rate"] is not None and n > 1:   # (as identify's)
+                    check_rate_agrees(self.config["rate"], t, time, "the chunk")
         self.state.seen += n
         if n:
             self.state.last_time = float(t[-1])
@@ -604,6 +621,7 @@ class Tracker:
                                     f"kernels of multiplicity {max(self.multiplicities)} need; "
                                     f"use at least {(shortest - 1) * step:.4g} s")
         self._check_half_life(length, step)
+        self._derive(length, step)   # (its refusals leave the state as it was)
         state = self.state
         state.step, state.window, state.length = step, (length - 1) * step, length
         state.warmup = None
@@ -709,7 +727,6 @@ class Tracker:
 
     def _start_state(self):
         state = self.state
-        self._derive(state.length, state.step)
         p = len(self.parameters)
         lags = 2 * self.overlap
         m = len(self.multiplicities)
@@ -925,7 +942,7 @@ class Tracker:
         s.sums.last_end = float(ends[-1])
         indices = first_window + np.arange(n)
         tested = indices % self.overlap == 0
-        every = self.config["every"]
+        every = self._every
         if every is None:
             report = np.ones(n, bool)
         else:   # a window end that crosses a multiple of ``every`` since the last report

@@ -21,6 +21,7 @@ import zipfile
 
 import numpy as np
 
+from algid._record_input import RATE_TOLERANCE, STEP_RANGE
 from algid.errors import AlgidError, InputDataError
 from algid.identification._tracker_state import MAX_WINDOW_SAMPLES, TrackerState
 
@@ -118,8 +119,10 @@ def read(path):
         raise InputDataError(f"{path}: not a saved tracker (file not found)") from None
     except AlgidError:
         raise
-    except (OSError, ValueError, EOFError, zipfile.BadZipFile, NotImplementedError) as exc:
-        # (a cut file, a plain .npy, a damaged member: what zipfile and numpy raise)
+    except (OSError, ValueError, EOFError, zipfile.BadZipFile, NotImplementedError,
+            RuntimeError) as exc:
+        # (a cut file, a plain .npy, a damaged or encrypted member: what zipfile and numpy
+        # raise)
         reason = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
         raise InputDataError(f"{path}: not a saved tracker ({reason})") from None
     texts = {}
@@ -295,7 +298,12 @@ def check_state(path, tracker, scalars, arrays):
     if configured:
         from algid.identification._window_rule import min_length
 
-        length = scalars["length"]
+        length, step, rate = scalars["length"], scalars["step"], tracker.config["rate"]
+        low, high = STEP_RANGE
+        if not low <= step <= high or (rate is not None
+                                       and abs(step * rate - 1.0) > RATE_TOLERANCE):
+            raise InputDataError(f"{path}: sampling step {step!r} s is not one a tracker "
+                                 f"uses{'' if rate is None else f' at {rate:g} Hz'}")
         if not min_length(tracker.multiplicities) <= length <= MAX_WINDOW_SAMPLES + 1 \
                 or scalars["window"] != (length - 1) * scalars["step"]:
             raise InputDataError(f"{path}: window of {length} samples of "
