@@ -3,7 +3,8 @@
 ``PYTHONPATH=src:. python -m benchmarks.fingerprint OUT.json`` writes, for the paper's
 estimator (both engines, batch and a stream of odd chunks), identify (EMPS by ls, bc and
 iv, the Silverbox's cubic model, the three synthetic records) and the tracker (both
-paths, with and without forgetting, a chosen window), the exact ``repr`` of the scalar
+paths, with and without forgetting, saved and loaded mid-stream, a chosen window: its
+estimates, errors, times and alarms), the exact ``repr`` of the scalar
 results and a SHA-256 of each array's bytes.  Two checkouts that give the same file give
 the same numbers: ``diff`` the files before and after a change that must not move any (a
 refactoring).  Bits may differ across NumPy or numba versions: compare runs of one
@@ -15,6 +16,7 @@ from __future__ import annotations
 import hashlib
 import json
 import sys
+import tempfile
 
 import numpy as np
 
@@ -77,7 +79,12 @@ def identify_entries(emps):
     return out
 
 
-def tracker_entries(emps):
+def _tracked(reports):
+    return [digest(np.concatenate([getattr(r, name) for r in reports]))
+            for name in ("values", "stderr", "t", "numerical_error", "alarms")]
+
+
+def tracker_entries(emps, directory):
     out = {}
     for compiled in (True, False):
         tracker_kernels.USE_NUMBA = compiled
@@ -85,10 +92,15 @@ def tracker_entries(emps):
             tracker = algid.Tracker(*EMPS, window=0.03, half_life=half_life)
             reports = [tracker.update({n: x[s:s + 1000] for n, x in emps.items()})
                        for s in range(0, 8000, 1000)]
-            out[f"tracker/numba={compiled}/hl={half_life}"] = [
-                digest(np.concatenate([r.values for r in reports])),
-                digest(np.concatenate([r.stderr for r in reports])),
-                digest(np.concatenate([r.t for r in reports]))]
+            out[f"tracker/numba={compiled}/hl={half_life}"] = _tracked(reports)
+        # saved and loaded mid-stream: the rest as the whole stream gives it
+        tracker = algid.Tracker(*EMPS, window=0.03, half_life=2.0)
+        reports = [tracker.update({n: x[:4500] for n, x in emps.items()})]
+        path = f"{directory}/tracker.npz"
+        tracker.save(path)
+        loaded = algid.Tracker.load(path)
+        reports.append(loaded.update({n: x[4500:8000] for n, x in emps.items()}))
+        out[f"tracker/numba={compiled}/saved"] = _tracked(reports)
         tracker = algid.Tracker(*LINEAR_EQUATION)
         report = tracker.update(linear_offsets(0)[0])
         out[f"tracker/numba={compiled}/linear-auto"] = [digest(report.values),
@@ -106,7 +118,9 @@ def main(argv=None):
         return 2
     rec = algid.datasets.emps()
     emps = {"t": rec.t, "q": rec.qm, "F": rec.F}
-    out = {**estimator_entries(), **identify_entries(emps), **tracker_entries(emps)}
+    with tempfile.TemporaryDirectory() as directory:
+        out = {**estimator_entries(), **identify_entries(emps),
+               **tracker_entries(emps, directory)}
     with open(argv[0], "w") as f:
         json.dump(out, f, indent=1, sort_keys=True)
     print(f"wrote {argv[0]}: {len(out)} entries")

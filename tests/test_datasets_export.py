@@ -62,3 +62,11 @@ def test_command_line_refuses_then_forces(capsys, tmp_path):
     captured = capsys.readouterr()
     assert code == 0 and captured.out.count("wrote ") == 2
     assert (tmp_path / "emps_estimation.csv").read_text().startswith("t,qm,vir,qg,F")
+
+
+def test_a_file_in_place_of_the_folder_is_named_as_such(tmp_path):
+    """It was 'exists; not replaced without overwrite=True', even with overwrite=True."""
+    (tmp_path / "records").write_text("not a folder")
+    for overwrite in (False, True):
+        with pytest.raises(AlgidError, match="records: not a folder"):
+            datasets.export("emps", tmp_path / "records", overwrite=overwrite)

@@ -461,6 +461,8 @@ def export(name, folder, *, overwrite=False) -> list:
             if os.path.lexists(target / file_name):
                 raise AlgidError(f"{target / file_name}: exists; not replaced without "
                                  f"overwrite=True (--force on the command line)")
+    if os.path.lexists(target) and not target.is_dir():
+        raise AlgidError(f"{target}: not a folder (a file of that name exists)")
     try:
         target.mkdir(parents=True, exist_ok=True)
         for file_name, columns in tables:
