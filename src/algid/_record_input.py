@@ -36,7 +36,8 @@ from algid.errors import InputDataError
 __all__ = ["TIME_COLUMNS", "RATE_TOLERANCE", "STEP_RANGE", "is_record", "is_timeresponse",
            "timeresponse_pair",
            "as_record", "read_column", "refuse_unusable", "record_columns", "check_rate",
-           "check_rate_agrees", "refuse_nonfinite", "column_list", "first_non_number"]
+           "check_rate_agrees", "refuse_nonfinite", "refuse_infinite", "column_list",
+           "first_non_number"]
 
 #: Column names taken as the time axis when neither ``time`` nor ``rate`` is given.
 TIME_COLUMNS = ("t", "time")
@@ -491,6 +492,29 @@ def record_columns(record, signals, *, time=None, rate=None, first_sample=0, ind
     if first_sample and time is None and not any(c in record for c in TIME_COLUMNS):
         t = (first_sample + np.arange(n)) / check_rate(rate)
     return t, columns
+
+
+def refuse_infinite(values, what, where=""):
+    """Refuse an infinite sample (no measurement: an overflow?); NaN marks a missing one.
+
+    Parameters
+    ----------
+    values : numpy.ndarray
+        A column's float samples.
+    what : str
+        Names the column (``"record 0: column 'u'"``).
+    where : str, optional
+        Follows the row in the message (``" of the chunk"``).
+
+    Raises
+    ------
+    InputDataError
+        Naming the value and its row.
+    """
+    infinite = np.flatnonzero(np.isinf(values))
+    if infinite.size:
+        raise InputDataError(f"{what} is {values[infinite[0]]} at row {infinite[0]}{where}; "
+                             f"a missing sample is NaN")
 
 
 def refuse_nonfinite(columns, what):

@@ -54,3 +54,9 @@ def test_last_reports_the_stream_s_last_window_end():
     completed = whole.t >= end.t[0]   # every window end the last chunk completed
     assert np.array_equal(end.t, whole.t[completed])
     assert np.array_equal(end.values, whole.values[completed], equal_nan=True)
+
+
+def test_an_empty_first_chunk_waits_for_samples():
+    """It was an IndexError (the warm-up's last time of no samples)."""
+    tracker = algid.Tracker("y' + a*y = b*u", "a b", rate=100)
+    assert len(tracker.update({"y": np.empty(0), "u": np.empty(0)})) == 0

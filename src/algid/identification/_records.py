@@ -14,7 +14,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from algid._record_input import as_record, is_record, record_columns
+from algid._record_input import as_record, is_record, record_columns, refuse_infinite
 from algid.errors import InputDataError
 
 __all__ = ["Segment", "prepare_records", "estimate_derivative", "check_factors",
@@ -120,11 +120,8 @@ def prepare_records(data, signals, *, time=None, rate=None, min_length=8):
     for index, record in enumerate(records):
         t, columns = record_columns(record, signals, time=time, rate=rate, index=index,
                                     min_samples=2)
-        for name, values in columns.items():  # NaN marks a missing sample; inf is no
-            infinite = np.flatnonzero(np.isinf(values))  # measurement (an overflow?)
-            if infinite.size:
-                raise InputDataError(f"record {index}: column {name!r} is {values[infinite[0]]} "
-                                     f"at row {infinite[0]}; a missing sample is NaN")
+        for name, values in columns.items():
+            refuse_infinite(values, f"record {index}: column {name!r}")
         valid = np.all([~np.isnan(v) for v in columns.values()], axis=0)
         ranges, median = _split(t, valid, min_length)
         steps.append(median)

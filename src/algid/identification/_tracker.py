@@ -44,6 +44,7 @@ from algid._record_input import (
     column_list,
     is_record,
     read_column,
+    refuse_infinite,
 )
 from algid.errors import AlgidError, InputDataError
 from algid.identification._arguments import check_arguments, check_model_columns
@@ -541,10 +542,7 @@ class Tracker:
                 raise InputDataError(f"no column {name!r} in the chunk (columns: "
                                      f"{column_list(chunk)})")
             values = read_column(chunk[name], f"column {name!r}")  # (stream times: numbers)
-            infinite = np.flatnonzero(np.isinf(values))
-            if infinite.size:  # (NaN marks a missing sample, as in identify's records)
-                raise InputDataError(f"column {name!r} is {values[infinite[0]]} at row "
-                                     f"{infinite[0]} of the chunk; a missing sample is NaN")
+            refuse_infinite(values, f"column {name!r}", " of the chunk")
             columns[name] = values
             same = same and (n is None or len(values) == n)
             n = len(values)
@@ -585,6 +583,8 @@ class Tracker:
         """Fix the step and the window once enough samples arrived; replay them."""
         warm = self.state.warmup
         t = warm.t
+        if not len(t):   # (an empty chunk first)
+            return
         if self.config["rate"] is not None:
             step = 1.0 / self.config["rate"]
         elif len(t) > STEP_SAMPLES:
