@@ -2,7 +2,7 @@
 
 The compiled kernels (the tracker's recurrences and solves, the estimator's loops, the
 checks of the signals) are compiled by numba at their first call and cached on disk:
-on a fresh installation the first call waits a minute or more, and would otherwise wait
+on a fresh installation the first call waits ten to twenty seconds, and would otherwise wait
 in silence.  :func:`watch` installs a listener of numba's compile events: when one of
 algid's functions has been compiling for :data:`DELAY` seconds, it says so, once per
 process.  Loading machine code from numba's cache raises no compile event: nothing is
@@ -44,7 +44,7 @@ def _say(name):
             return
         _state["said"] = True
     print(f"algid: numba is compiling {name} and the kernels it calls, at their first use "
-          f"on this installation; this takes a minute or more once (the machine code is "
+          f"on this installation; this takes ten to twenty seconds once (the machine code is "
           f"cached for the next runs)", file=sys.stderr, flush=True)
 
 

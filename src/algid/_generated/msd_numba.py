@@ -74,6 +74,13 @@ def _startup_increments(src, dst, startup):
 
 
 @numba.njit(cache=CACHE, nogil=True)
+def _copy(src, dst, count):
+    """dst[:count] = src[:count]."""
+    for i in range(count):
+        dst[i] = src[i]
+
+
+@numba.njit(cache=CACHE, nogil=True)
 def _integrate_sample(integrals, history, k, value, weights):
     """Integrator k past one more integrand sample: its increment summed oldest
     sample first (as _increments), its running integral (returned); the sample
@@ -107,18 +114,19 @@ def advance_sample(channel_0, channel_1, out, integrals, history, n0, dt, diviso
     y1_0 = v1
     y2_0 = tau * v1
     y3_0 = (tau * tau) * v1
-    y0_1 = _integrate_sample(integrals, history, 0, y0_0, weights)
-    y1_1 = _integrate_sample(integrals, history, 1, y1_0, weights)
-    y2_1 = _integrate_sample(integrals, history, 2, y2_0, weights)
-    y3_1 = _integrate_sample(integrals, history, 3, y3_0, weights)
-    y0_2 = _integrate_sample(integrals, history, 4, y0_1, weights)
-    y1_2 = _integrate_sample(integrals, history, 5, y1_1, weights)
-    y2_2 = _integrate_sample(integrals, history, 6, y2_1, weights)
-    y3_2 = _integrate_sample(integrals, history, 7, y3_1, weights)
-    y0_3 = _integrate_sample(integrals, history, 8, y0_2, weights)
-    y1_3 = _integrate_sample(integrals, history, 9, y1_2, weights)
-    y2_3 = _integrate_sample(integrals, history, 10, y2_2, weights)
-    y3_3 = _integrate_sample(integrals, history, 11, y3_2, weights)
+    # (np.intp(k): one compiled _integrate_sample, not one per literal index)
+    y0_1 = _integrate_sample(integrals, history, np.intp(0), y0_0, weights)
+    y1_1 = _integrate_sample(integrals, history, np.intp(1), y1_0, weights)
+    y2_1 = _integrate_sample(integrals, history, np.intp(2), y2_0, weights)
+    y3_1 = _integrate_sample(integrals, history, np.intp(3), y3_0, weights)
+    y0_2 = _integrate_sample(integrals, history, np.intp(4), y0_1, weights)
+    y1_2 = _integrate_sample(integrals, history, np.intp(5), y1_1, weights)
+    y2_2 = _integrate_sample(integrals, history, np.intp(6), y2_1, weights)
+    y3_2 = _integrate_sample(integrals, history, np.intp(7), y3_1, weights)
+    y0_3 = _integrate_sample(integrals, history, np.intp(8), y0_2, weights)
+    y1_3 = _integrate_sample(integrals, history, np.intp(9), y1_2, weights)
+    y2_3 = _integrate_sample(integrals, history, np.intp(10), y2_2, weights)
+    y3_3 = _integrate_sample(integrals, history, np.intp(11), y3_2, weights)
     P, Q = _regressors_packed((y0_2, y0_3, y1_2, y1_3, y2_1, y2_2, y2_3, y3_0, y3_1, y3_2, y3_3,))
     nums, den = _cramer(P, Q)
     f0 = nums[0]
@@ -194,11 +202,11 @@ def advance(channel_0, channel_1, out, integrals, history, n0, dt, divisors,
     latest = previous = 0.0
     latest_at = previous_at = -1
     # y<c>_<l>[:W]: the last W values of level l of chain c before the block;
-    # y<c>_<l>[W + b]: its value at sample b of the block; all are views into one
-    # scratch array (one allocation per call)
+    # y<c>_<l>[W + b]: its value at sample b of the block; views into one scratch
+    # array
     blk = max(1, min(BLOCK, size))  # a short chunk needs short buffers
     span = W + blk
-    work = np.empty(16 * span + 4 * blk + (filter_order + 1) * 3 * span + 3 * blk + filter_order * 3)
+    work = np.empty(16 * span + 4 * blk)
     y0_0 = work[0 * span:1 * span]
     y0_1 = work[1 * span:2 * span]
     y0_2 = work[2 * span:3 * span]
@@ -220,41 +228,38 @@ def advance(channel_0, channel_1, out, integrals, history, n0, dt, divisors,
     e1 = work[at + 1 * blk:at + 2 * blk]
     e2 = work[at + 2 * blk:at + 3 * blk]
     e3 = work[at + 3 * blk:at + 4 * blk]
-    at += 4 * blk
-    fb = work[at:at + (filter_order + 1) * 3 * span].reshape((filter_order + 1, 3, span))
-    at += (filter_order + 1) * 3 * span
-    fe = work[at:at + 3 * blk].reshape((3, blk))
-    at += 3 * blk
-    fs = work[at:at + filter_order * 3].reshape((filter_order, 3))
+    fb = np.empty((filter_order + 1, 3, span))
+    fe = np.empty((3, blk))
+    fs = np.empty((filter_order, 3))
     grid_raw = np.empty(blk // GRID + 1)
     s0_1 = integrals[0]
-    y0_0[:W] = history[0]
+    _copy(history[0], y0_0, W)
     s1_1 = integrals[1]
-    y1_0[:W] = history[1]
+    _copy(history[1], y1_0, W)
     s2_1 = integrals[2]
-    y2_0[:W] = history[2]
+    _copy(history[2], y2_0, W)
     s3_1 = integrals[3]
-    y3_0[:W] = history[3]
+    _copy(history[3], y3_0, W)
     s0_2 = integrals[4]
-    y0_1[:W] = history[4]
+    _copy(history[4], y0_1, W)
     s1_2 = integrals[5]
-    y1_1[:W] = history[5]
+    _copy(history[5], y1_1, W)
     s2_2 = integrals[6]
-    y2_1[:W] = history[6]
+    _copy(history[6], y2_1, W)
     s3_2 = integrals[7]
-    y3_1[:W] = history[7]
+    _copy(history[7], y3_1, W)
     s0_3 = integrals[8]
-    y0_2[:W] = history[8]
+    _copy(history[8], y0_2, W)
     s1_3 = integrals[9]
-    y1_2[:W] = history[9]
+    _copy(history[9], y1_2, W)
     s2_3 = integrals[10]
-    y2_2[:W] = history[10]
+    _copy(history[10], y2_2, W)
     s3_3 = integrals[11]
-    y3_2[:W] = history[11]
+    _copy(history[11], y3_2, W)
     for lev in range(filter_order):
         for r in range(3):
             fs[lev, r] = integrals[12 + lev * 3 + r]
-            fb[lev, r, :W] = history[12 + lev * 3 + r]
+            _copy(history[12 + lev * 3 + r], fb[lev, r], W)
     d0 = divisors[0]
     d1 = divisors[1]
     for start in range(0, size, blk):
@@ -518,33 +523,33 @@ def advance(channel_0, channel_1, out, integrals, history, n0, dt, divisors,
                 for r in range(3):
                     fb[lev, r, i] = fb[lev, r, nb + i]
     integrals[0] = s0_1
-    history[0] = y0_0[:W]
+    _copy(y0_0, history[0], W)
     integrals[1] = s1_1
-    history[1] = y1_0[:W]
+    _copy(y1_0, history[1], W)
     integrals[2] = s2_1
-    history[2] = y2_0[:W]
+    _copy(y2_0, history[2], W)
     integrals[3] = s3_1
-    history[3] = y3_0[:W]
+    _copy(y3_0, history[3], W)
     integrals[4] = s0_2
-    history[4] = y0_1[:W]
+    _copy(y0_1, history[4], W)
     integrals[5] = s1_2
-    history[5] = y1_1[:W]
+    _copy(y1_1, history[5], W)
     integrals[6] = s2_2
-    history[6] = y2_1[:W]
+    _copy(y2_1, history[6], W)
     integrals[7] = s3_2
-    history[7] = y3_1[:W]
+    _copy(y3_1, history[7], W)
     integrals[8] = s0_3
-    history[8] = y0_2[:W]
+    _copy(y0_2, history[8], W)
     integrals[9] = s1_3
-    history[9] = y1_2[:W]
+    _copy(y1_2, history[9], W)
     integrals[10] = s2_3
-    history[10] = y2_2[:W]
+    _copy(y2_2, history[10], W)
     integrals[11] = s3_3
-    history[11] = y3_2[:W]
+    _copy(y3_2, history[11], W)
     for lev in range(filter_order):
         for r in range(3):
             integrals[12 + lev * 3 + r] = fs[lev, r]
-            history[12 + lev * 3 + r] = fb[lev, r, :W]
+            _copy(fb[lev, r], history[12 + lev * 3 + r], W)
     if error_out.shape[0]:  # the window's last values: recent's, then the chunk's
         for i in range(width):
             recent[i] = recent[i + size] if i + size < width else 0.0

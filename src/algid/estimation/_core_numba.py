@@ -261,7 +261,7 @@ def _announce_compilation(module, how):
     # seconds to minutes: say so on stderr, so that it is not taken for a hang
     mark_said()   # (the compile-event listener need not say it again)
     print(f"algid: compiling the numba loop of model {module.MODEL!r} at its first use "
-          f"({how}); this can take a minute or more; engine='numpy' starts at once",
+          f"({how}); this takes ten to twenty seconds; engine='numpy' starts at once",
           file=sys.stderr, flush=True)
 
 
@@ -503,8 +503,13 @@ def advance(state, layout, channels, out, *, from_origin=False, error_out=None):
                      state.recent_errors, error_out)
     else:
         arguments = _NOT_PROPAGATED
-    loop(*channels, out, state.integrals, state.history, state.n_seen, state.dt,
+    # one machine code for every call: numba compiles the loop again (seconds) for an
+    # output that is not C-contiguous (a column block of a larger array)
+    target = out if out.flags.c_contiguous else np.empty(out.shape)
+    loop(*channels, target, state.integrals, state.history, state.n_seen, state.dt,
          state.divisors, weights, startup, state.filter_order, bool(from_origin), *arguments)
+    if target is not out:
+        out[...] = target
     if from_origin:
         out[:, :state.points - 1] = np.nan
     state.n_seen += channels[0].size

@@ -85,7 +85,8 @@ def block_error(estimates, companion, recent, out):  # pragma: no cover - compil
     for j in range(m):
         raw = out[j]
         level[width + j] = raw if abs(raw) < np.inf else 0.0  # finite
-    recent[:] = level[m:]
+    for k in range(width):   # a loop: a slice assignment compiles an error path
+        recent[k] = level[m + k]
     # the largest over the last width + 1 samples: maxima of 2, 4, 8, ... samples (the
     # window is a power of two), each pass reading the previous one's values ahead
     span = 1

@@ -346,10 +346,12 @@ def _smallest_singular(Rs, norms, m):
 
 
 @_jit
-def _solve_full(R, G, bound, bc, check, theta, full, jacobian, mapping):
+def _solve_full(R, G, bound, bc, separability, theta, full, jacobian, mapping):
     """identify's solve of one window on its triangular factor ``R`` of ``[A | b]`` and
     noise sums ``G`` (as the NumPy path's ``_solve_full``); False where the equations do
-    not determine every parameter (``check``: test the smallest singular value)."""
+    not determine every parameter (with ``separability > 0``: where the smallest singular
+    value of the unit columns is below it).  A number, not a flag: numba compiles a
+    function once per literal flag it is called with."""
     q = R.shape[1]
     p = q - 1
     rows = R.shape[0]
@@ -366,14 +368,14 @@ def _solve_full(R, G, bound, bc, check, theta, full, jacobian, mapping):
     for i in range(rows):
         for j in range(q):
             Rs[i, j] = math.ldexp(R[i, j], -shifts[j])
-    if check:
+    if separability > 0.0:
         unit_norms = np.empty(p)
         for j in range(p):
             total = 0.0
             for i in range(rows):
                 total += Rs[i, j] * Rs[i, j]
             unit_norms[j] = math.sqrt(total)
-        if not _smallest_singular(Rs, unit_norms, p) >= ROUNDOFF_SEPARABILITY:
+        if not _smallest_singular(Rs, unit_norms, p) >= separability:
             return False
     inverse = np.empty((p, p))
     _upper_inverse(Rs[:p, :p], inverse)
@@ -465,7 +467,7 @@ def _solve_window(R, G, bound, bc, theta, values, full, jacobian, mapping):
     V = np.empty((p, p))
     _svd_jacobi(unit, singular, V)
     if singular[p - 1] >= ROUNDOFF_SEPARABILITY and positive:
-        if not _solve_full(R, G, bound, bc, False, theta, full, jacobian, mapping):
+        if not _solve_full(R, G, bound, bc, 0.0, theta, full, jacobian, mapping):
             return -1
         for i in range(p):
             values[i] = theta[i]
@@ -514,8 +516,8 @@ def _solve_window(R, G, bound, bc, theta, values, full, jacobian, mapping):
     sub_full = np.empty((m + 1, m + 1))
     sub_jacobian = np.empty((m, m))
     sub_mapping = np.empty((m, m))
-    if not _solve_full(reduced, Gsub, bound, bc, True, sub_theta, sub_full, sub_jacobian,
-                       sub_mapping):
+    if not _solve_full(reduced, Gsub, bound, bc, ROUNDOFF_SEPARABILITY, sub_theta, sub_full,
+                       sub_jacobian, sub_mapping):
         return -1
     for i in range(q):
         for j in range(q):
@@ -594,13 +596,15 @@ def solve_windows(R, G, top, low, bounds, n_eff, wanted, bc, spare, theta, value
             full[w] = math.nan
             jacobian[w] = math.nan
             mapping[w] = math.nan
-        else:
-            values[w] = sub_values
+        else:   # loops, not row assignments (each compiles a shape-mismatch error path)
+            for i in range(p):
+                values[w, i] = sub_values[i]
             kept[w] = m
         m = _solve_window(R[w, low], G[w, low], bounds[w], bc, sub_theta, sub_values, sub_full,
                           sub_jacobian, sub_mapping)
         if m >= 0 and n_eff[w] >= m + spare:
-            lower[w] = sub_theta
+            for i in range(p):
+                lower[w, i] = sub_theta[i]
 
 
 @_jit

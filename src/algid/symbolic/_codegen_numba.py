@@ -65,6 +65,17 @@ def _startup_source():
             "        dst[j] = acc"]
 
 
+def _copy_source():
+    """Lines of ``_copy``: the first ``count`` values of one row into another.  A loop,
+    not a slice assignment: numba compiles each slice assignment's shape-mismatch
+    error path anew (about a sixth of a second each, dozens per model)."""
+    return ["@numba.njit(cache=CACHE, nogil=True)",
+            "def _copy(src, dst, count):",
+            '    """dst[:count] = src[:count]."""',
+            "    for i in range(count):",
+            "        dst[i] = src[i]"]
+
+
 def _integrate_sample_source():
     """Lines of ``_integrate_sample``: one integrator past one more sample."""
     return ["@numba.njit(cache=CACHE, nogil=True)",
@@ -218,11 +229,12 @@ def _sample_source(layout, channels, n_par):
         a(f"    if divisors[{i}] != 1.0:")
         a(f"        v{i} = v{i} / divisors[{i}]")
     _level_zero(a, layout, "    ", "")
+    a("    # (np.intp(k): one compiled _integrate_sample, not one per literal index)")
     k = 0
     for level, rows in enumerate(layout.levels, start=1):
         for c in rows:
-            a(f"    y{c}_{level} = _integrate_sample(integrals, history, {k}, y{c}_{level - 1},"
-              " weights)")
+            a(f"    y{c}_{level} = _integrate_sample(integrals, history, np.intp({k}),"
+              f" y{c}_{level - 1}, weights)")
             k += 1
     kernels = ", ".join(f"y{row}_{level}" for level, row in layout.kernels)
     a(f"    P, Q = _regressors_packed(({kernels},))")
@@ -299,7 +311,8 @@ def numba_module_source(module, *, header, cache=True) -> str:
            "_regressors_packed = numba.njit(cache=CACHE, nogil=True)(regressors_packed)",
            "_cramer = numba.njit(cache=CACHE, nogil=True)(cramer)", "", "",
            *_increments_source(), "", "", *_startup_source(), "", "",
-           *_integrate_sample_source(), "", "", *_sample_source(layout, channels, n_par), "", "",
+           *_copy_source(), "", "", *_integrate_sample_source(), "", "",
+           *_sample_source(layout, channels, n_par), "", "",
            "@numba.njit(cache=CACHE, nogil=True)",
            f"def advance({', '.join(channels)}, out, integrals, history, n0, dt, divisors,",
            "            weights, startup, filter_order, from_origin, taps, residuals,",
@@ -334,13 +347,12 @@ def numba_module_source(module, *, header, cache=True) -> str:
     a("    latest = previous = 0.0")
     a("    latest_at = previous_at = -1")
     a("    # y<c>_<l>[:W]: the last W values of level l of chain c before the block;")
-    a("    # y<c>_<l>[W + b]: its value at sample b of the block; all are views into one")
-    a("    # scratch array (one allocation per call)")
+    a("    # y<c>_<l>[W + b]: its value at sample b of the block; views into one scratch")
+    a("    # array")
     n_buffers = sum(d + 1 for d in chain_depth)
     a("    blk = max(1, min(BLOCK, size))  # a short chunk needs short buffers")
     a("    span = W + blk")
-    a(f"    work = np.empty({n_buffers} * span + {len(chain_depth)} * blk"
-      f" + (filter_order + 1) * {lanes} * span + {lanes} * blk + filter_order * {lanes})")
+    a(f"    work = np.empty({n_buffers} * span + {len(chain_depth)} * blk)")
     offset = 0
     for c, d in enumerate(chain_depth):
         for level in range(d + 1):
@@ -349,24 +361,21 @@ def numba_module_source(module, *, header, cache=True) -> str:
     a(f"    at = {n_buffers} * span")
     for c in range(len(chain_depth)):
         a(f"    e{c} = work[at + {c} * blk:at + {c + 1} * blk]")
-    a(f"    at += {len(chain_depth)} * blk")
-    a(f"    fb = work[at:at + (filter_order + 1) * {lanes} * span]"
-      f".reshape((filter_order + 1, {lanes}, span))")
-    a(f"    at += (filter_order + 1) * {lanes} * span")
-    a(f"    fe = work[at:at + {lanes} * blk].reshape(({lanes}, blk))")
-    a(f"    at += {lanes} * blk")
-    a(f"    fs = work[at:at + filter_order * {lanes}].reshape((filter_order, {lanes}))")
+    # (own arrays, not reshaped views of work: numba compiles reshape's error path)
+    a(f"    fb = np.empty((filter_order + 1, {lanes}, span))")
+    a(f"    fe = np.empty(({lanes}, blk))")
+    a(f"    fs = np.empty((filter_order, {lanes}))")
     a("    grid_raw = np.empty(blk // GRID + 1)")
     k = 0
     for level, rows in enumerate(layout.levels, start=1):
         for c in rows:
             a(f"    s{c}_{level} = integrals[{k}]")
-            a(f"    y{c}_{level - 1}[:W] = history[{k}]")
+            a(f"    _copy(history[{k}], y{c}_{level - 1}, W)")
             k += 1
     a("    for lev in range(filter_order):")
     a(f"        for r in range({lanes}):")
     a(f"            fs[lev, r] = integrals[{k} + lev * {lanes} + r]")
-    a(f"            fb[lev, r, :W] = history[{k} + lev * {lanes} + r]")
+    a(f"            _copy(history[{k} + lev * {lanes} + r], fb[lev, r], W)")
     for i in range(len(channels)):
         a(f"    d{i} = divisors[{i}]")
     a("    for start in range(0, size, blk):")
@@ -433,12 +442,12 @@ def numba_module_source(module, *, header, cache=True) -> str:
     for level, rows in enumerate(layout.levels, start=1):
         for c in rows:
             a(f"    integrals[{k}] = s{c}_{level}")
-            a(f"    history[{k}] = y{c}_{level - 1}[:W]")
+            a(f"    _copy(y{c}_{level - 1}, history[{k}], W)")
             k += 1
     a("    for lev in range(filter_order):")
     a(f"        for r in range({lanes}):")
     a(f"            integrals[{k} + lev * {lanes} + r] = fs[lev, r]")
-    a(f"            history[{k} + lev * {lanes} + r] = fb[lev, r, :W]")
+    a(f"            _copy(fb[lev, r], history[{k} + lev * {lanes} + r], W)")
     a("    if error_out.shape[0]:  # the window's last values: recent's, then the chunk's")
     a("        for i in range(width):")
     a("            recent[i] = recent[i + size] if i + size < width else 0.0")
