@@ -218,9 +218,14 @@ def build_parser() -> argparse.ArgumentParser:
     ide.add_argument("--method", choices=("bc", "ls", "iv"), default="bc",
                      help="bias-compensated least squares (default), least squares or "
                           "instrumental variables")
+    ide.add_argument("--refine", action=argparse.BooleanOptionalAction, default=None,
+                     help="refine the algebraic estimate by output error (efficient under "
+                          "white output noise); default: where it is safe (a stable model "
+                          "linear in its signals, and the simulation error drops)")
     ide.add_argument("--json", action="store_true",
                      help="print one JSON object: a key per parameter, stderr, window, "
-                          "n_samples, warnings")
+                          "n_samples, warnings, estimate (refined or algebraic) and the "
+                          "algebraic estimate")
     ide.set_defaults(handler=_cmd_identify)
 
     from algid._cli_track import add_track_parser
@@ -465,7 +470,8 @@ def _cmd_estimate(args) -> int:
 
 
 #: Keys of ``algid identify --json`` besides the parameters.
-IDENTIFY_JSON_KEYS = ("stderr", "numerical_error", "window", "n_samples", "warnings")
+IDENTIFY_JSON_KEYS = ("stderr", "numerical_error", "window", "n_samples", "warnings",
+                      "estimate", "algebraic")
 
 
 def _cmd_identify(args) -> int:
@@ -484,7 +490,7 @@ def _cmd_identify(args) -> int:
     optional = () if args.time else TIME_COLUMNS
     records = [read_model_columns(path, names, model, optional) for path in args.files]
     result = identify(records, model, time=args.time, rate=args.rate, window=args.window,
-                      method=args.method)
+                      method=args.method, refine="auto" if args.refine is None else args.refine)
     stderr = result.stderr
     source = args.files[0] if len(args.files) == 1 else f"{len(args.files)} records"
     for warning in result.warnings:
@@ -497,11 +503,24 @@ def _cmd_identify(args) -> int:
         payload["window"] = float(result.window)
         payload["n_samples"] = int(result.n_samples)
         payload["warnings"] = list(result.warnings)
+        payload["estimate"] = result.estimate
+        algebraic = result.algebraic or {"values": result.values,
+                                         "covariance": result.covariance}
+        cov = algebraic["covariance"]
+        payload["algebraic"] = {
+            "values": {p: _finite_or_none(v) for p, v in algebraic["values"].items()},
+            "stderr": {p: _finite_or_none(math.sqrt(max(float(cov[i, i]), 0.0)))
+                       for i, p in enumerate(model.parameters)},
+            "numerical_error": {p: _finite_or_none(v) for p, v in
+                                algebraic.get("numerical_error",
+                                              result.numerical_error).items()}}
         print(json.dumps(payload, allow_nan=False))
         return 0
     print(f"{model.equation}")
+    refined = ", refined by output error" if result.estimate == "refined" else ""
     print(f"{len(args.files)} record(s), {result.n_samples} samples, window "
-          f"{result.window:.6g} s ({result.n_windows} windows), method {result.method}")
+          f"{result.window:.6g} s ({result.n_windows} windows), method {result.method}"
+          f"{refined}")
     width = max([len("parameter")] + [len(p) for p in model.parameters])
     print(f"{'parameter':<{width}}  {'estimate':>13}  {'std. error':>10}  {'numerical':>10}")
     for p, v in result.values.items():

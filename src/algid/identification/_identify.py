@@ -577,7 +577,7 @@ def _least_squares_misfit(segments, step, equation, parameters, output, length, 
 
 def identify(data, equation, parameters=None, *, time=None, rate=None, output=None,
              window=None, method="bc", multiplicities=MULTIPLICITIES, name="custom",
-             iterations=3):
+             iterations=3, refine="auto"):
     """Identify the parameters of a model equation on measured records.
 
     Parameters
@@ -617,12 +617,20 @@ def identify(data, equation, parameters=None, *, time=None, rate=None, output=No
         Label of the model.
     iterations : int
         Instrumental-variable iterations.
+    refine : {"auto", True, False}
+        Refine the algebraic estimate by output error
+        (:meth:`IdentificationResult.refine`: the efficient estimate under white
+        output noise, with standard errors at the Cramér–Rao bound).  ``"auto"``
+        (default): where it is safe, on a model linear in its signals whose algebraic
+        and refined models are stable and where the simulation error drops; True:
+        always (refused for a model it cannot simulate); False: the algebraic estimate.
 
     Returns
     -------
     IdentificationResult
         With ``warnings`` when the model does not explain the data within the noise
-        (:mod:`algid.identification._adequacy`).
+        (:mod:`algid.identification._adequacy`); ``estimate`` says whether ``values``
+        are the refined or the algebraic estimate, ``algebraic`` keeps the latter.
 
     Raises
     ------
@@ -640,8 +648,10 @@ def identify(data, equation, parameters=None, *, time=None, rate=None, output=No
     >>> round(result.B, 3), round(result.K, 2), result.warnings
     (2.0, 3.0, [])
     """
+    from algid.identification._output_error import check_refine, refine_result
     from algid.identification._result import IdentificationResult
 
+    refine = check_refine(refine)
     if isinstance(equation, types.ModuleType):  # a compiled model: its own equation
         equation = model_of(estimator_module(equation, parameters))
     multiplicities = check_arguments(
@@ -688,7 +698,7 @@ def identify(data, equation, parameters=None, *, time=None, rate=None, output=No
             segments, step, eq, names, model.output, length, multiplicities))
     if noise_like and (fit.separation.free or fit.separation.misfit_free):
         raise ModelError(fit.separation.message(model.parameters))
-    return IdentificationResult(
+    result = IdentificationResult(
         model=model, values=dict(zip(model.parameters, fit.theta.tolist())),
         covariance=fit.covariance, window=(length - 1) * step, n_samples=n_samples,
         n_windows=fit.n_windows, method=method, multiplicities=multiplicities,
@@ -699,3 +709,4 @@ def identify(data, equation, parameters=None, *, time=None, rate=None, output=No
         warnings=adequacy.warnings() + fit.separation.warnings(model.parameters,
                                                                adequacy.adequate)
         + _idle_records(data, segments, length, step))
+    return refine_result(result, segments, step, refine)

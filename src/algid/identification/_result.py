@@ -113,6 +113,15 @@ class IdentificationResult:
     warnings : list of str
         One-line warnings about the result (an inadequate model, poorly separated or
         strongly correlated parameters).
+    estimate : {"algebraic", "refined"}
+        Which estimate ``values`` and ``covariance`` hold: the algebraic one, or the
+        output-error refinement started from it (:meth:`refine`).
+    algebraic : dict or None
+        The algebraic estimate: ``{"values": ..., "covariance": ...,
+        "numerical_error": ...}`` (a refined estimate has no quadrature error:
+        its ``numerical_error`` is empty).
+    refinement : algid.identification._output_error.Refinement or None
+        Whether the refinement was applied, why, and its figures.
 
     Examples
     --------
@@ -142,6 +151,9 @@ class IdentificationResult:
     numerical_error: dict = field(default_factory=dict)
     adequacy: object = None
     warnings: list = field(default_factory=list)
+    estimate: str = "algebraic"
+    algebraic: dict | None = None
+    refinement: object = None
 
     def __getattr__(self, name):
         values = self.__dict__.get("values", {})
@@ -176,8 +188,10 @@ class IdentificationResult:
             return f"IdentificationResult({self.model.equation!r}: {pieces}; given)"
         pieces = ", ".join(piece(p, v) for p, v in self.values.items())
         warned = "".join(f"; warning: {w}" for w in self.warnings)
+        refined = "; refined by output error" if self.estimate == "refined" else ""
         return (f"IdentificationResult({self.model.equation!r}: {pieces}; window "
-                f"{self.window:.4g} s, {self.n_samples} samples, {self.method}{warned})")
+                f"{self.window:.4g} s, {self.n_samples} samples, {self.method}{refined}"
+                f"{warned})")
 
     @classmethod
     def from_values(cls, equation, values, *, parameters=None, output=None, time=None,
@@ -271,6 +285,52 @@ class IdentificationResult:
                                      f"{v!r:.40}")
         return replace(self, values={p: float(values[p]) for p in self.model.parameters},
                        adequacy=None, warnings=[])
+
+    def refine(self, data, *, time=None, rate=None):
+        """The output-error refinement of this estimate on records.
+
+        A prediction-error fit of the model's simulated output to the measured one,
+        started from this estimate, with the initial state of every record (and of every
+        run between gaps) as a nuisance parameter: the maximum-likelihood estimate under
+        white output noise, whose standard errors reach the Cramér–Rao bound.  Its
+        covariance counts coloured residuals (an autoregressive model of them), so it
+        stays honest under coloured noise.  Models linear in their signals, sampled
+        uniformly (see the user guide, "How good is my estimate").
+
+        Parameters
+        ----------
+        data : record or list of records
+            The records the estimate came from (or others of the same system).
+        time, rate
+            Time axis, as for :func:`algid.identify` (default: those of the fit).
+
+        Returns
+        -------
+        IdentificationResult
+            ``estimate == "refined"`` with the refined values and covariance, the
+            algebraic ones in ``algebraic``; or, where the fit does not lower the
+            simulation error, this estimate with a warning saying so.
+
+        Raises
+        ------
+        ModelError
+            A model the refinement cannot simulate (nonlinear in its signals, or not
+            proper).
+        """
+        from algid.identification._output_error import refine_result
+
+        if self.method == "given" or not np.all(np.isfinite(self.covariance)):
+            base = self
+        else:
+            base = self if self.estimate == "algebraic" else replace(
+                self, values=dict(self.algebraic["values"]),
+                covariance=self.algebraic["covariance"], estimate="algebraic",
+                numerical_error=dict(self.algebraic["numerical_error"]))
+        time = self.time if time is None and rate is None else time
+        rate = self.rate if time is None and rate is None else rate
+        segments, step, _ = prepare_records(data, self.model.signals, time=time, rate=rate,
+                                            min_length=2 * max(self.model.order, 1) + 2)
+        return refine_result(base, segments, step, True)
 
     # validation -------------------------------------------------------------------------
 

@@ -15,7 +15,8 @@ import numpy as np
 
 from algid.errors import InputDataError
 
-__all__ = ["Interpolant", "extrapolate", "UPSAMPLING", "FILTER_HALF_LENGTH"]
+__all__ = ["Interpolant", "extrapolate", "bandlimited_samples", "UPSAMPLING",
+           "FILTER_HALF_LENGTH"]
 
 #: Band-limited interpolation: upsampling factor and filter half-length (input samples).
 UPSAMPLING = 16
@@ -76,6 +77,42 @@ def _too_large(values):
         f"to interpolate in floating point: express it in other units")
 
 
+def bandlimited_samples(values):
+    """Uniform samples upsampled :data:`UPSAMPLING` times as a band-limited signal.
+
+    A Kaiser-windowed sinc filter on the samples continued at both ends by linear
+    prediction (:func:`extrapolate`).
+
+    Parameters
+    ----------
+    values : numpy.ndarray
+        The samples (uniform in time).
+
+    Returns
+    -------
+    numpy.ndarray
+        ``(len(values) - 1) * UPSAMPLING + 1`` samples, every ``UPSAMPLING``-th one at a
+        sample time.
+
+    Raises
+    ------
+    InputDataError
+        If the samples are too large to interpolate in floating point.
+    """
+    from scipy.signal import firwin, resample_poly
+
+    taps = firwin(2 * FILTER_HALF_LENGTH * UPSAMPLING + 1, 1.0 / UPSAMPLING,
+                  window=("kaiser", _KAISER_BETA))
+    margin = FILTER_HALF_LENGTH + 16
+    with np.errstate(all="ignore"):  # out of range: refused below
+        extended = extrapolate(values, margin)
+        fine = resample_poly(extended, UPSAMPLING, 1, window=taps, padtype="antireflect")
+    if not np.isfinite(fine).all():
+        _too_large(values)
+    skip = (margin if len(extended) > len(values) else 0) * UPSAMPLING
+    return fine[skip:skip + (len(values) - 1) * UPSAMPLING + 1]
+
+
 class Interpolant:
     """A sampled signal interpolated between samples, evaluated fast at scalar times.
 
@@ -96,21 +133,10 @@ class Interpolant:
 
     def __init__(self, t, values, interpolation):
         from scipy.interpolate import CubicSpline
-        from scipy.signal import firwin, resample_poly
 
         if interpolation == "bandlimited":
             step = (t[-1] - t[0]) / (len(t) - 1)
-            taps = firwin(2 * FILTER_HALF_LENGTH * UPSAMPLING + 1, 1.0 / UPSAMPLING,
-                          window=("kaiser", _KAISER_BETA))
-            margin = FILTER_HALF_LENGTH + 16
-            with np.errstate(all="ignore"):  # out of range: refused below
-                extended = extrapolate(values, margin)
-                fine = resample_poly(extended, UPSAMPLING, 1, window=taps,
-                                     padtype="antireflect")
-            if not np.isfinite(fine).all():
-                _too_large(values)
-            skip = (margin if len(extended) > len(values) else 0) * UPSAMPLING
-            fine = fine[skip:skip + (len(t) - 1) * UPSAMPLING + 1]
+            fine = bandlimited_samples(values)
             grid = t[0] + np.arange(len(fine)) * (step / UPSAMPLING)
             grid[-1] = t[-1]
         else:

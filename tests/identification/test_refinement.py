@@ -1,0 +1,164 @@
+"""The output-error refinement of identify's estimate (identify(refine=...),
+IdentificationResult.refine): its simulator, its estimate and its covariance."""
+
+import numpy as np
+import pytest
+
+import algid
+from algid.errors import InputDataError, ModelError
+from algid.identification._output_error import (
+    LinearSimulation,
+    channel_samples,
+    refine_result,
+    refinement_unavailable,
+)
+from algid.identification._records import Segment
+from algid.models import parse_equation
+
+LINEAR = ("y'' + B*y' + K*y = G*u + d", "B K G d")
+TRUTH = {"B": 0.6, "K": 40.0, "G": 40.0, "d": 0.5}
+
+
+def _segment(t, **values):
+    return Segment(0, np.arange(len(t)), t, values, float(t[1] - t[0]))
+
+
+@pytest.mark.parametrize("equation, parameters, values", [
+    ("y'' + B*y' + K*y = G*u + d + e*t", "B K G d e",
+     {"B": 0.6, "K": 40.0, "G": 40.0, "d": 0.5, "e": -0.2}),
+    ("M*y' + a*y = b*u' + 1.5*u + d", "M a b d",
+     {"M": 2.0, "a": 3.0, "b": 0.5, "d": 0.25}),
+    ("y''' + a2*y'' + a1*y' + a0*y = g*u'' + u", "a2 a1 a0 g",
+     {"a2": 3.0, "a1": 12.0, "a0": 10.0, "g": 0.3}),
+])
+def test_simulation_is_exact_for_an_input_linear_between_samples(equation, parameters,
+                                                                 values):
+    """Inputs linear in time are exact under the first-order hold; the adaptive
+    simulator (DOP853 at 1e-12) agrees to its own accuracy, from any initial state."""
+    model = parse_equation(equation, parameters, output="y")
+    t = np.arange(0.0, 4.0, 0.01)
+    u = 0.3 + 0.7 * t
+    order = model.order
+    x0 = np.linspace(0.4, -0.3, order)
+    reference = algid.simulate_model(model, values, t, {"u": u}, initial_state=x0,
+                                     interpolation="cubic", rtol=1e-12, atol=1e-14)
+    sim = LinearSimulation(model, values, 0.01)
+    forced, free = sim.run(channel_samples(sim.channels, _segment(t, u=u)))
+    assert free.shape == (len(t), order)
+    fitted = np.linalg.lstsq(free, reference - forced, rcond=None)[0]
+    assert np.max(np.abs(forced + free @ fitted - reference)) < 1e-9 * np.max(np.abs(reference))
+
+
+def test_simulation_at_a_high_rate_keeps_its_digits():
+    """A lightly damped mode sampled 10,000 times per period: the Schur recursion keeps
+    the free responses accurate (a transfer function in z would lose them)."""
+    model = parse_equation(*LINEAR)
+    t = np.arange(0, 2.0, 1e-4)
+    sim = LinearSimulation(model, TRUTH, 1e-4)
+    _, free = sim.run(channel_samples(sim.channels, _segment(t, u=np.zeros_like(t))))
+    # the free response from y = 1, y' = 0 (observable form: x = (y, y' + B y) here)
+    omega = np.sqrt(TRUTH["K"] - TRUTH["B"] ** 2 / 4)
+    sigma = TRUTH["B"] / 2
+    exact = np.exp(-sigma * t) * (np.cos(omega * t) + sigma / omega * np.sin(omega * t))
+    response = free @ np.array([1.0, TRUTH["B"]])
+    assert np.max(np.abs(response - exact)) < 1e-10
+
+
+@pytest.fixture(scope="module")
+def linear_record():
+    """10 s at 1 kHz of the linear model from a nonzero state, 3 % output noise."""
+    model = parse_equation(*LINEAR)
+    t = np.arange(0, 10, 1e-3)
+    u = np.sin(2 * np.pi * 0.7 * t) + np.sin(2 * np.pi * 2.3 * t + 1)
+    y = algid.simulate_model(model, TRUTH, t, {"u": u}, initial_state=[0.1, 0.0],
+                             rtol=1e-10, atol=1e-14)
+    rng = np.random.default_rng(0)
+    return {"t": t, "u": u, "y": y + 0.03 * np.std(y) * rng.standard_normal(len(t))}
+
+
+def test_identify_refines_a_linear_model_by_default(linear_record):
+    refined = algid.identify(linear_record, *LINEAR)
+    algebraic = algid.identify(linear_record, *LINEAR, refine=False)
+    assert refined.estimate == "refined" and algebraic.estimate == "algebraic"
+    assert refined.refinement.applied and refined.refinement.converged
+    assert refined.refinement.rms_after <= refined.refinement.rms_before
+    assert refined.algebraic["values"] == algebraic.values   # the algebraic one is kept
+    assert refined.numerical_error == {}
+    for p, truth in TRUTH.items():
+        assert abs(refined.values[p] - truth) < 4 * refined.stderr[p]
+    # most of the gain where the algebraic windows weight the data least evenly
+    assert refined.stderr["B"] < 0.5 * algebraic.stderr["B"]
+    assert all(refined.stderr[p] < algebraic.stderr[p] for p in TRUTH)
+    assert "refined by output error" in repr(refined)
+
+
+def test_refine_method_and_its_round_trip(linear_record):
+    algebraic = algid.identify(linear_record, *LINEAR, refine=False)
+    refined = algebraic.refine(linear_record)
+    again = refined.refine(linear_record)   # starts from the algebraic estimate again
+    assert refined.estimate == again.estimate == "refined"
+    assert refined.values == again.values
+    direct = algid.identify(linear_record, *LINEAR)
+    assert refined.values == direct.values
+
+
+def test_records_with_gaps_have_an_initial_state_per_run(linear_record):
+    record = {k: v.copy() for k, v in linear_record.items()}
+    keep = np.ones(len(record["t"]), bool)
+    keep[3000:3400] = False      # rows missing: two runs
+    gapped = {k: v[keep] for k, v in record.items()}
+    result = algid.identify(gapped, *LINEAR)
+    assert result.estimate == "refined"
+    assert len(result.refinement.initial_states) == 2
+    for p, truth in TRUTH.items():
+        assert abs(result.values[p] - truth) < 4 * result.stderr[p]
+
+
+def test_a_nonlinear_model_keeps_the_algebraic_estimate_and_says_why(linear_record):
+    equation = ("y'' + B*y' + K*y + K3*y**3 = G*u + d", "B K K3 G d")
+    assert "linear in its signals" in refinement_unavailable(parse_equation(*equation))
+    result = algid.identify(linear_record, *equation)
+    assert result.estimate == "algebraic" and not result.refinement.applied
+    assert "linear in its signals" in result.refinement.reason
+    assert not any("refine" in w for w in result.warnings)   # nothing the user did wrong
+    with pytest.raises(ModelError, match="refine: the output-error refinement needs"):
+        algid.identify(linear_record, *equation, refine=True)
+
+
+def test_an_unstable_model_is_not_refined_by_default(linear_record):
+    result = algid.identify(linear_record, *LINEAR, refine=False)
+    unstable = result.with_parameters({"B": -0.5, "K": 40.0, "G": 40.0, "d": 0.5})
+    t = linear_record["t"]
+    segments = [_segment(t, u=linear_record["u"], y=linear_record["y"])]
+    kept = refine_result(unstable, segments, 1e-3, "auto")
+    assert kept.estimate == "algebraic" and "not stable" in kept.refinement.reason
+    assert kept.warnings == []      # said in the reason: the default is not an error
+    tried = refine_result(unstable, segments, 1e-3, True)   # asked for: tried anyway
+    assert tried.estimate == "refined"   # from B = -0.5 back to the stable truth
+    assert abs(tried.B - TRUTH["B"]) < 4 * tried.stderr["B"]
+
+
+@pytest.mark.parametrize("bad", ["yes", 1, None, 2.0])
+def test_refine_argument_is_checked(linear_record, bad):
+    with pytest.raises(InputDataError, match="refine must be True, False or 'auto'"):
+        algid.identify(linear_record, *LINEAR, refine=bad)
+
+
+def test_coloured_noise_raises_the_standard_errors(linear_record):
+    """AR(1) noise of pole 0.9 (same variance): the covariance sees the colour (its AR
+    model is not white) and its standard errors grow, as the estimates' spread does."""
+    from scipy.signal import lfilter
+
+    rng = np.random.default_rng(1)
+    white = linear_record
+    y_clean = white["y"] - (white["y"] - algid.simulate_model(
+        parse_equation(*LINEAR), TRUTH, white["t"], {"u": white["u"]},
+        initial_state=[0.1, 0.0], rtol=1e-10, atol=1e-14))
+    e = lfilter([1.0], [1.0, -0.9], rng.standard_normal(len(y_clean)))
+    e *= 0.03 * np.std(y_clean) / np.std(e)
+    coloured = {"t": white["t"], "u": white["u"], "y": y_clean + e}
+    r_white = algid.identify(white, *LINEAR)
+    r_col = algid.identify(coloured, *LINEAR)
+    assert len(r_white.refinement.noise_ar) <= 3
+    assert len(r_col.refinement.noise_ar) >= 2 and r_col.refinement.noise_ar[1] < -0.5
+    assert r_col.stderr["K"] > 2 * r_white.stderr["K"]
