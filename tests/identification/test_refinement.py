@@ -11,6 +11,7 @@ from algid.identification._output_error import (
     channel_samples,
     refine_result,
     refinement_unavailable,
+    stabilised,
 )
 from algid.identification._records import Segment
 from algid.models import parse_equation
@@ -125,17 +126,25 @@ def test_a_nonlinear_model_keeps_the_algebraic_estimate_and_says_why(linear_reco
         algid.identify(linear_record, *equation, refine=True)
 
 
-def test_an_unstable_model_is_not_refined_by_default(linear_record):
+def test_an_unstable_algebraic_model_starts_the_fit_reflected(linear_record):
+    """A wrong model's algebraic estimate is often unstable: by default its fit starts
+    from the same model with the unstable poles reflected, and must end stable; a
+    pole on the imaginary axis cannot be reflected (not refined, said in the reason)."""
     result = algid.identify(linear_record, *LINEAR, refine=False)
-    unstable = result.with_parameters({"B": -0.5, "K": 40.0, "G": 40.0, "d": 0.5})
     t = linear_record["t"]
     segments = [_segment(t, u=linear_record["u"], y=linear_record["y"])]
-    kept = refine_result(unstable, segments, 1e-3, "auto")
+    unstable = result.with_parameters({"B": -0.5, "K": 40.0, "G": 40.0, "d": 0.5})
+    assert stabilised(unstable.model, unstable.values)["B"] == pytest.approx(0.5)
+    refined = refine_result(unstable, segments, 1e-3, "auto")
+    assert refined.estimate == "refined" and "reflected" in refined.refinement.reason
+    assert abs(refined.B - TRUTH["B"]) < 4 * refined.stderr["B"]
+    integrating = result.with_parameters({"B": 0.6, "K": 0.0, "G": 40.0, "d": 0.5})
+    kept = refine_result(integrating, segments, 1e-3, "auto")
     assert kept.estimate == "algebraic" and "not stable" in kept.refinement.reason
     assert kept.warnings == []      # said in the reason: the default is not an error
-    tried = refine_result(unstable, segments, 1e-3, True)   # asked for: tried anyway
-    assert tried.estimate == "refined"   # from B = -0.5 back to the stable truth
-    assert abs(tried.B - TRUTH["B"]) < 4 * tried.stderr["B"]
+    tried = refine_result(integrating, segments, 1e-3, True)   # asked for: tried as is
+    assert tried.estimate == "refined"
+    assert abs(tried.K - TRUTH["K"]) < 4 * tried.stderr["K"]
 
 
 @pytest.mark.parametrize("bad", ["yes", 1, None, 2.0])
@@ -162,3 +171,45 @@ def test_coloured_noise_raises_the_standard_errors(linear_record):
     assert len(r_white.refinement.noise_ar) <= 3
     assert len(r_col.refinement.noise_ar) >= 2 and r_col.refinement.noise_ar[1] < -0.5
     assert r_col.stderr["K"] > 2 * r_white.stderr["K"]
+
+
+def _record(truth_equation, values, *, seconds=15.0, shift=0, drift=0.0, seed=3):
+    """A multisine through ``truth_equation`` at 1 kHz, 30 dB of white output noise."""
+    model = parse_equation(*truth_equation)
+    t = np.arange(0, seconds, 1e-3)
+    rng = np.random.default_rng(2024)
+    u = sum(np.sin(2 * np.pi * f * t + rng.uniform(0, 2 * np.pi))
+            for f in np.geomspace(0.1, 5.0, 12))
+    y = algid.simulate_model(model, values, t, {"u": u}, initial_state=[0.05, -0.2],
+                             rtol=1e-10, atol=1e-14)
+    if shift:
+        y = np.concatenate([np.full(shift, y[0]), y[:-shift]])
+    y = y + drift * t
+    noise = np.random.default_rng(seed).standard_normal(len(t))
+    return {"t": t, "u": u, "y": y + np.sqrt(np.mean(y ** 2)) / 31.6 * noise}
+
+
+@pytest.mark.parametrize("case, truth, model, options, cause", [
+    ("offset", LINEAR, ("y'' + B*y' + K*y = G*u", "B K G"), {}, "an offset missing"),
+    ("late", LINEAR, LINEAR, {"shift": 3}, "delayed by about 3"),
+    ("drift", LINEAR, LINEAR, {"drift": 0.002}, "a drift"),
+    ("derivative", ("y'' + B*y' + K*y = G*u' + d", "B K G d"), LINEAR, {},
+     "a term in u' missing"),
+    ("gain", LINEAR, ("y'' + B*y' + K*y = 30*u + d", "B K d"), {}, "gain of u"),
+])
+def test_the_residual_test_names_the_cause_of_a_wrong_model(case, truth, model, options,
+                                                             cause):
+    result = algid.identify(_record(truth, TRUTH, **options), *model)
+    assert result.estimate == "refined"
+    assert not result.refinement.residual_test.adequate
+    assert cause in result.warnings[0], result.warnings   # the likeliest first
+
+
+def test_the_residual_test_is_silent_on_a_right_model():
+    result = algid.identify(_record(LINEAR, TRUTH), *LINEAR)
+    test = result.refinement.residual_test
+    assert test.adequate and result.warnings == []
+    # a term the model has scores nothing: its direction is fitted
+    assert "offset" not in test.scores and "gain:u" not in test.scores
+    # the algebraic estimate's own warnings stay with it
+    assert isinstance(result.algebraic["warnings"], list)

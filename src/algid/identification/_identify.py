@@ -698,6 +698,7 @@ def identify(data, equation, parameters=None, *, time=None, rate=None, output=No
             segments, step, eq, names, model.output, length, multiplicities))
     if noise_like and (fit.separation.free or fit.separation.misfit_free):
         raise ModelError(fit.separation.message(model.parameters))
+    idle = _idle_records(data, segments, length, step)
     result = IdentificationResult(
         model=model, values=dict(zip(model.parameters, fit.theta.tolist())),
         covariance=fit.covariance, window=(length - 1) * step, n_samples=n_samples,
@@ -708,5 +709,5 @@ def identify(data, equation, parameters=None, *, time=None, rate=None, output=No
         adequacy=adequacy,
         warnings=adequacy.warnings() + fit.separation.warnings(model.parameters,
                                                                adequacy.adequate)
-        + _idle_records(data, segments, length, step))
-    return refine_result(result, segments, step, refine)
+        + idle)
+    return refine_result(result, segments, step, refine, idle)

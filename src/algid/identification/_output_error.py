@@ -40,11 +40,10 @@ import numpy as np
 from algid.errors import InputDataError, ModelError
 from algid.models._expression import Constant, Signal, Time
 
-__all__ = ["LinearSimulation", "Refinement", "refinement_unavailable", "refine_linear",
-           "refine_result", "check_refine", "sandwich_covariance", "jacobian", "projected_jacobian",
-           "prepare",
-           "OutputErrorData", "channel_samples",
-           "REFINE_CHOICES", "MAX_AR_ORDER"]
+__all__ = ["LinearSimulation", "Refinement", "OutputErrorData", "refinement_unavailable",
+           "refine_linear", "refine_result", "check_refine", "stabilised",
+           "sandwich_covariance", "jacobian", "projected_jacobian", "prepare",
+           "channel_samples", "REFINE_CHOICES", "MAX_AR_ORDER"]
 
 #: Largest order of the autoregressive model of the residuals (the covariance's).
 MAX_AR_ORDER = 40
@@ -131,9 +130,32 @@ class LinearSimulation:
     """
 
     def __init__(self, model, values, step, upsampling=1):
+        self._setup(*_coefficients(model, values), step, upsampling)
+
+    @classmethod
+    def of_polynomials(cls, den, num, step, upsampling=1):
+        """The simulation of ``A(D) y = sum_j B_j(D) u_j``.
+
+        Parameters
+        ----------
+        den : dict
+            Derivative order -> coefficient of ``A``.
+        num : dict
+            Channel name -> {derivative order -> coefficient of ``B_j``}.
+        step, upsampling
+            As for the constructor.
+
+        Returns
+        -------
+        LinearSimulation
+        """
+        sim = cls.__new__(cls)
+        sim._setup(den, num, step, upsampling)
+        return sim
+
+    def _setup(self, den, num, step, upsampling):
         from scipy.linalg import expm, schur
 
-        den, num = _coefficients(model, values)
         n = max(den)
         lead = den[n]
         if not (np.isfinite(lead) and lead != 0.0):
@@ -454,6 +476,8 @@ class Refinement:
         (``(1.0,)``: white).
     initial_states : list of numpy.ndarray
         Per segment, the fitted initial state (observable canonical coordinates).
+    residual_test : algid.identification._residual_tests.ResidualTest or None
+        The tests of the simulation residuals for model errors.
     """
 
     applied: bool
@@ -464,6 +488,7 @@ class Refinement:
     rms_after: float = float("nan")
     noise_ar: tuple = (1.0,)
     initial_states: list = field(default_factory=list)
+    residual_test: object = None
 
 
 def projected_jacobian(data, theta, scale, free=None):
@@ -541,10 +566,15 @@ def refine_linear(data, theta, scale):
     dof = len(final.residual) - len(theta0) - sum(F.shape[1] for F in final.free)
     covariance, ar = sandwich_covariance(J, final.residual, bounds, dof)
     rms_after = float(np.sqrt(np.mean(final.residual ** 2)))
+    test = None
+    if np.all(np.isfinite(final.residual)) and np.all(np.isfinite(J)):
+        from algid.identification._residual_tests import residual_test
+
+        test = residual_test(data, theta_hat, final.residual, final.free, J, bounds, ar, dof)
     return theta_hat, covariance, Refinement(
         applied=True, reason="", converged=bool(fit.success), evaluations=count[0],
         rms_before=rms_before, rms_after=rms_after, noise_ar=tuple(float(a) for a in ar),
-        initial_states=final.initial)
+        initial_states=final.initial, residual_test=test)
 
 
 #: Values of ``refine`` that :func:`algid.identify` takes.
@@ -560,6 +590,46 @@ def check_refine(refine):
     raise InputDataError(f"refine must be True, False or 'auto', got {refine!r:.40}")
 
 
+def stabilised(model, values):
+    """The parameters with the unstable roots of the output's polynomial reflected into
+    the left half-plane, the same leading coefficient (None where the parameters
+    cannot set that polynomial, or a root stays on the imaginary axis).
+
+    Parameters
+    ----------
+    model : algid.models._model.Model
+    values : mapping
+        Parameter name -> value.
+
+    Returns
+    -------
+    dict or None
+    """
+    den, _ = _coefficients(model, values)
+    n = max(den)
+    coefficients = np.array([den.get(k, 0.0) for k in range(n, -1, -1)])
+    roots = np.roots(coefficients)
+    if np.any(roots.real == 0):
+        return None
+    target = np.real(np.poly(np.where(roots.real > 0, -roots.conj(), roots)))
+    target = target[::-1] * coefficients[0]                  # by derivative order
+    names = [p for p in model.parameters
+             if any(t.parameter == p and isinstance(t.factor, Signal)
+                    and t.factor.name == model.output for t in model.terms)]
+    A, known = np.zeros((n + 1, len(names))), np.zeros(n + 1)
+    for term in model.terms:
+        if isinstance(term.factor, Signal) and term.factor.name == model.output:
+            if term.parameter is None:
+                known[term.derivative] += term.coefficient
+            else:
+                A[term.derivative, names.index(term.parameter)] += term.coefficient
+    solution = np.linalg.lstsq(A, target - known, rcond=None)[0]
+    if not np.allclose(A @ solution + known, target, rtol=1e-9, atol=1e-12 * np.max(
+            np.abs(target))):
+        return None
+    return dict(values, **dict(zip(names, solution.tolist())))
+
+
 def _typical_uncertainty(result):
     """Per parameter, the algebraic standard error, or where it is not a positive
     number a small part of the value (the scale of the refinement's steps)."""
@@ -569,7 +639,7 @@ def _typical_uncertainty(result):
     return np.where(np.isfinite(se) & (se > 0), se, fallback)
 
 
-def refine_result(result, segments, step, refine):
+def refine_result(result, segments, step, refine, data_warnings=()):
     """``result`` refined by output error (:func:`refine_linear`) where ``refine`` asks.
 
     Parameters
@@ -586,6 +656,10 @@ def refine_result(result, segments, step, refine):
         estimate and say why in :attr:`Refinement.reason`; True: refine, refusing a
         model that cannot be, with a warning where the fit does not lower the
         simulation error; False: keep the algebraic estimate.
+    data_warnings : sequence of str
+        The result's warnings about the records (not about the algebraic estimate):
+        kept in a refined result, whose other warnings are those of its residual test
+        (the algebraic ones stay in ``algebraic["warnings"]``).
 
     Returns
     -------
@@ -602,7 +676,8 @@ def refine_result(result, segments, step, refine):
 
     refine = check_refine(refine)
     algebraic = {"values": dict(result.values), "covariance": result.covariance.copy(),
-                 "numerical_error": dict(result.numerical_error)}
+                 "numerical_error": dict(result.numerical_error),
+                 "warnings": list(result.warnings)}
     if refine is False:
         return replace(result, algebraic=algebraic, refinement=Refinement(
             applied=False, reason="not asked (refine=False)"))
@@ -617,13 +692,19 @@ def refine_result(result, segments, step, refine):
                        refinement=Refinement(applied=False, reason=why))
     model = result.model
     theta0 = np.array([result.values[p] for p in model.parameters], dtype=float)
+    started = ""
     if not np.all(np.isfinite(theta0)):
         why = "the algebraic estimate is not finite"
-    else:
-        start = LinearSimulation(model, result.values, step)
-        if refine == "auto" and not start.is_stable():
+    elif refine == "auto" and not LinearSimulation(model, result.values, step).is_stable():
+        # (a wrong model's algebraic estimate often is: its fit then starts from the
+        # same model with its unstable poles reflected, and must end stable)
+        reflected = stabilised(model, result.values)
+        if reflected is None:
             why = ("the algebraic estimate's model is not stable: an output-error fit "
                    "could diverge (refine=True tries it)")
+        else:
+            theta0 = np.array([reflected[p] for p in model.parameters])
+            started = "; started from the algebraic model with its unstable poles reflected"
     if why is not None:
         if refine is True:
             raise ModelError(f"refine: {why}")
@@ -645,7 +726,9 @@ def refine_result(result, segments, step, refine):
         return replace(result, algebraic=algebraic, refinement=info,
                        warnings=result.warnings + notes)
     info.reason = (f"output error {info.rms_after:.3g} rms (algebraic "
-                   f"{info.rms_before:.3g})")
+                   f"{info.rms_before:.3g}){started}")
+    found = [] if info.residual_test is None else info.residual_test.warnings()
     # (the simulation is exact for inputs linear between samples: no quadrature error)
     return replace(result, values=values, covariance=covariance, estimate="refined",
-                   numerical_error={}, algebraic=algebraic, refinement=info)
+                   numerical_error={}, algebraic=algebraic, refinement=info,
+                   warnings=[w for w in result.warnings if w in data_warnings] + found)

@@ -118,8 +118,9 @@ class IdentificationResult:
         output-error refinement started from it (:meth:`refine`).
     algebraic : dict or None
         The algebraic estimate: ``{"values": ..., "covariance": ...,
-        "numerical_error": ...}`` (a refined estimate has no quadrature error:
-        its ``numerical_error`` is empty).
+        "numerical_error": ..., "warnings": ...}`` (a refined estimate has no
+        quadrature error: its ``numerical_error`` is empty; its warnings are those of
+        the test of its simulation residuals).
     refinement : algid.identification._output_error.Refinement or None
         Whether the refinement was applied, why, and its figures.
 
@@ -325,7 +326,8 @@ class IdentificationResult:
             base = self if self.estimate == "algebraic" else replace(
                 self, values=dict(self.algebraic["values"]),
                 covariance=self.algebraic["covariance"], estimate="algebraic",
-                numerical_error=dict(self.algebraic["numerical_error"]))
+                numerical_error=dict(self.algebraic["numerical_error"]),
+                warnings=list(self.algebraic["warnings"]))
         time = self.time if time is None and rate is None else time
         rate = self.rate if time is None and rate is None else rate
         segments, step, _ = prepare_records(data, self.model.signals, time=time, rate=rate,

@@ -1,0 +1,229 @@
+"""Whether the refined model explains the records: tests of its simulation residuals.
+
+A right model leaves in the residuals of its output-error fit only the output noise,
+whatever its colour and whatever the inputs: nothing in them follows the inputs or the
+simulated output.  A wrong one leaves its error, and that error has a direction: the
+output's response to the term the model lacks.  Each :data:`CANDIDATES` names such a
+term ``z`` (a constant, time, an input, an input's derivative, a power of the output, the
+sign of its velocity) or a time shift of the output; its direction is the model's own
+response to ``z`` (``z`` through ``1/A(D)``, from rest), or ``-y'`` for a delay, with the
+directions the fit already spans (the parameters' and the initial states') projected
+out.  The score of a direction ``d`` is the squared projection of the residuals on it
+over its variance under the residuals' own correlation (the autoregressive model of the
+covariance, :func:`algid.identification._output_error.sandwich_covariance`):
+
+    chi2 = (d' r)**2 / (s2 * |H' d|**2)
+
+(Lagrange multiplier test of adding the term), chi-square with one degree of freedom
+for a right model.  A direction whose score exceeds :data:`CHI2_LIMIT` is reported,
+naming the term as the likely cause; a term the model already has scores nothing (its
+direction is projected out).  The whiteness of the residuals is not tested: coloured
+output noise is no model error, and the covariance counts it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+__all__ = ["ResidualTest", "residual_test", "CHI2_LIMIT", "CANDIDATES"]
+
+#: The score beyond which a direction is a model error: chi-square(1) exceeded with
+#: probability 1e-4 (about 1e-3 over the candidates of a model with one input).
+CHI2_LIMIT = 15.14
+
+#: A shift of the output is read as a delay up to this fraction of the fastest mode's
+#: period (beyond, a first-order shift means nothing).
+DELAY_FRACTION = 0.05
+
+#: Two directions whose normalised product exceeds this are the same cause.
+SAME_DIRECTION = 0.99
+
+#: A direction that keeps less than this part of its energy once the fitted ones are
+#: projected out is one of them (the round-off of the projection remains).
+SPANNED = 1e-8
+
+#: The candidate causes, in the order they are reported at equal scores.
+CANDIDATES = ("offset", "drift", "delay", "gain", "derivative", "cubic", "square",
+              "coulomb")
+
+
+@dataclass
+class ResidualTest:
+    """Scores of the refined fit's residuals against the candidate model errors.
+
+    Attributes
+    ----------
+    scores : dict
+        Candidate (``"offset"``, ``"delay"``, ``"gain:u"``, ...) -> chi-square score.
+    coefficients : dict
+        Candidate -> the residuals' regression coefficient on its direction (for
+        ``"delay"``: the delay in seconds).
+    limit : float
+        :data:`CHI2_LIMIT`.
+    messages : dict
+        Candidate -> the warning it gives when its score exceeds the limit.
+    aliases : dict
+        Candidate -> the candidate of the same direction named in its place (an output
+        shifted in time and an input's derivative, through a constant numerator).
+    """
+
+    scores: dict = field(default_factory=dict)
+    coefficients: dict = field(default_factory=dict)
+    limit: float = CHI2_LIMIT
+    messages: dict = field(default_factory=dict)
+    aliases: dict = field(default_factory=dict)
+
+    @property
+    def adequate(self):
+        """True when no candidate scores above the limit."""
+        return not any(v > self.limit for v in self.scores.values())
+
+    def warnings(self):
+        """One line per model error found, the likeliest first.
+
+        Returns
+        -------
+        list of str
+        """
+        found = sorted((k for k, v in self.scores.items()
+                        if v > self.limit and k not in self.aliases),
+                       key=lambda k: -self.scores[k])
+        return [f"the simulation residuals {self.messages[k]} "
+                f"(score {self.scores[k]:.3g}, limit {self.limit:.3g})" for k in found]
+
+
+def _response(den, z, step, upsampling):
+    """The forced response of ``A(D) y = z`` (z at the fine points)."""
+    from algid.identification._output_error import LinearSimulation
+
+    sim = LinearSimulation.of_polynomials(den, {"z": {0: 1.0}}, step, upsampling)
+    return sim.run(z[None, :])[0]
+
+
+def _fine(values, upsampling):
+    """Coarse samples joined linearly at the fine points."""
+    if upsampling == 1:
+        return values
+    coarse = np.arange(len(values)) * upsampling
+    return np.interp(np.arange(coarse[-1] + 1), coarse, values)
+
+
+def _directions(data, den, simulated):
+    """Candidate name -> (its message, its direction per segment)."""
+    model, step, L = data.model, data.step, data.upsampling
+    output = model.output
+    inputs = [c for c in _channels(data) if not c.startswith("__")]
+    fine_step = step / L
+    out = {}
+
+    def term(name, message, per_segment_z):
+        out[name] = (message, [_response(den, z, step, L) for z in per_segment_z])
+
+    lengths = [(len(y) - 1) * L + 1 for y in data.outputs]
+    term("offset", "keep a constant part: an offset missing? (add a constant term, "
+         "e.g. '+ d')", [np.ones(n) for n in lengths])
+    term("drift", "grow with time: a drift? (add a term in t, e.g. '+ d1*t')",
+         [np.linspace(0.0, (len(y) - 1) * step, (len(y) - 1) * L + 1)
+          for y in data.outputs])
+    for name in inputs:
+        row = _channels(data).index(name)
+        term(f"gain:{name}", f"follow {name}: a wrong or missing gain of {name}? (give its "
+             f"coefficient a parameter)", [u[row] for u in data.inputs])
+        term(f"derivative:{name}", f"follow {name}': a term in {name}' missing?",
+             [np.gradient(u[row], fine_step) for u in data.inputs])
+    velocity = [np.gradient(y, step) for y in simulated]
+    term("cubic", f"follow {output}**3: a cubic term missing? (e.g. '+ K3*{output}**3')",
+         [_fine(y ** 3, L) for y in simulated])
+    term("square", f"follow {output}**2: a quadratic term missing?",
+         [_fine(y ** 2, L) for y in simulated])
+    term("coulomb", f"follow sign({output}'): Coulomb friction missing? (e.g. "
+         f"'+ Fc*sign({output}')')", [_fine(np.sign(v), L) for v in velocity])
+    out["delay"] = ("follow the model's output shifted in time: a delay between the "
+                    "input and the output?", [-v for v in velocity])
+    return out
+
+
+def _channels(data):
+    from algid.identification._output_error import LinearSimulation
+
+    return LinearSimulation(data.model, dict.fromkeys(data.model.parameters, 1.0),
+                            data.step).channels
+
+
+def residual_test(data, theta, residual, free, J, bounds, ar, dof):
+    """The scores of :class:`ResidualTest` for a refined fit.
+
+    Parameters
+    ----------
+    data : algid.identification._output_error.OutputErrorData
+    theta : numpy.ndarray
+        The refined parameters.
+    residual : numpy.ndarray
+        The simulation residuals (every segment, stacked).
+    free : list of numpy.ndarray
+        Per segment, the free responses.
+    J : numpy.ndarray
+        The parameters' Jacobian, free responses projected out.
+    bounds : list of (int, int)
+        Each segment's rows.
+    ar : numpy.ndarray
+        The residuals' autoregressive polynomial.
+    dof : int
+        Residual degrees of freedom.
+
+    Returns
+    -------
+    ResidualTest
+    """
+    from scipy.signal import lfilter
+
+    from algid.identification._output_error import _coefficients
+
+    den, _ = _coefficients(data.model, dict(zip(data.model.parameters, theta)))
+    simulated = [data.outputs[i] - residual[a:b] for i, (a, b) in enumerate(bounds)]
+    # the innovation variance of the residuals' AR model
+    innovation = np.concatenate([lfilter(ar, [1.0], residual[a:b]) for a, b in bounds])
+    s2 = float(innovation @ innovation) / max(dof, 1)
+    test = ResidualTest()
+    projected = {}
+    with np.errstate(all="ignore"):
+        directions = _directions(data, den, simulated)
+        for name, (message, pieces) in directions.items():
+            d = np.concatenate(pieces)
+            size = float(d @ d)
+            for F, (a, b) in zip(free, bounds):   # the fitted directions projected out
+                if F.shape[1]:
+                    d[a:b] -= F @ np.linalg.lstsq(F, d[a:b], rcond=None)[0]
+            d -= J @ np.linalg.lstsq(J, d, rcond=None)[0]
+            energy = float(d @ d)
+            if not (np.isfinite(energy) and energy > SPANNED * size):
+                continue   # a term the model has (its direction is fitted)
+            whitened = np.concatenate([lfilter([1.0], ar, d[a:b][::-1])[::-1]
+                                       for a, b in bounds])
+            variance = s2 * float(whitened @ whitened)
+            score = float(d @ residual) ** 2 / variance if variance > 0 else 0.0
+            if not np.isfinite(score):
+                continue
+            test.scores[name] = score
+            test.coefficients[name] = float(d @ residual) / energy
+            test.messages[name] = message
+            projected[name] = d / np.sqrt(energy)
+    if "delay" in test.coefficients:   # the shift, in samples: y(t) = yhat(t - tau)
+        tau = test.coefficients["delay"]
+        shift = "delayed" if tau > 0 else "advanced"
+        test.messages["delay"] = (f"follow the model's output {shift} by about "
+                                  f"{abs(tau) / data.step:.2g} samples: a delay between "
+                                  f"the input and the output?")
+        # where the output's shift and an input's derivative are the same direction
+        # (a constant numerator), one cause is named: a delay where the shift is small
+        # next to the fastest mode (what a shift can mean), else the derivative
+        poles = np.roots([den.get(k, 0.0) for k in range(max(den), -1, -1)])
+        fastest = np.max(np.abs(poles)) if poles.size else np.inf
+        small = abs(tau) <= DELAY_FRACTION * 2 * np.pi / fastest
+        for name in [k for k in projected if k.startswith("derivative:")]:
+            if abs(projected[name] @ projected["delay"]) > SAME_DIRECTION:
+                hidden, named = (name, "delay") if small else ("delay", name)
+                test.aliases[hidden] = named
+    return test
