@@ -42,6 +42,7 @@ from algid.models._expression import Constant, Signal, Time
 
 __all__ = ["LinearSimulation", "Refinement", "OutputErrorData", "refinement_unavailable",
            "refine_linear", "refine_result", "check_refine", "stabilised",
+           "simulates_stably",
            "sandwich_covariance", "jacobian", "projected_jacobian", "prepare",
            "channel_samples", "REFINE_CHOICES", "MAX_AR_ORDER"]
 
@@ -243,6 +244,31 @@ class LinearSimulation:
     def is_stable(self):
         """True when every pole has a negative real part."""
         return bool(np.all(self.poles.real < 0))
+
+
+def simulates_stably(model, values):
+    """True when the output's polynomial has its roots in the left half-plane, apart
+    from the integrators the model has by structure (no term in the output itself, as
+    a mass with friction and no spring): those keep a bounded input's response
+    bounded over a record, and the initial state absorbs their constant.
+
+    Parameters
+    ----------
+    model : algid.models._model.Model
+    values : mapping
+
+    Returns
+    -------
+    bool
+    """
+    den, _ = _coefficients(model, values)
+    lowest = min((k for k, v in den.items() if v != 0.0), default=max(den))
+    structural = all(not (isinstance(t.factor, Signal) and t.factor.name == model.output
+                          and t.derivative < lowest) for t in model.terms)
+    start = lowest if structural else 0
+    coefficients = [den.get(k, 0.0) for k in range(max(den), start - 1, -1)]
+    roots = np.roots(coefficients) if len(coefficients) > 1 else np.zeros(0)
+    return bool(np.all(np.isfinite(roots)) and np.all(roots.real < 0))
 
 
 def channel_samples(channels, segment, upsampling=1):
@@ -695,7 +721,7 @@ def refine_result(result, segments, step, refine, data_warnings=()):
     started = ""
     if not np.all(np.isfinite(theta0)):
         why = "the algebraic estimate is not finite"
-    elif refine == "auto" and not LinearSimulation(model, result.values, step).is_stable():
+    elif refine == "auto" and not simulates_stably(model, result.values):
         # (a wrong model's algebraic estimate often is: its fit then starts from the
         # same model with its unstable poles reflected, and must end stable)
         reflected = stabilised(model, result.values)
@@ -717,7 +743,7 @@ def refine_result(result, segments, step, refine, data_warnings=()):
     if not (np.all(np.isfinite(theta)) and np.all(np.isfinite(covariance))
             and info.rms_after <= info.rms_before):
         why = "the output-error fit did not lower the simulation error"
-    elif refine == "auto" and not LinearSimulation(model, values, step).is_stable():
+    elif refine == "auto" and not simulates_stably(model, values):
         why = "the output-error fit gives a model that is not stable"
     if why is not None:   # (a warning where asked for: "auto" says so in the reason)
         info.applied, info.reason = False, why
