@@ -134,11 +134,12 @@ lengths = sorted(cubic.window_scores)[:9]  # window lengths in samples, from the
 
 
 def identified_or_refused(equation, parameters, length):
-    """The fit on a window of ``length`` samples, or None where identify refuses it
-    (it does when the window's equations cannot separate the parameters)."""
+    """The algebraic fit on a window of ``length`` samples (not refined: the window is
+    what is studied), or None where identify refuses it (it does when the window's
+    equations cannot separate the parameters)."""
     try:
         return algid.identify(estimation, equation, parameters, rate=fs,
-                              window=(length - 1) / fs)
+                              window=(length - 1) / fs, refine=False)
     except algid.AlgidError as refusal:
         print(f"{equation}: window of {length} samples refused: {refusal}")
         return None

@@ -159,6 +159,19 @@ def test_results_table_shows_what_the_benchmark_files_hold():
         f"C {scientific(c_one_chunk)}")
 
 
+def test_results_table_shows_the_refinement_study():
+    import json
+
+    study = json.loads((ROOT / "benchmarks" / "refinement_results.json").read_text(
+        encoding="utf-8"))["white"]
+    names = ("B", "K", "G", "d")
+    ratios = [" ".join(f"{study[kind][p]['rmse/crlb']:.2f}" for p in names)
+              for kind in ("algebraic", "refined")]
+    coverage = [100 * study["refined"][p]["coverage"] for p in names]
+    assert results_table()["linear plant, 30 s, 30 dB (identify)"] == (
+        f"{ratios[0]} → {ratios[1]}; {min(coverage):.0f}–{max(coverage):.0f} %")
+
+
 def test_results_table_shows_the_emps_estimates_against_the_published_values():
     import algid
     from algid import datasets

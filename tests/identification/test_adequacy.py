@@ -1,9 +1,12 @@
-"""The adequacy test of identify(): it flags wrong models and stays silent on right ones.
+"""The adequacy test of identify()'s algebraic estimate (of its window equations): it flags
+wrong models and stays silent on right ones.  (A refined estimate's test, of its
+simulation residuals, is in test_output_error.py.)
 
 The rates of hits and false alarms over 100 noise realisations per case are measured
 by ``python -m benchmarks.adequacy``; these tests run a few realisations of each.
 """
 
+import functools
 import json
 import sys
 
@@ -14,6 +17,9 @@ from conftest import ROOT
 import algid
 from algid.cli import main
 from algid.identification._adequacy import MISFIT_LIMIT, SHIFT_LIMIT, Adequacy, misfit_limit
+
+#: identify's algebraic estimate, whose adequacy test this is
+identify = functools.partial(algid.identify, refine=False)
 
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
@@ -43,7 +49,7 @@ def cubic_records():
 ])
 def test_right_models_are_not_flagged(make, equation):
     for seed in range(3):
-        r = algid.identify(make(seed), *equation)
+        r = identify(make(seed), *equation)
         assert r.warnings == [] and r.adequacy.adequate, (seed, r.adequacy)
         # white output noise: the misfit is at most about the noise bound
         assert r.adequacy.misfit < MISFIT_LIMIT
@@ -51,9 +57,9 @@ def test_right_models_are_not_flagged(make, equation):
 
 def test_right_cubic_model_is_not_flagged_and_a_linear_one_is(cubic_records):
     for record in cubic_records:
-        right = algid.identify(record, *CUBIC_EQUATION)
+        right = identify(record, *CUBIC_EQUATION)
         assert right.warnings == [], right.adequacy
-        wrong = algid.identify(record, *LINEAR_EQUATION)
+        wrong = identify(record, *LINEAR_EQUATION)
         # one line for the term that explains the misfit, one for the shift
         assert len(wrong.warnings) == 2, wrong.adequacy
         assert wrong.adequacy.misfit > MISFIT_LIMIT and wrong.adequacy.shift > SHIFT_LIMIT
@@ -77,27 +83,27 @@ def multisine_cubic(coefficient, seed, noise=0.01):
 def test_a_missing_term_that_explains_the_misfit_is_named(coefficient, seed):
     record = multisine_cubic(coefficient, seed)
     # the estimates hardly move between window lengths: only the missing term tells
-    linear = algid.identify(record, "y'' + B*y' + K*y = u", "B K")
+    linear = identify(record, "y'' + B*y' + K*y = u", "B K")
     assert linear.adequacy.missing == ("y**3",), linear.adequacy
     assert linear.adequacy.explained < 0.5 and not linear.adequacy.adequate
     assert any("a term in y**3 would explain most of it" in w for w in linear.warnings)
     # without the spring the output itself explains the misfit
-    no_spring = algid.identify(record, "y'' + B*y' = u", "B")
+    no_spring = identify(record, "y'' + B*y' = u", "B")
     assert no_spring.adequacy.missing == ("y",), no_spring.adequacy
-    right = algid.identify(record, "y'' + B*y' + K*y + K3*y**3 = u", "B K K3")
+    right = identify(record, "y'' + B*y' + K*y + K3*y**3 = u", "B K K3")
     assert right.warnings == [] and right.adequacy.missing == (), right.adequacy
 
 
 def test_missing_term_names_do_not_clash_with_the_models():
     record = multisine_cubic(5, 2)
-    r = algid.identify({"t": record["t"], "u": record["u"], "_c1": record["y"]},
+    r = identify({"t": record["t"], "u": record["u"], "_c1": record["y"]},
                        "_c1'' + _c2*_c1' + _c3*_c1 = u", "_c2 _c3")
     assert r.adequacy.missing == ("_c1**3",), r.adequacy
 
 
 def test_published_emps_model_is_not_flagged():
     for run in ("estimation", "validation"):
-        r = algid.identify(algid.datasets.emps(run), algid.datasets.EMPS_EQUATION,
+        r = identify(algid.datasets.emps(run), algid.datasets.EMPS_EQUATION,
                            list(algid.datasets.EMPS_PUBLISHED))
         # force disturbances, not output noise: a large misfit no power of q explains
         assert r.adequacy.misfit > r.adequacy.misfit_limit, run
@@ -109,9 +115,9 @@ def test_wrong_derivative_order_and_delayed_output_are_flagged(wrong):
     for seed in range(2):
         record = second_order(seed)
         if wrong == "delay":
-            r = algid.identify(delayed(record, 5, "y"), *SECOND_ORDER)
+            r = identify(delayed(record, 5, "y"), *SECOND_ORDER)
         else:
-            r = algid.identify(record, *WRONG_DERIVATIVE)
+            r = identify(record, *WRONG_DERIVATIVE)
         assert len(r.warnings) == 1 and not r.adequacy.adequate, r.adequacy
         text = r.warnings[0]
         assert "\n" not in text and "does not explain the data within the noise" in text
@@ -128,8 +134,8 @@ def test_misfit_of_a_wrong_model_falls_with_the_noise_as_one_plus_bias_over_nois
     clean, late = {}, {}
     for noise in (0.01, 0.05):
         record = second_order(0, noise=noise)
-        clean[noise] = algid.identify(record, *SECOND_ORDER).adequacy.misfit
-        late[noise] = algid.identify(delayed(record, 5, "y"), *SECOND_ORDER).adequacy.misfit
+        clean[noise] = identify(record, *SECOND_ORDER).adequacy.misfit
+        late[noise] = identify(delayed(record, 5, "y"), *SECOND_ORDER).adequacy.misfit
     assert all(0.5 < m < 1.6 for m in clean.values()), clean
     predicted = 1 + (late[0.01] - 1) / 25
     assert abs(late[0.05] / predicted - 1) < 0.3, (late, predicted)
@@ -138,10 +144,10 @@ def test_misfit_of_a_wrong_model_falls_with_the_noise_as_one_plus_bias_over_nois
 def test_other_methods_carry_the_test():
     record = second_order(1)
     for method in ("ls", "iv"):
-        r = algid.identify(record, *SECOND_ORDER, method=method)
+        r = identify(record, *SECOND_ORDER, method=method)
         assert isinstance(r.adequacy, Adequacy) and r.warnings == [], (method, r.adequacy)
         assert np.isfinite(r.adequacy.shift)
-    r = algid.identify(record, *WRONG_DERIVATIVE, method="ls")
+    r = identify(record, *WRONG_DERIVATIVE, method="ls")
     assert len(r.warnings) == 1
 
 
@@ -150,7 +156,7 @@ def test_a_user_window_too_long_to_double_is_compared_with_half_of_it():
     # twelve records of 5 s: a 3 s window leaves one in each (the 11 non-overlapping
     # windows that three parameters need), and none holds a window twice as long
     parts = [{k: v[i:i + 500] for k, v in record.items()} for i in range(0, 6000, 500)]
-    r = algid.identify(parts, *SECOND_ORDER, window=3.0)
+    r = identify(parts, *SECOND_ORDER, window=3.0)
     assert r.adequacy.other_window == pytest.approx(1.5, abs=0.011)
     assert r.warnings == []
 
@@ -170,11 +176,17 @@ def test_cli_prints_one_stderr_line_per_warning_and_json_carries_them(tmp_path, 
     np.savetxt(path, np.column_stack([late["t"], late["u"], late["y"]]), delimiter=",",
                header="t,u,y", comments="")
     argv = [str(path), "--equation", SECOND_ORDER[0], "--parameters", SECOND_ORDER[1]]
-    assert main(["identify", *argv]) == 0
+    assert main(["identify", *argv, "--no-refine"]) == 0
     out, err = capsys.readouterr()
     lines = err.splitlines()
     assert len(lines) == 1 and lines[0].startswith(f"warning: {path}: the model does not")
     assert "parameter" in out
+    # refined (the default): the residual test names the shift (``delayed`` takes the
+    # output's samples 5 rows later: the output is ahead of the model)
+    assert main(["identify", *argv]) == 0
+    out, err = capsys.readouterr()
+    lines = err.splitlines()
+    assert len(lines) == 1 and "output advanced by about 4.8 samples" in lines[0], lines
     assert main(["identify", *argv, "--json"]) == 0
     out, err = capsys.readouterr()
     payload = json.loads(out)

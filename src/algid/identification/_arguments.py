@@ -15,6 +15,7 @@ import numpy as np
 
 from algid._memory import check_fits
 from algid.errors import InputDataError, ModelError
+from algid.models._expression import Signal
 
 __all__ = ["check_arguments", "check_model_columns", "check_memory", "identify_bytes"]
 
@@ -140,8 +141,36 @@ def identify_bytes(model):
     -------
     int
     """
-    return (BYTES_PER_SAMPLE + BYTES_PER_TERM * len(model.terms)
-            + BYTES_PER_GRAM_ENTRY * (len(model.parameters) + 1) ** 2)
+    algebraic = (BYTES_PER_SAMPLE + BYTES_PER_TERM * len(model.terms)
+                 + BYTES_PER_GRAM_ENTRY * (len(model.parameters) + 1) ** 2)
+    return algebraic + refinement_bytes(model)
+
+
+def refinement_bytes(model):
+    """Peak memory of the output-error refinement per sample [bytes] (0 for a model it
+    does not refine).
+
+    Per input channel, its points at 16 per sample and stacked per step, for two
+    interpolations (33 x 8 bytes each); the complex recursions of the forced and free
+    responses; the Jacobian, scaled once; the residual test's directions.
+
+    Parameters
+    ----------
+    model : algid.models._model.Model
+
+    Returns
+    -------
+    int
+    """
+    from algid.identification._output_error import refinement_unavailable
+
+    if refinement_unavailable(model) is not None:
+        return 0
+    channels = len({t.factor for t in model.terms if not (
+        isinstance(t.factor, Signal) and t.factor.name == model.output)}) + 1
+    order = model.order
+    return (2 * 33 * 8 * channels + 40 * order * (order + 1)
+            + 24 * len(model.parameters) + 400)
 
 
 def check_memory(data, model):

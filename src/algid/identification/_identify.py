@@ -648,7 +648,11 @@ def identify(data, equation, parameters=None, *, time=None, rate=None, output=No
     >>> round(result.B, 3), round(result.K, 2), result.warnings
     (2.0, 3.0, [])
     """
-    from algid.identification._output_error import check_refine, refine_result
+    from algid.identification._output_error import (
+        check_refine,
+        refine_result,
+        simulates_stably,
+    )
     from algid.identification._result import IdentificationResult
 
     refine = check_refine(refine)
@@ -699,6 +703,14 @@ def identify(data, equation, parameters=None, *, time=None, rate=None, output=No
     if noise_like and (fit.separation.free or fit.separation.misfit_free):
         raise ModelError(fit.separation.message(model.parameters))
     idle = _idle_records(data, segments, length, step)
+    separation = fit.separation.warnings(model.parameters, adequacy.adequate)
+    unstable = []
+    if METHODS[method].instrumental and model.is_linear and not simulates_stably(
+            model, dict(zip(model.parameters, fit.theta.tolist()))):
+        # its instruments came from simulations of a stable start; the end is not
+        unstable = ["the instrumental-variable estimate's model is not stable: its "
+                    "simulation on these records diverges, and so would its instruments "
+                    "(use method='bc')"]
     result = IdentificationResult(
         model=model, values=dict(zip(model.parameters, fit.theta.tolist())),
         covariance=fit.covariance, window=(length - 1) * step, n_samples=n_samples,
@@ -707,7 +719,7 @@ def identify(data, equation, parameters=None, *, time=None, rate=None, output=No
         separate={a: dict(zip(model.parameters, v.tolist())) for a, v in fit.separate.items()},
         numerical_error=dict(zip(model.parameters, fit.numerical_error.tolist())),
         adequacy=adequacy,
-        warnings=adequacy.warnings() + fit.separation.warnings(model.parameters,
-                                                               adequacy.adequate)
-        + idle)
-    return refine_result(result, segments, step, refine, idle)
+        warnings=adequacy.warnings() + separation + idle + unstable)
+    # (what the records can determine holds for a refined estimate too; whether the
+    # model explains them is asked of its simulation residuals instead)
+    return refine_result(result, segments, step, refine, separation + idle + unstable)

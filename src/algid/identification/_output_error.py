@@ -10,18 +10,12 @@ where ``yhat`` is the model's output simulated from the measured inputs, is the
 maximum-likelihood estimate under white Gaussian output noise, asymptotically
 efficient.  The algebraic estimate, which needs no initial state, starts it.
 
-Simulation (:class:`LinearSimulation`): the model's terms give
-``A(s) Y = sum_j B_j(s) U_j`` with the inputs, the constant 1 (an offset) and time
-(a drift) as input channels.  An observable canonical realisation is discretised
-exactly for inputs linear between samples (first-order hold: one matrix exponential
-per step length) and run in the complex Schur basis of the transition matrix, one
-first-order recursion per mode (:func:`scipy.signal.lfilter`), which stays accurate at
-any sampling rate (a transfer function in ``z`` loses digits as its poles approach 1).
-The initial state of each segment (each record, and each run between gaps) is a
-nuisance parameter: the output is linear in it, so it is solved for by least squares
-inside every evaluation (variable projection), and the parameters alone are iterated
-(Levenberg–Marquardt, :func:`scipy.optimize.least_squares`, on parameters scaled by
-the algebraic standard errors).
+The simulation is :mod:`algid.identification._linear_simulation` (exact for inputs
+interpolated as band-limited signals).  The initial state of each segment (each record,
+and each run between gaps) is a nuisance parameter: the output is linear in it, so it
+is solved for by least squares inside every evaluation (variable projection), and the
+parameters alone are iterated (Levenberg–Marquardt, :func:`scipy.optimize.least_squares`,
+on parameters scaled by the algebraic standard errors).
 
 Covariance (:func:`sandwich_covariance`): the Jacobian with the initial states
 projected out, and the residuals' own correlation from an autoregressive model of
@@ -38,19 +32,29 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from algid.errors import InputDataError, ModelError
-from algid.models._expression import Constant, Signal, Time
+from algid.identification._linear_simulation import (
+    LinearSimulation,
+    channel_samples,
+    output_polynomials,
+    simulates_stably,
+    step_points,
+)
+from algid.identification._records import UNIFORM_TOLERANCE
+from algid.identification._residual_tests import residual_test
+from algid.models._expression import Signal
 
-__all__ = ["LinearSimulation", "Refinement", "OutputErrorData", "refinement_unavailable",
-           "refine_linear", "refine_result", "check_refine", "stabilised",
-           "simulates_stably",
-           "sandwich_covariance", "jacobian", "projected_jacobian", "prepare",
-           "channel_samples", "REFINE_CHOICES", "MAX_AR_ORDER"]
+__all__ = ["Refinement", "OutputErrorData", "refinement_unavailable", "refine_linear",
+           "refine_result", "check_refine", "stabilised", "sandwich_covariance",
+           "jacobian", "projected_jacobian", "prepare", "REFINE_CHOICES", "MAX_AR_ORDER"]
 
 #: Largest order of the autoregressive model of the residuals (the covariance's).
 MAX_AR_ORDER = 40
 
 #: Finite-difference step of the Jacobian, in algebraic standard errors.
 _JACOBIAN_STEP = 1e-3
+
+#: Gauss–Newton steps after the Levenberg–Marquardt iteration, at most.
+_POLISH_STEPS = 3
 
 
 def refinement_unavailable(model):
@@ -80,232 +84,6 @@ def refinement_unavailable(model):
     return None
 
 
-def _coefficients(model, values):
-    """``A`` (output, by derivative order) and ``B`` (input channel -> by order)."""
-    den, num = {}, {}
-    for term in model.terms:
-        value = term.coefficient * (1.0 if term.parameter is None
-                                    else float(values[term.parameter]))
-        factor, k = term.factor, term.derivative
-        if isinstance(factor, Signal) and factor.name == model.output:
-            den[k] = den.get(k, 0.0) + value
-            continue
-        if isinstance(factor, Constant):
-            if k > 0:
-                continue                        # D^k 1 = 0
-            channel = "__one__"
-        elif isinstance(factor, Time):
-            if k > 1:
-                continue                        # D^k t = 0 from k = 2
-            channel, k = ("__one__", 0) if k == 1 else ("__time__", 0)
-        else:
-            channel = factor.name
-        num.setdefault(channel, {})
-        num[channel][k] = num[channel].get(k, 0.0) - value   # moved to the right
-    return den, num
-
-
-class LinearSimulation:
-    """The output of a linear model on uniformly sampled segments, and its free
-    responses, for one parameter set.
-
-    Parameters
-    ----------
-    model : algid.models._model.Model
-        A model for which :func:`refinement_unavailable` is None.
-    values : mapping
-        Parameter name -> value.
-    step : float
-        Sampling step (s).
-    upsampling : int, optional
-        The inputs are given at this many points per sampling step (linear between
-        them): 1 for the samples alone, :data:`algid.simulation._interpolation.UPSAMPLING`
-        for a band-limited interpolation (:func:`channel_samples`).
-
-    Attributes
-    ----------
-    channels : tuple of str
-        The input channels (signal names, ``"__one__"``, ``"__time__"``).
-    poles : numpy.ndarray
-        The continuous-time poles.
-    """
-
-    def __init__(self, model, values, step, upsampling=1):
-        self._setup(*_coefficients(model, values), step, upsampling)
-
-    @classmethod
-    def of_polynomials(cls, den, num, step, upsampling=1):
-        """The simulation of ``A(D) y = sum_j B_j(D) u_j``.
-
-        Parameters
-        ----------
-        den : dict
-            Derivative order -> coefficient of ``A``.
-        num : dict
-            Channel name -> {derivative order -> coefficient of ``B_j``}.
-        step, upsampling
-            As for the constructor.
-
-        Returns
-        -------
-        LinearSimulation
-        """
-        sim = cls.__new__(cls)
-        sim._setup(den, num, step, upsampling)
-        return sim
-
-    def _setup(self, den, num, step, upsampling):
-        from scipy.linalg import expm, schur
-
-        n = max(den)
-        lead = den[n]
-        if not (np.isfinite(lead) and lead != 0.0):
-            raise ModelError("the output's highest derivative has a zero coefficient")
-        alpha = np.array([den.get(k, 0.0) / lead for k in range(n)])        # alpha_0..
-        self.channels = tuple(num)
-        m = len(self.channels)
-        beta = np.zeros((m, n + 1))
-        for j, channel in enumerate(self.channels):
-            for k, value in num[channel].items():
-                beta[j, k] = value / lead
-        # observable canonical form: x_0 = y - D u, x_i' = x_{i+1} - alpha_{n-1-i} y + ..
-        A = np.zeros((n, n))
-        A[:, 0] = -alpha[::-1]
-        A[:-1, 1:] = np.eye(n - 1)
-        B = (beta[:, n - 1::-1][:, :n] - np.outer(beta[:, n], alpha[::-1])).T  # (n, m)
-        self.D = beta[:, n]
-        self.order = n
-        self.poles = np.linalg.eigvals(A) if n else np.zeros(0)
-        # exact discretisation of a fine step for inputs linear between its points
-        # (first-order hold): x+ = phi x + gamma1 v_l + gamma2 (v_{l+1} - v_l)
-        L = int(upsampling)
-        M = np.zeros((n + 2 * m, n + 2 * m))
-        M[:n, :n] = A * (step / L)
-        M[:n, n:n + m] = B * (step / L)
-        M[n:n + m, n + m:] = np.eye(m)
-        E = expm(M)
-        phi, gamma1, gamma2 = E[:n, :n], E[:n, n:n + m], E[:n, n + m:]
-        # over one sampling step: x_{k+1} = phi**L x_k + sum_l weights[l] v_l over its
-        # L + 1 points
-        weights = np.zeros((L + 1, n, m))
-        power = np.eye(n)
-        for q in range(L - 1, -1, -1):        # power = phi**(L - 1 - q)
-            weights[q] += power @ (gamma1 - gamma2)
-            weights[q + 1] += power @ gamma2
-            power = phi @ power
-        self._weights = weights
-        self.upsampling = L
-        T, Z = schur(power.astype(complex), output="complex")   # power = phi**L
-        self._T, self._Z = T, Z
-        self._finite = bool(np.all(np.isfinite(E)) and np.all(np.isfinite(power)))
-
-    def run(self, inputs):
-        """The forced output and the free responses of one segment.
-
-        Parameters
-        ----------
-        inputs : numpy.ndarray, shape (m, (N - 1) * upsampling + 1)
-            The input channels at the points of every step (:func:`channel_samples`),
-            in :attr:`channels` order.
-
-        Returns
-        -------
-        forced : numpy.ndarray, shape (N,)
-            The output from a zero initial state.
-        free : numpy.ndarray, shape (N, n)
-            The output from the unit initial states, without input.
-        """
-        from numpy.lib.stride_tricks import sliding_window_view
-        from scipy.signal import lfilter
-
-        L = self.upsampling
-        n, N = self.order, (inputs.shape[1] - 1) // L + 1
-        if not self._finite:
-            return np.full(N, np.nan), np.full((N, n), np.nan)
-        points = sliding_window_view(inputs, L + 1, axis=1)[:, ::L]   # (m, N - 1, L + 1)
-        g = np.einsum("lnm,mkl->nk", self._weights, points)
-        forcing = np.zeros((n + 1, n, N - 1), complex)   # forced, then free from e_j
-        forcing[0] = self._Z.conj().T @ g
-        start = np.zeros((n + 1, n), complex)
-        start[1:] = self._Z.conj()                       # row j: Z^H e_j
-        w = np.empty((n + 1, n, N), complex)
-        w[:, :, 0] = start
-        T = self._T
-        with np.errstate(over="ignore", invalid="ignore"):
-            for i in range(n - 1, -1, -1):   # triangular: the later modes drive the earlier
-                f = forcing[:, i] + np.einsum("j,rjk->rk", T[i, i + 1:], w[:, i + 1:, :-1])
-                lam = T[i, i]
-                w[:, i, 1:] = lfilter([1.0], [1.0, -lam], f, axis=1,
-                                      zi=(lam * w[:, i, :1]))[0]
-            states0 = np.real(np.einsum("j,rjk->rk", self._Z[0], w))
-        forced = states0[0] + self.D @ inputs[:, ::L]
-        return forced, states0[1:].T
-
-    def is_stable(self):
-        """True when every pole has a negative real part."""
-        return bool(np.all(self.poles.real < 0))
-
-
-def simulates_stably(model, values):
-    """True when the output's polynomial has its roots in the left half-plane, apart
-    from the integrators the model has by structure (no term in the output itself, as
-    a mass with friction and no spring): those keep a bounded input's response
-    bounded over a record, and the initial state absorbs their constant.
-
-    Parameters
-    ----------
-    model : algid.models._model.Model
-    values : mapping
-
-    Returns
-    -------
-    bool
-    """
-    den, _ = _coefficients(model, values)
-    lowest = min((k for k, v in den.items() if v != 0.0), default=max(den))
-    structural = all(not (isinstance(t.factor, Signal) and t.factor.name == model.output
-                          and t.derivative < lowest) for t in model.terms)
-    start = lowest if structural else 0
-    coefficients = [den.get(k, 0.0) for k in range(max(den), start - 1, -1)]
-    roots = np.roots(coefficients) if len(coefficients) > 1 else np.zeros(0)
-    return bool(np.all(np.isfinite(roots)) and np.all(roots.real < 0))
-
-
-def channel_samples(channels, segment, upsampling=1):
-    """The input channels of a segment at ``upsampling`` points per sampling step.
-
-    Parameters
-    ----------
-    channels : tuple of str
-        :attr:`LinearSimulation.channels`.
-    segment : Segment
-        Uniformly sampled.
-    upsampling : int
-        1: the samples; :data:`~algid.simulation._interpolation.UPSAMPLING`: the
-        measured signals interpolated as band-limited signals
-        (:func:`~algid.simulation._interpolation.bandlimited_samples`, as the simulator
-        does), the constant and time exactly.
-
-    Returns
-    -------
-    numpy.ndarray, shape (m, (N - 1) * upsampling + 1)
-    """
-    from algid.simulation._interpolation import bandlimited_samples
-
-    t = np.asarray(segment.t, dtype=float)
-    fine = np.linspace(t[0], t[-1], (len(t) - 1) * upsampling + 1)
-    rows = []
-    for channel in channels:
-        if channel == "__one__":
-            rows.append(np.ones(len(fine)))
-        elif channel == "__time__":
-            rows.append(fine)
-        else:
-            values = np.asarray(segment.values[channel], dtype=float)
-            rows.append(values if upsampling == 1 else bandlimited_samples(values))
-    return np.array(rows).reshape(len(channels), len(fine))
-
-
 @dataclass
 class OutputErrorData:
     """The records as the refinement simulates them (built once by :func:`prepare`).
@@ -319,6 +97,13 @@ class OutputErrorData:
         Points per sampling step of the inputs.
     inputs : list of numpy.ndarray
         Per segment, the input channels (:func:`channel_samples`).
+    points : list of numpy.ndarray
+        Per segment, :func:`step_points` of its inputs.
+    gains : numpy.ndarray
+        Per channel, its scale over the output's (the inputs and the outputs above are
+        divided by powers of two to unit size, so that any units fit alike).
+    output_scale : float
+        The power of two the outputs were divided by.
     outputs : list of numpy.ndarray
         Per segment, the measured output.
     """
@@ -328,6 +113,9 @@ class OutputErrorData:
     upsampling: int
     inputs: list
     outputs: list
+    points: list = field(default_factory=list)
+    gains: np.ndarray | None = None
+    output_scale: float = 1.0
 
 
 def prepare(model, segments, step, interpolation="bandlimited"):
@@ -340,10 +128,11 @@ def prepare(model, segments, step, interpolation="bandlimited"):
         Uniformly sampled runs.
     step : float
         Sampling step (s).
-    interpolation : {"bandlimited", "linear"}
+    interpolation : {"bandlimited", "cubic", "linear"}
         The inputs between samples: as band-limited signals (as
         :func:`algid.simulate_model` does by default; the choice that does not bias
-        the estimate at few samples per period), or linear.
+        the estimate at few samples per period), a cubic spline (the other choice whose
+        difference gives the numerical error), or linear.
 
     Returns
     -------
@@ -351,12 +140,25 @@ def prepare(model, segments, step, interpolation="bandlimited"):
     """
     from algid.simulation._interpolation import UPSAMPLING
 
-    upsampling = UPSAMPLING if interpolation == "bandlimited" else 1
+    upsampling = 1 if interpolation == "linear" else UPSAMPLING
     channels = LinearSimulation(model, dict.fromkeys(model.parameters, 1.0), step).channels
+    inputs = [channel_samples(channels, seg, upsampling, interpolation) for seg in segments]
+    outputs = [np.asarray(seg.values[model.output], dtype=float) for seg in segments]
+    # every channel and the output divided by a power of two to unit size (exact)
+    scales = np.array([_power_of_two(np.concatenate([u[j] for u in inputs]))
+                       for j in range(len(channels))])
+    output_scale = _power_of_two(np.concatenate(outputs))
+    inputs = [u / scales[:, None] for u in inputs]
     return OutputErrorData(
-        model, step, upsampling,
-        [channel_samples(channels, seg, upsampling) for seg in segments],
-        [np.asarray(seg.values[model.output], dtype=float) for seg in segments])
+        model, step, upsampling, inputs, [y / output_scale for y in outputs],
+        [step_points(u, upsampling) for u in inputs], scales / output_scale, output_scale)
+
+
+def _power_of_two(values):
+    """The power of two nearest the largest magnitude (1 for zeros)."""
+    largest = float(np.max(np.abs(values))) if len(values) else 0.0
+    return float(2.0 ** np.frexp(largest)[1]) if largest > 0 and np.isfinite(largest) \
+        else 1.0
 
 
 @dataclass
@@ -371,8 +173,8 @@ def _evaluate(data, theta):
     sim = LinearSimulation(model, dict(zip(model.parameters, theta)), data.step,
                            data.upsampling)
     residual, free, initial = [], [], []
-    for inputs, y in zip(data.inputs, data.outputs):
-        forced, F = sim.run(inputs)
+    for inputs, y, points in zip(data.inputs, data.outputs, data.points):
+        forced, F = sim.run(inputs, points, data.gains)
         if not (np.all(np.isfinite(forced)) and np.all(np.isfinite(F))):
             return _Evaluation(np.full(sum(len(y) for y in data.outputs), np.inf), [], [])
         x0 = np.linalg.lstsq(F, y - forced, rcond=None)[0] if F.shape[1] else np.zeros(0)
@@ -477,7 +279,14 @@ def sandwich_covariance(J, residuals, bounds, dof, max_order=MAX_AR_ORDER):
                                for a, b in bounds])
     innovation *= n / max(dof, 1)
     meat = innovation * (whitened.T @ whitened)
-    return bread @ meat @ bread, ar
+    covariance = bread @ meat @ bread
+    # never below the white-noise form: residuals an AR model predicts almost exactly
+    # (a noise-free record's interpolation error) would otherwise claim no error at all
+    white = np.diag(bread) * total / max(dof, 1)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        raise_by = np.sqrt(np.maximum(1.0, white / np.diag(covariance)))
+    raise_by = np.where(np.isfinite(raise_by), raise_by, 1.0)
+    return covariance * np.outer(raise_by, raise_by), ar
 
 
 @dataclass
@@ -504,6 +313,10 @@ class Refinement:
         Per segment, the fitted initial state (observable canonical coordinates).
     residual_test : algid.identification._residual_tests.ResidualTest or None
         The tests of the simulation residuals for model errors.
+    numerical_error : numpy.ndarray or None
+        Per parameter, the change of the estimate when the inputs are interpolated by
+        a cubic spline instead (the simulation's own error, which the standard errors
+        do not hold; it matters on noise-free records at few samples per period).
     """
 
     applied: bool
@@ -515,6 +328,7 @@ class Refinement:
     noise_ar: tuple = (1.0,)
     initial_states: list = field(default_factory=list)
     residual_test: object = None
+    numerical_error: np.ndarray | None = None
 
 
 def projected_jacobian(data, theta, scale, free=None):
@@ -550,7 +364,7 @@ def projected_jacobian(data, theta, scale, free=None):
     return J, bounds
 
 
-def refine_linear(data, theta, scale):
+def refine_linear(data, theta, scale, other=None):
     """The output-error estimate started from ``theta``.
 
     Parameters
@@ -562,6 +376,10 @@ def refine_linear(data, theta, scale):
         The starting estimate (identify's), in ``model.parameters`` order.
     scale : numpy.ndarray
         Per parameter, a positive typical uncertainty (the algebraic standard errors).
+    other : OutputErrorData, optional
+        The same records with the inputs interpolated otherwise (a cubic spline): the
+        estimate's change from one to the other (one Gauss–Newton step from it) is its
+        numerical error, in :attr:`Refinement.numerical_error`.
 
     Returns
     -------
@@ -581,26 +399,48 @@ def refine_linear(data, theta, scale):
         return np.where(np.isfinite(r), r, 1e150)
 
     start = _evaluate(data, theta0)
-    rms_before = float(np.sqrt(np.mean(start.residual ** 2)))
+    rms_before = float(np.sqrt(np.mean(start.residual ** 2))) * data.output_scale
     fit = least_squares(residual, np.zeros(len(theta0)), method="lm", x_scale=1.0,
-                        diff_step=_JACOBIAN_STEP, xtol=1e-10, ftol=1e-12, gtol=1e-12,
+                        diff_step=_JACOBIAN_STEP, xtol=1e-13, ftol=1e-15, gtol=1e-15,
                         max_nfev=100 * (len(theta0) + 1))
     theta_hat = theta0 + fit.x * scale
     final = _evaluate(data, theta_hat)
     J, bounds = projected_jacobian(data, theta_hat, scale, final.free)
     count[0] += 2 * len(theta0)
+    # Gauss-Newton steps with central-difference Jacobians: the optimum to round-off
+    # (the iteration's forward differences stop it about 1e-6 standard errors away)
+    for _ in range(_POLISH_STEPS):
+        step_z = np.linalg.lstsq(J * scale, final.residual, rcond=None)[0]
+        polished = theta_hat - step_z * scale
+        trial = _evaluate(data, polished)
+        count[0] += 1
+        if not trial.residual @ trial.residual <= final.residual @ final.residual:
+            break
+        theta_hat, final = polished, trial
+        J, bounds = projected_jacobian(data, theta_hat, scale, final.free)
+        count[0] += 2 * len(theta0)
+        if np.max(np.abs(step_z)) < 1e-10:
+            break
     dof = len(final.residual) - len(theta0) - sum(F.shape[1] for F in final.free)
+    # in the scaled parameters (columns of like size in any units: a pseudo-inverse
+    # would otherwise drop the smaller ones), then back
+    J = J * scale
     covariance, ar = sandwich_covariance(J, final.residual, bounds, dof)
-    rms_after = float(np.sqrt(np.mean(final.residual ** 2)))
+    covariance = covariance * np.outer(scale, scale)
+    rms_after = float(np.sqrt(np.mean(final.residual ** 2))) * data.output_scale
+    numerical = np.full(len(theta0), np.nan)
+    if other is not None:   # one Gauss-Newton step on the other interpolation's residuals
+        step_to = np.linalg.lstsq(J, _evaluate(other, theta_hat).residual, rcond=None)[0]
+        numerical = np.abs(step_to) * scale
+        count[0] += 1
     test = None
     if np.all(np.isfinite(final.residual)) and np.all(np.isfinite(J)):
-        from algid.identification._residual_tests import residual_test
-
         test = residual_test(data, theta_hat, final.residual, final.free, J, bounds, ar, dof)
     return theta_hat, covariance, Refinement(
         applied=True, reason="", converged=bool(fit.success), evaluations=count[0],
         rms_before=rms_before, rms_after=rms_after, noise_ar=tuple(float(a) for a in ar),
-        initial_states=final.initial, residual_test=test)
+        initial_states=[x0 * data.output_scale for x0 in final.initial],
+        residual_test=test, numerical_error=numerical)
 
 
 #: Values of ``refine`` that :func:`algid.identify` takes.
@@ -631,7 +471,7 @@ def stabilised(model, values):
     -------
     dict or None
     """
-    den, _ = _coefficients(model, values)
+    den, _ = output_polynomials(model, values)
     n = max(den)
     coefficients = np.array([den.get(k, 0.0) for k in range(n, -1, -1)])
     roots = np.roots(coefficients)
@@ -657,12 +497,16 @@ def stabilised(model, values):
 
 
 def _typical_uncertainty(result):
-    """Per parameter, the algebraic standard error, or where it is not a positive
-    number a small part of the value (the scale of the refinement's steps)."""
-    theta = np.array([result.values[p] for p in result.model.parameters], dtype=float)
-    se = np.array([result.stderr[p] for p in result.model.parameters], dtype=float)
-    fallback = np.maximum(1e-3 * np.abs(theta), 1e-12)
-    return np.where(np.isfinite(se) & (se > 0), se, fallback)
+    """Per parameter, the scale of the refinement's steps: the algebraic standard error
+    or numerical error, at least a millionth of the value (a noise-free record's
+    errors are round-off, below a difference step's resolution)."""
+    names = result.model.parameters
+    theta = np.abs(np.array([result.values[p] for p in names], dtype=float))
+    se = np.array([result.stderr[p] for p in names], dtype=float)
+    numerical = np.array([result.numerical_error.get(p, 0.0) for p in names], dtype=float)
+    spread = np.fmax(np.where(np.isfinite(se), se, 0.0),
+                     np.where(np.isfinite(numerical), numerical, 0.0))
+    return np.maximum(spread, np.maximum(1e-6 * theta, 1e-300))
 
 
 def refine_result(result, segments, step, refine, data_warnings=()):
@@ -678,14 +522,16 @@ def refine_result(result, segments, step, refine, data_warnings=()):
         Sampling step (s).
     refine : {"auto", True, False}
         ``"auto"``: refine where it is safe (the algebraic model is stable and the
-        refined one too, and the simulation error drops), else keep the algebraic
+        refined one too, the simulation error drops, and the simulation's own error, its
+        interpolation of the inputs, is below the noise's), else keep the algebraic
         estimate and say why in :attr:`Refinement.reason`; True: refine, refusing a
         model that cannot be, with a warning where the fit does not lower the
         simulation error; False: keep the algebraic estimate.
     data_warnings : sequence of str
-        The result's warnings about the records (not about the algebraic estimate):
-        kept in a refined result, whose other warnings are those of its residual test
-        (the algebraic ones stay in ``algebraic["warnings"]``).
+        The result's warnings about the records and what they determine (not about the
+        algebraic model's fit): kept in a refined result, whose other warnings are
+        those of its residual test (all the algebraic ones stay in
+        ``algebraic["warnings"]``).
 
     Returns
     -------
@@ -708,9 +554,13 @@ def refine_result(result, segments, step, refine, data_warnings=()):
         return replace(result, algebraic=algebraic, refinement=Refinement(
             applied=False, reason="not asked (refine=False)"))
     why = refinement_unavailable(result.model)
-    if why is None and any(seg.step is None or abs(seg.step - step) > 1e-6 * step
-                           for seg in segments):
+    if why is None and any(seg.step is None for seg in segments):
         why = "the output-error refinement needs uniformly sampled records"
+    elif why is None:   # the runs' own steps (exact from their ends), as one
+        step = float(np.average([seg.step for seg in segments],
+                                weights=[len(seg) for seg in segments]))
+        if any(abs(seg.step - step) > UNIFORM_TOLERANCE * step for seg in segments):
+            why = "the output-error refinement needs records of one sampling step"
     if why is not None:
         if refine is True:
             raise ModelError(f"refine: {why}")
@@ -738,13 +588,25 @@ def refine_result(result, segments, step, refine, data_warnings=()):
                        refinement=Refinement(applied=False, reason=why))
     with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
         data = prepare(model, segments, step)
-        theta, covariance, info = refine_linear(data, theta0, _typical_uncertainty(result))
+        other = prepare(model, segments, step, "cubic")
+        theta, covariance, info = refine_linear(data, theta0, _typical_uncertainty(result),
+                                                other)
     values = dict(zip(model.parameters, theta.tolist()))
     if not (np.all(np.isfinite(theta)) and np.all(np.isfinite(covariance))
-            and info.rms_after <= info.rms_before):
+            and info.rms_after < info.rms_before * (1 - 1e-9)):
         why = "the output-error fit did not lower the simulation error"
     elif refine == "auto" and not simulates_stably(model, values):
         why = "the output-error fit gives a model that is not stable"
+    elif refine == "auto" and np.any(info.numerical_error
+                                     > np.sqrt(np.maximum(np.diag(covariance), 0.0))):
+        # (few samples per period, or a noise-free record: the refined estimate would
+        # carry an error its standard errors do not hold)
+        worst = int(np.argmax(info.numerical_error
+                              / np.sqrt(np.maximum(np.diag(covariance), 1e-300))))
+        why = (f"the simulation's own error (its interpolation of the inputs) exceeds "
+               f"the noise's: {model.parameters[worst]} moves by "
+               f"{info.numerical_error[worst]:.2g} with another interpolation, over its "
+               f"standard error (refine=True refines anyway)")
     if why is not None:   # (a warning where asked for: "auto" says so in the reason)
         info.applied, info.reason = False, why
         notes = [f"not refined: {why}; the algebraic estimate is reported"] \
@@ -754,7 +616,8 @@ def refine_result(result, segments, step, refine, data_warnings=()):
     info.reason = (f"output error {info.rms_after:.3g} rms (algebraic "
                    f"{info.rms_before:.3g}){started}")
     found = [] if info.residual_test is None else info.residual_test.warnings()
-    # (the simulation is exact for inputs linear between samples: no quadrature error)
     return replace(result, values=values, covariance=covariance, estimate="refined",
-                   numerical_error={}, algebraic=algebraic, refinement=info,
+                   numerical_error=dict(zip(model.parameters,
+                                            info.numerical_error.tolist())),
+                   algebraic=algebraic, refinement=info,
                    warnings=[w for w in result.warnings if w in data_warnings] + found)

@@ -15,7 +15,8 @@ covariance, :func:`algid.identification._output_error.sandwich_covariance`):
     chi2 = (d' r)**2 / (s2 * |H' d|**2)
 
 (Lagrange multiplier test of adding the term), chi-square with one degree of freedom
-for a right model.  A direction whose score exceeds :data:`CHI2_LIMIT` is reported,
+for a right model.  A direction whose score exceeds :data:`CHI2_LIMIT`, and whose part
+of the residuals is at least :data:`NEGLIGIBLE` of the output's rms, is reported,
 naming the term as the likely cause; a term the model already has scores nothing (its
 direction is projected out).  The whiteness of the residuals is not tested: coloured
 output noise is no model error, and the covariance counts it.
@@ -26,6 +27,8 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
+
+from algid.identification._linear_simulation import LinearSimulation, output_polynomials
 
 __all__ = ["ResidualTest", "residual_test", "CHI2_LIMIT", "CANDIDATES"]
 
@@ -43,6 +46,10 @@ SAME_DIRECTION = 0.99
 #: A direction that keeps less than this part of its energy once the fitted ones are
 #: projected out is one of them (the round-off of the projection remains).
 SPANNED = 1e-8
+
+#: A candidate whose part of the residuals is below this fraction of the output's rms
+#: is not reported, however significant (the interpolation error of a noise-free record).
+NEGLIGIBLE = 1e-3
 
 #: The candidate causes, in the order they are reported at equal scores.
 CANDIDATES = ("offset", "drift", "delay", "gain", "derivative", "cubic", "square",
@@ -96,8 +103,6 @@ class ResidualTest:
 
 def _response(den, z, step, upsampling):
     """The forced response of ``A(D) y = z`` (z at the fine points)."""
-    from algid.identification._output_error import LinearSimulation
-
     sim = LinearSimulation.of_polynomials(den, {"z": {0: 1.0}}, step, upsampling)
     return sim.run(z[None, :])[0]
 
@@ -146,8 +151,6 @@ def _directions(data, den, simulated):
 
 
 def _channels(data):
-    from algid.identification._output_error import LinearSimulation
-
     return LinearSimulation(data.model, dict.fromkeys(data.model.parameters, 1.0),
                             data.step).channels
 
@@ -179,15 +182,14 @@ def residual_test(data, theta, residual, free, J, bounds, ar, dof):
     """
     from scipy.signal import lfilter
 
-    from algid.identification._output_error import _coefficients
-
-    den, _ = _coefficients(data.model, dict(zip(data.model.parameters, theta)))
+    den, _ = output_polynomials(data.model, dict(zip(data.model.parameters, theta)))
     simulated = [data.outputs[i] - residual[a:b] for i, (a, b) in enumerate(bounds)]
     # the innovation variance of the residuals' AR model
     innovation = np.concatenate([lfilter(ar, [1.0], residual[a:b]) for a, b in bounds])
     s2 = float(innovation @ innovation) / max(dof, 1)
     test = ResidualTest()
     projected = {}
+    output_rms = float(np.sqrt(np.mean(np.concatenate(data.outputs) ** 2)))
     with np.errstate(all="ignore"):
         directions = _directions(data, den, simulated)
         for name, (message, pieces) in directions.items():
@@ -206,8 +208,12 @@ def residual_test(data, theta, residual, free, J, bounds, ar, dof):
             score = float(d @ residual) ** 2 / variance if variance > 0 else 0.0
             if not np.isfinite(score):
                 continue
+            coefficient = float(d @ residual) / energy
+            if abs(coefficient) * np.sqrt(energy / len(d)) < NEGLIGIBLE * output_rms:
+                score = min(score, 0.0)   # too small to matter (a noise-free record's
+                # interpolation error is significant and negligible)
             test.scores[name] = score
-            test.coefficients[name] = float(d @ residual) / energy
+            test.coefficients[name] = coefficient
             test.messages[name] = message
             projected[name] = d / np.sqrt(energy)
     if "delay" in test.coefficients:   # the shift, in samples: y(t) = yhat(t - tau)

@@ -118,9 +118,9 @@ class IdentificationResult:
         output-error refinement started from it (:meth:`refine`).
     algebraic : dict or None
         The algebraic estimate: ``{"values": ..., "covariance": ...,
-        "numerical_error": ..., "warnings": ...}`` (a refined estimate has no
-        quadrature error: its ``numerical_error`` is empty; its warnings are those of
-        the test of its simulation residuals).
+        "numerical_error": ..., "warnings": ...}`` (a refined estimate's numerical
+        error is that of its simulation, its warnings those of the test of its
+        simulation residuals).
     refinement : algid.identification._output_error.Refinement or None
         Whether the refinement was applied, why, and its figures.
 
