@@ -70,6 +70,7 @@ from algid.identification._window_rule import (
     check_multiplicities,
     choose_window,
     min_length,
+    window_advice,
     window_criterion,
     window_grid,
     window_length,
@@ -669,9 +670,10 @@ def identify(data, equation, parameters=None, *, time=None, rate=None, output=No
     check_factors(model, segments)
     problem = _Problem(model, segments, step)
     length = window_length(window, step, problem, multiplicities)
-    scores = None
+    scores, separations = None, {}
     if length is None:
-        length, scores = choose_window(problem, multiplicities, _solve, method=method)
+        length, scores = choose_window(problem, multiplicities, _solve, method=method,
+                                       separations=separations)
     fit = _solve(problem, length, multiplicities, method=method)
     for _ in range(CROSSING_PASSES):  # again, crossings of sign(q') placed by the model
         # (same window: re-chosen, it varied with the noise and so did its quadrature bias)
@@ -696,8 +698,25 @@ def identify(data, equation, parameters=None, *, time=None, rate=None, output=No
     if not noise_like:  # would a term the model lacks explain most of the misfit?
         adequacy = missing_terms(adequacy, model, lambda eq, names: _least_squares_misfit(
             segments, step, eq, names, model.output, length, multiplicities))
+
+    grid_scores = scores
+
+    def advice():
+        # which windows would separate the parameters, or how much less noise: for an
+        # explicit window the grid of the automatic rule is solved now (only when refused
+        # or warned, so a clean fixed-window call costs no more than before)
+        nonlocal grid_scores
+        if not separations:
+            try:
+                grid_scores = choose_window(problem, multiplicities, _solve, method=method,
+                                            separations=separations)[1]
+            except (InputDataError, ModelError, np.linalg.LinAlgError):
+                return ""
+        return window_advice(separations, step, grid_scores)
+
     if noise_like and (fit.separation.free or fit.separation.misfit_free):
-        raise ModelError(fit.separation.message(model.parameters))
+        raise ModelError(f"{fit.separation.message(model.parameters)}; {advice()}".rstrip("; "))
+    weak = fit.separation.poorly_separated(adequacy.adequate)
     idle = _idle_records(data, segments, length, step)
     result = IdentificationResult(
         model=model, values=dict(zip(model.parameters, fit.theta.tolist())),
@@ -707,7 +726,7 @@ def identify(data, equation, parameters=None, *, time=None, rate=None, output=No
         separate={a: dict(zip(model.parameters, v.tolist())) for a, v in fit.separate.items()},
         numerical_error=dict(zip(model.parameters, fit.numerical_error.tolist())),
         adequacy=adequacy,
-        warnings=adequacy.warnings() + fit.separation.warnings(model.parameters,
-                                                               adequacy.adequate)
+        warnings=adequacy.warnings() + fit.separation.warnings(
+            model.parameters, adequacy.adequate, advice() if weak else "")
         + idle)
     return refine_result(result, segments, step, refine, idle)

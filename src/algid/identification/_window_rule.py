@@ -19,10 +19,14 @@ from __future__ import annotations
 import numpy as np
 
 from algid.errors import InputDataError, ModelError
-from algid.identification._window_basis import FREE_NOISE_RATIO
+from algid.identification._window_basis import (
+    FREE_NOISE_RATIO,
+    WEAK_NOISE_RATIO,
+    WEAK_RATIO,
+)
 
 __all__ = ["WindowFit", "check_multiplicities", "window_grid", "window_criterion",
-           "choose_window", "window_length", "min_length", "longest_window",
+           "choose_window", "window_advice", "noise_factor", "window_length", "min_length", "longest_window",
            "independent_windows", "needed_windows", "MIN_SPARE_WINDOWS", "NEGLIGIBLE_TERM"]
 
 #: Non-overlapping windows needed beyond one per parameter.
@@ -305,7 +309,8 @@ def window_criterion(fits):
     return scores
 
 
-def choose_window(problem, multiplicities, solve, *, n_max=None, method="ls"):
+def choose_window(problem, multiplicities, solve, *, n_max=None, method="ls",
+                  separations=None):
     """Window length (samples) by the rule of this module.
 
     Parameters
@@ -319,9 +324,13 @@ def choose_window(problem, multiplicities, solve, *, n_max=None, method="ls"):
         ``relative_error()`` and ``separation`` (a
         :class:`algid.identification._window_basis.Separability`).
     n_max : int, optional
-        Longest window (samples); by default a thirtieth of the samples.
+        Longest window (samples); by default the longest that leaves
+        :func:`needed_windows` non-overlapping windows (:func:`longest_window`).
     method : str
         Solver.
+    separations : dict, optional
+        Filled with ``{length: Separability}`` of every grid point solved (for
+        :func:`window_advice`).
 
     Returns
     -------
@@ -335,13 +344,17 @@ def choose_window(problem, multiplicities, solve, *, n_max=None, method="ls"):
     InputDataError
         Records too short for any window.
     """
-    longest = max(len(s) for s in problem.segments)
     n_min = min_length(multiplicities)
-    total = sum(len(s) for s in problem.segments)
-    # at least 30 independent windows: the HAC covariance needs many of them
-    n_max = min(n_max or total // 30, longest, 4096)
+    allowed = longest_window(problem, n_min) + 1
+    n_max = allowed if n_max is None else min(n_max, allowed)
     grid = [n for n in window_grid(n_min, max(n_min, n_max))
             if independent_windows(problem, n) >= needed_windows(problem)]
+    # the longest window too (the grid may stop up to a ratio short of it): where the
+    # parameters separate only on the longest windows, a fixed window there would
+    # determine them, and the rule must not refuse what a fixed window determines
+    if grid and n_max > grid[-1] * 1.05 \
+            and independent_windows(problem, n_max) >= needed_windows(problem):
+        grid.append(n_max)
     if not grid:
         raise InputDataError(f"the records are too short: windows of at least {n_min} "
                              f"samples must leave {needed_windows(problem)} non-overlapping "
@@ -352,6 +365,8 @@ def choose_window(problem, multiplicities, solve, *, n_max=None, method="ls"):
             fits[length] = solve(problem, length, multiplicities, method=method)
         except np.linalg.LinAlgError:
             continue
+    if separations is not None:
+        separations.update({n: f.separation for n, f in fits.items()})
     scores = window_criterion(fits) if fits else {}
     if not scores:
         raise InputDataError("no window length gives a solvable system: the records are "
@@ -366,3 +381,90 @@ def choose_window(problem, multiplicities, solve, *, n_max=None, method="ls"):
         return min(separating, key=scores.get), scores
     return max(scores, key=lambda n: (fits[n].separation.noise_ratio >= FREE_NOISE_RATIO,
                                       fits[n].separation.ratio)), scores
+
+
+def _reliable(separation):
+    return separation.ratio >= WEAK_RATIO and separation.noise_ratio >= WEAK_NOISE_RATIO
+
+
+def _separates(separation):
+    return not (separation.free or separation.misfit_free)
+
+
+def noise_factor(separation):
+    """How many times smaller the output noise (relative to the signals) would have to be
+    for ``separation`` to separate the parameters reliably (1 if it does).
+
+    Where the misfit is output noise of relative size ``e``, the smallest singular value
+    of the unit-column regressors is about ``sqrt(s**2 + e**2)`` for a signal part
+    ``s``, so ``ratio**2 - 1`` grows as the signal-to-noise ratio squared; the noise
+    test's ratio is ``1 + S / (sigma**2 N)``, so ``noise_ratio - 1`` grows the same way.
+
+    Parameters
+    ----------
+    separation : Separability
+
+    Returns
+    -------
+    float
+    """
+    factors = [1.0]
+    for value, target in ((separation.ratio ** 2 - 1, WEAK_RATIO ** 2 - 1),
+                          (separation.noise_ratio - 1, WEAK_NOISE_RATIO - 1)):
+        if np.isfinite(value):
+            factors.append(np.sqrt(target / value) if value > 0 else np.inf)
+    return float(max(factors))
+
+
+def window_advice(separations, step, scores=None):
+    """What would separate the parameters: which windows, or how much less noise.
+
+    Parameters
+    ----------
+    separations : dict
+        ``{length: Separability}`` over the grid of :func:`choose_window`.
+    step : float
+        Sampling step (s).
+    scores : dict, optional
+        The grid's criterion (:func:`window_criterion`): among the windows that separate
+        the parameters reliably, the one to try is the best by it.
+
+    Returns
+    -------
+    str
+        One clause (no full stop), empty without ``separations``.
+    """
+    if not separations:
+        return ""
+    lengths = sorted(separations)
+
+    def seconds(n):
+        return f"{(n - 1) * step:.4g} s"
+
+    reliable = [n for n in lengths if _reliable(separations[n])]
+    separating = [n for n in lengths if _separates(separations[n])]
+    if reliable:
+        best = min(reliable, key=lambda n: scores.get(n, np.inf)) if scores \
+            else max(reliable, key=lambda n: separations[n].ratio)
+        return (f"windows of {seconds(reliable[0])} to {seconds(reliable[-1])} separate "
+                f"them reliably on these records: try window={(best - 1) * step:.4g}")
+    best = max(lengths, key=lambda n: (_separates(separations[n]),
+                                       -noise_factor(separations[n])))
+    factor = noise_factor(separations[best])
+    if separating:
+        where = (f"windows of {seconds(separating[0])} to {seconds(separating[-1])} "
+                 f"separate them, none reliably")
+    else:
+        where = (f"no window these records allow ({seconds(lengths[0])} to "
+                 f"{seconds(lengths[-1])}) separates them")
+    clause = (f"{where} (the best, {seconds(best)}: separability "
+              f"{separations[best].ratio:.3g}, noise separability "
+              f"{separations[best].noise_ratio:.3g}); output noise about {factor:.2g} times "
+              f"smaller relative to the signals (a larger excitation) would separate them "
+              f"reliably")
+    if best == lengths[-1] and len(lengths) > 1 \
+            and noise_factor(separations[lengths[-2]]) > factor:
+        # separability still growing at the longest window: longer records allow longer
+        clause += (f", and so might longer records (windows past {seconds(best)}: the "
+                   f"separation grows with the window here)")
+    return clause
