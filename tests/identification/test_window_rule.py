@@ -15,6 +15,7 @@ import algid
 from algid.errors import AlgidError, ModelError
 from algid.identification._window_basis import Separability
 from algid.identification._window_rule import (
+    HAC_WINDOWS,
     WindowFit,
     choose_window,
     longest_window,
@@ -36,11 +37,12 @@ def _problem(*lengths, parameters=("B", "K", "G", "d")):
     return SimpleNamespace(segments=[np.zeros(n) for n in lengths], parameters=parameters)
 
 
-def _fit(stderr, theta, scale, separation=None):
+def _fit(stderr, theta, scale, separation=None, noise_model=True):
     stderr, theta = np.asarray(stderr, float), np.asarray(theta, float)
     return WindowFit(theta, np.diag(stderr ** 2), {8: theta, 12: theta},
                      np.asarray(scale, float), None, 100,
-                     separation or Separability(1.0, 0.01, np.ones(len(theta))))
+                     separation or Separability(1.0, 0.01, np.ones(len(theta))),
+                     noise_model=noise_model)
 
 
 def test_the_grid_reaches_the_longest_window_the_records_allow():
@@ -71,6 +73,30 @@ def test_the_rule_keeps_the_window_where_every_parameter_is_best():
     length, scores = choose_window(problem, (8, 12), solve)
     assert abs(length - 2000) / 2000 < 0.15
     assert scores[length] == min(scores.values())
+
+
+def test_hac_errors_over_few_windows_do_not_choose_the_window():
+    """Where the standard errors are the residuals' own (HAC), a window leaving fewer
+    than HAC_WINDOWS independent ones is not compared (its errors are too noisy: the
+    smallest wins by chance), unless no other window separates the parameters."""
+    problem = _problem(30001)
+    free = Separability(1.0, 1.0 / 1.2, np.ones(4))
+
+    def solve(problem, length, multiplicities, method):
+        error = 0.01 * 1000.0 / length   # smallest on the longest windows
+        return _fit([error] * 4, [1.0] * 4, [1.0] * 4, noise_model=False)
+
+    length, _ = choose_window(problem, (8, 12), solve)
+    assert 30001 // length >= HAC_WINDOWS
+    # and where only the long windows separate the parameters, they are kept
+
+    def solve_long(problem, length, multiplicities, method):
+        fit = solve(problem, length, multiplicities, method)
+        fit.separation = fit.separation if length > 1500 else free
+        return fit
+
+    length, _ = choose_window(problem, (8, 12), solve_long)
+    assert length > 1500
 
 
 def test_a_near_zero_parameter_does_not_push_the_window_short():

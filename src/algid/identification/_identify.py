@@ -497,8 +497,9 @@ def _solve(problem, length, multiplicities, instruments=None, method="ls"):
         beta = np.ldexp(1.0, -basis.b_shift)
         noise = variance * beta ** 2 * noise_meat(problem, length, top, theta_bar,
                                                   solution.weights, stride)
-    covariance = sandwich(bread, hac_meat(solution.scores, ids, int(np.ceil(length / stride))),
-                          noise, AGREEMENT, floor=ROUNDOFF * length * np.linalg.norm(basis.b))
+    covariance, middle = sandwich(
+        bread, hac_meat(solution.scores, ids, int(np.ceil(length / stride))), noise,
+        AGREEMENT, floor=ROUNDOFF * length * np.linalg.norm(basis.b), middle=True)
     columns, known, _ = problem.exponents()
     shift = known - columns
     with np.errstate(over="ignore", under="ignore"):
@@ -517,7 +518,7 @@ def _solve(problem, length, multiplicities, instruments=None, method="ls"):
         basis.b ** 2))), 1e-300), basis.shifts - basis.b_shift - shift)
     return WindowFit(theta, covariance,
                 {a: np.ldexp(v, shift) for a, v in separate.items()},
-                scale, r, len(ids), solution.separation)
+                scale, r, len(ids), solution.separation, noise_model=middle == "noise")
 
 
 def _add_derivatives(model, segments, estimator):

@@ -34,10 +34,20 @@ from algid.identification._window_basis import (
 __all__ = ["WindowFit", "check_multiplicities", "window_grid", "window_criterion",
            "choose_window", "window_advice", "noise_factor", "window_length", "min_length",
            "longest_window",
-           "independent_windows", "needed_windows", "MIN_SPARE_WINDOWS", "NEGLIGIBLE_TERM"]
+           "independent_windows", "needed_windows", "MIN_SPARE_WINDOWS", "NEGLIGIBLE_TERM",
+           "HAC_WINDOWS"]
 
 #: Non-overlapping windows needed beyond one per parameter.
 MIN_SPARE_WINDOWS = 8
+
+#: Non-overlapping windows the automatic rule asks of a window whose standard errors come
+#: from the residuals' own (HAC) covariance: with fewer, that estimate of a ``p x p``
+#: middle is too noisy to compare windows by (on the EMPS records, windows of 14 made the
+#: friction model's error look 30 times smaller than on short windows, and the rule
+#: kept an estimate of M 4 % from the published value, 7 reported standard errors).  A
+#: covariance of the output noise through the kernels needs no more than
+#: :func:`needed_windows`.
+HAC_WINDOWS = 30
 
 #: A term this small next to the known side (5 %) counts as negligible in the window rule.
 NEGLIGIBLE_TERM = 0.05
@@ -65,10 +75,14 @@ class WindowFit:
         Windows stacked.
     separation : Separability, optional
         :func:`algid.identification._window_basis.separability` of the highest multiplicity.
+    noise_model : bool
+        Whether the covariance is that of output noise through the kernels (else the
+        residuals' own, HAC, which needs many independent windows: :data:`HAC_WINDOWS`).
     """
 
     def __init__(self, theta, covariance, separate, scale, residuals, n_windows,
-                 separation=None):
+                 separation=None, noise_model=False):
+        self.noise_model = noise_model
         self.theta = theta
         self.covariance = covariance
         self.separate = separate          # multiplicity -> estimate alone
@@ -393,18 +407,24 @@ def choose_window(problem, multiplicities, solve, *, n_max=None, method="ls",
             continue
     if separations is not None:
         separations.update({n: f.separation for n, f in fits.items()})
+    # windows whose standard errors can be compared: those of the output noise's
+    # covariance, or HAC ones over enough independent windows (HAC_WINDOWS); the others
+    # are kept only where none of these separates the parameters (short records)
+    trusted = {n: f for n, f in fits.items()
+               if f.noise_model or independent_windows(problem, n) >= HAC_WINDOWS}
+    for pool in (trusted, fits):
+        scores = window_criterion(pool) if pool else {}
+        # the windows that separate the parameters within the noise and the misfit
+        separating = [n for n in scores if _separates(fits[n].separation)]
+        if separating:
+            return min(separating, key=scores.get), scores
     scores = window_criterion(fits) if fits else {}
     if not scores:
         raise InputDataError("no window length gives a solvable system: the records are "
                              "too short or the signals do not excite the model")
-    # the windows that separate the parameters within the noise and the misfit; if none
-    # does, the one that separates them best (a model of too high an order, or one whose
-    # own error is the misfit on every window: algid.identify decides which, once it has
-    # tested the model's adequacy on that window)
-    separating = [n for n in scores if not (fits[n].separation.free
-                                            or fits[n].separation.misfit_free)]
-    if separating:
-        return min(separating, key=scores.get), scores
+    # if none does, the one that separates them best (a model of too high an order, or
+    # one whose own error is the misfit on every window: algid.identify decides which,
+    # once it has tested the model's adequacy on that window)
     return max(scores, key=lambda n: (fits[n].separation.noise_ratio >= FREE_NOISE_RATIO,
                                       fits[n].separation.ratio)), scores
 
