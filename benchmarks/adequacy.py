@@ -1,4 +1,4 @@
-"""Hits and false alarms of the adequacy test of :func:`algid.identify`.
+"""Hits and false alarms of the adequacy test of the algebraic estimate of :func:`algid.identify`
 
 Run from the repository root: ``python -m benchmarks.adequacy [--runs N] [--json FILE]``.
 
@@ -129,11 +129,12 @@ def main(argv=None):
     print(f"{'case':42s} {'wrong':>5s} {'warned':>9s}  misfit (median, min-max)   "
           f"shift (median, min-max)")
     for name, make, equation, parameters, wrong in synthetic_cases():
-        results = [algid.identify(make(seed), equation, parameters)
+        results = [algid.identify(make(seed), equation, parameters, refine=False)
                    for seed in range(args.runs)]
         rows.append(_row(name, results, wrong))
     for name, record, equation, parameters, options in real_cases():
-        rows.append(_row(name, [algid.identify(record, equation, parameters, **options)],
+        rows.append(_row(name, [algid.identify(record, equation, parameters, refine=False,
+                                               **options)],
                          False))
     for row in rows:
         print(f"{row['case']:42s} {str(row['wrong']):>5s} {row['warned']:4d}/{row['runs']:<4d}"

@@ -1,4 +1,4 @@
-"""Coverage of the standard errors of :func:`algid.identify`
+"""Coverage of the standard errors of the algebraic estimate of :func:`algid.identify`
 (``python -m benchmarks.identify_coverage --runs 300``).
 
 On the synthetic records of :mod:`benchmarks.synthetic_records` (linear with offsets,
@@ -77,7 +77,7 @@ def coverage(name, truth, equation, noisy, runs):
     done = 0
     for seed in range(runs):
         try:
-            r = algid.identify(noisy(seed), *equation)
+            r = algid.identify(noisy(seed), *equation, refine=False)   # the algebraic
         except AlgidError as error:
             refused.append(str(error))
             continue

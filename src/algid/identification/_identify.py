@@ -70,6 +70,7 @@ from algid.identification._window_rule import (
     check_multiplicities,
     choose_window,
     min_length,
+    window_advice,
     window_criterion,
     window_grid,
     window_length,
@@ -496,8 +497,9 @@ def _solve(problem, length, multiplicities, instruments=None, method="ls"):
         beta = np.ldexp(1.0, -basis.b_shift)
         noise = variance * beta ** 2 * noise_meat(problem, length, top, theta_bar,
                                                   solution.weights, stride)
-    covariance = sandwich(bread, hac_meat(solution.scores, ids, int(np.ceil(length / stride))),
-                          noise, AGREEMENT, floor=ROUNDOFF * length * np.linalg.norm(basis.b))
+    covariance, middle = sandwich(
+        bread, hac_meat(solution.scores, ids, int(np.ceil(length / stride))), noise,
+        AGREEMENT, floor=ROUNDOFF * length * np.linalg.norm(basis.b), middle=True)
     columns, known, _ = problem.exponents()
     shift = known - columns
     with np.errstate(over="ignore", under="ignore"):
@@ -516,7 +518,7 @@ def _solve(problem, length, multiplicities, instruments=None, method="ls"):
         basis.b ** 2))), 1e-300), basis.shifts - basis.b_shift - shift)
     return WindowFit(theta, covariance,
                 {a: np.ldexp(v, shift) for a, v in separate.items()},
-                scale, r, len(ids), solution.separation)
+                scale, r, len(ids), solution.separation, noise_model=middle == "noise")
 
 
 def _add_derivatives(model, segments, estimator):
@@ -673,9 +675,10 @@ def identify(data, equation, parameters=None, *, time=None, rate=None, output=No
     check_factors(model, segments)
     problem = _Problem(model, segments, step)
     length = window_length(window, step, problem, multiplicities)
-    scores = None
+    scores, separations = None, {}
     if length is None:
-        length, scores = choose_window(problem, multiplicities, _solve, method=method)
+        length, scores = choose_window(problem, multiplicities, _solve, method=method,
+                                       separations=separations)
     fit = _solve(problem, length, multiplicities, method=method)
     for _ in range(CROSSING_PASSES):  # again, crossings of sign(q') placed by the model
         # (same window: re-chosen, it varied with the noise and so did its quadrature bias)
@@ -700,10 +703,28 @@ def identify(data, equation, parameters=None, *, time=None, rate=None, output=No
     if not noise_like:  # would a term the model lacks explain most of the misfit?
         adequacy = missing_terms(adequacy, model, lambda eq, names: _least_squares_misfit(
             segments, step, eq, names, model.output, length, multiplicities))
+
+    grid_scores = scores
+
+    def advice():
+        # which windows would separate the parameters, or how much less noise: for an
+        # explicit window the grid of the automatic rule is solved now (only when refused
+        # or warned, so a clean fixed-window call costs no more than before)
+        nonlocal grid_scores
+        if not separations:
+            try:
+                grid_scores = choose_window(problem, multiplicities, _solve, method=method,
+                                            separations=separations)[1]
+            except (InputDataError, ModelError, np.linalg.LinAlgError):
+                return ""
+        return window_advice(separations, step, grid_scores)
+
     if noise_like and (fit.separation.free or fit.separation.misfit_free):
-        raise ModelError(fit.separation.message(model.parameters))
+        raise ModelError(f"{fit.separation.message(model.parameters)}; {advice()}".rstrip("; "))
+    weak = fit.separation.poorly_separated(adequacy.adequate)
     idle = _idle_records(data, segments, length, step)
-    separation = fit.separation.warnings(model.parameters, adequacy.adequate)
+    separation = fit.separation.warnings(model.parameters, adequacy.adequate,
+                                         advice() if weak else "")
     unstable = []
     if METHODS[method].instrumental and model.is_linear and not simulates_stably(
             model, dict(zip(model.parameters, fit.theta.tolist()))):

@@ -657,7 +657,8 @@ class Tracker:
         record = {name: self.state.warmup.signals[name][:len(t)] for name in self._signals}
         record["__t"] = t
         try:
-            return identify(record, self.model, time="__t", method=self.config["method"]).window
+            return identify(record, self.model, time="__t", method=self.config["method"],
+                            refine=False).window
         except AlgidError:
             return None
 

@@ -316,7 +316,22 @@ class Separability:
         verb = "cannot be determined" if one else "cannot be separated"
         return f"parameter{'' if one else 's'} {listed} {verb}: {cause}"
 
-    def warnings(self, names, misfit=True):
+    def poorly_separated(self, misfit=True):
+        """Whether :meth:`warnings` reports a poorly determined combination.
+
+        Parameters
+        ----------
+        misfit : bool
+            As in :meth:`warnings`.
+
+        Returns
+        -------
+        bool
+        """
+        return bool(misfit and (self.noise_ratio < WEAK_NOISE_RATIO
+                                or self.ratio < WEAK_RATIO))
+
+    def warnings(self, names, misfit=True, advice=""):
         """One line per reservation about the estimate.
 
         A poorly determined combination; strongly correlated parameters.
@@ -329,17 +344,21 @@ class Separability:
             Whether the equations' misfit is output noise or quadrature error (the
             model holds): if not, both tests measure the model's error, and a poorly
             determined combination is not reported (the model's error is).
+        advice : str
+            What would help (:func:`algid.identification._window_rule.window_advice`),
+            appended to the line of a poorly determined combination.
 
         Returns
         -------
         list of str
         """
         lines = []
-        if misfit and (self.noise_ratio < WEAK_NOISE_RATIO or self.ratio < WEAK_RATIO):
+        if self.poorly_separated(misfit):
             involved = self.involved(names)
             lines.append(f"parameter{'s' if len(involved) > 1 else ''} {', '.join(involved)}: "
                          f"poorly separated on these records, {self._cause()}; the "
-                         f"standard errors are large and less reliable")
+                         f"standard errors are large and less reliable"
+                         + (f"; {advice}" if advice else ""))
         if self.collinear < COLLINEAR and self.collinear_weights is not None:
             w = np.abs(self.collinear_weights)
             involved = [n for n, v in zip(names, w) if v >= NAMED_WEIGHT * w.max()]

@@ -210,7 +210,7 @@ def upper_envelope(hac, noise):
     return (raised * np.maximum(values, 1.0)) @ raised.T
 
 
-def sandwich(bread, hac, noise=None, agreement=4.0, floor=0.0):
+def sandwich(bread, hac, noise=None, agreement=4.0, floor=0.0, middle=False):
     """Covariance ``J^-1 S J^-T`` of the windowed estimate, never indefinite nor zero.
 
     The middle ``S`` is the output noise's (``noise``) where the HAC one gives variances
@@ -232,22 +232,30 @@ def sandwich(bread, hac, noise=None, agreement=4.0, floor=0.0):
         Largest ratio of HAC to noise variances at which the noise's is used.
     floor : float
         Round-off standard error.
+    middle : bool
+        Also return which middle was used.
 
     Returns
     -------
     numpy.ndarray
+        The covariance.
+    str
+        With ``middle``: ``"noise"``, ``"hac"`` or ``"envelope"`` (the HAC sum with its
+        negative eigenvalues reflected, without a noise model, counts as ``"hac"``).
     """
     values, vectors = np.linalg.eigh(hac)
     clipped = bread @ ((vectors * np.maximum(values, 0.0)) @ vectors.T) @ bread.T
+    used = "hac"
     if noise is not None:
         analytic = bread @ noise @ bread.T
         if np.all(np.diag(clipped) <= agreement * np.diag(analytic)):
-            clipped = analytic
+            clipped, used = analytic, "noise"
         elif not positive_definite(hac):
-            clipped = bread @ upper_envelope(hac, noise) @ bread.T
+            clipped, used = bread @ upper_envelope(hac, noise) @ bread.T, "envelope"
     elif not positive_definite(hac):
         clipped = bread @ ((vectors * np.abs(values)) @ vectors.T) @ bread.T
-    return (clipped + clipped.T) / 2 + floor ** 2 * np.eye(len(clipped))
+    covariance = (clipped + clipped.T) / 2 + floor ** 2 * np.eye(len(clipped))
+    return (covariance, used) if middle else covariance
 
 
 def sandwich_stack(bread, hac, rtol=INDEFINITE_RTOL):

@@ -8,10 +8,16 @@ windows for the covariance of the estimate (:func:`needed_windows`: the paramete
 residuals).  An explicit window outside these limits is refused (:func:`window_length`),
 and the automatic rule (:func:`choose_window`) only looks at windows within them: on a
 geometric grid of lengths (:func:`window_grid`, ratio 1.25, from :func:`min_length` up
-to a thirtieth of the data), it keeps the one minimising :func:`window_criterion`, among
-those on which the parameters are separable (:mod:`algid.identification._window_basis`: within the
-output noise and the equations' misfit); where no window is, the one that separates them
-best.
+to the longest window that leaves :func:`needed_windows` non-overlapping ones,
+:func:`longest_window`, which is also a grid point), it keeps the one minimising
+:func:`window_criterion`, among those on which the parameters are separable
+(:mod:`algid.identification._window_basis`: within the output noise and the equations'
+misfit); where no window is, the one that separates them best.  (The grid used to stop
+at a thirtieth of the data and 4096 samples: on 30 s records at 1 kHz of a 1 Hz mode it
+stopped at 0.89 s where 2.5 s was allowed and the best windows were near 1.4 s, and on
+2 s records of 1.7 periods it refused parameters that windows past 0.07 s separate.)
+Where the parameters are refused or poorly separated, :func:`window_advice` says which
+windows, in seconds, separate them, or how much less noise would.
 """
 
 from __future__ import annotations
@@ -19,14 +25,29 @@ from __future__ import annotations
 import numpy as np
 
 from algid.errors import InputDataError, ModelError
-from algid.identification._window_basis import FREE_NOISE_RATIO
+from algid.identification._window_basis import (
+    FREE_NOISE_RATIO,
+    WEAK_NOISE_RATIO,
+    WEAK_RATIO,
+)
 
 __all__ = ["WindowFit", "check_multiplicities", "window_grid", "window_criterion",
-           "choose_window", "window_length", "min_length", "longest_window",
-           "independent_windows", "needed_windows", "MIN_SPARE_WINDOWS", "NEGLIGIBLE_TERM"]
+           "choose_window", "window_advice", "noise_factor", "window_length", "min_length",
+           "longest_window",
+           "independent_windows", "needed_windows", "MIN_SPARE_WINDOWS", "NEGLIGIBLE_TERM",
+           "HAC_WINDOWS"]
 
 #: Non-overlapping windows needed beyond one per parameter.
 MIN_SPARE_WINDOWS = 8
+
+#: Non-overlapping windows the automatic rule asks of a window whose standard errors come
+#: from the residuals' own (HAC) covariance: with fewer, that estimate of a ``p x p``
+#: middle is too noisy to compare windows by (on the EMPS records, windows of 14 made the
+#: friction model's error look 30 times smaller than on short windows, and the rule
+#: kept an estimate of M 4 % from the published value, 7 reported standard errors).  A
+#: covariance of the output noise through the kernels needs no more than
+#: :func:`needed_windows`.
+HAC_WINDOWS = 30
 
 #: A term this small next to the known side (5 %) counts as negligible in the window rule.
 NEGLIGIBLE_TERM = 0.05
@@ -54,10 +75,14 @@ class WindowFit:
         Windows stacked.
     separation : Separability, optional
         :func:`algid.identification._window_basis.separability` of the highest multiplicity.
+    noise_model : bool
+        Whether the covariance is that of output noise through the kernels (else the
+        residuals' own, HAC, which needs many independent windows: :data:`HAC_WINDOWS`).
     """
 
     def __init__(self, theta, covariance, separate, scale, residuals, n_windows,
-                 separation=None):
+                 separation=None, noise_model=False):
+        self.noise_model = noise_model
         self.theta = theta
         self.covariance = covariance
         self.separate = separate          # multiplicity -> estimate alone
@@ -77,17 +102,29 @@ class WindowFit:
         values = [self.separate[a] for a in sorted(self.separate)]
         return np.abs(values[-1] - values[0])
 
-    def relative_error(self):
+    @property
+    def negligible(self):
+        """Per parameter: the value whose term is 5 % of the known side
+        (:data:`NEGLIGIBLE_TERM`) on this window."""
+        return NEGLIGIBLE_TERM / self.scale
+
+    def relative_error(self, negligible=None):
         """Per parameter: max(standard error, numerical error), relative to the value.
 
-        Relative to the parameter, or to the value whose term is 5 % of the known side
-        for a parameter near zero (:data:`NEGLIGIBLE_TERM`).
+        Relative to the parameter, or, for a parameter near zero, to the value whose term
+        is 5 % of the known side.
+
+        Parameters
+        ----------
+        negligible : numpy.ndarray, optional
+            That value per parameter; by default this window's (:attr:`negligible`).
 
         Returns
         -------
         numpy.ndarray
         """
-        reference = np.maximum(np.abs(self.theta), NEGLIGIBLE_TERM / self.scale)
+        negligible = self.negligible if negligible is None else negligible
+        reference = np.maximum(np.abs(self.theta), negligible)
         return np.maximum(self.stderr, self.numerical_error) / reference
 
 
@@ -134,7 +171,7 @@ def needed_windows(problem):
     """Non-overlapping windows a window length must leave.
 
     The parameters plus :data:`MIN_SPARE_WINDOWS` (the HAC covariance estimates a
-    ``p x p`` middle from the residuals; the automatic rule asks for at least 30).
+    ``p x p`` middle from the residuals); the automatic rule's longest window too.
 
     Parameters
     ----------
@@ -293,7 +330,14 @@ def window_criterion(fits):
         Window length -> criterion (finite values only); the rule keeps the smallest.
     """
     lengths = list(fits)
-    relative = [fits[n].relative_error() for n in lengths]
+    # one reference per parameter near zero for the whole grid: the known side's
+    # window average shrinks on windows long against the signals' periods (the kernel
+    # filters out the resonance), so each window's own 5 % value grows with the window
+    # and an offset's relative error with it, though its standard error does not (on
+    # 30 s records of a 1 Hz mode the offset's own ratio drove the choice from 1.4 s,
+    # near the others' best, to 0.9 s)
+    negligible = np.median([fits[n].negligible for n in lengths], axis=0)
+    relative = [fits[n].relative_error(negligible) for n in lengths]
     relative = np.array(relative)
     best = np.min(np.where(relative > 0, relative, np.inf), axis=0)
     best = np.where(np.isfinite(best), best, 1.0)
@@ -305,7 +349,8 @@ def window_criterion(fits):
     return scores
 
 
-def choose_window(problem, multiplicities, solve, *, n_max=None, method="ls"):
+def choose_window(problem, multiplicities, solve, *, n_max=None, method="ls",
+                  separations=None):
     """Window length (samples) by the rule of this module.
 
     Parameters
@@ -319,9 +364,13 @@ def choose_window(problem, multiplicities, solve, *, n_max=None, method="ls"):
         ``relative_error()`` and ``separation`` (a
         :class:`algid.identification._window_basis.Separability`).
     n_max : int, optional
-        Longest window (samples); by default a thirtieth of the samples.
+        Longest window (samples); by default the longest that leaves
+        :func:`needed_windows` non-overlapping windows (:func:`longest_window`).
     method : str
         Solver.
+    separations : dict, optional
+        Filled with ``{length: Separability}`` of every grid point solved (for
+        :func:`window_advice`).
 
     Returns
     -------
@@ -335,13 +384,17 @@ def choose_window(problem, multiplicities, solve, *, n_max=None, method="ls"):
     InputDataError
         Records too short for any window.
     """
-    longest = max(len(s) for s in problem.segments)
     n_min = min_length(multiplicities)
-    total = sum(len(s) for s in problem.segments)
-    # at least 30 independent windows: the HAC covariance needs many of them
-    n_max = min(n_max or total // 30, longest, 4096)
+    allowed = longest_window(problem, n_min) + 1
+    n_max = allowed if n_max is None else min(n_max, allowed)
     grid = [n for n in window_grid(n_min, max(n_min, n_max))
             if independent_windows(problem, n) >= needed_windows(problem)]
+    # the longest window too (the grid may stop up to a ratio short of it): where the
+    # parameters separate only on the longest windows, a fixed window there would
+    # determine them, and the rule must not refuse what a fixed window determines
+    if grid and n_max > grid[-1] * 1.05 \
+            and independent_windows(problem, n_max) >= needed_windows(problem):
+        grid.append(n_max)
     if not grid:
         raise InputDataError(f"the records are too short: windows of at least {n_min} "
                              f"samples must leave {needed_windows(problem)} non-overlapping "
@@ -352,17 +405,112 @@ def choose_window(problem, multiplicities, solve, *, n_max=None, method="ls"):
             fits[length] = solve(problem, length, multiplicities, method=method)
         except np.linalg.LinAlgError:
             continue
+    if separations is not None:
+        separations.update({n: f.separation for n, f in fits.items()})
+    # windows whose standard errors can be compared: those of the output noise's
+    # covariance, or HAC ones over enough independent windows (HAC_WINDOWS); the others
+    # are kept only where none of these separates the parameters (short records)
+    trusted = {n: f for n, f in fits.items()
+               if f.noise_model or independent_windows(problem, n) >= HAC_WINDOWS}
+    for pool in (trusted, fits):
+        scores = window_criterion(pool) if pool else {}
+        # the windows that separate the parameters within the noise and the misfit
+        separating = [n for n in scores if _separates(fits[n].separation)]
+        if separating:
+            return min(separating, key=scores.get), scores
     scores = window_criterion(fits) if fits else {}
     if not scores:
         raise InputDataError("no window length gives a solvable system: the records are "
                              "too short or the signals do not excite the model")
-    # the windows that separate the parameters within the noise and the misfit; if none
-    # does, the one that separates them best (a model of too high an order, or one whose
-    # own error is the misfit on every window: algid.identify decides which, once it has
-    # tested the model's adequacy on that window)
-    separating = [n for n in scores if not (fits[n].separation.free
-                                            or fits[n].separation.misfit_free)]
-    if separating:
-        return min(separating, key=scores.get), scores
+    # if none does, the one that separates them best (a model of too high an order, or
+    # one whose own error is the misfit on every window: algid.identify decides which,
+    # once it has tested the model's adequacy on that window)
     return max(scores, key=lambda n: (fits[n].separation.noise_ratio >= FREE_NOISE_RATIO,
                                       fits[n].separation.ratio)), scores
+
+
+def _reliable(separation):
+    return separation.ratio >= WEAK_RATIO and separation.noise_ratio >= WEAK_NOISE_RATIO
+
+
+def _separates(separation):
+    return not (separation.free or separation.misfit_free)
+
+
+def noise_factor(separation):
+    """How many times smaller the output noise (relative to the signals) would have to be
+    for ``separation`` to separate the parameters reliably (1 if it does).
+
+    Where the misfit is output noise of relative size ``e``, the smallest singular value
+    of the unit-column regressors is about ``sqrt(s**2 + e**2)`` for a signal part
+    ``s``, so ``ratio**2 - 1`` grows as the signal-to-noise ratio squared; the noise
+    test's ratio is ``1 + S / (sigma**2 N)``, so ``noise_ratio - 1`` grows the same way.
+
+    Parameters
+    ----------
+    separation : Separability
+
+    Returns
+    -------
+    float
+    """
+    factors = [1.0]
+    for value, target in ((separation.ratio ** 2 - 1, WEAK_RATIO ** 2 - 1),
+                          (separation.noise_ratio - 1, WEAK_NOISE_RATIO - 1)):
+        if np.isfinite(value):
+            factors.append(np.sqrt(target / value) if value > 0 else np.inf)
+    return float(max(factors))
+
+
+def window_advice(separations, step, scores=None):
+    """What would separate the parameters: which windows, or how much less noise.
+
+    Parameters
+    ----------
+    separations : dict
+        ``{length: Separability}`` over the grid of :func:`choose_window`.
+    step : float
+        Sampling step (s).
+    scores : dict, optional
+        The grid's criterion (:func:`window_criterion`): among the windows that separate
+        the parameters reliably, the one to try is the best by it.
+
+    Returns
+    -------
+    str
+        One clause (no full stop), empty without ``separations``.
+    """
+    if not separations:
+        return ""
+    lengths = sorted(separations)
+
+    def seconds(n):
+        return f"{(n - 1) * step:.4g} s"
+
+    reliable = [n for n in lengths if _reliable(separations[n])]
+    separating = [n for n in lengths if _separates(separations[n])]
+    if reliable:
+        best = min(reliable, key=lambda n: scores.get(n, np.inf)) if scores \
+            else max(reliable, key=lambda n: separations[n].ratio)
+        return (f"windows of {seconds(reliable[0])} to {seconds(reliable[-1])} separate "
+                f"them reliably on these records: try window={(best - 1) * step:.4g}")
+    best = max(lengths, key=lambda n: (_separates(separations[n]),
+                                       -noise_factor(separations[n])))
+    factor = noise_factor(separations[best])
+    if separating:
+        where = (f"windows of {seconds(separating[0])} to {seconds(separating[-1])} "
+                 f"separate them, none reliably")
+    else:
+        where = (f"no window these records allow ({seconds(lengths[0])} to "
+                 f"{seconds(lengths[-1])}) separates them")
+    clause = (f"{where} (the best, {seconds(best)}: separability "
+              f"{separations[best].ratio:.3g}, noise separability "
+              f"{separations[best].noise_ratio:.3g}); output noise about {factor:.2g} times "
+              f"smaller relative to the signals (a larger excitation) would separate them "
+              f"reliably")
+    if best == lengths[-1] and len(lengths) > 1 \
+            and noise_factor(separations[lengths[-2]]) > factor:
+        # separability still growing at the longest window: longer records allow longer
+        clause += (f", and so might longer records (windows past {seconds(best)}: the "
+                   f"separation grows with the window here)")
+    return clause
