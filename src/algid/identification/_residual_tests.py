@@ -74,6 +74,9 @@ class ResidualTest:
     aliases : dict
         Candidate -> the candidate of the same direction named in its place (an output
         shifted in time and an input's derivative, through a constant numerator).
+    negligible : set
+        Candidates whose part of the residuals is below :data:`NEGLIGIBLE` of the
+        output's rms: not reported, whatever their score.
     """
 
     scores: dict = field(default_factory=dict)
@@ -81,11 +84,13 @@ class ResidualTest:
     limit: float = CHI2_LIMIT
     messages: dict = field(default_factory=dict)
     aliases: dict = field(default_factory=dict)
+    negligible: set = field(default_factory=set)
 
     @property
     def adequate(self):
         """True when no candidate scores above the limit."""
-        return not any(v > self.limit for v in self.scores.values())
+        return not any(v > self.limit and k not in self.negligible
+                       for k, v in self.scores.items())
 
     def warnings(self):
         """One line per model error found, the likeliest first.
@@ -94,8 +99,8 @@ class ResidualTest:
         -------
         list of str
         """
-        found = sorted((k for k, v in self.scores.items()
-                        if v > self.limit and k not in self.aliases),
+        found = sorted((k for k, v in self.scores.items() if v > self.limit
+                        and k not in self.aliases and k not in self.negligible),
                        key=lambda k: -self.scores[k])
         return [f"the simulation residuals {self.messages[k]} "
                 f"(score {self.scores[k]:.3g}, limit {self.limit:.3g})" for k in found]
@@ -210,7 +215,7 @@ def residual_test(data, theta, residual, free, J, bounds, ar, dof):
                 continue
             coefficient = float(d @ residual) / energy
             if abs(coefficient) * np.sqrt(energy / len(d)) < NEGLIGIBLE * output_rms:
-                score = min(score, 0.0)   # too small to matter (a noise-free record's
+                test.negligible.add(name)   # too small to matter (a noise-free record's
                 # interpolation error is significant and negligible)
             test.scores[name] = score
             test.coefficients[name] = coefficient
