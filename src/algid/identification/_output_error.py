@@ -509,6 +509,16 @@ def _typical_uncertainty(result):
     return np.maximum(spread, np.maximum(1e-6 * theta, 1e-300))
 
 
+def _not_refined(result, algebraic, why, refine):
+    """The algebraic result, saying why it is not refined (an error where asked to)."""
+    from dataclasses import replace
+
+    if refine is True:
+        raise ModelError(f"refine: {why}")
+    return replace(result, algebraic=algebraic,
+                   refinement=Refinement(applied=False, reason=why))
+
+
 def refine_result(result, segments, step, refine, data_warnings=()):
     """``result`` refined by output error (:func:`refine_linear`) where ``refine`` asks.
 
@@ -562,10 +572,7 @@ def refine_result(result, segments, step, refine, data_warnings=()):
         if any(abs(seg.step - step) > UNIFORM_TOLERANCE * step for seg in segments):
             why = "the output-error refinement needs records of one sampling step"
     if why is not None:
-        if refine is True:
-            raise ModelError(f"refine: {why}")
-        return replace(result, algebraic=algebraic,
-                       refinement=Refinement(applied=False, reason=why))
+        return _not_refined(result, algebraic, why, refine)
     model = result.model
     theta0 = np.array([result.values[p] for p in model.parameters], dtype=float)
     started = ""
@@ -582,10 +589,7 @@ def refine_result(result, segments, step, refine, data_warnings=()):
             theta0 = np.array([reflected[p] for p in model.parameters])
             started = "; started from the algebraic model with its unstable poles reflected"
     if why is not None:
-        if refine is True:
-            raise ModelError(f"refine: {why}")
-        return replace(result, algebraic=algebraic,
-                       refinement=Refinement(applied=False, reason=why))
+        return _not_refined(result, algebraic, why, refine)
     with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
         data = prepare(model, segments, step)
         other = prepare(model, segments, step, "cubic")
