@@ -50,7 +50,9 @@ def cramer_rao(t, u, y, sigma):
     model = parse_equation(*EQUATION)
     seg = Segment(0, np.arange(len(t)), t, {"u": u, "y": y}, 1.0 / RATE)
     theta = np.array([TRUTH[p] for p in model.parameters])
-    J, _ = projected_jacobian(prepare(model, [seg], 1.0 / RATE), theta, np.abs(theta) * 1e-3)
+    data = prepare(model, [seg], 1.0 / RATE)
+    J, _ = projected_jacobian(data, theta, np.abs(theta) * 1e-3)
+    J = J * data.output_scale     # (the records are scaled to unit size inside)
     return np.sqrt(np.diag(np.linalg.inv(J.T @ J))) * sigma
 
 
