@@ -230,3 +230,16 @@ def test_an_unstable_instrumental_variable_estimate_is_said(linear_record, monke
                for w in result.warnings)
     bc = algid.identify(linear_record, *LINEAR, refine=False)
     assert not any("instrumental" in w for w in bc.warnings)
+
+
+def test_given_values_refined_on_a_record_report_their_errors(linear_record):
+    """A result of values of one's choosing, refined: its repr gives the standard errors
+    and says where it started."""
+    start = algid.IdentificationResult.from_values(
+        LINEAR[0], {"B": 0.5, "K": 41.0, "G": 39.0, "d": 0.4})
+    refined = start.refine(linear_record)
+    assert refined.estimate == "refined" and refined.n_samples == len(linear_record["t"])
+    assert "±" in repr(refined) and "refined by output error from given values" in repr(
+        refined)
+    for p, truth in TRUTH.items():
+        assert abs(refined.values[p] - truth) < 4 * refined.stderr[p]

@@ -184,11 +184,15 @@ class IdentificationResult:
             extra = "" if numerical is None else f" (numerical {numerical:.2g})"
             return f"{p}={v:.6g} ± {self.stderr[p]:.2g}{extra}"
 
-        if self.method == "given":  # values of the user's choosing: nothing was measured
+        if self.method == "given" and self.estimate != "refined":  # nothing was measured
             pieces = ", ".join(f"{p}={v:.6g}" for p, v in self.values.items())
             return f"IdentificationResult({self.model.equation!r}: {pieces}; given)"
         pieces = ", ".join(piece(p, v) for p, v in self.values.items())
         warned = "".join(f"; warning: {w}" for w in self.warnings)
+        if self.method == "given":   # refined from values of the user's choosing
+            return (f"IdentificationResult({self.model.equation!r}: {pieces}; "
+                    f"{self.n_samples} samples, refined by output error from given "
+                    f"values{warned})")
         refined = "; refined by output error" if self.estimate == "refined" else ""
         return (f"IdentificationResult({self.model.equation!r}: {pieces}; window "
                 f"{self.window:.4g} s, {self.n_samples} samples, {self.method}{refined}"
@@ -330,8 +334,11 @@ class IdentificationResult:
                 warnings=list(self.algebraic["warnings"]))
         time = self.time if time is None and rate is None else time
         rate = self.rate if time is None and rate is None else rate
-        segments, step, _ = prepare_records(data, self.model.signals, time=time, rate=rate,
-                                            min_length=2 * max(self.model.order, 1) + 2)
+        segments, step, n_samples = prepare_records(
+            data, self.model.signals, time=time, rate=rate,
+            min_length=2 * max(self.model.order, 1) + 2)
+        if self.method == "given":   # its samples are now these records'
+            base = replace(base, n_samples=n_samples)
         return refine_result(base, segments, step, True)
 
     # validation -------------------------------------------------------------------------
