@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import ast
+import builtins
 import importlib
 import sys
 from types import ModuleType
@@ -59,6 +60,23 @@ def load_model(name):
 _GENERATED_IMPORTS = ("numpy", "numba", "math", "algid")
 #: The only calls a generated module makes outside its functions (its decorators).
 _GENERATED_CALLS = ("numba.njit",)
+
+
+def _generated_import(name, globals=None, locals=None, fromlist=(), level=0):
+    """``__import__`` of a generated module: only :data:`_GENERATED_IMPORTS`."""
+    if level != 0 or not (name.split(".")[0] in _GENERATED_IMPORTS
+                          or name.startswith("algid_user_")):
+        raise ImportError(f"a generated module may not import {name!r}")
+    return importlib.__import__(name, globals, locals, fromlist, level)
+
+
+#: The builtins a generated module's code sees (its loops use a few of them).
+_GENERATED_BUILTINS = {
+    **{n: getattr(builtins, n) for n in (
+        "range", "max", "min", "abs", "len", "tuple", "list", "float", "int", "bool",
+        "round", "enumerate", "zip", "sum", "pow", "divmod", "ValueError",
+        "ZeroDivisionError", "ArithmeticError", "OverflowError", "IndexError")},
+    "__import__": _generated_import}
 
 
 def _check_generated_shape(source, name):
@@ -174,12 +192,20 @@ def module_from_source(source: str, name: str, *, filename: str | None = None) -
                 and not (isinstance(node.value, str) and node.value.isidentifier()):
             raise ModelError(f"generated module {name!r}: text in its code at line "
                              f"{node.lineno}")
+        # no way to reach Python's internals: no private attribute, no dunder name
+        if (isinstance(node, ast.Attribute) and node.attr.startswith("_")) or \
+                (isinstance(node, ast.Name) and node.id.startswith("__")):
+            raise ModelError(f"generated module {name!r}: a private name in its code at "
+                             f"line {node.lineno}")
     module = ModuleType(name, doc)
     module.__file__ = filename or f"<generated {name}>"
     module.GENERATED_SOURCE = source  # the text it was made from (to cache its compiled loop)
     module.__dict__.update(values)
+    # the code runs with the builtins it needs alone: an import only of the modules the
+    # shape check allows, no open, eval, exec or getattr
+    module.__dict__["__builtins__"] = _GENERATED_BUILTINS
     sys.modules[name] = module
-    exec(compile(code, module.__file__, "exec"), module.__dict__)
+    exec(compile(code, module.__file__, "exec"), module.__dict__)  # checked above
     for function, text in functions_doc.items():
         target = module.__dict__[function]
         # a numba dispatcher documents the Python function it wraps
