@@ -442,3 +442,26 @@ def test_compiled_loop_of_a_user_model_loads_in_memory():
     module = compile_equation("y'' + B*y' + K*y + c*y**3 = G*u + d", "B K c G d")
     loops = module_from_source(module.NUMBA_SOURCE, module.__name__ + "_numba")
     assert callable(loops.advance)
+
+
+def test_generated_code_reaches_no_private_name_and_few_builtins():
+    """A module shaped as the generators write it still cannot reach Python's internals
+    (a private attribute or dunder name is refused) nor open a file or import another
+    module when it runs (its builtins are those its loops use)."""
+    import pytest
+
+    from algid.errors import ModelError
+    from algid.models._registry import module_from_source
+
+    with pytest.raises(ModelError, match="private name"):
+        module_from_source('"""m"""\ndef f(x):\n    return x.__class__\n', "m_private")
+    opener = module_from_source('"""m"""\ndef f(x):\n    return open(x)\n', "m_open")
+    with pytest.raises(NameError):
+        opener.f("/etc/passwd")
+    importer = module_from_source('"""m"""\ndef f():\n    import os\n    return os\n',
+                                  "m_import")
+    with pytest.raises(ImportError, match="may not import 'os'"):
+        importer.f()
+    fine = module_from_source('"""m"""\nimport math\ndef f(x):\n    return max(abs(x), '
+                              'math.pi)\n', "m_fine")
+    assert fine.f(-4.0) == 4.0
