@@ -104,6 +104,8 @@ class OutputErrorData:
         divided by powers of two to unit size, so that any units fit alike).
     output_scale : float
         The power of two the outputs were divided by.
+    channels : tuple of str
+        The input channels, in the order of ``inputs``' rows.
     outputs : list of numpy.ndarray
         Per segment, the measured output.
     """
@@ -116,6 +118,7 @@ class OutputErrorData:
     points: list = field(default_factory=list)
     gains: np.ndarray | None = None
     output_scale: float = 1.0
+    channels: tuple = ()
 
 
 def prepare(model, segments, step, interpolation="bandlimited"):
@@ -151,7 +154,8 @@ def prepare(model, segments, step, interpolation="bandlimited"):
     inputs = [u / scales[:, None] for u in inputs]
     return OutputErrorData(
         model, step, upsampling, inputs, [y / output_scale for y in outputs],
-        [step_points(u, upsampling) for u in inputs], scales / output_scale, output_scale)
+        [step_points(u, upsampling) for u in inputs], scales / output_scale, output_scale,
+        channels)
 
 
 def _power_of_two(values):

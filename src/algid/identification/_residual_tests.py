@@ -124,7 +124,7 @@ def _directions(data, den, simulated):
     """Candidate name -> (its message, its direction per segment)."""
     model, step, L = data.model, data.step, data.upsampling
     output = model.output
-    inputs = [c for c in _channels(data) if not c.startswith("__")]
+    inputs = [c for c in data.channels if not c.startswith("__")]
     fine_step = step / L
     out = {}
 
@@ -138,7 +138,7 @@ def _directions(data, den, simulated):
          [np.linspace(0.0, (len(y) - 1) * step, (len(y) - 1) * L + 1)
           for y in data.outputs])
     for name in inputs:
-        row = _channels(data).index(name)
+        row = data.channels.index(name)
         term(f"gain:{name}", f"follow {name}: a wrong or missing gain of {name}? (give its "
              f"coefficient a parameter)", [u[row] for u in data.inputs])
         term(f"derivative:{name}", f"follow {name}': a term in {name}' missing?",
@@ -153,11 +153,6 @@ def _directions(data, den, simulated):
     out["delay"] = ("follow the model's output shifted in time: a delay between the "
                     "input and the output?", [-v for v in velocity])
     return out
-
-
-def _channels(data):
-    return LinearSimulation(data.model, dict.fromkeys(data.model.parameters, 1.0),
-                            data.step).channels
 
 
 def residual_test(data, theta, residual, free, J, bounds, ar, dof):
