@@ -1,0 +1,303 @@
+"""A fast fixed-step simulator of any model algid can simulate, for fits that simulate
+it hundreds of times.
+
+:func:`algid.simulate_model` integrates in Python (its right-hand side is a tree of
+closures), a few seconds per record: an output-error fit of a nonlinear model needs
+hundreds of simulations.  Here the model solved for the highest derivative of its
+output,
+
+    y^(n) = -(forcing(t) + sum_t w_t g_t(y, y', ..., u(t), t)) / w_top,
+
+is integrated by the classical Runge-Kutta method with ``substeps`` steps per sampling
+interval, in one compiled loop (numba, :mod:`algid.simulation._rk4_kernel`) shared by
+every model:
+
+- the *forcing* (every term that does not read the output, weighted) and the inputs the
+  state terms read are sampled once, at every step and half step, from the simulator's
+  own interpolants (band-limited by default, as :func:`algid.simulate_model`);
+- each state term ``g_t`` is a short program for a stack machine (:func:`program`), so
+  that a new model needs no compilation;
+- a ``sign()`` of a derivative of the output is a *mode* held between switches (as in
+  :mod:`algid.simulation._switching`): where its argument changes sign within a step,
+  the crossing is located on the step's cubic Hermite interpolant, the step integrated
+  to it and on from it under the new mode; where both flows point to the surface of a
+  ``sign()`` of the highest state derivative (a mass held by Coulomb friction) the state
+  slides on it, ``y^(n-1) = 0``, until the force overcomes the friction.  The simulated
+  output is then a continuous function of the parameters, as a fit's finite
+  differences need.
+
+Within a step, the forcing and inputs between the sampled points (at a crossing) are the
+quadratic through the step's three points.  A second crossing within the same step is
+handled at the next one.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from algid.errors import ModelError
+from algid.models._expression import Call, Constant, Power, Product, Signal, Sum, Time
+
+__all__ = ["Program", "program", "FastSimulation", "fast_simulation_unavailable",
+           "FUNCTION_CODES", "SUBSTEPS"]
+
+#: Runge-Kutta steps per sampling step.
+SUBSTEPS = 4
+
+# the stack machine's operations
+_CONST, _STATE, _INPUT, _TIME, _MODE, _ADD, _MUL, _POW, _FUNC = range(9)
+
+#: Codes of the functions of the stack machine.
+FUNCTION_CODES = {name: i for i, name in enumerate(
+    ("sign", "abs", "tanh", "sin", "cos", "tan", "exp", "log", "sqrt", "sinh", "cosh",
+     "arctan"))}
+
+
+class Program:
+    """The state terms of a model as stack-machine code.
+
+    Attributes
+    ----------
+    ops : numpy.ndarray of int64
+        Operation codes, the terms one after the other.
+    args : numpy.ndarray of float64
+        Each operation's argument (a constant, an index, an exponent, a function code).
+    starts : numpy.ndarray of int64
+        Where each term's code starts in ``ops`` (and, last, the end).
+    inputs : list of tuple
+        ``(name, k)`` of each input (or its ``k``-th derivative) the terms read, in the
+        order of the ``INPUT`` indices.
+    switches : list of int
+        For each ``sign()`` of the output, the order of the derivative it reads.
+    depth : int
+        The deepest stack the code needs.
+    """
+
+    def __init__(self):
+        self.ops, self.args, self.starts = [], [], [0]
+        self.inputs, self.switches, self.depth = [], [], 1
+
+
+def program(factors, output, order):
+    """Stack-machine code of the factors that read the output.
+
+    Parameters
+    ----------
+    factors : sequence of Expr
+        The factors of the state terms.
+    output : str
+        The simulated signal.
+    order : int
+        The highest derivative of the output (the state holds the lower ones).
+
+    Returns
+    -------
+    Program
+
+    Raises
+    ------
+    ModelError
+        A factor reads a derivative of the output of ``order`` or more, or a ``sign()``
+        whose argument reads the output but is not one of its derivatives.
+    """
+    code = Program()
+
+    def emit(expr, depth):
+        code.depth = max(code.depth, depth)
+        if isinstance(expr, Constant):
+            _op(code, _CONST, float(expr.value))
+        elif isinstance(expr, Time):
+            _op(code, _TIME, 0.0)
+        elif isinstance(expr, Signal):
+            if expr.name == output:
+                if expr.derivative >= order:
+                    raise ModelError(f"cannot simulate: {expr} appears inside a nonlinear "
+                                     f"factor")
+                _op(code, _STATE, float(expr.derivative))
+            else:
+                key = (expr.name, expr.derivative)
+                if key not in code.inputs:
+                    code.inputs.append(key)
+                _op(code, _INPUT, float(code.inputs.index(key)))
+        elif isinstance(expr, Call) and expr.function == "sign" \
+                and output in expr.args[0].signals():
+            argument = expr.args[0]
+            if not (isinstance(argument, Signal) and argument.name == output):
+                raise ModelError(f"cannot simulate {expr} fast: only a sign() of a "
+                                 f"derivative of the output switches exactly")
+            if argument.derivative not in code.switches:
+                code.switches.append(argument.derivative)
+            _op(code, _MODE, float(code.switches.index(argument.derivative)))
+        elif isinstance(expr, Call):
+            emit(expr.args[0], depth)
+            _op(code, _FUNC, float(FUNCTION_CODES[expr.function]))
+        elif isinstance(expr, (Sum, Product)):
+            parts = expr.terms if isinstance(expr, Sum) else expr.factors
+            emit(parts[0], depth)
+            for part in parts[1:]:
+                emit(part, depth + 1)
+                _op(code, _ADD if isinstance(expr, Sum) else _MUL, 0.0)
+        elif isinstance(expr, Power):
+            emit(expr.base, depth)
+            _op(code, _POW, float(expr.exponent))
+        else:
+            raise ModelError(f"cannot simulate the factor {expr}")
+
+    for factor in factors:
+        emit(factor, 1)
+        code.starts.append(len(code.ops))
+    code.ops = np.array(code.ops, dtype=np.int64)
+    code.args = np.array(code.args, dtype=float)
+    code.starts = np.array(code.starts, dtype=np.int64)
+    return code
+
+
+def _op(code, op, arg):
+    code.ops.append(op)
+    code.args.append(arg)
+
+
+def fast_simulation_unavailable(model):
+    """Why :class:`FastSimulation` cannot simulate a model (None if it can).
+
+    Parameters
+    ----------
+    model : algid.models._model.Model
+
+    Returns
+    -------
+    str or None
+        One line, or None.
+    """
+    try:
+        import numba  # noqa: F401
+    except ImportError:
+        return "the fast simulator needs numba (pip install 'algid[fast]')"
+    try:
+        _Structure(model)
+    except ModelError as error:
+        return str(error)
+    return None
+
+
+class _Structure:
+    """A model solved for the highest derivative of its output: its top, state and
+    known terms, and the state terms' code."""
+
+    def __init__(self, model):
+        output = model.output
+        plain = [t for t in model.terms if t.factor == Signal(output) and t.derivative > 0]
+        if not plain:
+            raise ModelError(f"cannot simulate {model.equation!r}: the output {output!r} "
+                             f"is not differentiated in a plain term")
+        self.order = max(t.derivative for t in plain)
+        self.top = [t for t in plain if t.derivative == self.order]
+        self.state, self.known = [], []
+        for term in model.terms:
+            if term in self.top:
+                continue
+            if output in term.factor.signals():
+                self.state.append(term)
+            else:
+                self.known.append(term)
+        factors = [Signal(output, t.derivative) if t.derivative else t.factor
+                   for t in self.state]
+        self.code = program(factors, output, self.order)
+
+
+class FastSimulation:
+    """The output of a model simulated on one uniformly sampled run of its inputs.
+
+    Parameters
+    ----------
+    model : algid.models._model.Model
+    t : numpy.ndarray
+        The sample times (uniform).
+    columns : mapping
+        Each input signal of the model -> its samples.
+    interpolation : {"bandlimited", "cubic"}
+        The inputs between samples, as :func:`algid.simulate_model`.
+    substeps : int
+        Runge-Kutta steps per sampling step.
+
+    Raises
+    ------
+    ModelError
+        The model cannot be simulated fast (:func:`fast_simulation_unavailable`).
+    """
+
+    def __init__(self, model, t, columns, interpolation="bandlimited", substeps=SUBSTEPS):
+        from algid.simulation._interpolation import Interpolant
+        from algid.simulation._model import _differentiate, _OutputEquation
+        from algid.simulation._rk4_kernel import simulate_output
+
+        structure = _Structure(model)
+        self.order = structure.order
+        self.t = np.asarray(t, dtype=float)
+        self.step = (self.t[-1] - self.t[0]) / (len(self.t) - 1)
+        self.substeps = int(substeps)
+        self._kernel = simulate_output
+        fine = self.t[0] + np.arange((len(self.t) - 1) * 2 * self.substeps + 1) \
+            * (self.step / (2 * self.substeps))
+        fine[-1] = self.t[-1]
+        splines = {name: Interpolant(self.t, np.asarray(values, dtype=float), interpolation)
+                   for name, values in columns.items()}
+
+        def on_fine(values):
+            return Interpolant(self.t, values, interpolation).spline(fine)
+
+        known = []
+        for term in structure.known:
+            values = _OutputEquation._known_values(term, columns, splines, self.t)
+            known.append(on_fine(np.asarray(values, dtype=float)))
+        self.known = np.array(known).reshape(len(known), len(fine))
+        code = structure.code
+        self.inputs = np.array([
+            splines[name].spline(fine) if k == 0 else on_fine(
+                _differentiate(np.asarray(columns[name], dtype=float), self.t, k))
+            for name, k in code.inputs]).reshape(len(code.inputs), len(fine))
+        self.code = code
+        self.switches = np.array(code.switches, dtype=np.int64)
+        names = model.parameters
+        self._known_map = _weights_map(structure.known, names)
+        self._state_map = _weights_map(structure.state, names)
+        self._top_map = _weights_map(structure.top, names)
+
+    def run(self, theta, x0):
+        """The simulated output at the samples (NaN from where it diverges).
+
+        Parameters
+        ----------
+        theta : numpy.ndarray
+            The parameters, in ``model.parameters`` order.
+        x0 : numpy.ndarray
+            The initial state ``(y, y', ..., y^(n-1))``.
+
+        Returns
+        -------
+        numpy.ndarray
+        """
+        theta = np.asarray(theta, dtype=float)
+        top = float(np.sum(_weights(self._top_map, theta)))
+        forcing = _weights(self._known_map, theta) @ self.known
+        out = np.empty(len(self.t))
+        with np.errstate(all="ignore"):
+            self._kernel(self.code.ops, self.code.args, self.code.starts,
+                         _weights(self._state_map, theta), top,
+                         np.ascontiguousarray(forcing), self.inputs, self.switches,
+                         self.code.depth, np.asarray(x0, dtype=float).copy(),
+                         float(self.t[0]), self.step, self.substeps, len(self.t), out)
+        return out
+
+
+def _weights_map(terms, names):
+    """``(coefficients, parameter indices, -1 for known)`` of terms."""
+    return (np.array([float(t.coefficient) for t in terms]),
+            np.array([-1 if t.parameter is None else names.index(t.parameter)
+                      for t in terms], dtype=np.int64))
+
+
+def _weights(mapping, theta):
+    coefficients, index = mapping
+    return coefficients * np.where(index >= 0, theta[np.maximum(index, 0)], 1.0) \
+        if len(index) else coefficients
