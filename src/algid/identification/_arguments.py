@@ -166,11 +166,27 @@ def refinement_bytes(model):
 
     if refinement_unavailable(model) is not None:
         return 0
+    if not model.is_linear:
+        return _nonlinear_refinement_bytes(model)
     channels = len({t.factor for t in model.terms if not (
         isinstance(t.factor, Signal) and t.factor.name == model.output)}) + 1
     order = model.order
     return (2 * 33 * 8 * channels + 40 * order * (order + 1)
             + 24 * len(model.parameters) + 400)
+
+
+def _nonlinear_refinement_bytes(model):
+    """Per sample, the fast simulator's points (8 per sample) of the forcing terms and
+    the inputs the state terms read, for two interpolations; an interpolating spline
+    at 16 points per sample while they are made; the Jacobians in the parameters and
+    the initial state (the fit's and the polishing's)."""
+    output = model.output
+    known = sum(1 for t in model.terms if output not in t.factor.signals())
+    inputs = len({pair for t in model.terms if output in t.factor.signals()
+                  for pair in t.factor.derivatives() + tuple(
+                      (name, 0) for name in t.factor.signals()) if pair[0] != output})
+    columns = len(model.parameters) + model.order
+    return 2 * 64 * (known + inputs + 2) + 1600 + 48 * columns + 400
 
 
 def check_memory(data, model):

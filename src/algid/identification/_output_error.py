@@ -1,4 +1,4 @@
-"""Output-error refinement of identify's estimate, for models linear in their signals.
+"""Output-error refinement of identify's estimate.
 
 The algebraic estimate weights the data by its kernels and windows, so its variance
 stays above the Cramér–Rao bound.  The output-error (prediction-error) fit
@@ -10,8 +10,12 @@ where ``yhat`` is the model's output simulated from the measured inputs, is the
 maximum-likelihood estimate under white Gaussian output noise, asymptotically
 efficient.  The algebraic estimate, which needs no initial state, starts it.
 
-The simulation is :mod:`algid.identification._linear_simulation` (exact for inputs
-interpolated as band-limited signals).  The initial state of each segment (each record,
+For a model linear in its signals the simulation is
+:mod:`algid.identification._linear_simulation` (exact for inputs interpolated as
+band-limited signals); a nonlinear one (Duffing, friction) is fitted by
+:mod:`algid.identification._output_error_nonlinear` on the fast simulator, with the
+same covariance, and, lacking a residual test of its own, reported only where it is
+more precise than the algebraic estimate.  The initial state of each segment (each record,
 and each run between gaps) is a nuisance parameter: the output is linear in it, so it
 is solved for by least squares inside every evaluation (variable projection), and the
 parameters alone are iterated (Levenberg–Marquardt, :func:`scipy.optimize.least_squares`,
@@ -58,7 +62,9 @@ _POLISH_STEPS = 3
 
 
 def refinement_unavailable(model):
-    """Why a model cannot be refined by :func:`refine_linear` (None if it can).
+    """Why a model cannot be refined (None if it can): by :func:`refine_linear`, or, for
+    a model nonlinear in its signals, by
+    :func:`~algid.identification._output_error_nonlinear.refine_nonlinear`.
 
     Parameters
     ----------
@@ -70,7 +76,9 @@ def refinement_unavailable(model):
         One line, or None.
     """
     if not model.is_linear:
-        return "the output-error refinement needs a model linear in its signals"
+        from algid.simulation._fast_simulation import fast_simulation_unavailable
+
+        return fast_simulation_unavailable(model)
     output = model.output
     order = max((t.derivative for t in model.terms
                  if isinstance(t.factor, Signal) and t.factor.name == output), default=0)
@@ -567,7 +575,9 @@ def refine_result(result, segments, step, refine, data_warnings=()):
     if refine is False:
         return replace(result, algebraic=algebraic, refinement=Refinement(
             applied=False, reason="not asked (refine=False)"))
-    why = refinement_unavailable(result.model)
+    model = result.model
+    nonlinear = not model.is_linear
+    why = refinement_unavailable(model)
     if why is None and any(seg.step is None for seg in segments):
         why = "the output-error refinement needs uniformly sampled records"
     elif why is None:   # the runs' own steps (exact from their ends), as one
@@ -577,12 +587,11 @@ def refine_result(result, segments, step, refine, data_warnings=()):
             why = "the output-error refinement needs records of one sampling step"
     if why is not None:
         return _not_refined(result, algebraic, why, refine)
-    model = result.model
     theta0 = np.array([result.values[p] for p in model.parameters], dtype=float)
     started = ""
     if not np.all(np.isfinite(theta0)):
         why = "the algebraic estimate is not finite"
-    elif refine == "auto" and not simulates_stably(model, result.values):
+    elif refine == "auto" and not nonlinear and not simulates_stably(model, result.values):
         # (a wrong model's algebraic estimate often is: its fit then starts from the
         # same model with its unstable poles reflected, and must end stable)
         reflected = stabilised(model, result.values)
@@ -595,15 +604,25 @@ def refine_result(result, segments, step, refine, data_warnings=()):
     if why is not None:
         return _not_refined(result, algebraic, why, refine)
     with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
-        data = prepare(model, segments, step)
-        other = prepare(model, segments, step, "cubic")
-        theta, covariance, info = refine_linear(data, theta0, _typical_uncertainty(result),
-                                                other)
+        if nonlinear:   # (a nonlinear model's simulation is bounded or it diverges)
+            from algid.identification._output_error_nonlinear import (
+                prepare_nonlinear,
+                refine_nonlinear,
+            )
+
+            theta, covariance, info = refine_nonlinear(
+                prepare_nonlinear(model, segments), theta0, _typical_uncertainty(result),
+                prepare_nonlinear(model, segments, "cubic"))
+        else:
+            data = prepare(model, segments, step)
+            other = prepare(model, segments, step, "cubic")
+            theta, covariance, info = refine_linear(data, theta0,
+                                                    _typical_uncertainty(result), other)
     values = dict(zip(model.parameters, theta.tolist()))
     if not (np.all(np.isfinite(theta)) and np.all(np.isfinite(covariance))
             and info.rms_after < info.rms_before * (1 - 1e-9)):
         why = "the output-error fit did not lower the simulation error"
-    elif refine == "auto" and not simulates_stably(model, values):
+    elif refine == "auto" and not nonlinear and not simulates_stably(model, values):
         why = "the output-error fit gives a model that is not stable"
     elif refine == "auto" and np.any(info.numerical_error
                                      > np.sqrt(np.maximum(np.diag(covariance), 0.0))):
@@ -615,6 +634,22 @@ def refine_result(result, segments, step, refine, data_warnings=()):
                f"the noise's: {model.parameters[worst]} moves by "
                f"{info.numerical_error[worst]:.2g} with another interpolation, over its "
                f"standard error (refine=True refines anyway)")
+    if why is None and refine == "auto" and nonlinear:
+        # without a residual test of its own, a nonlinear fit must at least be the more
+        # precise: efficient under the noise, its errors are below the algebraic ones
+        # unless its residuals are mostly the model's error (a simulation that drifts
+        # from the records), as on a noise-free record or a simplified model of a
+        # machine
+        refined_se = np.sqrt(np.maximum(np.diag(covariance), 0.0))
+        algebraic_se = np.sqrt(np.maximum(np.diag(result.covariance), 0.0))
+        worse = refined_se > algebraic_se
+        if np.any(worse):
+            worst = int(np.argmax(np.where(worse, refined_se / np.maximum(
+                algebraic_se, 1e-300), 0.0)))
+            why = (f"the output-error fit is less precise than the algebraic estimate "
+                   f"({model.parameters[worst]}: standard error {refined_se[worst]:.2g} "
+                   f"against {algebraic_se[worst]:.2g}): its residuals are mostly the "
+                   f"model's error, not noise (refine=True refines anyway)")
     if why is not None:   # (a warning where asked for: "auto" says so in the reason)
         info.applied, info.reason = False, why
         notes = [f"not refined: {why}; the algebraic estimate is reported"] \
@@ -623,9 +658,12 @@ def refine_result(result, segments, step, refine, data_warnings=()):
                        warnings=result.warnings + notes)
     info.reason = (f"output error {info.rms_after:.3g} rms (algebraic "
                    f"{info.rms_before:.3g}){started}")
-    found = [] if info.residual_test is None else info.residual_test.warnings()
+    if info.residual_test is None:   # (nonlinear: the algebraic adequacy test stands)
+        warnings = list(result.warnings)
+    else:
+        warnings = [w for w in result.warnings if w in data_warnings] \
+            + info.residual_test.warnings()
     return replace(result, values=values, covariance=covariance, estimate="refined",
                    numerical_error=dict(zip(model.parameters,
                                             info.numerical_error.tolist())),
-                   algebraic=algebraic, refinement=info,
-                   warnings=[w for w in result.warnings if w in data_warnings] + found)
+                   algebraic=algebraic, refinement=info, warnings=warnings)

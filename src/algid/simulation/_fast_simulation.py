@@ -227,7 +227,7 @@ class FastSimulation:
     """
 
     def __init__(self, model, t, columns, interpolation="bandlimited", substeps=SUBSTEPS):
-        from algid.simulation._interpolation import Interpolant
+        from algid.simulation._interpolation import UPSAMPLING, Interpolant, bandlimited_samples
         from algid.simulation._model import _differentiate, _OutputEquation
         from algid.simulation._rk4_kernel import simulate_output
 
@@ -236,16 +236,26 @@ class FastSimulation:
         self.t = np.asarray(t, dtype=float)
         self.step = (self.t[-1] - self.t[0]) / (len(self.t) - 1)
         self.substeps = int(substeps)
+        if UPSAMPLING % (2 * self.substeps):
+            raise ModelError(f"substeps must divide {UPSAMPLING // 2}, got {substeps}")
         self._kernel = simulate_output
-        fine = self.t[0] + np.arange((len(self.t) - 1) * 2 * self.substeps + 1) \
-            * (self.step / (2 * self.substeps))
+        points = (len(self.t) - 1) * 2 * self.substeps + 1
+        fine = self.t[0] + np.arange(points) * (self.step / (2 * self.substeps))
         fine[-1] = self.t[-1]
-        splines = {name: Interpolant(self.t, np.asarray(values, dtype=float), interpolation)
-                   for name, values in columns.items()}
 
         def on_fine(values):
-            return Interpolant(self.t, values, interpolation).spline(fine)
+            # (the band-limited points are a subset of its upsampled ones: no spline)
+            if interpolation == "bandlimited":
+                return bandlimited_samples(values)[::UPSAMPLING // (2 * self.substeps)]
+            return Interpolant(self.t, values, interpolation, scalar=False).spline(fine)
 
+        class Splines(dict):   # made where a known term differentiates an input
+            def __missing__(splines, name):
+                splines[name] = Interpolant(self.t, np.asarray(columns[name], dtype=float),
+                                            interpolation, scalar=False)
+                return splines[name]
+
+        splines = Splines()
         known = []
         for term in structure.known:
             values = _OutputEquation._known_values(term, columns, splines, self.t)
@@ -253,8 +263,8 @@ class FastSimulation:
         self.known = np.array(known).reshape(len(known), len(fine))
         code = structure.code
         self.inputs = np.array([
-            splines[name].spline(fine) if k == 0 else on_fine(
-                _differentiate(np.asarray(columns[name], dtype=float), self.t, k))
+            on_fine(np.asarray(columns[name], dtype=float) if k == 0 else
+                    _differentiate(np.asarray(columns[name], dtype=float), self.t, k))
             for name, k in code.inputs]).reshape(len(code.inputs), len(fine))
         self.code = code
         self.switches = np.array(code.switches, dtype=np.int64)

@@ -124,6 +124,9 @@ class Interpolant:
         The samples.
     interpolation : {"bandlimited", "cubic"}
         Through the samples upsampled by a sinc filter, or a cubic spline through them.
+    scalar : bool
+        Prepare the fast evaluation at scalar times (``interpolant(time)``); without it
+        only :attr:`spline` (vectorised) and :meth:`derivative_samples` are available.
 
     Raises
     ------
@@ -131,7 +134,7 @@ class Interpolant:
         If the samples are too large to interpolate in floating point.
     """
 
-    def __init__(self, t, values, interpolation):
+    def __init__(self, t, values, interpolation, scalar=True):
         from scipy.interpolate import CubicSpline
 
         if interpolation == "bandlimited":
@@ -149,6 +152,8 @@ class Interpolant:
         if not np.isfinite(spline.c).all():
             _too_large(values)
         self.spline = spline
+        if not scalar:   # (vectorised use only: the lists below cost 2.5 kB per sample)
+            return
         self.knots = spline.x.tolist()
         # polynomial pieces c0 (t - x_i)**3 + c1 (...)**2 + c2 (...) + c3, as lists
         self.coefficients = [row.tolist() for row in spline.c]
