@@ -220,8 +220,9 @@ def build_parser() -> argparse.ArgumentParser:
                           "instrumental variables")
     ide.add_argument("--refine", action=argparse.BooleanOptionalAction, default=None,
                      help="refine the algebraic estimate by output error (efficient under "
-                          "white output noise); default: where it is safe (a stable model "
-                          "linear in its signals, and the simulation error drops)")
+                          "white output noise); default: where it is safe (the model "
+                          "simulates stably, the simulation error drops and the fit is "
+                          "not less precise than the algebraic estimate)")
     ide.add_argument("--json", action="store_true",
                      help="print one JSON object: a key per parameter, stderr, window, "
                           "n_samples, warnings, estimate (refined or algebraic) and the "

@@ -623,9 +623,10 @@ def identify(data, equation, parameters=None, *, time=None, rate=None, output=No
         Refine the algebraic estimate by output error
         (:meth:`IdentificationResult.refine`: the efficient estimate under white
         output noise, with standard errors at the Cramér–Rao bound).  ``"auto"``
-        (default): where it is safe, on a model linear in its signals whose algebraic
-        and refined models are stable and where the simulation error drops; True:
-        always (refused for a model it cannot simulate); False: the algebraic estimate.
+        (default): where it is safe (a linear model whose algebraic and refined models
+        are stable, a nonlinear one whose fit is not much less precise than the
+        algebraic estimate, and the simulation error drops); True: always (refused for
+        a model it cannot simulate); False: the algebraic estimate.
 
     Returns
     -------

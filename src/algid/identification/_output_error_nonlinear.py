@@ -23,7 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from algid.identification._output_error import Refinement, sandwich_covariance
+from algid.identification._refinement import Refinement, sandwich_covariance
 
 __all__ = ["NonlinearData", "prepare_nonlinear", "refine_nonlinear"]
 

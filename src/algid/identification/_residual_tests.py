@@ -10,7 +10,7 @@ response to ``z`` (``z`` through ``1/A(D)``, from rest), or ``-y'`` for a delay,
 directions the fit already spans (the parameters' and the initial states') projected
 out.  The score of a direction ``d`` is the squared projection of the residuals on it
 over its variance under the residuals' own correlation (the autoregressive model of the
-covariance, :func:`algid.identification._output_error.sandwich_covariance`):
+covariance, :func:`algid.identification._refinement.sandwich_covariance`):
 
     chi2 = (d' r)**2 / (s2 * |H' d|**2)
 

@@ -121,7 +121,7 @@ class IdentificationResult:
         "numerical_error": ..., "warnings": ...}`` (a refined estimate's numerical
         error is that of its simulation, its warnings those of the test of its
         simulation residuals).
-    refinement : algid.identification._output_error.Refinement or None
+    refinement : algid.identification._refinement.Refinement or None
         Whether the refinement was applied, why, and its figures.
 
     Examples
@@ -319,8 +319,9 @@ class IdentificationResult:
         Raises
         ------
         ModelError
-            A model the refinement cannot simulate (nonlinear in its signals, or not
-            proper).
+            A model the refinement cannot simulate (not proper, a ``sign()`` of an
+            expression of the output rather than of one of its derivatives, or numba not
+            installed for a model nonlinear in its signals).
         """
         from algid.identification._output_error import refine_result
 

@@ -228,7 +228,7 @@ class FastSimulation:
 
     def __init__(self, model, t, columns, interpolation="bandlimited", substeps=SUBSTEPS):
         from algid.simulation._interpolation import UPSAMPLING, Interpolant, bandlimited_samples
-        from algid.simulation._model import _differentiate, _OutputEquation
+        from algid.simulation._model import differentiate, known_term_values
         from algid.simulation._rk4_kernel import simulate_output
 
         structure = _Structure(model)
@@ -258,13 +258,13 @@ class FastSimulation:
         splines = Splines()
         known = []
         for term in structure.known:
-            values = _OutputEquation._known_values(term, columns, splines, self.t)
+            values = known_term_values(term, columns, splines, self.t)
             known.append(on_fine(np.asarray(values, dtype=float)))
         self.known = np.array(known).reshape(len(known), len(fine))
         code = structure.code
         self.inputs = np.array([
             on_fine(np.asarray(columns[name], dtype=float) if k == 0 else
-                    _differentiate(np.asarray(columns[name], dtype=float), self.t, k))
+                    differentiate(np.asarray(columns[name], dtype=float), self.t, k))
             for name, k in code.inputs]).reshape(len(code.inputs), len(fine))
         self.code = code
         self.switches = np.array(code.switches, dtype=np.int64)

@@ -43,7 +43,7 @@ from algid.signals._differentiation import algebraic_derivative
 from algid.simulation._interpolation import Interpolant
 from algid.simulation._switching import integrate_switched
 
-__all__ = ["simulate_model", "fit_initial_state",
+__all__ = ["simulate_model", "fit_initial_state", "differentiate", "known_term_values",
            "METHODS", "MAX_EVALUATIONS", "MAX_STALLED_EVALUATIONS"]
 
 #: Bound on the right-hand-side evaluations of the adaptive solvers, per sample on
@@ -163,11 +163,33 @@ def _is_uniform(t):
     return np.ptp(steps) <= 1e-6 * np.mean(steps)
 
 
-def _differentiate(values, t, order):
+def differentiate(values, t, order):
     """The algebraic differentiator's estimate (default settings) on the samples."""
     if _is_uniform(t):
         return algebraic_derivative(values, (t[-1] - t[0]) / (len(t) - 1), derivative=order)
     return algebraic_derivative(values, time=t, derivative=order)
+
+
+def known_term_values(term, columns, splines, t):
+    """Samples of a term that does not read the output (without its weight).
+
+    ``columns`` maps each input to its samples at ``t``, ``splines`` each to its
+    :class:`~algid.simulation._interpolation.Interpolant` (for the derivative of a plain
+    input).
+    """
+    factor = term.factor
+    if term.derivative:
+        # D^k of a plain input (derivative of its interpolant), of 1 or of t
+        if isinstance(factor, Signal):
+            return splines[factor.name].derivative_samples(t, term.derivative)
+        if isinstance(factor, Time) and term.derivative == 1:
+            return np.ones_like(t)
+        return np.zeros_like(t)
+    values = dict(columns)
+    for name, k in factor.derivatives():
+        values[(name, k)] = differentiate(columns[name], t, k)
+    return np.broadcast_to(np.asarray(factor.evaluate(values, time=t), dtype=float),
+                           t.shape)
 
 
 class _OutputEquation:
@@ -205,14 +227,14 @@ class _OutputEquation:
                                          f"{chr(39) * k} appears inside a nonlinear factor")
                     if name != output:
                         self.inputs[(name, k)] = Interpolant(
-                            t, _differentiate(columns[name], t, k), interpolation)
+                            t, differentiate(columns[name], t, k), interpolation)
                 for name in factor.signals():
                     if name != output:
                         self.inputs[name] = splines[name]
                 self.state_terms.append((weight, factor))
             else:
                 with np.errstate(over="ignore", invalid="ignore"):
-                    forcing += weight * self._known_values(term, columns, splines, t)
+                    forcing += weight * known_term_values(term, columns, splines, t)
         if not np.isfinite(forcing).all():
             raise InputDataError(f"the known terms of {model.equation!r} overflow in "
                                  f"floating point with these parameters and inputs: express "
@@ -239,23 +261,6 @@ class _OutputEquation:
                                if isinstance(call.args[0], Signal)
                                and call.args[0].name == output else None
                                for call in switches]
-
-    @staticmethod
-    def _known_values(term, columns, splines, t):
-        """Samples of a term that does not read the output (without its weight)."""
-        factor = term.factor
-        if term.derivative:
-            # D^k of a plain input (derivative of its interpolant), of 1 or of t
-            if isinstance(factor, Signal):
-                return splines[factor.name].derivative_samples(t, term.derivative)
-            if isinstance(factor, Time) and term.derivative == 1:
-                return np.ones_like(t)
-            return np.zeros_like(t)
-        values = dict(columns)
-        for name, k in factor.derivatives():
-            values[(name, k)] = _differentiate(columns[name], t, k)
-        return np.broadcast_to(np.asarray(factor.evaluate(values, time=t), dtype=float),
-                               t.shape)
 
     def _values(self, time, state):
         values = [float(x) for x in state]
