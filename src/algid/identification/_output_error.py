@@ -548,8 +548,10 @@ def refine_result(result, segments, step, refine, data_warnings=()):
     if info.residual_test is None:   # (nonlinear: the algebraic adequacy test stands)
         warnings = list(result.warnings)
     else:
-        warnings = [w for w in result.warnings if w in data_warnings] \
-            + info.residual_test.warnings()
+        # (a named model error first: it says what to change; what the records
+        # determine follows)
+        warnings = info.residual_test.warnings() \
+            + [w for w in result.warnings if w in data_warnings]
     return replace(result, values=values, covariance=covariance, estimate="refined",
                    numerical_error=dict(zip(model.parameters,
                                             info.numerical_error.tolist())),
