@@ -120,11 +120,12 @@ def _duffing_output(theta, x0, t, lines):
     return sol.y[0]
 
 
-def simulate(model, theta=None, x0=(0.0, 0.0), lines=None):
-    """Time, input and noise-free output of ``model`` (a dict of :data:`MODELS`)."""
+def simulate(model, theta=None, x0=(0.0, 0.0), lines=None, *, rate=RATE, duration=DURATION):
+    """Time, input and noise-free output of ``model`` (a dict of :data:`MODELS`),
+    ``duration`` s at ``rate`` Hz."""
     theta = dict(model["truth"] if theta is None else theta)
     lines = multisine() if lines is None else lines
-    t = np.arange(int(round(DURATION * RATE)) + 1) / RATE
+    t = np.arange(int(round(duration * rate)) + 1) / rate
     output = _duffing_output if "K3" in theta else _linear_output
     return t, _input(t, lines), output(theta, x0, t, lines)
 

@@ -92,6 +92,9 @@ def stream(tracker, record, span=None, chunk=1000):
     for i in range(0, n, chunk):
         stop = min(i + chunk, n)
         reports.append(tracker.update({name: values[i:stop] for name, values in record.items()}))
+    if tracker.window is None:   # it ended in the warm-up: the window on what it holds
+        reports.append(tracker.update({name: values[:0] for name, values in record.items()},
+                                      last=True))
     joined = TrackUpdate(reports[0].parameters,
                          *(np.concatenate([getattr(r, field) for r in reports])
                            for field in ("t", "values", "stderr", "numerical_error", "alarms")))

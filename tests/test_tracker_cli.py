@@ -158,3 +158,23 @@ def test_standard_input_refuses_a_window_its_rate_cannot_hold(monkeypatch, capsy
     captured = capsys.readouterr()
     assert code == 2 and captured.err.count("\n") == 1
     assert "is shorter than the kernels" in captured.err
+
+
+def test_standard_input_that_ends_in_the_window_s_warmup(monkeypatch, capsys):
+    """12 s of a 1 Hz mode: the warm-up's span would double to 16 s (its window near the
+    longest that 8 s allow); at the end of standard input the window of 8 s is kept and
+    the reports come out (nothing came out, 'no window could be chosen')."""
+    from benchmarks.window_rule_study import LINEAR, simulate
+
+    t, u, y = simulate(LINEAR, rate=100.0, duration=12.0)
+    y = y + 10 ** -1.5 * np.std(y) * np.random.default_rng(0).standard_normal(len(t))
+    rows = "".join(f"{a!r},{b!r},{c!r}\n" for a, b, c in zip(t.tolist(), u.tolist(),
+                                                              y.tolist()))
+    monkeypatch.setattr(sys, "stdin", io.StringIO("t,u,y\n" + rows))
+    assert main(["track", "-", "--equation", LINEAR["equation"], "--parameters",
+                 LINEAR["parameters"], "--every", "1", "--json"]) == 0
+    reports = [json.loads(line) for line in capsys.readouterr().out.splitlines()]
+    tracker = Tracker(LINEAR["equation"], LINEAR["parameters"], time="t")
+    end = tracker.update({"t": t, "u": u, "y": y}, last=True)
+    assert tracker.window > 0.5 and reports[-1]["t"] == end.t[-1]
+    assert [reports[-1][p] for p in ("B", "K", "G", "d")] == end.values[-1].tolist()

@@ -244,6 +244,22 @@ def _rate_agrees(rate, stamps, name):
         raise _StreamRefused(str(exc)) from None
 
 
+def _emit(args, model, out, chosen, alarms):
+    """Print the reports of ``out`` that ``chosen`` picks, and its alarms (gathered in
+    ``alarms`` with --json); whether any report was printed."""
+    if args.json:   # (printed at once otherwise)
+        alarms.extend(out.alarms.tolist())
+    rows = chosen.select(out)
+    for i in rows:
+        _print_row(args, model, out, i, alarms)
+    if not args.json:
+        for when in out.alarms:
+            print(f"alarm at t = {when:.6g} s")
+    if rows.size or len(out.alarms):
+        sys.stdout.flush()
+    return rows.size > 0
+
+
 class _StreamRefused(InputDataError):
     """A refusal of the whole stream (not of one row, which is skipped)."""
 
@@ -307,17 +323,10 @@ def _live(args, model):
             print(f"algid: warning: standard input row {row} skipped: {message}",
                   file=sys.stderr, flush=True)
             continue
-        if args.json:   # (printed at once otherwise)
-            alarms.extend(out.alarms.tolist())
-        rows = chosen.select(out)
-        for i in rows:
-            _print_row(args, model, out, i, alarms)
-        if not args.json:
-            for when in out.alarms:
-                print(f"alarm at t = {when:.6g} s")
-        if rows.size or len(out.alarms):
-            sys.stdout.flush()
-        reported = reported or rows.size > 0
+        reported = _emit(args, model, out, chosen, alarms) or reported
+    if samples and tracker.window is None:   # the stream ended in the window's warm-up
+        out = tracker.update({c: np.empty(0) for c in needed}, last=True)
+        reported = _emit(args, model, out, chosen, alarms) or reported
     if chosen.final() is not None:   # the end of the stream
         _print_row(args, model, *chosen.final(), alarms)
         reported = True

@@ -86,6 +86,64 @@ def test_window_chosen_on_the_warmup_and_state_bounded():
     assert max(sizes[20:]) <= max(sizes[8:20])
 
 
+def _one_hertz_mode(seconds=20.0, rate=100.0, seed=0):
+    """The window rule study's linear record (a 1 Hz mode, 30 dB), shorter and slower."""
+    from benchmarks.window_rule_study import LINEAR, simulate
+
+    t, u, y = simulate(LINEAR, rate=rate, duration=seconds)
+    noise = 10 ** -1.5 * np.std(y) * np.random.default_rng(seed).standard_normal(len(t))
+    return {"t": t, "u": u, "y": y + noise}, LINEAR["equation"], LINEAR["parameters"]
+
+
+def _identify_on(record, seconds, equation, names):
+    cut = int(np.searchsorted(record["t"], record["t"][0] + seconds, side="left")) + 1
+    return algid.identify({k: v[:cut] for k, v in record.items()}, equation, names,
+                          refine=False).window
+
+
+def test_warmup_extended_while_its_window_is_near_the_longest_it_allows():
+    """On 4 s of a 1 Hz mode identify keeps the longest window (0.3 s), on 8 s 0.6 s: the
+    span doubles (three times) up to 16 s, where the window is 1.29 s (on 30 s of the
+    same mode at 1 kHz the final estimate had 1.9 to 6.9 times identify's RMSE at the 2 s
+    warm-up's window: ``benchmarks.tracker_window``); with forgetting, up to two thirds
+    of its memory."""
+    record, equation, names = _one_hertz_mode()
+    whole = Tracker(equation, names, time="t")
+    last = whole.update(record, last=True)
+    assert whole.window == pytest.approx(_identify_on(record, 16.0, equation, names))
+    assert whole.window > 1.0
+    chunked = Tracker(equation, names, time="t")
+    outs = [chunked.update({k: v[i:i + 250] for k, v in record.items()}, last=i + 250 >= 2001)
+            for i in range(0, 2001, 250)]
+    assert np.array_equal(np.concatenate([o.values for o in outs]), last.values,
+                          equal_nan=True)
+    forgetting = Tracker(equation, names, time="t", half_life=2.0)
+    forgetting.update(record)
+    span = 2 / 3 * 2 * 2.0 / np.log(2.0)   # two thirds of the memory: 3.85 s, not 4 s
+    assert forgetting.window == pytest.approx(_identify_on(record, span, equation, names))
+
+
+def test_stream_that_ends_in_the_warmup_has_the_last_accepted_span_s_window():
+    """12 s of the 1 Hz mode: the window of 8 s (near the longest they allow) would be
+    extended on 16 s; the stream's end (``last=True``) keeps the 8 s one."""
+    record, equation, names = _one_hertz_mode(seconds=12.0)
+    expected_window = _identify_on(record, 8.0, equation, names)
+    for size in (7, 10000):
+        tracker = Tracker(equation, names, time="t")
+        outs = [tracker.update({k: v[i:i + size] for k, v in record.items()},
+                               last=i + size >= 1201) for i in range(0, 1201, size)]
+        assert tracker.window == pytest.approx(expected_window)
+        last = [o for o in outs if len(o)][-1]
+        # identify at that window on the samples up to the last window end
+        cut = int(np.searchsorted(record["t"], last.t[-1])) + 1
+        reference = algid.identify({k: v[:cut] for k, v in record.items()}, equation, names,
+                                   window=tracker.window, refine=False)
+        expected = np.array([reference.values[p] for p in names.split()])
+        assert np.max(np.abs(last.values[-1] / expected - 1)) < 1e-9
+    # without last=True the stream still waits for its warm-up's span
+    assert Tracker(equation, names, time="t").update(record).values.size == 0
+
+
 def test_estimates_nan_until_determined():
     record, _ = linear_offsets(0, n=400)
     out = Tracker(EQUATION, PARAMETERS, time="t", window=WINDOW).update(record)

@@ -56,6 +56,7 @@ from algid.identification._records import GAP_FACTOR, UNIFORM_TOLERANCE
 from algid.identification._tracker_kernels import kernels, solvers
 from algid.identification._tracker_state import (
     MAX_WINDOW_SAMPLES,
+    WARMUP_DOUBLINGS,
     Pending,
     Segment,
     Sums,
@@ -81,7 +82,9 @@ from algid.signals._differentiation import algebraic_derivative
 __all__ = ["Tracker", "TrackUpdate", "DEFAULT_WARMUP", "DEFAULT_FALSE_ALARM_RATE",
            "DERIVATIVE_STEPS"]
 
-#: Seconds of stream on which the window is chosen when none is given.
+#: Seconds of stream on which the window is first chosen when none is given (the span
+#: doubles, three times at most, while identify refuses it or keeps a window of at least
+#: half the longest it allows).
 DEFAULT_WARMUP = 2.0
 
 #: Design false alarms per second of stream time.
@@ -323,13 +326,17 @@ class Tracker:
         Output signal (by default the one of highest derivative order).
     window : float, optional
         Window length (s); chosen by identify's rule on the first ``warmup`` seconds
-        when omitted.
+        when omitted, a span doubled (three times at most) while identify refuses it
+        or keeps a window of at least half the longest it allows; with forgetting, no
+        further than two thirds of the memory ``2 * half_life / ln 2``.  A stream that
+        ends (``last=True``) before the next span has the window of the last span
+        identify accepted.
     half_life : float, optional
         Half-life (s of stream time) of the forgetting; None keeps every window.
     method : {"bc", "ls"}
         Bias-compensated or plain least squares (as in :func:`algid.identify`).
     warmup : float
-        Seconds of stream on which to choose the window.
+        Seconds of stream on which to choose the window first (see ``window``).
     false_alarm_rate : float
         Design false alarms per second of stream time (see the user guide, "Tracking on a
         stream").
@@ -458,7 +465,7 @@ class Tracker:
             warm.t = np.concatenate([warm.t, t])
             for name in self._signals:
                 warm.signals[name] = np.concatenate([warm.signals[name], columns[name]])
-            self._configure()
+            self._configure(last)
         else:
             self._pending(t, columns)
         p = len(self.parameters)
@@ -579,8 +586,9 @@ class Tracker:
                                  f"{t[row]:.9g} (row {self.state.seen + row} of the stream)")
 
     # ------------------------------------------------------------------ configuration
-    def _configure(self):
-        """Fix the step and the window once enough samples arrived; replay them."""
+    def _configure(self, last=False):
+        """Fix the step and the window once enough samples arrived (or the stream's
+        ``last`` chunk did); replay them."""
         warm = self.state.warmup
         t = warm.t
         if not len(t):   # (an empty chunk first)
@@ -596,16 +604,31 @@ class Tracker:
         if window is None:
             tried = warm.tries
             while True:
-                span = self.config["warmup"] * 2 ** tried
-                if t[-1] - t[0] < span:
+                span = self._span(tried)
+                if t[-1] - t[0] < span:   # (the span's samples are not all here)
                     warm.tries = tried
-                    return
+                    if not last:
+                        return
+                    # the stream ended first: the window of the last span identify accepted
+                    window, cut = self._earlier_window(t, step, tried)
+                    if window is None:
+                        return
+                    break
                 cut = int(np.searchsorted(t, t[0] + span, side="left")) + 1
-                window = self._choose_window(t[:cut], step)
-                if window is not None:
+                window, near_longest = self._choose_window(t[:cut], step)
+                if window is None:   # refused: the window of a shorter span, else a longer
+                    window, cut = self._earlier_window(t, step, tried)
+                    if window is not None:
+                        break
+                # a window near the longest the span allows may be short of the rule's
+                # best (on 2 s of a 1 Hz mode it kept 0.16 s, on 30 s 1.4 s): the next
+                # span lets it look at longer ones (not beyond the forgetting's memory,
+                # whose effective windows a longer window would leave too few)
+                elif not (near_longest and tried < WARMUP_DOUBLINGS
+                          and self._span(tried + 1) <= self._longest_span()):
                     break
                 tried += 1
-                if tried > 3:
+                if tried > WARMUP_DOUBLINGS:
                     raise TrackerSetupError(
                         f"no window could be chosen on the first {span:g} s of the stream "
                         f"(identify refuses them); give window=")
@@ -651,16 +674,61 @@ class Tracker:
                                     f"{len(self.parameters)} parameters need {needed}; use at "
                                     f"least {shortest:.4g} s")
 
+    def _longest_span(self):
+        """The longest span (s) to which the warm-up is extended for a longer window
+        (infinite without forgetting): two thirds of the forgetting's memory
+        ``M = 2 h / ln 2``, the span of an endless stream's effective windows
+        ``(sum w)**2 / sum w**2``.
+
+        identify's window ``L`` on a span ``S`` leaves ``S / L`` windows, at least the
+        parameters plus 8; at ``T`` s of stream the forgetting keeps about
+        ``M / L * tanh(T / M)`` of them (8/9 of it where a window's starts overrun it
+        by a stride).  From ``S = 2 M / 3`` that is enough from about ``T = M`` on;
+        from ``S`` near ``M``, at no ``T`` in the worst case (on 30 s of a 1 Hz mode
+        with a half-life of 5 s, ``S = 8 M / 9`` gave a window none of whose reports
+        was determined).
+        """
+        half_life = self.config["half_life"]
+        return math.inf if half_life is None else 2.0 / 3.0 * 2.0 * half_life / math.log(2.0)
+
+    def _span(self, tried):
+        """The warm-up's span (s) after ``tried`` steps: ``warmup`` doubled at each, the
+        step that would pass :meth:`_longest_span` stopping at it (the span where identify
+        refuses the samples doubles on)."""
+        span, longest = self.config["warmup"], self._longest_span()
+        for _ in range(tried):
+            span = min(2.0 * span, longest) if span < longest else 2.0 * span
+        return span
+
+    def _earlier_window(self, t, step, tried):
+        """identify's window on the longest of the spans before ``tried`` steps that it
+        accepts (None if none), and that span's samples."""
+        for k in range(tried - 1, -1, -1):
+            cut = int(np.searchsorted(t, t[0] + self._span(k), side="left")) + 1
+            window, _ = self._choose_window(t[:cut], step)
+            if window is not None:
+                return window, cut
+        return None, len(t)
+
     def _choose_window(self, t, step):
+        """identify's window on the warm-up's samples at times ``t`` (None where it
+        refuses them), and whether it is at least half the longest its rule looked at
+        (the longest that ``t`` allows): twice the span lets the rule look at windows
+        twice as long, and its criterion is flat near its best (on 8 s of the Duffing
+        record of ``benchmarks.tracker_window`` it kept 0.19 s where 0.23 s was the
+        longest, on 16 s 1.1 s)."""
         from algid.identification._identify import identify
 
         record = {name: self.state.warmup.signals[name][:len(t)] for name in self._signals}
         record["__t"] = t
         try:
-            return identify(record, self.model, time="__t", method=self.config["method"],
-                            refine=False).window
+            result = identify(record, self.model, time="__t", method=self.config["method"],
+                              refine=False)
         except AlgidError:
-            return None
+            return None, False
+        length = result.window / step + 1
+        return result.window, bool(result.window_scores) \
+            and 2 * length >= max(result.window_scores)
 
     def _derive(self, length, step):
         """Constants that follow from the configuration: the window of ``length``

@@ -23,7 +23,11 @@ import numpy as np
 
 from algid._record_input import RATE_TOLERANCE, STEP_RANGE
 from algid.errors import AlgidError, InputDataError
-from algid.identification._tracker_state import MAX_WINDOW_SAMPLES, TrackerState
+from algid.identification._tracker_state import (
+    MAX_WINDOW_SAMPLES,
+    WARMUP_DOUBLINGS,
+    TrackerState,
+)
 
 __all__ = ["FORMAT", "write", "read", "check_state", "state_layout"]
 
@@ -204,9 +208,9 @@ CONFIGURED = {"step": "positive", "window": "positive", "length": "count",
 def _scalar_ok(rule, value):
     if rule == "bool":
         return isinstance(value, bool)
-    if rule in ("count", "tries"):   # (int64 in the compiled loops; tries: at most 3)
+    if rule in ("count", "tries"):   # (int64 in the compiled loops; tries: the doublings)
         return isinstance(value, int) and not isinstance(value, bool) \
-            and 0 <= value <= (3 if rule == "tries" else _MAX_COUNT)
+            and 0 <= value <= (WARMUP_DOUBLINGS if rule == "tries" else _MAX_COUNT)
     if not isinstance(value, float):
         return False
     return {"positive": math.isfinite(value) and value > 0,

@@ -21,11 +21,15 @@ from dataclasses import dataclass, field
 import numpy as np
 
 __all__ = ["TrackerState", "Warmup", "Sums", "Tests", "Pending", "Segment",
-           "MAX_WINDOW_SAMPLES"]
+           "MAX_WINDOW_SAMPLES", "WARMUP_DOUBLINGS"]
 
 #: Longest window (samples) a tracker accepts: its state holds a few arrays of a
 #: window's samples.
 MAX_WINDOW_SAMPLES = 2**20
+
+#: Doublings of the warm-up span at most, while the window's choice is refused or is at
+#: least half the longest window the span allows.
+WARMUP_DOUBLINGS = 3
 
 
 def _empty():
@@ -43,7 +47,8 @@ class Warmup:
     signals : dict
         Signal name -> samples.
     tries : int
-        Doublings of the warm-up span tried for the window (at most 3).
+        Doublings of the warm-up span tried for the window (at most
+        :data:`WARMUP_DOUBLINGS`).
     """
 
     t: np.ndarray = field(default_factory=_empty)
