@@ -172,6 +172,21 @@ def test_results_table_shows_the_refinement_study():
         f"{ratios[0]} → {ratios[1]}; {min(coverage):.0f}–{max(coverage):.0f} %")
 
 
+def test_results_table_shows_the_nonlinear_refinement_study():
+    import json
+
+    study = json.loads((ROOT / "benchmarks" / "nonlinear_refinement_results.json").read_text(
+        encoding="utf-8"))
+    ranges, coverage = [], []
+    for model in ("duffing", "friction"):
+        row = study[model]["white"]["reported"]
+        ratios = [v["rmse/crlb"] for p, v in row.items() if p != "median_cpu_s"]
+        coverage += [100 * v["coverage"] for p, v in row.items() if p != "median_cpu_s"]
+        ranges.append(f"{min(ratios):.2f}–{max(ratios):.2f}")
+    assert results_table()["Duffing / open-loop friction, 30 s, 30 dB (identify)"] == (
+        f"{ranges[0]} / {ranges[1]}; {min(coverage):.0f}–{max(coverage):.0f} %")
+
+
 def test_results_table_shows_the_emps_estimates_against_the_published_values():
     import algid
     from algid import datasets
