@@ -18,17 +18,12 @@ same covariance; lacking a residual test of its own, it is not reported where it
 much less precise than the algebraic estimate (:data:`PRECISION_MARGIN`).
 
 The initial state of each segment (each record, and each run between gaps) is a
-nuisance parameter: the output is linear in it, so it
-is solved for by least squares inside every evaluation (variable projection), and the
-parameters alone are iterated (Levenberg–Marquardt, :func:`scipy.optimize.least_squares`,
-on parameters scaled by the algebraic standard errors).
-
-Covariance (:func:`sandwich_covariance`): the Jacobian with the initial states
-projected out, and the residuals' own correlation from an autoregressive model of
-them (order by BIC): ``(J'J)^-1 J' S J (J'J)^-1`` with ``S`` the residuals'
-covariance.  With white residuals it is ``sigma^2 (J'J)^-1``, the Cramér–Rao bound at
-the estimate; with coloured ones (AR output noise, a slowly varying misfit) it stays
-honest where ``sigma^2 (J'J)^-1`` would not.
+nuisance parameter: the output is linear in it, so it is solved for by least squares
+inside every evaluation (variable projection), and the parameters alone are iterated
+(Levenberg–Marquardt, :func:`scipy.optimize.least_squares`, on parameters scaled by the
+algebraic standard errors).  The covariance is the sandwich form of
+:func:`algid.identification._refinement.sandwich_covariance`, honest under coloured
+residuals.
 """
 
 from __future__ import annotations
