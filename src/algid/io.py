@@ -15,6 +15,7 @@ import csv
 import gzip
 import math
 import os
+import sys
 import zlib
 from pathlib import Path
 
@@ -178,8 +179,8 @@ def read_columns(path, names, *, optional=()):
     (['t', 'u', 'y'], array([0. , 0.5]))
     """
     if hasattr(path, "read"):   # a text stream: CSV/text to its end
-        label = "standard input" if getattr(path, "name", None) == "<stdin>" else str(
-            getattr(path, "name", "stream"))
+        stdin = path is sys.stdin or getattr(path, "name", None) == "<stdin>"
+        label = "standard input" if stdin else str(getattr(path, "name", "stream"))
         text = _stream_text(path, label)
         header = next(_split_lines(text), (0, ""))[1]
         found = _fields(header, _delimiter(header)) if header else []
