@@ -418,6 +418,7 @@ def identify_many(data, equation, parameters=None, *, by=None, progress=None,
     ([1.5, 2.0, 2.5], [False, False, False, True])
     """
     shown = _check_progress(progress)
+    _require_pandas()
     if _is_dask_collection(data):
         if not hasattr(data, "columns"):
             raise InputDataError("identify_many: a Dask Series is one signal; give a Dask "
@@ -468,6 +469,15 @@ def identify_many(data, equation, parameters=None, *, by=None, progress=None,
         rows = _run_on_client(client, groups.values(), call, progress_count)
     progress_count.close()
     return _table(list(groups), rows, model.parameters, index_name)
+
+
+def _require_pandas():
+    """The table is a pandas DataFrame: refuse at once, not after the fleet, without it."""
+    try:
+        import pandas  # noqa: F401
+    except ModuleNotFoundError:
+        raise ModuleNotFoundError("identify_many returns a pandas DataFrame: pip install "
+                                  "'algid[fleet]'", name="pandas") from None
 
 
 def _first_missing(column):
