@@ -106,3 +106,43 @@ def test_missing_file_and_missing_time(capsys, record_files, tmp_path):
     code, _, err = run(capsys, "identify", record_files[0], "--equation",
                        LINEAR_EQUATION[0], "--parameters", LINEAR_EQUATION[1], "--rate", "-3")
     assert code == 2
+
+
+def test_standard_input_is_one_record(capsys, record_files, monkeypatch):
+    import io
+
+    csv = record_files[0]
+    options = ["--equation", LINEAR_EQUATION[0], "--parameters", LINEAR_EQUATION[1],
+               "--json", "--no-refine"]
+    _, from_file, _ = run(capsys, "identify", csv, *options)
+    monkeypatch.setattr("sys.stdin", io.StringIO(csv.read_text()))
+    code, out, err = run(capsys, "identify", "-", *options)
+    assert code == 0, err
+    assert json.loads(out) == json.loads(from_file)
+    monkeypatch.setattr("sys.stdin", io.StringIO(""))
+    code, out, err = run(capsys, "identify", "-", *options)
+    assert_one_line_error(code, err, "standard input: input is empty")
+    code, out, err = run(capsys, "identify", "-", csv, *options)
+    assert_one_line_error(code, err, "- (standard input) is one record")
+
+
+def test_a_refusal_with_json_is_also_a_json_object(capsys, record_files, tmp_path):
+    code, out, err = run(capsys, "identify", tmp_path / "none.csv", "--equation",
+                         LINEAR_EQUATION[0], "--parameters", LINEAR_EQUATION[1], "--json")
+    assert_one_line_error(code, err, "file not found")
+    assert json.loads(out) == {"error": err.strip().removeprefix("algid: error: ")}
+    code, out, err = run(capsys, "identify", tmp_path / "none.csv", "--equation",
+                         LINEAR_EQUATION[0], "--parameters", LINEAR_EQUATION[1])
+    assert code == 2 and out == ""   # without --json, nothing on stdout
+
+
+def test_out_writes_the_result_as_a_one_row_table(capsys, record_files, tmp_path):
+    pd = pytest.importorskip("pandas")
+    csv = record_files[0]
+    code, out, err = run(capsys, "identify", csv, "--equation", LINEAR_EQUATION[0],
+                         "--parameters", LINEAR_EQUATION[1], "--no-refine", "--out",
+                         tmp_path / "result.csv")
+    assert code == 0, err
+    table = pd.read_csv(tmp_path / "result.csv", index_col="source")
+    assert list(table.index) == [str(csv)] and table.loc[str(csv), "estimate"] == "algebraic"
+    assert list(table.columns[:4]) == ["B", "K", "G", "d"]

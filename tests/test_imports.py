@@ -159,12 +159,14 @@ def test_module_docstrings_are_short():
 
 
 def test_import_algid_leaves_numba_and_scipy_s_heavy_subpackages_unimported():
-    """They cost a second of CPU at start-up; the calls that need them import them."""
+    """They cost a second of CPU at start-up; the calls that need them import them
+    (pandas and Dask: identify_many and the command line of fleets)."""
     import subprocess
     import sys
 
     heavy = ["numba", "scipy.signal", "scipy.stats", "scipy.interpolate", "scipy.integrate",
-             "scipy.optimize", "scipy.sparse", "control", "sympy", "matplotlib"]
+             "scipy.optimize", "scipy.sparse", "control", "sympy", "matplotlib", "pandas",
+             "pyarrow", "dask", "distributed"]
     code = f"import sys, algid; print(' '.join(m for m in {heavy!r} if m in sys.modules))"
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                          env={"PYTHONPATH": str(SRC), "PATH": ""}, check=True)

@@ -1,9 +1,10 @@
 """algid: algebraic identification of continuous-time linear systems.
 
 The names a user needs are here: :func:`estimate` and :class:`OnlineEstimator` (the
-paper's estimator), :func:`identify` (your own equation on measured records) and
-:class:`Tracker` (the same on a stream, with change alarms), :func:`compile_equation`,
-:func:`simulate` and :func:`simulate_model`, the errors.  The
+paper's estimator), :func:`identify` (your own equation on measured records),
+:func:`identify_many` (the same on every record of a fleet, on a Dask cluster if one is
+active) and :class:`Tracker` (the same on a stream, with change alarms),
+:func:`compile_equation`, :func:`simulate` and :func:`simulate_model`, the errors.  The
 subpackages hold the rest by concept: :mod:`algid.models`, :mod:`algid.estimation`,
 :mod:`algid.identification`, :mod:`algid.simulation`, :mod:`algid.signals`,
 :mod:`algid.symbolic` (SymPy), :mod:`algid.paper`, with :mod:`algid.io`,
@@ -11,18 +12,18 @@ subpackages hold the rest by concept: :mod:`algid.models`, :mod:`algid.estimatio
 
 The estimator needs only NumPy and SciPy.  The plant simulator needs python-control
 (``algid[simulate]``), the symbolic derivation SymPy (``algid[derive]``), figures
-matplotlib (``algid[plot]``).
+matplotlib (``algid[plot]``), fleets pandas and Dask (``algid[fleet]``).
 """
 
 from algid.errors import AlgidError, DataFileError, InputDataError, ModelError
 from algid.estimation import EstimationResult, OnlineEstimator, crlb, estimate, refine
-from algid.identification import IdentificationResult, Tracker, identify
+from algid.identification import IdentificationResult, Tracker, identify, identify_many
 from algid.models import available_models, compile_equation
 from algid.simulation import simulate_model
 
 __version__ = "0.1.0"
 
-__all__ = ["estimate", "OnlineEstimator", "EstimationResult", "identify",
+__all__ = ["estimate", "OnlineEstimator", "EstimationResult", "identify", "identify_many",
            "IdentificationResult", "Tracker", "compile_equation", "available_models", "simulate",
            "simulate_model", "refine", "crlb", "AlgidError", "InputDataError",
            "DataFileError", "ModelError", "__version__"]

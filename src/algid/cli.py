@@ -103,6 +103,13 @@ def _nonnegative_int(text):
     return value
 
 
+def _positive_int(text):
+    value = _nonnegative_int(text)
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"must be at least 1, got {text!r}")
+    return value
+
+
 def _filter_order(text):
     value = _nonnegative_int(text)
     if value > MAX_FILTER_ORDER:
@@ -202,7 +209,9 @@ def build_parser() -> argparse.ArgumentParser:
         ),
     )
     ide.add_argument("files", nargs="+", metavar="FILE",
-                     help="data files (.csv, .txt, .csv.gz, .txt.gz, .mat)")
+                     help="data files (.csv, .txt, .csv.gz, .txt.gz, .mat), identified "
+                          "together, or - for CSV on standard input; with --by, one table "
+                          "of many records (.parquet, a folder of Parquet files, .csv or -)")
     ide.add_argument("--equation", required=True, metavar="EQ", help="the model equation")
     ide.add_argument("--parameters", required=True, metavar="\"P1 P2 ...\"",
                      help="the unknown parameters, separated by spaces")
@@ -226,7 +235,24 @@ def build_parser() -> argparse.ArgumentParser:
     ide.add_argument("--json", action="store_true",
                      help="print one JSON object: a key per parameter, stderr, window, "
                           "n_samples, warnings, estimate (refined or algebraic) and the "
-                          "algebraic estimate")
+                          "algebraic estimate; with --by, a list of the table's rows; a "
+                          "refusal prints {\"error\": message}")
+    ide.add_argument("--by", default=None, metavar="COL",
+                     help="identify every record of a fleet on its own: FILE is one long "
+                          "table whose column COL names each row's record (see the user "
+                          "guide, Fleets)")
+    ide.add_argument("--out", default=None, metavar="FILE",
+                     help="write the results as a table (one row per record, the columns "
+                          "of IdentificationResult.to_dict and error): .csv or .parquet")
+    ide.add_argument("--workers", type=_positive_int, default=None, metavar="N",
+                     help="with --by: identify on a local Dask cluster of N processes "
+                          "(default: in this process, one record after another)")
+    ide.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                     help="with --by: identify on the Dask cluster of this scheduler "
+                          "(e.g. tcp://10.0.0.1:8786)")
+    ide.add_argument("--progress", action=argparse.BooleanOptionalAction, default=None,
+                     help="with --by: count the records done on standard error (default: "
+                          "when it is a terminal)")
     ide.set_defaults(handler=_cmd_identify)
 
     from algid._cli_track import add_track_parser
@@ -486,16 +512,40 @@ def _cmd_identify(args) -> int:
     if clash:
         raise ModelError(f"parameter name {clash[0]!r} is reserved by the output "
                          f"({', '.join(IDENTIFY_JSON_KEYS)}); rename it")
+    if args.by is not None:
+        from algid._cli_fleet import fleet_command
+
+        return fleet_command(args, model)
+    fleet_only = [option for option, value in (("--workers", args.workers),
+                                               ("--scheduler", args.scheduler),
+                                               ("--progress", args.progress))
+                  if value is not None]
+    if fleet_only:
+        raise InputDataError(f"{fleet_only[0]} goes with --by (a table of many records)")
+    if "-" in args.files and len(args.files) > 1:
+        raise InputDataError("- (standard input) is one record: give it alone")
+    if args.out is not None:
+        from algid._cli_fleet import check_out
+
+        check_out(args.out)
     names = list(model.signals) + ([args.time] if args.time else [])
     # a time column is read with --rate too: the two must agree
     optional = () if args.time else TIME_COLUMNS
-    records = [read_model_columns(path, names, model, optional) for path in args.files]
+    records = [read_model_columns(sys.stdin if path == "-" else path, names, model, optional)
+               for path in args.files]
     result = identify(records, model, time=args.time, rate=args.rate, window=args.window,
                       method=args.method, refine="auto" if args.refine is None else args.refine)
     stderr = result.stderr
     source = args.files[0] if len(args.files) == 1 else f"{len(args.files)} records"
+    source = "standard input" if source == "-" else source
     for warning in result.warnings:
         print(f"warning: {source}: {warning}", file=sys.stderr)
+    if args.out is not None:
+        from algid._cli_fleet import write_table
+
+        table = result.to_pandas()
+        table.index = [source]
+        write_table(table.rename_axis("source"), args.out)
     if args.json:
         payload = {p: _finite_or_none(v) for p, v in result.values.items()}
         payload["stderr"] = {p: _finite_or_none(v) for p, v in stderr.items()}
@@ -645,7 +695,10 @@ def main(argv=None) -> int:
     try:
         return int(args.handler(args) or 0)
     except (AlgidError, _MissingDependency) as exc:
-        _error(str(exc) or type(exc).__name__)
+        message = str(exc) or type(exc).__name__
+        _error(message)
+        if args.command == "identify" and args.json:   # a reader of JSON reads why too
+            print(json.dumps({"error": " ".join(message.splitlines()).strip()}))
         return 2
     except KeyboardInterrupt:
         _error("interrupted")

@@ -15,6 +15,7 @@ import csv
 import gzip
 import math
 import os
+import sys
 import zlib
 from pathlib import Path
 
@@ -146,9 +147,10 @@ def read_columns(path, names, *, optional=()):
 
     Parameters
     ----------
-    path : str or path-like
+    path : str, path-like or text stream
         A ``.csv``/``.txt`` file with a header line (or the same gzip-compressed,
-        ``.csv.gz``/``.txt.gz``), or a MATLAB ``.mat`` file.
+        ``.csv.gz``/``.txt.gz``), or a MATLAB ``.mat`` file; or an open text stream
+        of CSV/text (``sys.stdin``: ``algid identify -``), read to its end.
     names : sequence of str
         Columns or variables that must be present.
     optional : sequence of str
@@ -176,6 +178,16 @@ def read_columns(path, names, *, optional=()):
     >>> sorted(columns), columns["y"]
     (['t', 'u', 'y'], array([0. , 0.5]))
     """
+    if hasattr(path, "read"):   # a text stream: CSV/text to its end
+        stdin = path is sys.stdin or getattr(path, "name", None) == "<stdin>"
+        label = "standard input" if stdin else str(getattr(path, "name", "stream"))
+        text = _stream_text(path, label)
+        header = next(_split_lines(text), (0, ""))[1]
+        found = _fields(header, _delimiter(header)) if header else []
+        wanted = list(dict.fromkeys(list(names) + [n for n in optional if n in found]))
+        if not wanted:
+            raise DataFileError(f"{label}: no column requested")
+        return _parse_csv(text, label, wanted, None)
     p, label, suffix = _checked_path(path)
     found = _available(p, label, suffix)
     wanted = list(dict.fromkeys(list(names) + [n for n in optional if n in found]))
@@ -183,6 +195,19 @@ def read_columns(path, names, *, optional=()):
         raise DataFileError(f"{label}: no column requested")
     reader = _read_mat if suffix in MAT_SUFFIXES else _read_csv
     return reader(p, label, wanted, None)
+
+
+def _stream_text(stream, label):
+    """The text of a stream, to its end (bytes read as UTF-8)."""
+    try:
+        text = stream.read()
+        if isinstance(text, bytes):
+            text = text.decode("utf-8")
+    except UnicodeDecodeError:
+        raise DataFileError(f"{label}: not UTF-8 text") from None
+    except OSError as exc:
+        raise DataFileError(f"{label}: cannot read ({exc.strerror or exc})") from None
+    return text.removeprefix("\ufeff")   # (a UTF-8 byte-order mark)
 
 
 def _check_rate(rate) -> float:
@@ -317,13 +342,16 @@ def _read_text(p, label):
 
 
 def _read_csv(p, label, wanted, time_name):
-    text = _read_text(p, label)
+    return _parse_csv(_read_text(p, label), label, wanted, time_name)
 
+
+def _parse_csv(text, label, wanted, time_name):
     lines = _split_lines(text)
     try:
         header_number, header_line = next(lines)
     except StopIteration:
-        raise DataFileError(f"{label}: file is empty") from None
+        raise DataFileError(f"{label}: {'file' if label != 'standard input' else 'input'} "
+                            f"is empty") from None
 
     delimiter = _delimiter(header_line)
     try:

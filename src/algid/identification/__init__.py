@@ -10,6 +10,10 @@ Public:
 - :class:`Tracker` is the streaming form of ``identify``: the same window equations,
   accumulated as the samples arrive (with exponential forgetting if asked), estimates
   with standard errors at every window end, and alarms when the parameters change;
+- :func:`identify_many` identifies every record of a fleet on its own (a long pandas
+  ``DataFrame``, a mapping id -> record or a Dask ``DataFrame``), on a
+  ``dask.distributed`` cluster when one is active, and returns a table: one row of
+  results per record, or the one-line refusal of a record it could not identify;
 - :data:`METHODS` are the solvers ``identify`` offers.
 
 Records are mappings of named columns (``{"t": ..., "u": ..., "y": ...}``), with a time
@@ -17,9 +21,10 @@ column or a sampling rate; several records are identified together.
 """
 
 from algid.identification._adequacy import Adequacy
+from algid.identification._fleet import identify_many
 from algid.identification._identify import METHODS, identify
 from algid.identification._result import IdentificationResult, Validation
 from algid.identification._tracker import Tracker, TrackUpdate
 
-__all__ = ["identify", "IdentificationResult", "Validation", "Adequacy", "Tracker",
-           "TrackUpdate", "METHODS"]
+__all__ = ["identify", "identify_many", "IdentificationResult", "Validation", "Adequacy",
+           "Tracker", "TrackUpdate", "METHODS"]

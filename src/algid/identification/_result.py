@@ -15,7 +15,38 @@ from algid.models._expression import Constant, Signal, Time
 from algid.simulation._model import fit_initial_state, simulate_model
 from algid.simulation._output_equation import OutputEquation
 
-__all__ = ["IdentificationResult", "Validation"]
+__all__ = ["IdentificationResult", "Validation", "ROW_KEYS", "WARNING_SEPARATOR",
+           "check_row_names"]
+
+#: Keys of :meth:`IdentificationResult.to_dict` besides the parameters and their errors.
+ROW_KEYS = ("window", "n_samples", "estimate", "warnings")
+
+#: What joins the warnings of a result into the one string of its row.
+WARNING_SEPARATOR = " | "
+
+
+def check_row_names(parameters, reserved=()):
+    """Refuse parameter names that would collide with another key of a result's row.
+
+    Parameters
+    ----------
+    parameters : sequence of str
+        The model's parameters.
+    reserved : sequence of str, optional
+        Further keys of the table the rows go into (``error``, the id column).
+
+    Raises
+    ------
+    ModelError
+        A parameter named like a key of the row.
+    """
+    taken = set(ROW_KEYS) | set(reserved)
+    taken |= {f"{kind}_{p}" for p in parameters for kind in ("stderr", "numerical_error")}
+    clash = [p for p in parameters if p in taken]
+    if clash:
+        raise ModelError(f"parameter name {clash[0]!r} is also a column of the results "
+                         f"table ({', '.join(ROW_KEYS + tuple(reserved))}, stderr_<p>, "
+                         f"numerical_error_<p>); rename it")
 
 
 @dataclass
@@ -515,6 +546,83 @@ class IdentificationResult:
         return ax
 
     # export -----------------------------------------------------------------------------
+
+    def to_dict(self):
+        """The result as one flat row: a value per parameter, its errors, the window.
+
+        The row of a table of results (:func:`algid.identify_many` makes one of a
+        fleet): every value a plain Python scalar, so that it goes as it is into JSON,
+        a pandas ``DataFrame``, a CSV or a Parquet file.
+
+        Returns
+        -------
+        dict
+            In this order: each parameter's value (under its own name); each one's
+            standard error ``stderr_<p>``; each one's numerical error
+            ``numerical_error_<p>`` (NaN where none was estimated); ``window`` (s),
+            ``n_samples``, ``estimate`` (``"refined"`` or ``"algebraic"``) and
+            ``warnings``: the warnings joined by ``" | "`` in one string (``""`` when
+            there are none; a warning is one line without ``|``, and
+            ``row["warnings"].split(" | ")`` gives ``result.warnings`` back), so that the
+            row holds only scalars.
+
+        Raises
+        ------
+        ModelError
+            A parameter named like another key of the row (``window``,
+            ``stderr_K``...).
+
+        Examples
+        --------
+        >>> from algid.identification import identify
+        >>> from algid.simulation import simulate
+        >>> sim = simulate("sine", frequency=3.0, duration=10.0, rate=100.0, noise_std=1e-4, seed=0)
+        >>> record = {"t": sim.t, "f": sim.f, "x": sim.x}
+        >>> row = identify(record, "x'' + B*x' + K*x = f", "B K").to_dict()
+        >>> list(row)  # doctest: +NORMALIZE_WHITESPACE
+        ['B', 'K', 'stderr_B', 'stderr_K', 'numerical_error_B', 'numerical_error_K',
+         'window', 'n_samples', 'estimate', 'warnings']
+        >>> round(row["K"], 2), row["n_samples"], row["estimate"], row["warnings"]
+        (3.0, 1001, 'refined', '')
+        """
+        parameters = self.model.parameters
+        check_row_names(parameters)
+        stderr = self.stderr
+        row = {p: float(self.values[p]) for p in parameters}
+        row.update({f"stderr_{p}": float(stderr[p]) for p in parameters})
+        row.update({f"numerical_error_{p}": float(self.numerical_error.get(p, math.nan))
+                    for p in parameters})
+        row["window"] = float(self.window)
+        row["n_samples"] = int(self.n_samples)
+        row["estimate"] = str(self.estimate)
+        row["warnings"] = WARNING_SEPARATOR.join(str(w) for w in self.warnings)
+        return row
+
+    def to_pandas(self):
+        """The result as a pandas ``DataFrame`` of one row (:meth:`to_dict`).
+
+        Concatenate the rows of several results (``pandas.concat``) to compare them,
+        or let :func:`algid.identify_many` make the table of a fleet.
+
+        Returns
+        -------
+        pandas.DataFrame
+            One row (index 0), the columns of :meth:`to_dict` in its order.
+
+        Examples
+        --------
+        >>> from algid.identification import identify
+        >>> from algid.simulation import simulate
+        >>> sim = simulate("sine", frequency=3.0, duration=10.0, rate=100.0, noise_std=1e-4, seed=0)
+        >>> record = {"t": sim.t, "f": sim.f, "x": sim.x}
+        >>> table = identify(record, "x'' + B*x' + K*x = f", "B K").to_pandas()
+        >>> table.shape, table.loc[0, "estimate"], round(float(table.loc[0, "B"]), 3)
+        ((1, 10), 'refined', 2.0)
+        """
+        import pandas as pd
+
+        return pd.DataFrame([self.to_dict()])
+
 
     def to_control(self, kind="tf"):
         """Export the identified linear model to python-control.
