@@ -137,3 +137,24 @@ def test_built_in_loops_skip_a_cache_others_can_write(monkeypatch, capfd):
     finally:
         for key, functions_cache in held.items():
             getattr(loops, key)._cache = functions_cache
+
+
+def test_a_cached_source_replaced_after_it_was_written_is_never_run(cache_env,
+                                                                    monkeypatch):
+    """The file read back must hold exactly the generated text: one changed between
+    writing and reading (here by the writer itself) is not executed; the loops are
+    compiled in memory from the generated text instead."""
+    monkeypatch.setenv("ALGID_CACHE_DIR", str(cache_env / "private"))
+    written = core_numba._write_once
+
+    def tampered(path, text):
+        written(path, text.replace("import numpy", "import numpy  # planted", 1))
+
+    monkeypatch.setattr(core_numba, "_write_once", tampered)
+    run = []
+    monkeypatch.setattr(core_numba, "module_from_source",
+                        lambda source, name, **kw: run.append(source) or None)
+    model = compile_equation("y' + a*y = u", "a", name="replaced_file")
+    core_numba._loops_of(model)
+    assert run and not any("# planted" in source for source in run)
+    assert run[-1] == model.NUMBA_SOURCE   # the loops: compiled in memory, as generated

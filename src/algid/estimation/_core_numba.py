@@ -185,11 +185,18 @@ def _write_once(path, text):
     os.replace(temporary, path)  # atomic: a concurrent reader sees one text or the other
 
 
-def _module_from_file(name, path):
-    # the same checks as in memory: a cached file is generated text, made a module
-    # only through module_from_source (its functions defined in the file, for numba)
+def _module_from_file(name, path, generated):
+    """The module of the file at ``path``, None unless it holds exactly ``generated``.
+
+    Only text the code generator has just produced is executed: the file is read back
+    and compared with it (a file replaced after it was written is never run), then made
+    a module through module_from_source (its functions defined in the file, for numba).
+    """
     with open(path, encoding="utf-8") as held:
-        return module_from_source(held.read(), name, filename=path)
+        text = held.read()
+    if text != generated:
+        return None
+    return module_from_source(generated, name, filename=path)
 
 
 def _cached_loop(module, directory):
@@ -211,9 +218,13 @@ def _cached_loop(module, directory):
         os.mkdir(os.path.join(directory, "__pycache__"), mode=0o700)
     _write_once(os.path.join(directory, algebra + ".py"), source)
     _write_once(os.path.join(directory, loop_name + ".py"), loop_source)
-    if algebra not in sys.modules:
-        _module_from_file(algebra, os.path.join(directory, algebra + ".py"))
-    loops = _module_from_file(loop_name, os.path.join(directory, loop_name + ".py"))
+    if algebra not in sys.modules and _module_from_file(
+            algebra, os.path.join(directory, algebra + ".py"), source) is None:
+        return None
+    loops = _module_from_file(loop_name, os.path.join(directory, loop_name + ".py"),
+                              loop_source)
+    if loops is None:
+        return None
     # (numba reads its cache at the first call only: the modules made, nothing loaded)
     reason = _machine_code_unsafe(sys.modules[algebra]) or _machine_code_unsafe(loops)
     if reason:
