@@ -80,6 +80,7 @@ from algid.models._compiled import model_of
 from algid.models._expression import Call, Signal
 from algid.models._grammar import parse_equation
 from algid.models._model import Model
+from algid.models._system import is_system
 from algid.signals._differentiation import algebraic_derivative
 
 __all__ = ["identify", "METHODS", "MULTIPLICITIES", "AGREEMENT", "CROSSING_PASSES",
@@ -132,7 +133,7 @@ class _Cache:
         """Forget the samples and sensitivities of ``factors`` (their crossings moved)."""
         self.samples = {k: v for k, v in self.samples.items() if k[0] not in factors}
         self.sensitivities = {k: v for k, v in self.sensitivities.items()
-                              if k not in factors}
+                              if (k[0] if isinstance(k, tuple) else k) not in factors}
 
     def forget_simulated(self):
         """Forget the samples of the simulated output (a new simulation); the measured
@@ -310,28 +311,39 @@ class _Problem:
         rms = np.sqrt(np.mean(np.column_stack([A, b]) ** 2, axis=0))
         return np.where(bound > 0, rms / np.where(bound > 0, bound, 1.0), 0.0)
 
-    def sensitivity(self, factor):
-        """Derivative of a factor with respect to the measured output, per segment
-        (``None`` where the factor does not read the output's plain samples), both in
-        their units (the powers of two of :meth:`factor_samples`)."""
+    def sensitivity(self, factor, signal=None):
+        """Derivative of a factor with respect to a measured signal (by default the
+        output), per segment (``None`` where the factor does not read the signal's plain
+        samples), both in their units (the powers of two of :meth:`factor_samples` and
+        :meth:`signal_exponent`)."""
+        signal = self.model.output if signal is None else signal
         cache = self.cache.sensitivities
-        if factor not in cache:
-            output = self.model.output
+        key = factor if signal == self.model.output else (factor, signal)
+        if key not in cache:
             self.factor_samples(factor)
-            shift = self.output_exponent - self.cache.samples[(factor, "measured")].exponent
-            if output not in factor.signals():
-                cache[factor] = None
-            elif factor == Signal(output):
-                cache[factor] = [np.ones(len(seg)) for seg in self.segments]
+            shift = self.signal_exponent(signal) \
+                - self.cache.samples[(factor, "measured")].exponent
+            if signal not in factor.signals():
+                cache[key] = None
+            elif factor == Signal(signal):
+                cache[key] = [np.ones(len(seg)) for seg in self.segments]
             else:
-                cache[factor] = [np.ldexp(factor_sensitivity(factor, output, seg.values,
-                                                             seg.t), shift)
-                                 for seg in self.user_segments]
-        return cache[factor]
+                cache[key] = [np.ldexp(factor_sensitivity(factor, signal, seg.values,
+                                                          seg.t), shift)
+                              for seg in self.user_segments]
+        return cache[key]
 
-    def noise_bound(self):
+    def signal_exponent(self, signal):
+        """The power of two of a measured signal's largest sample on the segments (the
+        unit of its noise variance)."""
+        if signal == self.model.output:
+            return self.output_exponent
+        return exponent([s.values[signal] for s in self.user_segments])
+
+    def noise_bound(self, signal=None):
         """An upper bound on the variance of white noise on the output samples (in the
-        output's unit, :attr:`output_unit`).
+        output's unit, :attr:`output_unit`), or on another signal's (in the unit of
+        :meth:`signal_exponent`).
 
         The ``k``-th difference of the samples has the variance ``C(2k, k) sigma^2`` of
         white noise plus that of the signal's difference (signal and noise being
@@ -339,21 +351,20 @@ class _Problem:
         the smallest of ``k = 1 .. 8`` is kept.  Tight when the signal is smooth on the
         sample grid; loose (harmless) at a few samples per period.
         """
+        if signal is not None and signal != self.model.output:
+            return difference_noise_bound(
+                [np.ldexp(seg.values[signal], -self.signal_exponent(signal))
+                 for seg in self.segments])
         if self.cache.noise_bound is None:
             y = [np.ldexp(seg.values[self.model.output], -self.output_exponent)
                  for seg in self.segments]
-            bounds = []
-            for k in range(1, 9):
-                d = [np.diff(v, k) for v in y if len(v) > k]
-                count = sum(len(v) for v in d)
-                if count:
-                    bounds.append(sum(float(v @ v) for v in d) / count / comb(2 * k, k))
-            self.cache.noise_bound = min(bounds) if bounds else np.inf
+            self.cache.noise_bound = difference_noise_bound(y)
         return self.cache.noise_bound
 
-    def noise_grams(self, length, multiplicity):
-        """Per-window covariance of the noise that unit white output noise puts into
-        the columns ``[A | b]`` of :meth:`rows` (shape ``(windows, p + 1, p + 1)``).
+    def noise_grams(self, length, multiplicity, signal=None):
+        """Per-window covariance of the noise that unit white output noise (or noise on
+        another measured ``signal``, in its unit) puts into the columns ``[A | b]`` of
+        :meth:`rows` (shape ``(windows, p + 1, p + 1)``).
 
         Output noise enters every term whose factor reads the output, linearly to first
         order (through the factor's sensitivity), and then the window integral: the
@@ -365,7 +376,7 @@ class _Problem:
         index = {q: i for i, q in enumerate(self.parameters)}
         noisy = []   # (column, coefficient, derivative, factor)
         for term in self.model.terms:
-            if self.sensitivity(term.factor) is None:
+            if self.sensitivity(term.factor, signal) is None:
                 continue
             weight = term.coefficient * self.term_scale(term)
             if term.parameter is None:
@@ -380,7 +391,8 @@ class _Problem:
             grams = np.zeros((n_win, p + 1, p + 1))
             for i, (c1, w1, k1, f1) in enumerate(noisy):
                 for j, (c2, w2, k2, f2) in enumerate(noisy[i:], start=i):
-                    product = self.sensitivity(f1)[s] * self.sensitivity(f2)[s]
+                    product = self.sensitivity(f1, signal)[s] \
+                        * self.sensitivity(f2, signal)[s]
                     v = w1 * w2 * window_noise_products(
                         product, seg.t, seg.step, length, (multiplicity, k1),
                         (multiplicity, k2), stride)
@@ -389,6 +401,17 @@ class _Problem:
                         grams[:, c2, c1] += v
             blocks.append(grams)
         return np.concatenate(blocks)
+
+
+def difference_noise_bound(y):
+    """The bound of :meth:`_Problem.noise_bound` on samples ``y`` (one array per segment)."""
+    bounds = []
+    for k in range(1, 9):
+        d = [np.diff(v, k) for v in y if len(v) > k]
+        count = sum(len(v) for v in d)
+        if count:
+            bounds.append(sum(float(v @ v) for v in d) / count / comb(2 * k, k))
+    return min(bounds) if bounds else np.inf
 
 
 def term_rows(model, integrals, shifts, n_win):
@@ -658,6 +681,15 @@ def identify(data, equation, parameters=None, *, time=None, rate=None, output=No
     )
     from algid.identification._result import IdentificationResult
 
+    if is_system(equation):   # several equations sharing parameters
+        from algid.identification._system_identify import identify_system
+
+        if output is not None:
+            raise ModelError("output: a system of equations takes outputs=[...] through "
+                             "algid.models.parse_system, one per equation")
+        return identify_system(data, equation, parameters, time=time, rate=rate,
+                               window=window, method=method, multiplicities=multiplicities,
+                               name=name, refine=refine)
     refine = check_refine(refine)
     if isinstance(equation, types.ModuleType):  # a compiled model: its own equation
         equation = model_of(estimator_module(equation, parameters))

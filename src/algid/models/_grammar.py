@@ -582,7 +582,8 @@ def check_text(text):
     return equation
 
 
-def parse_equation(text, parameters, *, output=None, name="custom", signals=None) -> Model:
+def parse_equation(text, parameters, *, output=None, name="custom", signals=None,
+                   within_system=False) -> Model:
     """Read a model equation.
 
     Parameters
@@ -597,6 +598,11 @@ def parse_equation(text, parameters, *, output=None, name="custom", signals=None
         Label of the model.
     signals : sequence of str, optional
         Names of the available measured signals; when given, any other name is refused.
+    within_system : bool
+        The equation is one of a system (:func:`algid.identification.parse_system`): the
+        parameters are those of the whole system, of which the model keeps the ones that
+        appear, and the equation may have no known term (another equation of the system
+        fixes the scale of the parameters it shares).
 
     Returns
     -------
@@ -633,10 +639,14 @@ def parse_equation(text, parameters, *, output=None, name="custom", signals=None
     right = _parse_side(equation, sides[1], reader)
     terms = _to_terms(left + [(-c, p, f) for c, p, f in right], equation)
     used = {term.parameter for term in terms}
+    if within_system:
+        parameters = tuple(p for p in parameters if p in used)
+        if not parameters:
+            _fail(equation, "no unknown parameter appears")
     for parameter in parameters:
         if parameter not in used:
             _fail(equation, f"parameter {parameter} does not appear (or its terms cancel)")
-    if not any(term.parameter is None for term in terms):
+    if not within_system and not any(term.parameter is None for term in terms):
         _fail(equation, "no known term: every term has a parameter, so the scale is not "
                         "fixed (give one term a known coefficient, e.g. y'' + ...)")
     found = tuple(dict.fromkeys(s for term in terms for s in term.factor.signals()))

@@ -8,11 +8,15 @@ Public:
 - :func:`simulate_model`, :func:`fit_initial_state`: the output of a user model
   (:class:`algid.models.Model`) for any parameter values, driven by sampled inputs; they
   need only SciPy.  ``sign()`` of the simulated state is stepped over (Filippov).
+- :func:`simulate_system`: the outputs of a linear system of equations (one output per
+  equation, shared parameters), exact for inputs linear between samples.
 """
 
 from algid.simulation._model import fit_initial_state, simulate_model
+from algid.simulation._system import simulate_system
 
-__all__ = ["simulate", "plant", "SimulationResult", "simulate_model", "fit_initial_state"]
+__all__ = ["simulate", "plant", "SimulationResult", "simulate_model", "fit_initial_state",
+           "simulate_system"]
 
 _NEEDS_CONTROL = {"simulate", "plant", "SimulationResult"}
 

@@ -1,0 +1,386 @@
+"""Identify a system of equations that share parameters, on whole measured records.
+
+Every equation gives its window equations as in :func:`algid.identify`
+(:class:`algid.identification._identify._Problem`: the same windows slide over the same
+segments for every equation), each in its own units.  Mapped onto the parameters of the
+system, they are stacked, each equation weighted by the inverse rms of its residuals
+(a first solve with each equation's rows of unit norm gives them), and solved for one
+parameter set:
+
+- *bias compensation* (``method="bc"``): every measured output is noisy, with its own
+  variance.  Noise on output ``y_j`` puts into the rows of equation ``i`` a known
+  covariance per window ``G_ij`` (through every term that reads ``y_j``: the window
+  kernels and the terms' sensitivities), so the expected normal matrix exceeds the
+  noise-free one by ``sum_i w_i^2 sum_j sigma_j^2 G_ij``.  The ``sigma_j^2`` are taken
+  in the proportions of their bounds from the samples' differences (``rho_j``,
+  :meth:`_Problem.noise_bound`) and scaled by one common factor, the smallest
+  eigenvalue of the pencil (Koopmans' estimator, capped at 1: the bounds);
+- *covariance*: a sandwich over the window index, the estimating equations of all the
+  equations summed per window, so that the correlation between equations that share a
+  noisy signal (the noise of ``x2`` enters both equations of two coupled masses) is in
+  the HAC middle;
+- *window*: on the grid of the single-equation rule, the window whose worst parameter's
+  error (standard error or the difference of the two multiplicities) is least relative
+  to its best on the grid;
+- *what the records cannot determine*: the stacked regressors with unit columns are
+  rank-deficient (a homogeneous equation whose scale no other equation fixes, two
+  parameters whose terms are proportional in every equation): refused, naming the
+  parameters of the null direction;
+- *adequacy per equation*: each equation's residual energy over what its outputs'
+  noise puts there, and the shift of the estimates between windows half and twice as
+  long; an equation whose misfit exceeds the limit of
+  :func:`algid.identification._adequacy.misfit_limit` while the estimates shift by more
+  than :data:`algid.identification._adequacy.SHIFT_LIMIT` standard errors is named in a
+  warning.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from algid.errors import InputDataError, ModelError
+from algid.identification._adequacy import SHIFT_LIMIT, misfit_limit
+from algid.identification._arguments import check_arguments, check_memory
+from algid.identification._bias_compensation import koopmans
+from algid.identification._identify import (
+    MULTIPLICITIES,
+    WINDOW_OVERLAP,
+    _add_derivatives,
+    _derivative_estimate,
+    _Problem,
+)
+from algid.identification._methods import METHODS
+from algid.identification._records import check_factors, prepare_records
+from algid.identification._window_basis import NAMED_WEIGHT, ROUNDOFF_SEPARABILITY
+from algid.identification._window_covariance import hac_meat, sandwich
+from algid.identification._window_rule import (
+    HAC_WINDOWS,
+    WindowFit,
+    check_multiplicities,
+    independent_windows,
+    longest_window,
+    min_length,
+    window_criterion,
+    window_grid,
+)
+from algid.models._system import SystemModel, parse_system
+
+__all__ = ["identify_system", "SYSTEM_METHODS", "WEAK_RELATIVE_ERROR"]
+
+#: Methods offered for systems (instrumental variables need a simulation of every
+#: output: not for systems).
+SYSTEM_METHODS = ("bc", "ls")
+
+#: Standard errors (of the difference) beyond which, and half the value, a window's
+#: estimate counts as a degenerate solve in the window rule.
+DEGENERATE_DISTANCE = 10.0
+
+#: A parameter whose standard error exceeds this fraction of its value is warned of as
+#: poorly determined.
+WEAK_RELATIVE_ERROR = 0.25
+
+
+class _Rows:
+    """The stacked window equations of every equation at one length and multiplicity, in
+    the parameters of the system scaled by powers of two (``phi = theta * 2**g``)."""
+
+    def __init__(self, problems, system, noisy, bounds, length, multiplicity, gram=True):
+        P = len(system.parameters)
+        self.blocks, self.grams = [], []
+        shifts = []
+        for problem in problems:
+            columns, known, _ = problem.exponents()
+            shifts.append(columns - known)
+        self.g = np.full(P, -np.inf)
+        for i, s in enumerate(shifts):
+            for local, p in enumerate(system.columns(i)):
+                self.g[p] = max(self.g[p], s[local])
+        self.g = self.g.astype(int)
+        self.ids = None
+        for i, problem in enumerate(problems):
+            A, b, ids = problem.rows(length, multiplicity)
+            if self.ids is None:
+                self.ids = ids
+            where = system.columns(i)
+            scale = np.ldexp(1.0, shifts[i] - self.g[where])
+            phi = np.zeros((len(b), P + 1))
+            phi[:, where] = A * scale
+            phi[:, P] = b
+            with np.errstate(over="ignore", invalid="ignore"):
+                finite = np.all(np.isfinite(np.sum(phi ** 2, axis=0)))
+            if not finite:
+                raise InputDataError(f"the window equations of equation {i + 1} overflow "
+                                     f"floating point in these units: rescale the signals")
+            self.blocks.append(phi)
+            if not gram:
+                continue
+            full = np.append(scale, 1.0)
+            index = [*where, P]
+            total = np.zeros((len(b), P + 1, P + 1))
+            for signal in noisy:
+                if signal not in problem.model.signals:
+                    continue
+                local = problem.noise_grams(length, multiplicity, signal)
+                local = local * full[None, :, None] * full[None, None, :]
+                total[np.ix_(np.arange(len(b)), index, index)] += bounds[signal] * local
+            self.grams.append(total)
+
+    def residuals(self, theta_bar):
+        return [phi @ theta_bar for phi in self.blocks]
+
+
+def _solve_rows(rows, weights, method):
+    """Koopmans' (or least-squares) solve of weighted stacked rows: ``phi``, the scores
+    per window, the Jacobian, the variance factor and the residuals per equation."""
+    P = rows.blocks[0].shape[1] - 1
+    normal = sum(w ** 2 * (phi.T @ phi) for w, phi in zip(weights, rows.blocks))
+    noise = sum(w ** 2 * g.sum(axis=0) for w, g in zip(weights, rows.grams)) \
+        if rows.grams else np.zeros_like(normal)
+    theta_bar, variance = None, None
+    if method == "bc":
+        theta_bar, variance, _ = koopmans(normal, noise, 1.0)
+    if theta_bar is None:
+        d = np.sqrt(np.diag(normal)[:P])
+        d[d == 0] = 1.0
+        H = normal[:P, :P] / d[:, None] / d[None, :]
+        x = np.linalg.lstsq(H, normal[:P, P] / d, rcond=None)[0] / d
+        theta_bar, variance = np.append(x, -1.0), 0.0
+    residuals = rows.residuals(theta_bar)
+    scores = sum(w ** 2 * (-phi[:, :P] * r[:, None]) for w, phi, r in
+                 zip(weights, rows.blocks, residuals))
+    if rows.grams and variance:
+        scores = scores + variance * sum(w ** 2 * (g @ theta_bar)[:, :P]
+                                         for w, g in zip(weights, rows.grams))
+    jacobian = normal[:P, :P] - variance * noise[:P, :P]
+    return theta_bar, scores, jacobian, variance, residuals
+
+
+def _weights(rows, method):
+    """Per equation, the inverse rms of its residuals at a first solve in which every
+    equation's rows have unit norm."""
+    first = [1.0 / max(np.linalg.norm(phi), 1e-300) for phi in rows.blocks]
+    _, _, _, _, residuals = _solve_rows(rows, first, method)
+    weights = []
+    for w, r in zip(first, residuals):
+        rms = float(np.sqrt(np.mean(r ** 2)))
+        weights.append(1.0 / rms if rms > 0 else w * np.sqrt(len(r)))
+    return weights
+
+
+class _SystemFit(WindowFit):
+    """A :class:`WindowFit` of a system, with its per-equation diagnostics."""
+
+    def __init__(self, *args, weights=None, misfits=None, null=None, **kwargs):
+        super().__init__(*args, **kwargs)
+        self.weights = weights
+        self.misfits = misfits
+        self.null = null
+
+
+def _solve(problems, system, noisy, bounds, length, multiplicities, method):
+    top = max(multiplicities)
+    stride = max(1, length // WINDOW_OVERLAP)
+    separate, weights, fit = {}, None, None
+    for a in sorted(multiplicities, reverse=True):
+        rows = _Rows(problems, system, noisy, bounds, length, a)
+        if weights is None:
+            weights = _weights(rows, method)
+        theta_bar, scores, jacobian, variance, residuals = _solve_rows(rows, weights, method)
+        P = len(theta_bar) - 1
+        theta = np.ldexp(theta_bar[:P], -rows.g)
+        separate[a] = theta
+        if a != top:
+            continue
+        d = np.sqrt(np.abs(np.diag(jacobian)))
+        d[d == 0] = 1.0
+        bread = np.linalg.pinv(jacobian / d[:, None] / d[None, :]) / d[:, None] / d[None, :]
+        meat = hac_meat(scores, rows.ids, int(np.ceil(length / stride)))
+        covariance = sandwich(bread, meat)
+        scale = np.ldexp(1.0, -rows.g)
+        covariance = covariance * scale[:, None] * scale[None, :]
+        stacked = np.vstack([w * phi for w, phi in zip(weights, rows.blocks)])
+        null = _null_direction(stacked[:, :P])
+        misfits = []
+        for i, (phi, g, r) in enumerate(zip(rows.blocks, rows.grams, residuals)):
+            weight = float(np.einsum("i,wij,j->", theta_bar, g, theta_bar))
+            energy = float(r @ r)
+            misfits.append(0.0 if energy == 0 else (energy / weight if weight > 0
+                                                    else np.inf))
+        b = stacked[:, P]
+        rms_b = max(float(np.sqrt(np.mean(b ** 2))), 1e-300)
+        effect = np.ldexp(np.sqrt(np.mean(stacked[:, :P] ** 2, axis=0)) / rms_b, rows.g)
+        fit = _SystemFit(theta, covariance, None, effect, np.concatenate(residuals),
+                         len(rows.ids), weights=weights, misfits=misfits, null=null)
+    fit.separate = separate
+    return fit
+
+
+def _null_direction(A):
+    """The unit-column regressors' weakest direction, where it is at round-off level."""
+    norms = np.linalg.norm(A, axis=0)
+    if np.any(norms == 0):
+        v = (norms == 0).astype(float)
+        return v / np.linalg.norm(v)
+    s, vt = np.linalg.svd(A / norms, full_matrices=False)[1:]
+    if s[-1] <= ROUNDOFF_SEPARABILITY * s[0]:
+        return vt[-1]
+    return None
+
+
+def _refuse_null(system, null):
+    weight = np.abs(null)
+    named = [p for p, v in zip(system.parameters, weight) if v >= NAMED_WEIGHT * weight.max()]
+    if len(named) == 1:
+        raise ModelError(f"the records cannot determine {named[0]}: its terms vanish or "
+                         f"another equation's fix its scale nowhere")
+    raise ModelError(f"the records cannot separate {', '.join(named)}: only a combination "
+                     f"of them is determined (fix one, or add an equation or a known term "
+                     f"that sets their scale)")
+
+
+class _Grid:
+    """The segments and parameters the window rule's limits need."""
+
+    def __init__(self, segments, parameters):
+        self.segments, self.parameters = segments, parameters
+
+
+def _choose_window(problems, system, noisy, bounds, multiplicities, method):
+    n_min = min_length(multiplicities)
+    grid_problem = _Grid(problems[0].segments, system.parameters)
+    longest = longest_window(grid_problem, n_min) + 1
+    from algid.identification._window_rule import needed_windows
+
+    grid = [n for n in window_grid(n_min, max(n_min, longest))
+            if independent_windows(grid_problem, n) >= needed_windows(grid_problem)]
+    if not grid:
+        raise InputDataError(f"the records are too short: windows of at least {n_min} "
+                             f"samples must leave {needed_windows(grid_problem)} "
+                             f"non-overlapping ones")
+    fits = {}
+    for n in grid:
+        try:
+            fit = _solve(problems, system, noisy, bounds, n, multiplicities, method)
+        except (np.linalg.LinAlgError, InputDataError):
+            continue
+        if fit.null is None:
+            fits[n] = fit
+    if not fits:
+        return grid[len(grid) // 2], {}
+    # the trivial solution of an equation without a known term (all its parameters
+    # zero, with zero scores) attracts the solves on windows so short that the noise
+    # dominates: such a fit, far from the longest window's by half a value and many
+    # standard errors, is left out (it would also make every other window look poor)
+    reference = fits[max(fits)]
+    fits = {n: f for n, f in fits.items() if _consistent(f, reference)}
+    trusted = {n: f for n, f in fits.items()
+               if independent_windows(grid_problem, n) >= HAC_WINDOWS} or fits
+    scores = window_criterion(trusted)
+    if not scores:
+        return grid[len(grid) // 2], {}
+    return min(scores, key=scores.get), scores
+
+
+def _consistent(fit, reference):
+    """Whether no parameter of ``fit`` is both half its value and
+    :data:`DEGENERATE_DISTANCE` standard errors from ``reference``'s."""
+    distance = np.abs(fit.theta - reference.theta)
+    spread = np.sqrt(np.diag(fit.covariance) + np.diag(reference.covariance))
+    far = (distance > 0.5 * np.abs(reference.theta)) & (distance > DEGENERATE_DISTANCE * spread)
+    return not np.any(far)
+
+
+def _shift(problems, system, noisy, bounds, length, multiplicities, method, fit):
+    """Largest shift, in standard errors, of the estimates on windows half and twice as
+    long (within the rule's limits), or None where neither fits."""
+    grid_problem = _Grid(problems[0].segments, system.parameters)
+    from algid.identification._window_rule import needed_windows
+
+    shifts = []
+    for other in (length // 2, 2 * length):
+        if other < min_length(multiplicities) or \
+                independent_windows(grid_problem, other) < needed_windows(grid_problem):
+            continue
+        try:
+            alt = _solve(problems, system, noisy, bounds, other, multiplicities, method)
+        except (np.linalg.LinAlgError, InputDataError):
+            continue
+        spread = np.sqrt(np.diag(fit.covariance) + np.diag(alt.covariance))
+        shifts.append(float(np.max(np.abs(alt.theta - fit.theta) / spread)))
+    return max(shifts) if shifts else None
+
+
+def identify_system(data, equations, parameters=None, *, time=None, rate=None,
+                    outputs=None, window=None, method="bc", multiplicities=MULTIPLICITIES,
+                    name="custom", refine="auto"):
+    """Identify the shared parameters of a system of equations (:func:`algid.identify`
+    with a list of equations)."""
+    from algid.identification._system_result import SystemResult
+
+    if method not in SYSTEM_METHODS:
+        raise InputDataError(f"method {method!r} is not offered for systems of equations "
+                             f"(choose from {', '.join(SYSTEM_METHODS)})")
+    system = parse_system(equations, parameters, outputs=outputs, name=name) \
+        if not isinstance(equations, SystemModel) else equations
+    multiplicities = check_arguments(
+        system.equations[0], system.parameters, time=time, rate=rate, output=None,
+        window=window, method=method, methods=METHODS, multiplicities=multiplicities,
+        name=name, iterations=1)
+    if time is not None and time in system.signals:
+        raise InputDataError(f"time column {time!r} is also a signal of the equations; "
+                             f"give the column of the sample times")
+    for model in system.equations:
+        check_memory(data, model)
+        multiplicities = check_multiplicities(model, multiplicities)
+    segments, step, n_samples = prepare_records(data, system.signals, time=time, rate=rate,
+                                                min_length=min_length(multiplicities))
+    problems = []
+    for model in system.equations:
+        _add_derivatives(model, segments, _derivative_estimate)
+        check_factors(model, segments)
+        problems.append(_Problem(model, segments, step))
+    noisy = system.outputs
+    bounds = {}
+    for y in noisy:
+        problem = next(p for p in problems if y in p.model.signals)
+        bounds[y] = problem.noise_bound(y)
+    scores = None
+    if window is None:
+        length, scores = _choose_window(problems, system, noisy, bounds, multiplicities,
+                                        method)
+    else:
+        length = int(round(window / step)) + 1
+        if length < min_length(multiplicities):
+            raise InputDataError(f"window {window:g} s holds {length} samples; at least "
+                                 f"{min_length(multiplicities)} are needed")
+    fit = _solve(problems, system, noisy, bounds, length, multiplicities, method)
+    if fit.null is not None:
+        _refuse_null(system, fit.null)
+    warnings = []
+    stride = max(1, length // WINDOW_OVERLAP)
+    shift = None
+    for i, (model, misfit) in enumerate(zip(system.equations, fit.misfits)):
+        limit = misfit_limit(fit.n_windows, length, len(system.parameters), stride)
+        if misfit > limit:
+            if shift is None:
+                shift = _shift(problems, system, noisy, bounds, length, multiplicities,
+                               method, fit) or 0.0
+            if shift > SHIFT_LIMIT:
+                warnings.append(f"equation {i + 1} ({model.equation}) does not explain the "
+                                f"records within the noise: its misfit is {misfit:.3g} "
+                                f"times the noise's and the estimates shift by {shift:.3g} "
+                                f"standard errors between windows")
+    stderr = fit.stderr
+    for p, v, s in zip(system.parameters, fit.theta, stderr):
+        if s > WEAK_RELATIVE_ERROR * abs(v):
+            warnings.append(f"{p} is poorly determined by these records: standard error "
+                            f"{s:.3g} against a value of {v:.3g}")
+    values = dict(zip(system.parameters, fit.theta.tolist()))
+    result = SystemResult(
+        system=system, values=values, covariance=fit.covariance,
+        window=(length - 1) * step, n_samples=n_samples, n_windows=fit.n_windows,
+        method=method, multiplicities=multiplicities, time=time, rate=rate,
+        numerical_error=dict(zip(system.parameters, fit.numerical_error.tolist())),
+        misfits=dict(zip(system.outputs, fit.misfits)), window_scores=scores,
+        warnings=warnings)
+    return result

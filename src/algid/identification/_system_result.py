@@ -1,0 +1,284 @@
+"""The result of :func:`algid.identify` on a system of equations: the shared parameters,
+their joint covariance, the coupled system's simulation and export."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from algid.errors import InputDataError, ModelError
+from algid.identification._records import prepare_records
+from algid.identification._result import WARNING_SEPARATOR, _check_fit_samples, check_row_names
+
+__all__ = ["SystemResult", "SystemValidation"]
+
+
+@dataclass
+class SystemValidation:
+    """A simulation of an identified system on one record.
+
+    Attributes
+    ----------
+    t : numpy.ndarray
+        Times.
+    measured, simulated : dict
+        Output name -> samples.
+    initial_state : numpy.ndarray
+        The fitted initial state (each output and its derivatives).
+    skip : int
+        Samples used to fit the initial state, left out of the errors.
+    """
+
+    t: np.ndarray
+    measured: dict
+    simulated: dict
+    initial_state: np.ndarray
+    skip: int
+
+    @property
+    def residuals(self):
+        """Output name -> measured minus simulated samples."""
+        return {y: self.measured[y] - self.simulated[y] for y in self.measured}
+
+    @property
+    def rmse(self):
+        """Output name -> root-mean-square simulation error after ``skip`` samples."""
+        return {y: float(np.sqrt(np.mean(r[self.skip:] ** 2)))
+                for y, r in self.residuals.items()}
+
+    @property
+    def fit_percent(self):
+        """Output name -> ``100 (1 - |y - y_sim| / |y - mean(y)|)`` after ``skip``
+        samples."""
+        fits = {}
+        for y, r in self.residuals.items():
+            v = self.measured[y][self.skip:]
+            fits[y] = float(100.0 * (1.0 - np.linalg.norm(r[self.skip:])
+                                     / np.linalg.norm(v - v.mean())))
+        return fits
+
+
+@dataclass
+class SystemResult:
+    """Shared parameters of a system of equations identified on records.
+
+    Made by :func:`algid.identify` given a list of equations; every parameter is also
+    an attribute of the same name.
+
+    Parameters
+    ----------
+    system : algid.models.SystemModel
+        The equations.
+    values : dict
+        Parameter name -> estimate.
+    covariance : numpy.ndarray
+        Joint covariance of the estimates, in ``system.parameters`` order: it counts the
+        correlation between equations that share a noisy signal.
+    window : float
+        Window length (s).
+    n_samples, n_windows : int
+        Samples used; windows stacked per equation.
+    method : str
+        ``"bc"`` or ``"ls"``.
+    multiplicities : tuple
+        Kernel multiplicities.
+    time, rate : optional
+        As given to :func:`algid.identify`.
+    numerical_error : dict
+        Parameter name -> the difference of the two multiplicities' estimates.
+    misfits : dict
+        Output name (one per equation) -> its equation's residual energy over what the
+        noise of its signals puts there (about 1 or less for an equation that holds).
+    window_scores : dict or None
+        The window rule's criterion per length (samples), when it chose the window.
+    warnings : list of str
+        One-line warnings.
+    estimate : str
+        ``"algebraic"``.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from algid.identification import identify
+    >>> from algid.simulation import simulate_system
+    >>> t = np.arange(0, 20, 1e-3)
+    >>> u = np.sin(2.1 * t) + np.sin(5.3 * t) + np.sin(11.7 * t)
+    >>> true = {"L": 0.5, "R": 2.0, "K": 0.8, "J": 0.2, "b": 0.1}
+    >>> equations = ["L*i' + R*i + K*w = u", "J*w' + b*w = K*i"]
+    >>> outputs = simulate_system(equations, true, t, {"u": u})
+    >>> result = identify({"t": t, "u": u, **outputs}, equations, "L R K J b")
+    >>> {p: round(v, 3) for p, v in result.values.items()}
+    {'L': 0.5, 'R': 2.0, 'K': 0.8, 'J': 0.2, 'b': 0.1}
+    """
+
+    system: object
+    values: dict
+    covariance: np.ndarray
+    window: float
+    n_samples: int
+    n_windows: int
+    method: str
+    multiplicities: tuple
+    time: str | None = None
+    rate: float | None = None
+    numerical_error: dict = field(default_factory=dict)
+    misfits: dict = field(default_factory=dict)
+    window_scores: dict | None = None
+    warnings: list = field(default_factory=list)
+    estimate: str = "algebraic"
+
+    def __getattr__(self, name):
+        values = self.__dict__.get("values", {})
+        if name in values:
+            return values[name]
+        raise AttributeError(f"{type(self).__name__!r} object has no attribute {name!r}")
+
+    @property
+    def parameters(self):
+        """Parameter name -> estimate."""
+        return dict(self.values)
+
+    @property
+    def equations(self):
+        """The equations as written."""
+        return [model.equation for model in self.system.equations]
+
+    @property
+    def outputs(self):
+        """The output of each equation."""
+        return self.system.outputs
+
+    @property
+    def stderr(self):
+        """Parameter name -> standard error."""
+        se = np.sqrt(np.maximum(np.diag(self.covariance), 0.0))
+        return dict(zip(self.system.parameters, se.tolist()))
+
+    @property
+    def correlation(self):
+        """The correlation matrix of the estimates (``system.parameters`` order)."""
+        se = np.sqrt(np.maximum(np.diag(self.covariance), 0.0))
+        se[se == 0] = 1.0
+        return self.covariance / se[:, None] / se[None, :]
+
+    def __repr__(self):
+        pieces = ", ".join(f"{p}={v:.6g} ± {self.stderr[p]:.2g}"
+                           for p, v in self.values.items())
+        warned = "".join(f"; warning: {w}" for w in self.warnings)
+        return (f"SystemResult({self.system.equation!r}: {pieces}; window "
+                f"{self.window:.4g} s, {self.n_samples} samples, {self.method}{warned})")
+
+    # validation ---------------------------------------------------------------------
+
+    def simulate(self, data, *, time=None, rate=None, fit_samples=None):
+        """Simulate the coupled system on a record, driven by its measured inputs.
+
+        Exact for inputs linear between samples (:mod:`algid.simulation._system`); the
+        initial state is fitted on the first ``fit_samples`` samples of every output,
+        which are left out of the errors.
+
+        Parameters
+        ----------
+        data : mapping
+            One record holding the inputs and the outputs.
+        time, rate
+            Time axis, as for :func:`algid.identify` (default: those of the fit).
+        fit_samples : int, optional
+            Samples for the initial state (default 50, or half a short record).
+
+        Returns
+        -------
+        SystemValidation
+
+        Raises
+        ------
+        ModelError
+            A nonlinear system, or a simulation that diverges.
+        """
+        from algid.simulation._system import fit_initial_state, state_space
+
+        time = self.time if time is None and rate is None else time
+        rate = self.rate if time is None and rate is None else rate
+        segments, _, _ = prepare_records(data, self.system.signals, time=time, rate=rate,
+                                         min_length=2)
+        if len(segments) != 1:
+            raise InputDataError("simulate needs one record without gaps or NaN")
+        seg = segments[0]
+        space = state_space(self.system, self.values)
+        order = max(k for _, k in space.states) + 1
+        fit_samples = _check_fit_samples(fit_samples, order, len(seg))
+        measured = {y: seg.values[y] for y in self.outputs}
+        inputs = {u: seg.values[u] for u in self.system.inputs}
+        with np.errstate(over="ignore", invalid="ignore"):
+            x0, forced, free = fit_initial_state(space, seg.t, inputs, measured,
+                                                 fit_samples)
+            simulated = forced + np.tensordot(x0, free, axes=1)
+        if not np.all(np.isfinite(simulated)):
+            raise ModelError("the simulated outputs diverge with parameters "
+                             + ", ".join(f"{p}={v:.6g}" for p, v in self.values.items()))
+        return SystemValidation(seg.t, measured, dict(zip(self.outputs, simulated)), x0,
+                                fit_samples)
+
+    def fit_percent(self, data, **kwargs):
+        """Output name -> fit (%) of the simulated output on a record
+        (:meth:`simulate`)."""
+        return self.simulate(data, **kwargs).fit_percent
+
+    # export -------------------------------------------------------------------------
+
+    def to_control(self):
+        """The identified linear system as a python-control ``StateSpace`` (MIMO).
+
+        States: each output and its derivatives below its order; inputs: the measured
+        inputs, then ``one`` (offsets) and ``time`` (drifts) where the equations have
+        them.
+
+        Returns
+        -------
+        control.StateSpace
+
+        Raises
+        ------
+        ModelError
+            A nonlinear system (:meth:`to_nlsys` is not offered for systems yet).
+        """
+        import control as ct
+
+        from algid.simulation._system import ONE, TIME, state_space
+
+        space = state_space(self.system, self.values)
+        names = {ONE: "one", TIME: "time"}
+        states = [y if k == 0 else f"{y}{chr(39) * k}" for y, k in space.states]
+        return ct.ss(space.A, space.B, space.C, np.zeros((len(space.outputs),
+                                                          len(space.channels))),
+                     inputs=[names.get(c, c) for c in space.channels],
+                     outputs=list(space.outputs), states=states)
+
+    def to_dict(self):
+        """The result as one flat row (the layout of
+        :meth:`algid.IdentificationResult.to_dict`).
+
+        Returns
+        -------
+        dict
+        """
+        parameters = self.system.parameters
+        check_row_names(parameters)
+        stderr = self.stderr
+        row = {p: float(self.values[p]) for p in parameters}
+        row.update({f"stderr_{p}": float(stderr[p]) for p in parameters})
+        row.update({f"numerical_error_{p}": float(self.numerical_error.get(p, math.nan))
+                    for p in parameters})
+        row["window"] = float(self.window)
+        row["n_samples"] = int(self.n_samples)
+        row["estimate"] = str(self.estimate)
+        row["warnings"] = WARNING_SEPARATOR.join(str(w) for w in self.warnings)
+        return row
+
+    def to_pandas(self):
+        """The result as a pandas ``DataFrame`` of one row (:meth:`to_dict`)."""
+        import pandas as pd
+
+        return pd.DataFrame([self.to_dict()])

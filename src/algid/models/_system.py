@@ -1,0 +1,167 @@
+"""A system of model equations sharing parameters: several measured outputs, one per
+equation.
+
+Each equation is read as a :class:`~algid.models.Model` of its own (its output, by
+default, the signal of highest derivative order in it), keeping the parameters of the
+system that appear in it; an equation may have no known term when another one fixes
+the scale of the parameters it shares (``m2*x2'' + c2*x2' + k2*(x2 - x1) = 0`` beside
+an equation in which ``k2`` and a known force appear).  The measured signals that are
+no equation's output are the system's inputs.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from algid.errors import ModelError
+from algid.models._grammar import parse_equation
+from algid.models._model import Model
+
+__all__ = ["SystemModel", "parse_system", "is_system", "MAX_EQUATIONS"]
+
+#: Equations a system may hold.
+MAX_EQUATIONS = 8
+
+
+@dataclass(frozen=True)
+class SystemModel:
+    """Model equations that share parameters, each with its own measured output.
+
+    Attributes
+    ----------
+    name : str
+        Label of the system.
+    equations : tuple of Model
+        One model per equation, each with the parameters of the system that appear in
+        it.
+    parameters : tuple of str
+        The unknown parameters of the system, in the order given.
+
+    Examples
+    --------
+    >>> from algid.models import parse_system
+    >>> system = parse_system(["L*i' + R*i + K*w = u", "J*w' + b*w = K*i"],
+    ...                       "L R K J b")
+    >>> system.outputs, system.inputs, system.equations[1].parameters
+    (('i', 'w'), ('u',), ('K', 'J', 'b'))
+    """
+
+    name: str
+    equations: tuple
+    parameters: tuple
+
+    @property
+    def outputs(self) -> tuple:
+        """The output of each equation, in the order of the equations."""
+        return tuple(model.output for model in self.equations)
+
+    @property
+    def signals(self) -> tuple:
+        """Every measured signal, in order of first appearance."""
+        return tuple(dict.fromkeys(s for model in self.equations for s in model.signals))
+
+    @property
+    def inputs(self) -> tuple:
+        """Measured signals that are no equation's output."""
+        return tuple(s for s in self.signals if s not in self.outputs)
+
+    @property
+    def is_linear(self) -> bool:
+        """True when every equation is linear in its signals."""
+        return all(model.is_linear for model in self.equations)
+
+    @property
+    def equation(self) -> str:
+        """The equations, separated by ``"; "``."""
+        return "; ".join(model.equation for model in self.equations)
+
+    def columns(self, index) -> list:
+        """Positions, in :attr:`parameters`, of equation ``index``'s parameters."""
+        return [self.parameters.index(p) for p in self.equations[index].parameters]
+
+    def __str__(self):
+        return f"{self.name}: {self.equation}"
+
+
+def is_system(equation) -> bool:
+    """Whether an ``equation`` argument holds several equations (a list or tuple, or a
+    :class:`SystemModel`)."""
+    return isinstance(equation, (list, tuple, SystemModel))
+
+
+def parse_system(equations, parameters, *, outputs=None, name="custom") -> SystemModel:
+    """Read a system of model equations.
+
+    Parameters
+    ----------
+    equations : sequence of str or Model
+        The equations, e.g. ``["m1*x1'' + c1*x1' + k1*x1 + k2*(x1 - x2) = u",
+        "m2*x2'' + c2*x2' + k2*(x2 - x1) = 0"]``.
+    parameters : sequence of str or str
+        The unknown parameters of the whole system.
+    outputs : sequence of str, optional
+        The output of each equation; by default each equation's signal of highest
+        derivative order.  Every equation needs an output of its own.
+    name : str
+        Label of the system.
+
+    Returns
+    -------
+    SystemModel
+
+    Raises
+    ------
+    ModelError
+        One line naming the problem: an equation that cannot be read, two equations
+        with one output, a parameter in no equation, no known term in the system.
+    """
+    if isinstance(equations, SystemModel):
+        return equations
+    equations = list(equations)
+    if not equations:
+        raise ModelError("a system needs at least one equation, got an empty list")
+    if len(equations) > MAX_EQUATIONS:
+        raise ModelError(f"{len(equations)} equations (at most {MAX_EQUATIONS})")
+    if outputs is not None:
+        outputs = [outputs] if isinstance(outputs, str) else list(outputs)
+        if len(outputs) != len(equations) or not all(isinstance(o, str) for o in outputs):
+            raise ModelError(f"outputs must name one signal per equation ({len(equations)}), "
+                             f"got {outputs!r:.80}")
+    if parameters is None and all(isinstance(e, Model) for e in equations):
+        parameters = tuple(dict.fromkeys(p for e in equations for p in e.parameters))
+    if parameters is None:
+        raise ModelError("parameters: name the unknown parameters of the system")
+    models = []
+    for i, equation in enumerate(equations):
+        if isinstance(equation, Model):
+            equation = equation.equation
+        if not isinstance(equation, str):
+            raise ModelError(f"equation {i + 1} of the system must be a text equation, got "
+                             f"{type(equation).__name__}")
+        models.append(parse_equation(equation, parameters, within_system=True,
+                                     output=None if outputs is None else outputs[i],
+                                     name=f"{name}_{i + 1}"))
+    parameters = _all_parameters(parameters, models)
+    seen = {}
+    for i, model in enumerate(models):
+        if model.output in seen:
+            raise ModelError(f"equations {seen[model.output] + 1} and {i + 1} both have the "
+                             f"output {model.output}: give outputs=[...] (one signal per "
+                             f"equation)")
+        seen[model.output] = i
+    if not any(model.known_terms for model in models):
+        raise ModelError("no known term in the system: every term has a parameter, so the "
+                         "scale is not fixed (give one term a known coefficient)")
+    return SystemModel(name=name, equations=tuple(models), parameters=parameters)
+
+
+def _all_parameters(parameters, models):
+    if isinstance(parameters, str):
+        parameters = parameters.replace(",", " ").split()
+    parameters = tuple(parameters)
+    used = {p for model in models for p in model.parameters}
+    for p in parameters:
+        if p not in used:
+            raise ModelError(f"parameter {p} appears in no equation of the system (or its "
+                             f"terms cancel)")
+    return parameters
