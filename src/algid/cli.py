@@ -212,7 +212,9 @@ def build_parser() -> argparse.ArgumentParser:
                      help="data files (.csv, .txt, .csv.gz, .txt.gz, .mat), identified "
                           "together, or - for CSV on standard input; with --by, one table "
                           "of many records (.parquet, a folder of Parquet files, .csv or -)")
-    ide.add_argument("--equation", required=True, metavar="EQ", help="the model equation")
+    ide.add_argument("--equation", required=True, metavar="EQ", action="append",
+                     help="the model equation; several times for a system of equations "
+                          "that share parameters (one measured output each)")
     ide.add_argument("--parameters", required=True, metavar="\"P1 P2 ...\"",
                      help="the unknown parameters, separated by spaces")
     ide.add_argument("--time", default=None, metavar="COL",
@@ -220,8 +222,9 @@ def build_parser() -> argparse.ArgumentParser:
     ide.add_argument("--rate", type=_positive, default=None, metavar="HZ",
                      help="sampling rate in Hz, for files without a time column (with "
                           "one, it must agree with it)")
-    ide.add_argument("--output", default=None, metavar="COL",
-                     help="output signal (default: the one of highest derivative order)")
+    ide.add_argument("--output", default=None, metavar="COL", action="append",
+                     help="output signal (default: the one of highest derivative order); "
+                          "for a system, once per --equation, in their order")
     ide.add_argument("--window", type=_positive, default=None, metavar="SECONDS",
                      help="window length (default: chosen from the data)")
     ide.add_argument("--method", choices=("bc", "ls", "iv"), default="bc",
@@ -496,9 +499,10 @@ def _cmd_estimate(args) -> int:
     return 0
 
 
-#: Keys of ``algid identify --json`` besides the parameters.
+#: Keys of ``algid identify --json`` besides the parameters (``outputs`` and
+#: ``correlation`` for a system of equations).
 IDENTIFY_JSON_KEYS = ("stderr", "numerical_error", "window", "n_samples", "warnings",
-                      "estimate", "algebraic")
+                      "estimate", "algebraic", "outputs", "correlation")
 
 
 def _cmd_identify(args) -> int:
@@ -507,11 +511,22 @@ def _cmd_identify(args) -> int:
     from algid.identification._identify import identify
     from algid.models._grammar import parse_equation
 
-    model = parse_equation(args.equation, args.parameters, output=args.output)
+    from algid.models._system import parse_system
+
+    if len(args.equation) > 1:
+        model = parse_system(args.equation, args.parameters, outputs=args.output)
+    else:
+        if args.output is not None and len(args.output) > 1:
+            raise InputDataError("--output is given once per --equation")
+        model = parse_equation(args.equation[0], args.parameters,
+                               output=None if args.output is None else args.output[0])
     clash = [p for p in model.parameters if p in IDENTIFY_JSON_KEYS]
     if clash:
         raise ModelError(f"parameter name {clash[0]!r} is reserved by the output "
                          f"({', '.join(IDENTIFY_JSON_KEYS)}); rename it")
+    if args.by is not None and len(args.equation) > 1:
+        raise InputDataError("--by identifies one equation per record; a system of "
+                             "equations is identified on one record (or several together)")
     if args.by is not None:
         from algid._cli_fleet import fleet_command
 
@@ -555,6 +570,10 @@ def _cmd_identify(args) -> int:
         payload["n_samples"] = int(result.n_samples)
         payload["warnings"] = list(result.warnings)
         payload["estimate"] = result.estimate
+        if len(args.equation) > 1:
+            payload["outputs"] = list(model.outputs)
+            payload["correlation"] = [[_finite_or_none(v) for v in row]
+                                      for row in result.correlation.tolist()]
         algebraic = result.algebraic or {"values": result.values,
                                          "covariance": result.covariance}
         cov = algebraic["covariance"]
@@ -567,7 +586,7 @@ def _cmd_identify(args) -> int:
                                               result.numerical_error).items()}}
         print(json.dumps(payload, allow_nan=False))
         return 0
-    print(f"{model.equation}")
+    print("\n".join(args.equation) if len(args.equation) > 1 else model.equation)
     refined = ", refined by output error" if result.estimate == "refined" else ""
     print(f"{len(args.files)} record(s), {result.n_samples} samples, window "
           f"{result.window:.6g} s ({result.n_windows} windows), method {result.method}"

@@ -315,7 +315,11 @@ def identify_system(data, equations, parameters=None, *, time=None, rate=None,
                     name="custom", refine="auto"):
     """Identify the shared parameters of a system of equations (:func:`algid.identify`
     with a list of equations)."""
+    from algid.identification._output_error import check_refine
+    from algid.identification._system_refinement import refine_system
     from algid.identification._system_result import SystemResult
+
+    refine = check_refine(refine)
 
     if method not in SYSTEM_METHODS:
         raise InputDataError(f"method {method!r} is not offered for systems of equations "
@@ -353,9 +357,20 @@ def identify_system(data, equations, parameters=None, *, time=None, rate=None,
         if length < min_length(multiplicities):
             raise InputDataError(f"window {window:g} s holds {length} samples; at least "
                                  f"{min_length(multiplicities)} are needed")
-    fit = _solve(problems, system, noisy, bounds, length, multiplicities, method)
+    try:
+        fit = _solve(problems, system, noisy, bounds, length, multiplicities, method)
+    except (np.linalg.LinAlgError, ValueError):
+        raise InputDataError(f"the window equations on windows of {(length - 1) * step:.4g} "
+                             f"s cannot be solved (not finite, or singular): use a longer "
+                             f"window, or the automatic one") from None
     if fit.null is not None:
         _refuse_null(system, fit.null)
+    degenerate = [p for p, s in zip(system.parameters, fit.stderr) if not s > 0]
+    if degenerate:   # the trivial solution of an equation without a known term
+        raise InputDataError(f"the estimate of {', '.join(degenerate)} is degenerate on "
+                             f"windows of {(length - 1) * step:.4g} s (zero standard error: "
+                             f"an equation without a known term solved by zeros); use a "
+                             f"longer window, or the automatic one")
     warnings = []
     stride = max(1, length // WINDOW_OVERLAP)
     shift = None
@@ -370,11 +385,6 @@ def identify_system(data, equations, parameters=None, *, time=None, rate=None,
                                 f"records within the noise: its misfit is {misfit:.3g} "
                                 f"times the noise's and the estimates shift by {shift:.3g} "
                                 f"standard errors between windows")
-    stderr = fit.stderr
-    for p, v, s in zip(system.parameters, fit.theta, stderr):
-        if s > WEAK_RELATIVE_ERROR * abs(v):
-            warnings.append(f"{p} is poorly determined by these records: standard error "
-                            f"{s:.3g} against a value of {v:.3g}")
     values = dict(zip(system.parameters, fit.theta.tolist()))
     result = SystemResult(
         system=system, values=values, covariance=fit.covariance,
@@ -382,5 +392,18 @@ def identify_system(data, equations, parameters=None, *, time=None, rate=None,
         method=method, multiplicities=multiplicities, time=time, rate=rate,
         numerical_error=dict(zip(system.parameters, fit.numerical_error.tolist())),
         misfits=dict(zip(system.outputs, fit.misfits)), window_scores=scores,
-        warnings=warnings)
+        warnings=warnings + _weak(system, fit.theta, fit.covariance))
+    result = refine_system(result, segments, refine)
+    if result.estimate == "refined":   # what the refined estimate determines
+        theta = np.array([result.values[p] for p in system.parameters])
+        result.warnings = warnings + _weak(system, theta, result.covariance)
     return result
+
+
+def _weak(system, theta, covariance):
+    """Warnings for the parameters whose standard error exceeds
+    :data:`WEAK_RELATIVE_ERROR` of their value."""
+    stderr = np.sqrt(np.maximum(np.diag(covariance), 0.0))
+    return [f"{p} is poorly determined by these records: standard error {s:.3g} against "
+            f"a value of {v:.3g}" for p, v, s in zip(system.parameters, theta, stderr)
+            if s > WEAK_RELATIVE_ERROR * abs(v)]

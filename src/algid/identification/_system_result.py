@@ -95,8 +95,17 @@ class SystemResult:
         The window rule's criterion per length (samples), when it chose the window.
     warnings : list of str
         One-line warnings.
-    estimate : str
-        ``"algebraic"``.
+    estimate : {"algebraic", "refined"}
+        Which estimate ``values`` and ``covariance`` hold: the algebraic one (the
+        stacked window equations) or its output-error refinement on every output.
+    algebraic : dict or None
+        The algebraic estimate: ``{"values", "covariance", "numerical_error",
+        "warnings"}``.
+    refinement : algid.identification._refinement.Refinement or None
+        Whether the refinement was applied, why, and its figures.
+    noise_rms : dict
+        Output name -> rms of the refined simulation's residuals (the output noise, for
+        a model that holds); empty where not refined.
 
     Examples
     --------
@@ -128,6 +137,9 @@ class SystemResult:
     window_scores: dict | None = None
     warnings: list = field(default_factory=list)
     estimate: str = "algebraic"
+    algebraic: dict | None = None
+    refinement: object = None
+    noise_rms: dict = field(default_factory=dict)
 
     def __getattr__(self, name):
         values = self.__dict__.get("values", {})
@@ -167,8 +179,10 @@ class SystemResult:
         pieces = ", ".join(f"{p}={v:.6g} ± {self.stderr[p]:.2g}"
                            for p, v in self.values.items())
         warned = "".join(f"; warning: {w}" for w in self.warnings)
+        refined = "; refined by output error" if self.estimate == "refined" else ""
         return (f"SystemResult({self.system.equation!r}: {pieces}; window "
-                f"{self.window:.4g} s, {self.n_samples} samples, {self.method}{warned})")
+                f"{self.window:.4g} s, {self.n_samples} samples, {self.method}{refined}"
+                f"{warned})")
 
     # validation ---------------------------------------------------------------------
 

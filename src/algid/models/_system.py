@@ -146,13 +146,38 @@ def parse_system(equations, parameters, *, outputs=None, name="custom") -> Syste
     for i, model in enumerate(models):
         if model.output in seen:
             raise ModelError(f"equations {seen[model.output] + 1} and {i + 1} both have the "
-                             f"output {model.output}: give outputs=[...] (one signal per "
-                             f"equation)")
+                             f"output {model.output}: name each equation's output (outputs= "
+                             f"in Python, --output once per --equation on the command line)")
         seen[model.output] = i
     if not any(model.known_terms for model in models):
         raise ModelError("no known term in the system: every term has a parameter, so the "
                          "scale is not fixed (give one term a known coefficient)")
+    _check_scales(models)
     return SystemModel(name=name, equations=tuple(models), parameters=parameters)
+
+
+def _check_scales(models):
+    """Refuse an equation without a known term whose scale no other equation fixes.
+
+    Such an equation holds for its parameters times any factor; the factor is fixed
+    only by a parameter it shares with an equation whose scale is fixed (by a known
+    term, or so in turn).
+    """
+    fixed = {i for i, model in enumerate(models) if model.known_terms}
+    grew = True
+    while grew:
+        anchored = {p for i in fixed for p in models[i].parameters}
+        grew = False
+        for i, model in enumerate(models):
+            if i not in fixed and anchored & set(model.parameters):
+                fixed.add(i)
+                grew = True
+    for i, model in enumerate(models):
+        if i not in fixed:
+            raise ModelError(f"equation {i + 1} ({model.equation}) has no known term and "
+                             f"shares no parameter with an equation whose scale is fixed: "
+                             f"only the ratios of {', '.join(model.parameters)} are "
+                             f"determined (give one of them a known value)")
 
 
 def _all_parameters(parameters, models):

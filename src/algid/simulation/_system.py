@@ -127,7 +127,11 @@ def state_space(system, values):
         raise ModelError("the equations do not determine the highest derivatives of "
                          f"{', '.join(outputs)} at these parameters (their coefficients "
                          f"form a singular matrix)")
-    solved = -np.linalg.solve(top, np.column_stack([lower, forcing]))
+    with np.errstate(over="ignore", invalid="ignore"):
+        solved = -np.linalg.solve(top, np.column_stack([lower, forcing]))
+    if not np.all(np.isfinite(solved)):
+        raise ModelError("the state-space form of these equations is not finite at these "
+                         "parameters")
     A, B = np.zeros((n, n)), np.zeros((n, c))
     for (y, k), i in where.items():
         if k + 1 < orders[y]:
@@ -313,7 +317,14 @@ def free_responses(space, t):
     -------
     numpy.ndarray, shape (states, outputs, samples)
     """
+    t = np.asarray(t, dtype=float)
     n = space.A.shape[0]
+    values, vectors = np.linalg.eig(space.A)
+    if np.linalg.cond(vectors) <= MODAL_CONDITION:
+        # C exp(A t) = (C V) exp(Lambda t) V^-1: one exponential per mode
+        modes = np.exp(np.outer(values, t - t[0]))            # (n, samples)
+        left, right = space.C @ vectors, np.linalg.inv(vectors)
+        return np.einsum("oi,is,ik->kos", left, modes, right).real
     zero = StateSpace(space.A, np.zeros((n, 0)), space.C, space.states, [], space.outputs)
     return np.array([simulate_space(zero, t, {}, np.eye(n)[i]) for i in range(n)])
 
