@@ -510,7 +510,6 @@ def _cmd_identify(args) -> int:
     from algid._record_input import TIME_COLUMNS
     from algid.identification._identify import identify
     from algid.models._grammar import parse_equation
-
     from algid.models._system import parse_system
 
     if len(args.equation) > 1:

@@ -291,9 +291,13 @@ def test_noise_meat_is_the_covariance_of_the_window_equations_noise(uniform):
     """The analytic middle of the sandwich equals ``G M M^T G^T``, with ``M`` the map
     from output noise samples to the window equations built impulse by impulse (a cubic
     term: first order, through the sensitivity ``3 y^2``)."""
-    from algid.identification._identify import WINDOW_OVERLAP, _Cache, _Problem
     from algid.identification._records import prepare_records
     from algid.identification._window_covariance import noise_meat
+    from algid.identification._window_problem import (
+        WINDOW_OVERLAP,
+        ProblemCache,
+        WindowProblem,
+    )
     from algid.models._grammar import parse_equation
 
     record, truth = cubic_spring(3, n=160)
@@ -304,7 +308,7 @@ def test_noise_meat_is_the_covariance_of_the_window_equations_noise(uniform):
     model = parse_equation(*CUBIC_EQUATION)
     segments, step, _ = prepare_records(record, model.signals, time="t", min_length=16)
     assert (step is None or segments[0].step is None) != uniform
-    problem = _Problem(model, segments, step)
+    problem = WindowProblem(model, segments, step)
     length, a = 24, 8
     theta_bar = np.append([truth[p] for p in model.parameters], -1.0)
     A, b, ids = problem.rows(length, a)
@@ -316,10 +320,10 @@ def test_noise_meat_is_the_covariance_of_the_window_equations_noise(uniform):
         seg = segments[s]
         saved = seg.values[model.output]
         seg.values[model.output] = saved + y_shift
-        problem.cache = _Cache()
+        problem.cache = ProblemCache()
         A1, b1, ids1 = problem.rows(length, a)
         seg.values[model.output] = saved
-        problem.cache = _Cache()
+        problem.cache = ProblemCache()
         return np.column_stack([A1, b1]) @ theta_bar
 
     base = np.column_stack([A, b]) @ theta_bar

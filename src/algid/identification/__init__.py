@@ -14,6 +14,11 @@ Public:
   ``DataFrame``, a mapping id -> record or a Dask ``DataFrame``), on a
   ``dask.distributed`` cluster when one is active, and returns a table: one row of
   results per record, or the one-line refusal of a record it could not identify;
+- given a list of equations that share parameters (one measured output each),
+  :func:`identify` stacks the window equations of all of them into one joint estimate,
+  refines it by output error on every output, and returns a :class:`SystemResult`
+  (joint covariance, the coupled system's :class:`SystemValidation`, a MIMO
+  python-control model);
 - :data:`METHODS` are the solvers ``identify`` offers.
 
 Records are mappings of named columns (``{"t": ..., "u": ..., "y": ...}``), with a time
@@ -24,7 +29,8 @@ from algid.identification._adequacy import Adequacy
 from algid.identification._fleet import identify_many
 from algid.identification._identify import METHODS, identify
 from algid.identification._result import IdentificationResult, Validation
+from algid.identification._system_result import SystemResult, SystemValidation
 from algid.identification._tracker import Tracker, TrackUpdate
 
 __all__ = ["identify", "identify_many", "IdentificationResult", "Validation", "Adequacy",
-           "Tracker", "TrackUpdate", "METHODS"]
+           "SystemResult", "SystemValidation", "Tracker", "TrackUpdate", "METHODS"]

@@ -8,8 +8,8 @@ term it lacks explains the misfit.  The test asks three questions:
 
 1. *Misfit*: the residual energy of the equations (highest multiplicity) per unit of
    white output-noise weight, ``r^T r / (theta_bar^T Q theta_bar)`` (``Q`` from
-   ``_Problem.noise_grams``), over the bound the samples put on the output-noise
-   variance (``_Problem.noise_bound``).  Output noise gives at most about 1 at any noise
+   ``WindowProblem.noise_grams``), over the bound the samples put on the output-noise
+   variance (``WindowProblem.noise_bound``).  Output noise gives at most about 1 at any noise
    level (the bound is above the true variance); the limit is :data:`MISFIT_LIMIT`,
    raised on few independent windows to a chi-square quantile (:func:`misfit_limit`).
 2. *Shift*: the estimates on windows twice as long (lower frequencies) and half as long
@@ -152,7 +152,7 @@ def misfit_ratio(problem, length, multiplicity, theta):
 
     Parameters
     ----------
-    problem : algid.identification._identify._Problem
+    problem : algid.identification._window_problem.WindowProblem
         The windowed problem (``rows``, ``noise_grams``, ``noise_bound``).
     length, multiplicity : int
         Window length (samples) and kernel multiplicity.
@@ -182,7 +182,7 @@ def model_adequacy(problem, length, fit, solve, method, min_length, stride):
 
     Parameters
     ----------
-    problem : algid.identification._identify._Problem
+    problem : algid.identification._window_problem.WindowProblem
         The windowed problem the estimate was made on.
     length : int
         Its window length (samples).

@@ -16,6 +16,7 @@ from algid.simulation._model import fit_initial_state, simulate_model
 from algid.simulation._output_equation import OutputEquation
 
 __all__ = ["IdentificationResult", "Validation", "ROW_KEYS", "WARNING_SEPARATOR",
+           "check_fit_samples",
            "check_row_names"]
 
 #: Keys of :meth:`IdentificationResult.to_dict` besides the parameters and their errors.
@@ -425,7 +426,7 @@ class IdentificationResult:
             Where the simulated output diverges (is not finite from some time on).
         """
         seg = self._record(data, time, rate)
-        fit_samples = _check_fit_samples(fit_samples, self.model.order, len(seg))
+        fit_samples = check_fit_samples(fit_samples, self.model.order, len(seg))
         inputs = {name: seg.values[name] for name in self.model.inputs}
         y = seg.values[self.model.output]
         options = {"output": self.model.output, "method": method,
@@ -713,7 +714,7 @@ class IdentificationResult:
                         name=self.model.name)
 
 
-def _check_fit_samples(fit_samples, order, n):
+def check_fit_samples(fit_samples, order, n):
     """``fit_samples`` of :meth:`IdentificationResult.simulate`, checked (default: 50,
     or half a record shorter than 100 samples)."""
     if fit_samples is None:

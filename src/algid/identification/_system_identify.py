@@ -1,7 +1,7 @@
 """Identify a system of equations that share parameters, on whole measured records.
 
 Every equation gives its window equations as in :func:`algid.identify`
-(:class:`algid.identification._identify._Problem`: the same windows slide over the same
+(:class:`algid.identification._window_problem.WindowProblem`: the same windows slide over the same
 segments for every equation), each in its own units.  Mapped onto the parameters of the
 system, they are stacked, each equation weighted by the inverse rms of its residuals
 (a first solve with each equation's rows of unit norm gives them), and solved for one
@@ -13,7 +13,7 @@ parameter set:
   kernels and the terms' sensitivities), so the expected normal matrix exceeds the
   noise-free one by ``sum_i w_i^2 sum_j sigma_j^2 G_ij``.  The ``sigma_j^2`` are taken
   in the proportions of their bounds from the samples' differences (``rho_j``,
-  :meth:`_Problem.noise_bound`) and scaled by one common factor, the smallest
+  :meth:`WindowProblem.noise_bound`) and scaled by one common factor, the smallest
   eigenvalue of the pencil (Koopmans' estimator, capped at 1: the bounds);
 - *covariance*: a sandwich over the window index, the estimating equations of all the
   equations summed per window, so that the correlation between equations that share a
@@ -42,17 +42,17 @@ from algid.errors import InputDataError, ModelError
 from algid.identification._adequacy import SHIFT_LIMIT, misfit_limit
 from algid.identification._arguments import check_arguments, check_memory
 from algid.identification._bias_compensation import koopmans
-from algid.identification._identify import (
-    MULTIPLICITIES,
-    WINDOW_OVERLAP,
-    _add_derivatives,
-    _derivative_estimate,
-    _Problem,
-)
 from algid.identification._methods import METHODS
 from algid.identification._records import check_factors, prepare_records
 from algid.identification._window_basis import NAMED_WEIGHT, ROUNDOFF_SEPARABILITY
 from algid.identification._window_covariance import hac_meat, sandwich
+from algid.identification._window_problem import (
+    MULTIPLICITIES,
+    WINDOW_OVERLAP,
+    WindowProblem,
+    add_derivatives,
+    derivative_estimate,
+)
 from algid.identification._window_rule import (
     HAC_WINDOWS,
     WindowFit,
@@ -201,7 +201,7 @@ def _solve(problems, system, noisy, bounds, length, multiplicities, method):
         stacked = np.vstack([w * phi for w, phi in zip(weights, rows.blocks)])
         null = _null_direction(stacked[:, :P])
         misfits = []
-        for i, (phi, g, r) in enumerate(zip(rows.blocks, rows.grams, residuals)):
+        for g, r in zip(rows.grams, residuals):
             weight = float(np.einsum("i,wij,j->", theta_bar, g, theta_bar))
             energy = float(r @ r)
             misfits.append(0.0 if energy == 0 else (energy / weight if weight > 0
@@ -340,9 +340,9 @@ def identify_system(data, equations, parameters=None, *, time=None, rate=None,
                                                 min_length=min_length(multiplicities))
     problems = []
     for model in system.equations:
-        _add_derivatives(model, segments, _derivative_estimate)
+        add_derivatives(model, segments, derivative_estimate)
         check_factors(model, segments)
-        problems.append(_Problem(model, segments, step))
+        problems.append(WindowProblem(model, segments, step))
     noisy = system.outputs
     bounds = {}
     for y in noisy:

@@ -30,13 +30,13 @@ from algid.errors import ModelError
 from algid.identification._refinement import Refinement, sandwich_covariance
 from algid.simulation._system import free_responses, simulate_space, state_space
 
-__all__ = ["refine_system"]
+__all__ = ["refine_system", "SimulationResiduals", "central_jacobian"]
 
 #: Reweighting passes (``sigma_j`` from the residuals of the previous fit).
 PASSES = 2
 
 
-class _Residuals:
+class SimulationResiduals:
     """Weighted simulation residuals of every output on every segment, the initial
     states projected out."""
 
@@ -100,7 +100,7 @@ class _Residuals:
         return {y: np.sqrt(sums[y] / counts[y]) for y in sums}
 
 
-def _jacobian(residuals, theta, scale):
+def central_jacobian(residuals, theta, scale):
     """Central-difference Jacobian of the residuals in the scaled parameters."""
     columns = []
     for k in range(len(theta)):
@@ -155,7 +155,7 @@ def refine_system(result, segments, refine):
     se = np.sqrt(np.maximum(np.diag(result.covariance), 0.0))
     scale = np.where(se > 0, se, np.maximum(np.abs(start), 1.0) * 1e-6)
     sigma = {y: 1.0 for y in system.outputs}
-    residuals = _Residuals(system, segments, sigma)
+    residuals = SimulationResiduals(system, segments, sigma)
     r0 = residuals(start)
     if r0 is None:
         return _not_refined(result, refine, "the algebraic estimate does not simulate "
@@ -175,7 +175,7 @@ def refine_system(result, segments, refine):
     before = float(np.sum(residuals(start) ** 2))   # with the final weights
     r = residuals(theta)
     after = float(r @ r)
-    J = _jacobian(residuals, theta, scale)
+    J = central_jacobian(residuals, theta, scale)
     if J is None:
         return _not_refined(result, refine, "the refined estimate's neighbourhood does "
                                             "not simulate stably")

@@ -10,7 +10,7 @@ import numpy as np
 
 from algid.errors import InputDataError, ModelError
 from algid.identification._records import prepare_records
-from algid.identification._result import WARNING_SEPARATOR, _check_fit_samples, check_row_names
+from algid.identification._result import WARNING_SEPARATOR, check_fit_samples, check_row_names
 
 __all__ = ["SystemResult", "SystemValidation"]
 
@@ -222,7 +222,7 @@ class SystemResult:
         seg = segments[0]
         space = state_space(self.system, self.values)
         order = max(k for _, k in space.states) + 1
-        fit_samples = _check_fit_samples(fit_samples, order, len(seg))
+        fit_samples = check_fit_samples(fit_samples, order, len(seg))
         measured = {y: seg.values[y] for y in self.outputs}
         inputs = {u: seg.values[u] for u in self.system.inputs}
         with np.errstate(over="ignore", invalid="ignore"):

@@ -50,7 +50,6 @@ from algid.errors import AlgidError, InputDataError
 from algid.identification._arguments import check_arguments, check_model_columns
 from algid.identification._bias_compensation import koopmans_stack
 from algid.identification._change_detection import INCREMENT_CAP, cusum_reference, cusum_threshold
-from algid.identification._identify import WINDOW_OVERLAP, factor_sensitivity, term_rows
 from algid.identification._methods import TRACKER_METHODS
 from algid.identification._records import GAP_FACTOR, UNIFORM_TOLERANCE
 from algid.identification._tracker_kernels import kernels, solvers
@@ -71,6 +70,7 @@ from algid.identification._window_kernels import (
     step_window_integrals,
     window_sample_weights,
 )
+from algid.identification._window_problem import WINDOW_OVERLAP, factor_sensitivity, term_rows
 from algid.identification._window_rule import MIN_SPARE_WINDOWS, check_multiplicities, min_length
 from algid.models._argument import estimator_module
 from algid.models._compiled import model_of

@@ -44,6 +44,7 @@ from algid.simulation._interpolation import Interpolant
 from algid.simulation._switching import integrate_switched
 
 __all__ = ["simulate_model", "fit_initial_state", "differentiate", "known_term_values",
+           "check_time_and_inputs", "as_floats",
            "METHODS", "MAX_EVALUATIONS", "MAX_STALLED_EVALUATIONS"]
 
 #: Bound on the right-hand-side evaluations of the adaptive solvers, per sample on
@@ -126,7 +127,7 @@ def _weight(term, parameters):
     return float(term.coefficient) * value
 
 
-def _floats(values, what):
+def as_floats(values, what):
     """``values`` as a float64 array, or a one-line error naming ``what``."""
     if isinstance(values, (str, bytes)) or values is None:
         raise InputDataError(f"{what} must be numbers, got {values!r:.40}")
@@ -136,8 +137,8 @@ def _floats(values, what):
         raise InputDataError(f"{what} must be numbers, got {values!r:.60}") from None
 
 
-def _check_time_and_inputs(time, inputs, names):
-    t = _floats(time, "time")
+def check_time_and_inputs(time, inputs, names):
+    t = as_floats(time, "time")
     if t.ndim != 1 or len(t) < 4:
         raise InputDataError("time must be a 1-D array of at least 4 sample times")
     if not np.all(np.isfinite(t)) or np.any(np.diff(t) <= 0):
@@ -149,7 +150,7 @@ def _check_time_and_inputs(time, inputs, names):
     for name in names:
         if name not in inputs:
             raise InputDataError(f"no samples for the input {name!r}")
-        values = _floats(inputs[name], f"input {name!r}")
+        values = as_floats(inputs[name], f"input {name!r}")
         if values.shape != t.shape:
             raise InputDataError(f"input {name!r} has shape {values.shape}, time has {t.shape}")
         if not np.all(np.isfinite(values)):
@@ -310,7 +311,7 @@ def _prepare(model, parameters, time, inputs, output, interpolation):
         raise ModelError(f"cannot simulate {model.equation!r}: the output {output!r} "
                          "is not differentiated in a plain term")
     names = tuple(name for name in model.signals if name != output)
-    t, columns = _check_time_and_inputs(time, inputs, names)
+    t, columns = check_time_and_inputs(time, inputs, names)
     return _OutputEquation(model, parameters, t, columns, output, interpolation), t
 
 
@@ -386,7 +387,7 @@ def _check_integrator(method, rtol, atol, substeps, n_samples):
 def _integrate(equation, t, initial_state, method, rtol, atol, substeps=4):
     _check_integrator(method, rtol, atol, substeps, len(t))
     state = np.zeros(equation.order) if initial_state is None else \
-        _floats(initial_state, "initial_state").ravel()
+        as_floats(initial_state, "initial_state").ravel()
     if state.shape != (equation.order,) or not np.all(np.isfinite(state)):
         raise InputDataError(f"initial_state must hold {equation.order} finite values "
                              f"(the output and its derivatives up to order "

@@ -128,7 +128,7 @@ def state_space(system, values):
                          f"{', '.join(outputs)} at these parameters (their coefficients "
                          f"form a singular matrix)")
     with np.errstate(over="ignore", invalid="ignore"):
-        solved = -np.linalg.solve(top, np.column_stack([lower, forcing]))
+        solved = 0.0 - np.linalg.solve(top, np.column_stack([lower, forcing]))
     if not np.all(np.isfinite(solved)):
         raise ModelError("the state-space form of these equations is not finite at these "
                          "parameters")
@@ -241,7 +241,7 @@ def simulate_system(equations, values, time, inputs, *, initial_state=None):
     (0.5, 0.499)
     """
     from algid.models._system import parse_system
-    from algid.simulation._model import _check_time_and_inputs, _floats
+    from algid.simulation._model import as_floats, check_time_and_inputs
 
     if not hasattr(values, "keys"):
         raise InputDataError(f"values must be a mapping of parameter name -> value, got "
@@ -249,12 +249,12 @@ def simulate_system(equations, values, time, inputs, *, initial_state=None):
     system = parse_system(equations, list(values))
     checked = {}
     for p, v in values.items():
-        v = _floats(v, f"parameter {p}")
+        v = as_floats(v, f"parameter {p}")
         if v.shape != () or not np.isfinite(v):
             raise InputDataError(f"parameter {p} must be one finite number, got {v!r:.40}")
         checked[p] = float(v)
     values = checked
-    t, inputs = _check_time_and_inputs(time, inputs, system.inputs)
+    t, inputs = check_time_and_inputs(time, inputs, system.inputs)
     space = state_space(system, values)
     if initial_state is not None:
         initial_state = np.asarray(initial_state, dtype=float).ravel()

@@ -1,0 +1,164 @@
+"""Monte Carlo of identify on systems of equations against the Cramér–Rao bound
+(``PYTHONPATH=src:. python -m benchmarks.systems_study --runs 50 --json
+benchmarks/systems_results.json``).
+
+Two systems, 1 kHz, white noise on every measured output at 40 dB SNR (each output's
+own level), the same input in every run (a multisine), the noise drawn anew:
+
+- ``two_mass``: ``m1*x1'' + c1*x1' + k1*x1 + k2*(x1 - x2) = u`` and
+  ``m2*x2'' + c2*x2' + k2*(x2 - x1) = 0`` (m1 1, c1 0.5, k1 20, k2 15, m2 0.8, c2 0.3:
+  modes at 0.5 and 1.1 Hz), both positions measured, 20 s; a multisine of 8 lines from
+  0.2 to 3 Hz;
+- ``dc_motor``: ``L*i' + R*i + K*w = u`` and ``J*w' + b*w = K*i`` (L 0.5, R 2, K 0.8,
+  J 0.2, b 0.1), current and speed measured, 10 s; 7 lines from 0.1 to 5 Hz.
+
+The records come from DOP853 at a relative tolerance of 1e-11 on a cubic spline of the
+input, not from algid's simulator.  Per system and parameter: bias and RMSE over the
+runs (relative, and in units of the Cramér–Rao bound: white noise of the true levels,
+the initial state as nuisance, the Jacobian of algid's exact simulation of the
+noise-free record by central differences), the ratio of the spread to the mean
+reported standard error, the coverage of ±2 reported standard errors, for the algebraic
+estimate (``result.algebraic``) and the reported one (refined where applied); the
+largest difference between the Monte Carlo correlation matrix of the reported estimate
+and the mean reported one, beside the sampling error of a correlation over that many
+runs (``(1 - rho^2) / sqrt(runs)``); the median CPU time.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+
+import numpy as np
+from scipy.integrate import solve_ivp
+from scipy.interpolate import CubicSpline
+
+import algid
+from algid.identification._records import prepare_records
+from algid.identification._system_refinement import SimulationResiduals, central_jacobian
+from algid.models import parse_system
+
+SNR_DB = 40.0
+RATE = 1000.0
+
+SYSTEMS = {
+    "two_mass": {
+        "equations": ["m1*x1'' + c1*x1' + k1*x1 + k2*(x1 - x2) = u",
+                      "m2*x2'' + c2*x2' + k2*(x2 - x1) = 0"],
+        "truth": {"m1": 1.0, "c1": 0.5, "k1": 20.0, "k2": 15.0, "m2": 0.8, "c2": 0.3},
+        "duration": 20.0, "lines": [0.2, 0.45, 0.7, 0.95, 1.3, 1.7, 2.2, 3.0],
+        "x0": [0.01, 0.0, -0.02, 0.0]},
+    "dc_motor": {
+        "equations": ["L*i' + R*i + K*w = u", "J*w' + b*w = K*i"],
+        "truth": {"L": 0.5, "R": 2.0, "K": 0.8, "J": 0.2, "b": 0.1},
+        "duration": 10.0, "lines": [0.1, 0.3, 0.6, 1.1, 1.9, 3.1, 5.0],
+        "x0": [0.0, 0.0]},
+}
+
+
+def noise_free(name):
+    """The noise-free record of a system (DOP853 at 1e-11)."""
+    spec = SYSTEMS[name]
+    t = np.arange(0, spec["duration"], 1 / RATE)
+    phases = np.random.default_rng(12345).uniform(0, 2 * np.pi, len(spec["lines"]))
+    u = np.sum(np.sin(2 * np.pi * np.array(spec["lines"])[:, None] * t + phases[:, None]),
+               axis=0)
+    space = algid.simulation._system.state_space(
+        parse_system(spec["equations"], list(spec["truth"])), spec["truth"])
+    spline = CubicSpline(t, u)
+    col = space.channels.index("u")
+
+    def rhs(time_, x):
+        return space.A @ x + space.B[:, col] * spline(time_)
+
+    x = solve_ivp(rhs, (t[0], t[-1]), spec["x0"], t_eval=t, method="DOP853", rtol=1e-11,
+                  atol=1e-14).y
+    record = {"t": t, "u": u}
+    for j, y in enumerate(space.outputs):
+        record[y] = space.C[j] @ x
+    return record, space.outputs
+
+
+def cramer_rao(name, record, outputs, sigma):
+    """The Cramér–Rao bound (standard deviations) at the truth, initial state nuisance."""
+    spec = SYSTEMS[name]
+    system = parse_system(spec["equations"], list(spec["truth"]))
+    segments, _, _ = prepare_records(record, system.signals, time="t")
+    residuals = SimulationResiduals(system, segments, dict(sigma))
+    theta = np.array(list(spec["truth"].values()))
+    J = central_jacobian(residuals, theta, 1e-4 * np.abs(theta))
+    return np.sqrt(np.diag(np.linalg.inv(J.T @ J)))
+
+
+def study(name, runs):
+    spec = SYSTEMS[name]
+    clean, outputs = noise_free(name)
+    sigma = {y: 10 ** (-SNR_DB / 20) * float(np.std(clean[y])) for y in outputs}
+    bound = cramer_rao(name, clean, outputs, sigma)
+    truth = np.array(list(spec["truth"].values()))
+    reported, reported_se, algebraic, algebraic_se, corr, kinds, cpu = [], [], [], [], [], [], []
+    for run in range(runs):
+        rng = np.random.default_rng(1000 + run)
+        record = dict(clean)
+        for y in outputs:
+            record[y] = clean[y] + sigma[y] * rng.standard_normal(len(clean[y]))
+        start = time.process_time()
+        result = algid.identify(record, spec["equations"], list(spec["truth"]))
+        cpu.append(time.process_time() - start)
+        reported.append([result.values[p] for p in spec["truth"]])
+        reported_se.append([result.stderr[p] for p in spec["truth"]])
+        algebraic.append([result.algebraic["values"][p] for p in spec["truth"]])
+        algebraic_se.append(np.sqrt(np.diag(result.algebraic["covariance"])))
+        corr.append(result.correlation)
+        kinds.append(result.estimate)
+
+    def table(est, se):
+        est, se = np.array(est), np.array(se)
+        error = est - truth
+        return {"bias_percent": (100 * error.mean(0) / truth).tolist(),
+                "bias_over_crlb": (error.mean(0) / bound).tolist(),
+                "rmse_over_crlb": (np.sqrt(np.mean(error ** 2, 0)) / bound).tolist(),
+                "spread_over_stderr": (est.std(0) / se.mean(0)).tolist(),
+                "coverage_2se": np.mean(np.abs(error) <= 2 * se, axis=0).tolist()}
+
+    rho = np.corrcoef(np.array(reported).T)
+    mean_corr = np.mean(corr, axis=0)
+    upper = np.triu_indices(len(truth), 1)
+    return {"parameters": list(spec["truth"]), "runs": runs,
+            "crlb": bound.tolist(),
+            "refined_runs": kinds.count("refined"),
+            "reported": table(reported, reported_se),
+            "algebraic": table(algebraic, algebraic_se),
+            "correlation_max_difference": float(np.max(np.abs(rho - mean_corr)[upper])),
+            "correlation_sampling_error": float(np.max(
+                (1 - mean_corr[upper] ** 2) / np.sqrt(runs))),
+            "median_cpu_s": float(np.median(cpu))}
+
+
+def main(argv=None):
+    """Print the tables (and write them with ``--json FILE``)."""
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--runs", type=int, default=50)
+    parser.add_argument("--systems", nargs="+", choices=list(SYSTEMS), default=list(SYSTEMS))
+    parser.add_argument("--json", default=None)
+    args = parser.parse_args(argv)
+    out = {}
+    for name in args.systems:
+        out[name] = result = study(name, args.runs)
+        print(f"{name}: {args.runs} runs, refined in {result['refined_runs']}, median CPU "
+              f"{result['median_cpu_s']:.2f} s")
+        for kind in ("algebraic", "reported"):
+            print(f"  {kind}")
+            for key, values in result[kind].items():
+                print(f"    {key:20s}" + " ".join(f"{v:8.3g}" for v in values))
+        print(f"  correlation: max |MC - reported| {result['correlation_max_difference']:.3f}"
+              f" (sampling error up to {result['correlation_sampling_error']:.3f})")
+        if args.json:
+            with open(args.json, "w") as f:
+                json.dump(out, f, indent=1)
+    return out
+
+
+if __name__ == "__main__":
+    main()

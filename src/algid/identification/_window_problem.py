@@ -1,0 +1,393 @@
+"""The window equations of one model equation on the segments of measured records.
+
+:class:`WindowProblem` holds a model's factor samples per segment, scaled by powers of
+two (the time in a power of two near the sampling step, every factor's largest sample in
+``[1, 2)``), and makes the window equations ``A theta = b`` of one window length and
+kernel multiplicity (:meth:`WindowProblem.rows`), the covariance that white noise on a
+measured signal puts into them (:meth:`WindowProblem.noise_grams`) and a bound on that
+noise's variance from the samples' differences (:meth:`WindowProblem.noise_bound`).
+:func:`algid.identify` solves them for one equation
+(:mod:`algid.identification._identify`), and for a system of equations that share
+parameters (:mod:`algid.identification._system_identify`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from math import comb
+from typing import NamedTuple
+
+import numpy as np
+
+from algid.errors import InputDataError
+from algid.identification._records import Segment
+from algid.identification._sign_crossings import crossing_motion, sign_factor
+from algid.identification._window_basis import exponent
+from algid.identification._window_kernels import (
+    step_window_integrals,
+    uniform_window_integrals,
+    window_integrals,
+    window_noise_products,
+    window_sample_weights,
+)
+from algid.models._expression import Call, Signal
+from algid.signals._differentiation import algebraic_derivative
+
+__all__ = ["WindowProblem", "ProblemCache", "FactorSamples", "term_rows",
+           "factor_sensitivity", "difference_noise_bound", "add_derivatives",
+           "derivative_estimate", "MULTIPLICITIES", "WINDOW_OVERLAP"]
+
+#: Kernel multiplicities stacked in every estimate (their difference drives the window rule).
+MULTIPLICITIES = (8, 12)
+
+#: Windows overlap: a window starts every ``length // WINDOW_OVERLAP`` samples.
+WINDOW_OVERLAP = 8
+
+
+class FactorSamples(NamedTuple):
+    """A factor's samples per segment, over ``2**exponent`` (the power of two of the
+    largest)."""
+
+    values: list
+    exponent: int
+
+
+@dataclass
+class ProblemCache:
+    """What the solves of one :class:`WindowProblem` reuse, one field per kind.
+
+    The measured output never changes: its noise bound stays, and so do the samples of
+    a factor until its crossings are placed again (:meth:`forget_factors`); the samples
+    of the simulated output go at every new simulation (:meth:`forget_simulated`).
+    """
+
+    samples: dict = field(default_factory=dict)   # (factor, which) -> FactorSamples
+    # factor -> derivative with respect to the measured output per segment (None: the
+    # factor does not read it), in the units of the measured samples
+    sensitivities: dict = field(default_factory=dict)
+    noise_bound: float | None = None
+    excited: bool = False   # check_excited passed
+
+    def forget_factors(self, factors):
+        """Forget the samples and sensitivities of ``factors`` (their crossings moved)."""
+        self.samples = {k: v for k, v in self.samples.items() if k[0] not in factors}
+        self.sensitivities = {k: v for k, v in self.sensitivities.items()
+                              if (k[0] if isinstance(k, tuple) else k) not in factors}
+
+    def forget_simulated(self):
+        """Forget the samples of the simulated output (a new simulation); the measured
+        rows' excitation is checked again at the next solve, the crossings having moved
+        since the first check (later repeats find the same)."""
+        self.samples = {k: v for k, v in self.samples.items() if k[1] == "measured"}
+        self.excited = False
+
+
+class WindowProblem:
+    """Channel samples of a model on the segments of the records.
+
+    Internally the time is counted in :attr:`time_unit`, a power of two near the median
+    sampling step, from the first sample of each segment (:attr:`segments`; the records'
+    own times are in :attr:`user_segments`), and the samples of every factor are divided
+    by a power of two bringing the largest into ``[1, 2)`` (the output's, the unit of the
+    output noise, is :attr:`output_unit`).  The columns of :meth:`rows` are then each in
+    a power of two of their own (:meth:`exponents`): ``theta_p`` is the solution for
+    column ``p`` times ``2**(E_b - E_p)``.  Powers of two are exact: the results do not
+    depend on the units of the records, and nothing overflows or underflows.
+    """
+
+    def __init__(self, model, segments, step):
+        self.model = model
+        self.time_unit = float(np.ldexp(1.0, int(np.round(np.log2(step)))))
+        self.user_segments = segments
+        self.segments = [Segment(s.record, s.rows, (s.t - s.t[0]) / self.time_unit, s.values,
+                                 None if s.step is None else s.step / self.time_unit)
+                         for s in segments]
+        self.step = step                        # the records' median step (s)
+        self.unit_step = step / self.time_unit  # the same in the internal time
+        self.parameters = model.parameters
+        self.output_exponent = exponent([s.values[model.output] for s in segments])
+        self.output_unit = float(np.ldexp(1.0, self.output_exponent))
+        self.cache = ProblemCache()
+        self._exponents = {}
+        self.sign_jumps = {}   # sign factor -> jump of q'' (refined crossings)
+        self.first_values = {}  # parameter -> first estimate (the crossings' local fits)
+        # (sign factor, segment) -> refined crossings: (time, step of the sign, first sample
+        # of the fit, derivative of the time with respect to those samples)
+        self.crossings = {}
+        self.steps = {}  # (sign factor, which, segment) -> (first value, its steps' times, sizes)
+
+    @property
+    def exact_columns(self):
+        """Columns of :meth:`rows` whose terms do not read the output (inputs, offsets,
+        drifts): no output noise enters them."""
+        output = self.model.output
+        return [i for i, p in enumerate(self.parameters)
+                if not any(output in t.factor.signals()
+                           for t in self.model.terms if t.parameter == p)]
+
+    def factor_samples(self, factor, which="measured"):
+        """Samples of a factor per segment, over the power of two of its largest."""
+        key = (factor, which)
+        if key not in self.cache.samples:
+            samples, steps, crossings = [], [], []
+            for seg in self.user_segments:
+                values = seg.values if which == "measured" else seg.simulated
+                if isinstance(factor, Call) and factor.function == "sign":
+                    refine = which == "measured" and factor in self.sign_jumps
+                    motion = crossing_motion(self.model, self.first_values, values,
+                                             seg.t) if refine else None
+                    z, step, crossing = sign_factor(
+                        factor.args[0].evaluate(values, seg.t), seg.t,
+                        position=values[self.model.output] if refine else None,
+                        jump=self.sign_jumps.get(factor), motion=motion)
+                    steps.append(step)
+                    crossings.append(crossing if refine else None)
+                else:
+                    with np.errstate(over="ignore", under="ignore", invalid="ignore"):
+                        z = np.asarray(factor.evaluate(values, seg.t), dtype=float) \
+                            * np.ones(len(seg))
+                    steps.append(None)
+                    crossings.append(None)
+                samples.append(z)
+            if not all(np.all(np.isfinite(z)) for z in samples):
+                raise InputDataError(f"the factor {factor} is not finite on these records "
+                                     f"(out of the floating-point range at these "
+                                     f"amplitudes?): express the signals in other units")
+            e = exponent(samples)
+            unit = self.time_unit
+            moves = np.ldexp(1.0, self.output_exponent) / unit
+            for s, seg in enumerate(self.user_segments):
+                samples[s] = np.ldexp(samples[s], -e)
+                if steps[s] is not None:   # in the internal time and the factor's unit
+                    level, times, sizes = steps[s]
+                    self.steps[(factor, which, s)] = (
+                        np.ldexp(level, -e), (np.asarray(times) - seg.t[0]) / unit,
+                        np.ldexp(np.asarray(sizes, dtype=float), -e))
+                if crossings[s] is not None:
+                    self.crossings[(factor, s)] = [
+                        ((time - seg.t[0]) / unit, np.ldexp(size, -e), first, fit * moves)
+                        for time, size, first, fit in crossings[s]]
+            self.cache.samples[key] = FactorSamples(samples, e)
+        return self.cache.samples[key].values
+
+    def exponents(self, which="measured"):
+        """Powers of two of the columns of :meth:`rows` and of its known side, and of
+        every term within its column (``{term index: shift}``, at most 0)."""
+        unit = int(np.round(np.log2(self.time_unit)))
+        own = []
+        for term in self.model.terms:
+            self.factor_samples(term.factor, which)
+            own.append(self.cache.samples[(term.factor, which)].exponent
+                       - term.derivative * unit)
+        key = (which, tuple(own))
+        if key in self._exponents:
+            return self._exponents[key]
+        columns = {}
+        for term, e in zip(self.model.terms, own):
+            columns[term.parameter] = max(columns.get(term.parameter, e), e)
+        shifts = {i: e - columns[term.parameter]
+                  for i, (term, e) in enumerate(zip(self.model.terms, own))}
+        self._exponents[key] = (np.array([columns[p] for p in self.parameters]),
+                                columns.get(None, 0), shifts)
+        return self._exponents[key]
+
+    def term_scale(self, term, which="measured"):
+        """The power of two of a term within its column of :meth:`rows`."""
+        return float(np.ldexp(1.0, self.exponents(which)[2][self.model.terms.index(term)]))
+
+    @np.errstate(over="ignore")  # equations that overflow are refused by check_finite
+    def rows(self, length, multiplicity, which="measured"):
+        """Regressors ``A``, known side ``b`` and window ids for one multiplicity (each
+        column in its power of two, :meth:`exponents`)."""
+        stride = max(1, length // WINDOW_OVERLAP)
+        shifts = self.exponents(which)[2]
+        blocks_a, blocks_b, ids = [], [], []
+        for s, seg in enumerate(self.segments):
+            if len(seg) < length:
+                continue
+            n_win = (len(seg) - length) // stride + 1
+            integrals = []
+            for term in self.model.terms:
+                z = self.factor_samples(term.factor, which)[s]
+                steps = self.steps.get((term.factor, which, s))
+                if steps is not None:
+                    w = step_window_integrals(seg.t, *steps, length, multiplicity,
+                                              term.derivative, stride)
+                elif seg.step is not None:
+                    w = uniform_window_integrals(z, seg.step, length, multiplicity,
+                                                 term.derivative, stride)
+                else:
+                    w = window_integrals(z, seg.t, length, multiplicity, term.derivative,
+                                         stride)
+                integrals.append(w)
+            A, b = term_rows(self.model, integrals, shifts, n_win)
+            blocks_a.append(A)
+            blocks_b.append(b)
+            ids.append(np.full(n_win, s))
+        if not blocks_a:
+            raise InputDataError(f"no segment holds a window of {length} samples")
+        return np.vstack(blocks_a), np.concatenate(blocks_b), np.concatenate(ids)
+
+    def to_rows(self, theta, which="measured"):
+        """The solution of :meth:`rows` that parameter values make."""
+        columns, known, _ = self.exponents(which)
+        return np.ldexp(theta, columns - known)
+
+    def excitation(self, length, multiplicity, A, b):
+        """Per column of ``A`` and for ``b``, their rms over the largest they could be
+        for factors of the same largest samples (at most about 1; round-off for a term
+        that vanishes on the records)."""
+        shifts = self.exponents()[2]
+        bound = np.zeros(len(self.parameters) + 1)
+        index = {p: i for i, p in enumerate(self.parameters)}
+        for i, term in enumerate(self.model.terms):
+            z = self.factor_samples(term.factor)
+            largest = max(float(np.max(np.abs(v))) for v in z)
+            kernel = np.sum(np.abs(window_sample_weights(None, self.unit_step, length,
+                                                         multiplicity, term.derivative)))
+            column = len(self.parameters) if term.parameter is None else index[term.parameter]
+            bound[column] += abs(term.coefficient) * np.ldexp(kernel * largest, shifts[i])
+        rms = np.sqrt(np.mean(np.column_stack([A, b]) ** 2, axis=0))
+        return np.where(bound > 0, rms / np.where(bound > 0, bound, 1.0), 0.0)
+
+    def sensitivity(self, factor, signal=None):
+        """Derivative of a factor with respect to a measured signal (by default the
+        output), per segment (``None`` where the factor does not read the signal's plain
+        samples), both in their units (the powers of two of :meth:`factor_samples` and
+        :meth:`signal_exponent`)."""
+        signal = self.model.output if signal is None else signal
+        cache = self.cache.sensitivities
+        key = factor if signal == self.model.output else (factor, signal)
+        if key not in cache:
+            self.factor_samples(factor)
+            shift = self.signal_exponent(signal) \
+                - self.cache.samples[(factor, "measured")].exponent
+            if signal not in factor.signals():
+                cache[key] = None
+            elif factor == Signal(signal):
+                cache[key] = [np.ones(len(seg)) for seg in self.segments]
+            else:
+                cache[key] = [np.ldexp(factor_sensitivity(factor, signal, seg.values,
+                                                          seg.t), shift)
+                              for seg in self.user_segments]
+        return cache[key]
+
+    def signal_exponent(self, signal):
+        """The power of two of a measured signal's largest sample on the segments (the
+        unit of its noise variance)."""
+        if signal == self.model.output:
+            return self.output_exponent
+        return exponent([s.values[signal] for s in self.user_segments])
+
+    def noise_bound(self, signal=None):
+        """An upper bound on the variance of white noise on the output samples (in the
+        output's unit, :attr:`output_unit`), or on another signal's (in the unit of
+        :meth:`signal_exponent`).
+
+        The ``k``-th difference of the samples has the variance ``C(2k, k) sigma^2`` of
+        white noise plus that of the signal's difference (signal and noise being
+        uncorrelated, on any sample grid): each ``k`` bounds ``sigma^2`` from above, and
+        the smallest of ``k = 1 .. 8`` is kept.  Tight when the signal is smooth on the
+        sample grid; loose (harmless) at a few samples per period.
+        """
+        if signal is not None and signal != self.model.output:
+            return difference_noise_bound(
+                [np.ldexp(seg.values[signal], -self.signal_exponent(signal))
+                 for seg in self.segments])
+        if self.cache.noise_bound is None:
+            y = [np.ldexp(seg.values[self.model.output], -self.output_exponent)
+                 for seg in self.segments]
+            self.cache.noise_bound = difference_noise_bound(y)
+        return self.cache.noise_bound
+
+    def noise_grams(self, length, multiplicity, signal=None):
+        """Per-window covariance of the noise that unit white output noise (or noise on
+        another measured ``signal``, in its unit) puts into the columns ``[A | b]`` of
+        :meth:`rows` (shape ``(windows, p + 1, p + 1)``).
+
+        Output noise enters every term whose factor reads the output, linearly to first
+        order (through the factor's sensitivity), and then the window integral: the
+        covariance of two columns is a window sum of the product of sensitivities
+        against the product of the two term kernels' weights.
+        """
+        stride = max(1, length // WINDOW_OVERLAP)
+        p = len(self.parameters)
+        index = {q: i for i, q in enumerate(self.parameters)}
+        noisy = []   # (column, coefficient, derivative, factor)
+        for term in self.model.terms:
+            if self.sensitivity(term.factor, signal) is None:
+                continue
+            weight = term.coefficient * self.term_scale(term)
+            if term.parameter is None:
+                noisy.append((p, -weight, term.derivative, term.factor))
+            else:
+                noisy.append((index[term.parameter], weight, term.derivative, term.factor))
+        blocks = []
+        for s, seg in enumerate(self.segments):
+            if len(seg) < length:
+                continue
+            n_win = (len(seg) - length) // stride + 1
+            grams = np.zeros((n_win, p + 1, p + 1))
+            for i, (c1, w1, k1, f1) in enumerate(noisy):
+                for j, (c2, w2, k2, f2) in enumerate(noisy[i:], start=i):
+                    product = self.sensitivity(f1, signal)[s] \
+                        * self.sensitivity(f2, signal)[s]
+                    v = w1 * w2 * window_noise_products(
+                        product, seg.t, seg.step, length, (multiplicity, k1),
+                        (multiplicity, k2), stride)
+                    grams[:, c1, c2] += v
+                    if j != i:
+                        grams[:, c2, c1] += v
+            blocks.append(grams)
+        return np.concatenate(blocks)
+
+
+def difference_noise_bound(y):
+    """The bound of :meth:`WindowProblem.noise_bound` on samples ``y`` (one array per segment)."""
+    bounds = []
+    for k in range(1, 9):
+        d = [np.diff(v, k) for v in y if len(v) > k]
+        count = sum(len(v) for v in d)
+        if count:
+            bounds.append(sum(float(v @ v) for v in d) / count / comb(2 * k, k))
+    return min(bounds) if bounds else np.inf
+
+
+def term_rows(model, integrals, shifts, n_win):
+    """Regressors ``A`` and known side ``b`` from every term's window integrals (in the
+    order of ``model.terms``), each term times its coefficient and its power of two
+    ``shifts[i]`` within its column (the window equations of the module notes)."""
+    index = {p: i for i, p in enumerate(model.parameters)}
+    A, b = np.zeros((n_win, len(model.parameters))), np.zeros(n_win)
+    for i, (term, w) in enumerate(zip(model.terms, integrals)):
+        w = np.ldexp(term.coefficient * w, shifts[i])
+        if term.parameter is None:
+            b -= w
+        else:
+            A[:, index[term.parameter]] += w
+    return A, b
+
+
+def factor_sensitivity(factor, output, values, t, h=None):
+    """Derivative of a factor's samples with respect to the output's (central differences
+    of step ``h``, by default 1e-6 of the largest output sample)."""
+    y = values[output]
+    h = 1e-6 * max(float(np.max(np.abs(y))), 1e-300) if h is None else h
+    up, down = dict(values), dict(values)
+    up[output], down[output] = y + h, y - h
+    difference = (np.asarray(factor.evaluate(up, t), dtype=float)
+                  - np.asarray(factor.evaluate(down, t), dtype=float))
+    return difference / (2 * h) * np.ones(len(t))
+
+
+def add_derivatives(model, segments, estimator):
+    for seg in segments:
+        for name, k in model.needs_derivatives:
+            seg.values[(name, k)] = estimator(seg.values[name], seg.t, k, seg.step)
+
+
+def derivative_estimate(y, t, order, step):
+    """Derivative inside a nonlinear factor: the algebraic differentiator."""
+    if step is not None:
+        return algebraic_derivative(y, step, derivative=order)
+    return algebraic_derivative(y, time=t, derivative=order)
