@@ -62,6 +62,7 @@ from algid.identification._window_rule import (
     min_length,
     window_criterion,
     window_grid,
+    window_length,
 )
 from algid.models._system import SystemModel, parse_system
 
@@ -353,10 +354,8 @@ def identify_system(data, equations, parameters=None, *, time=None, rate=None,
         length, scores = _choose_window(problems, system, noisy, bounds, multiplicities,
                                         method)
     else:
-        length = int(round(window / step)) + 1
-        if length < min_length(multiplicities):
-            raise InputDataError(f"window {window:g} s holds {length} samples; at least "
-                                 f"{min_length(multiplicities)} are needed")
+        length = window_length(window, step, _Grid(problems[0].segments, system.parameters),
+                               multiplicities)
     try:
         fit = _solve(problems, system, noisy, bounds, length, multiplicities, method)
     except (np.linalg.LinAlgError, ValueError):
@@ -369,8 +368,8 @@ def identify_system(data, equations, parameters=None, *, time=None, rate=None,
     if degenerate:   # the trivial solution of an equation without a known term
         raise InputDataError(f"the estimate of {', '.join(degenerate)} is degenerate on "
                              f"windows of {(length - 1) * step:.4g} s (zero standard error: "
-                             f"an equation without a known term solved by zeros); use a "
-                             f"longer window, or the automatic one")
+                             f"an equation without a known term solved by zeros): the "
+                             f"records do not excite the system, or the window is too short")
     warnings = []
     stride = max(1, length // WINDOW_OVERLAP)
     shift = None

@@ -642,7 +642,7 @@ def parse_equation(text, parameters, *, output=None, name="custom", signals=None
     if within_system:
         parameters = tuple(p for p in parameters if p in used)
         if not parameters:
-            _fail(equation, "no unknown parameter appears")
+            _fail(equation, "none of the parameters given appears in it")
     for parameter in parameters:
         if parameter not in used:
             _fail(equation, f"parameter {parameter} does not appear (or its terms cancel)")
