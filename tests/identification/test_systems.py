@@ -199,3 +199,47 @@ def test_command_line_takes_several_equations(tmp_path):
     bad = subprocess.run([*base[:-1], "L R K J b Z"], capture_output=True, text=True)
     assert bad.returncode == 2 and bad.stderr.count("\n") == 1
     assert "parameter Z appears in no equation" in bad.stderr
+
+
+# hidden signals --------------------------------------------------------------------
+
+HIDDEN_TWO_MASS = ["x1'' + c1*x1' + k1*x1 + k2*(x1 - x2) = u",     # m1 = 1 known
+                   "m2*x2'' + c2*x2' + k2*(x2 - x1) = 0"]
+
+
+def test_hidden_position_eliminated_then_refined():
+    record = two_mass_record(noise_db=40.0, seed=3)
+    del record["x1"]
+    result = algid.identify(record, HIDDEN_TWO_MASS, "c1 k1 k2 m2 c2", hidden=["x1"])
+    assert result.hidden == ("x1",) and result.measured == ("x2",)
+    assert result.elimination.equations == [
+        "x2'''' + a3*x2''' + a2*x2'' + a1*x2' + a0*x2 + b0_u*u = 0"]
+    assert str(result.elimination.expressions["a0"]) == "k1*k2/m2"
+    assert result.estimate == "refined", result.refinement.reason
+    for p in ("c1", "k1", "k2", "m2", "c2"):
+        true = TWO_MASS_TRUE[p]
+        assert abs(result.values[p] - true) < 0.03 * true, p
+        assert abs(result.values[p] - true) < 4 * result.stderr[p], p
+    # the simulation of the full system reproduces the measured position
+    assert 97.5 < result.fit_percent(record)["x2"] < 99.2
+
+
+def test_hidden_set_that_the_measured_signals_cannot_determine_is_refused():
+    with pytest.raises(ModelError, match=r"determine only 5 combinations of the 6 "
+                                         r"parameters \(.*k1\*k2/\(m1\*m2\).*fix one of m1"):
+        algid.identify(two_mass_record(), TWO_MASS, list(TWO_MASS_TRUE), hidden="x1")
+    # a hidden speed's scale trades against K, J and b
+    with pytest.raises(ModelError, match="fix one of K, J, b"):
+        algid.identify(motor_record(), MOTOR, "L R K J b", hidden=["w"])
+
+
+@pytest.mark.parametrize("equations, hidden, message", [
+    (MOTOR, ["u"], "no equation's output"),
+    (MOTOR, ["i", "w"], "every output is hidden"),
+    (MOTOR[0], ["w"], "a single equation's signals are all measured"),
+    (["L*i' + R*i + K*w = u", "J*w' + b*sign(w) = K*i"], ["w"], "linear systems only"),
+    (MOTOR, [3], "hidden must name signals"),
+])
+def test_bad_hidden_signals_are_refused(equations, hidden, message):
+    with pytest.raises(ModelError, match=message):
+        algid.identify(motor_record(), equations, "L R K J b", hidden=hidden)

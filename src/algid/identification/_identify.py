@@ -242,7 +242,7 @@ def _least_squares_misfit(segments, step, equation, parameters, output, length, 
 
 def identify(data, equation, parameters=None, *, time=None, rate=None, output=None,
              window=None, method="bc", multiplicities=MULTIPLICITIES, name="custom",
-             iterations=3, refine="auto"):
+             iterations=3, refine="auto", hidden=None):
     """Identify the parameters of a model equation on measured records.
 
     Parameters
@@ -294,6 +294,9 @@ def identify(data, equation, parameters=None, *, time=None, rate=None, output=No
         are stable, a nonlinear one whose fit is not much less precise than the
         algebraic estimate, and the simulation error drops); True: always (refused for
         a model it cannot simulate); False: the algebraic estimate.
+    hidden : sequence of str, optional
+        For a system of equations: outputs of its equations that are not measured
+        (eliminated from a linear system; see the user guide, "Systems of equations").
 
     Returns
     -------
@@ -333,7 +336,10 @@ def identify(data, equation, parameters=None, *, time=None, rate=None, output=No
                              "algid.models.parse_system, one per equation")
         return identify_system(data, equation, parameters, time=time, rate=rate,
                                window=window, method=method, multiplicities=multiplicities,
-                               name=name, refine=refine)
+                               name=name, refine=refine, hidden=hidden)
+    if hidden is not None:
+        raise ModelError("hidden: a single equation's signals are all measured; hidden "
+                         "signals belong to a system of equations (a list)")
     refine = check_refine(refine)
     if isinstance(equation, types.ModuleType):  # a compiled model: its own equation
         equation = model_of(estimator_module(equation, parameters))

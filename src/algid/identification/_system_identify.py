@@ -313,9 +313,9 @@ def _shift(problems, system, noisy, bounds, length, multiplicities, method, fit)
 
 def identify_system(data, equations, parameters=None, *, time=None, rate=None,
                     outputs=None, window=None, method="bc", multiplicities=MULTIPLICITIES,
-                    name="custom", refine="auto"):
+                    name="custom", refine="auto", hidden=None):
     """Identify the shared parameters of a system of equations (:func:`algid.identify`
-    with a list of equations)."""
+    with a list of equations; ``hidden``: outputs that are not measured)."""
     from algid.identification._output_error import check_refine
     from algid.identification._system_refinement import refine_system
     from algid.identification._system_result import SystemResult
@@ -327,6 +327,10 @@ def identify_system(data, equations, parameters=None, *, time=None, rate=None,
                              f"(choose from {', '.join(SYSTEM_METHODS)})")
     system = parse_system(equations, parameters, outputs=outputs, name=name) \
         if not isinstance(equations, SystemModel) else equations
+    hidden = _check_hidden(hidden)
+    if hidden:
+        return _identify_hidden(data, system, hidden, time=time, rate=rate, window=window,
+                                method=method, multiplicities=multiplicities, refine=refine)
     multiplicities = check_arguments(
         system.equations[0], system.parameters, time=time, rate=rate, output=None,
         window=window, method=method, methods=METHODS, multiplicities=multiplicities,
@@ -394,6 +398,62 @@ def identify_system(data, equations, parameters=None, *, time=None, rate=None,
         warnings=warnings + _weak(system, fit.theta, fit.covariance))
     result = refine_system(result, segments, refine)
     if result.estimate == "refined":   # what the refined estimate determines
+        theta = np.array([result.values[p] for p in system.parameters])
+        result.warnings = warnings + _weak(system, theta, result.covariance)
+    return result
+
+
+def _check_hidden(hidden):
+    if hidden is None:
+        return ()
+    if isinstance(hidden, str):
+        hidden = [hidden]
+    if not isinstance(hidden, (list, tuple)) or not all(isinstance(h, str) for h in hidden):
+        raise ModelError(f"hidden must name signals of the equations, got {hidden!r:.60}")
+    return tuple(dict.fromkeys(hidden))
+
+
+def _identify_hidden(data, system, hidden, *, time, rate, window, method, multiplicities,
+                     refine):
+    """A linear system with hidden outputs: its input–output equations identified, their
+    coefficients mapped to the parameters, then the refinement on the full system
+    (:mod:`algid.identification._hidden`)."""
+    from algid.identification._hidden import (
+        check_identifiable,
+        eliminate,
+        physical_parameters,
+    )
+    from algid.identification._system_refinement import refine_system
+    from algid.identification._system_result import SystemResult
+
+    elimination = eliminate(system, hidden)
+    check_identifiable(elimination, system.parameters)
+    options = {"time": time, "rate": rate, "window": window, "method": method,
+               "multiplicities": multiplicities, "refine": False}
+    # one input-output equation per measured output, sharing the coefficients of det P
+    io = identify_system(data, elimination.equations, elimination.coefficients, **options)
+    coefficients = [io.values[c] for c in elimination.coefficients]
+    order = [list(io.values).index(c) for c in elimination.coefficients]
+    covariance = io.covariance[np.ix_(order, order)]
+    theta, theta_covariance, others = physical_parameters(
+        elimination, system.parameters, dict(zip(elimination.coefficients, coefficients)),
+        covariance)
+    warnings = [f"input-output equation: {w}" for w in io.warnings]
+    for other in others:
+        warnings.append("the coefficients fit another parameter set as well: "
+                        + ", ".join(f"{p}={v:.6g}" for p, v in zip(system.parameters, other)))
+    measured = [s for s in system.signals if s not in hidden]
+    segments, _, _ = prepare_records(data, measured, time=time, rate=rate,
+                                     min_length=min_length(multiplicities))
+    result = SystemResult(
+        system=system, values=dict(zip(system.parameters, theta.tolist())),
+        covariance=theta_covariance, window=io.window, n_samples=io.n_samples,
+        n_windows=io.n_windows, method=method, multiplicities=io.multiplicities,
+        time=time, rate=rate, window_scores=io.window_scores,
+        warnings=warnings + _weak(system, theta, theta_covariance), hidden=hidden,
+        elimination=elimination)
+    result = refine_system(result, segments, refine)
+    if result.estimate == "refined":
         theta = np.array([result.values[p] for p in system.parameters])
         result.warnings = warnings + _weak(system, theta, result.covariance)
     return result

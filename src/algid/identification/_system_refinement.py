@@ -40,8 +40,9 @@ class SimulationResiduals:
     """Weighted simulation residuals of every output on every segment, the initial
     states projected out."""
 
-    def __init__(self, system, segments, sigma):
+    def __init__(self, system, segments, sigma, observed=None):
         self.system = system
+        self.observed = list(system.outputs if observed is None else observed)
         self.segments = segments
         self.sigma = sigma
         self.evaluations = 0
@@ -61,12 +62,13 @@ class SimulationResiduals:
 
     def _residuals(self, space):
         blocks, states = [], []
-        outputs = space.outputs
+        outputs = self.observed
+        rows = [space.outputs.index(y) for y in outputs]
         with np.errstate(over="ignore", invalid="ignore"):
             for seg in self.segments:
                 inputs = {u: seg.values[u] for u in self.system.inputs}
-                forced = simulate_space(space, seg.t, inputs)
-                free = free_responses(space, seg.t)   # (states, outputs, samples)
+                forced = simulate_space(space, seg.t, inputs)[rows]
+                free = free_responses(space, seg.t)[:, rows]   # (states, outputs, samples)
                 w = np.array([1.0 / self.sigma[y] for y in outputs])
                 target = np.array([seg.values[y] for y in outputs]) - forced
                 basis = (free * w[None, :, None]).reshape(len(free), -1).T
@@ -84,17 +86,17 @@ class SimulationResiduals:
         """Rows of each (segment, output) run in the residual vector."""
         bounds, start = [], 0
         for seg in self.segments:
-            for _ in self.system.outputs:
+            for _ in self.observed:
                 bounds.append((start, start + len(seg)))
                 start += len(seg)
         return bounds
 
     def per_output_rms(self, r):
         """Output name -> rms of its residuals, in its own units."""
-        sums = {y: 0.0 for y in self.system.outputs}
+        sums = {y: 0.0 for y in self.observed}
         counts = dict.fromkeys(sums, 0)
         for (a, b), (_, y) in zip(self.bounds(), [(s, y) for s in self.segments
-                                                  for y in self.system.outputs]):
+                                                  for y in self.observed]):
             sums[y] += float(r[a:b] @ r[a:b]) * self.sigma[y] ** 2
             counts[y] += b - a
         return {y: np.sqrt(sums[y] / counts[y]) for y in sums}
@@ -138,8 +140,9 @@ def _fit(residuals, start, scale):
 
 def refine_system(result, segments, refine):
     """The output-error refinement of an algebraic :class:`SystemResult` (``refine``:
-    True, False or ``"auto"``)."""
+    True, False or ``"auto"``) on its measured outputs (the hidden ones simulated)."""
     system = result.system
+    observed = [y for y in system.outputs if y not in result.hidden]
     algebraic = {"values": dict(result.values), "covariance": result.covariance,
                  "numerical_error": dict(result.numerical_error),
                  "warnings": list(result.warnings)}
@@ -154,8 +157,8 @@ def refine_system(result, segments, refine):
     start = np.array([result.values[p] for p in system.parameters])
     se = np.sqrt(np.maximum(np.diag(result.covariance), 0.0))
     scale = np.where(se > 0, se, np.maximum(np.abs(start), 1.0) * 1e-6)
-    sigma = {y: 1.0 for y in system.outputs}
-    residuals = SimulationResiduals(system, segments, sigma)
+    sigma = {y: 1.0 for y in observed}
+    residuals = SimulationResiduals(system, segments, sigma, observed)
     r0 = residuals(start)
     if r0 is None:
         return _not_refined(result, refine, "the algebraic estimate does not simulate "

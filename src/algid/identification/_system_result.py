@@ -29,6 +29,16 @@ class SystemValidation:
         The fitted initial state (each output and its derivatives).
     skip : int
         Samples used to fit the initial state, left out of the errors.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from algid.identification import SystemValidation
+    >>> t = np.arange(4.0)
+    >>> v = SystemValidation(t, {"y": np.array([0.0, 1, 2, 3])},
+    ...                      {"y": np.array([0.0, 1, 2, 2.5])}, np.zeros(1), 1)
+    >>> v.rmse["y"] == float(np.sqrt(0.25 / 3)), round(v.fit_percent["y"], 1)
+    (True, 64.6)
     """
 
     t: np.ndarray
@@ -50,8 +60,7 @@ class SystemValidation:
 
     @property
     def fit_percent(self):
-        """Output name -> ``100 (1 - |y - y_sim| / |y - mean(y)|)`` after ``skip``
-        samples."""
+        """Output name -> ``100 (1 - |y - y_sim| / |y - mean(y)|)`` after ``skip``."""
         fits = {}
         for y, r in self.residuals.items():
             v = self.measured[y][self.skip:]
@@ -106,6 +115,12 @@ class SystemResult:
     noise_rms : dict
         Output name -> rms of the refined simulation's residuals (the output noise, for
         a model that holds); empty where not refined.
+    hidden : tuple of str
+        Outputs of the equations that are not measured (eliminated for the algebraic
+        estimate, simulated by the refinement).
+    elimination : algid.identification._hidden.Elimination or None
+        With hidden signals: the input–output equations identified, and their
+        coefficients as functions of the parameters.
 
     Examples
     --------
@@ -140,6 +155,8 @@ class SystemResult:
     algebraic: dict | None = None
     refinement: object = None
     noise_rms: dict = field(default_factory=dict)
+    hidden: tuple = ()
+    elimination: object = None
 
     def __getattr__(self, name):
         values = self.__dict__.get("values", {})
@@ -161,6 +178,11 @@ class SystemResult:
     def outputs(self):
         """The output of each equation."""
         return self.system.outputs
+
+    @property
+    def measured(self):
+        """The outputs that are measured (not hidden)."""
+        return tuple(y for y in self.system.outputs if y not in self.hidden)
 
     @property
     def stderr(self):
@@ -200,7 +222,9 @@ class SystemResult:
         time, rate
             Time axis, as for :func:`algid.identify` (default: those of the fit).
         fit_samples : int, optional
-            Samples for the initial state (default 50, or half a short record).
+            Samples for the initial state (default 50, or half a short record; with
+            hidden signals, half the record: their initial state is read from the
+            measured outputs, which need a long stretch to show it).
 
         Returns
         -------
@@ -215,15 +239,17 @@ class SystemResult:
 
         time = self.time if time is None and rate is None else time
         rate = self.rate if time is None and rate is None else rate
-        segments, _, _ = prepare_records(data, self.system.signals, time=time, rate=rate,
-                                         min_length=2)
+        signals = [s for s in self.system.signals if s not in self.hidden]
+        segments, _, _ = prepare_records(data, signals, time=time, rate=rate, min_length=2)
         if len(segments) != 1:
             raise InputDataError("simulate needs one record without gaps or NaN")
         seg = segments[0]
         space = state_space(self.system, self.values)
         order = max(k for _, k in space.states) + 1
+        if fit_samples is None and self.hidden:
+            fit_samples = len(seg) // 2
         fit_samples = check_fit_samples(fit_samples, order, len(seg))
-        measured = {y: seg.values[y] for y in self.outputs}
+        measured = {y: seg.values[y] for y in self.measured}
         inputs = {u: seg.values[u] for u in self.system.inputs}
         with np.errstate(over="ignore", invalid="ignore"):
             x0, forced, free = fit_initial_state(space, seg.t, inputs, measured,
@@ -232,12 +258,25 @@ class SystemResult:
         if not np.all(np.isfinite(simulated)):
             raise ModelError("the simulated outputs diverge with parameters "
                              + ", ".join(f"{p}={v:.6g}" for p, v in self.values.items()))
-        return SystemValidation(seg.t, measured, dict(zip(self.outputs, simulated)), x0,
+        simulated = dict(zip(self.outputs, simulated))
+        return SystemValidation(seg.t, measured, {y: simulated[y] for y in measured}, x0,
                                 fit_samples)
 
     def fit_percent(self, data, **kwargs):
-        """Output name -> fit (%) of the simulated output on a record
-        (:meth:`simulate`)."""
+        """Fit (%) of each simulated output on a record (:meth:`simulate`).
+
+        Parameters
+        ----------
+        data : mapping
+            One record.
+        **kwargs
+            Options of :meth:`simulate`.
+
+        Returns
+        -------
+        dict
+            Output name -> fit (%).
+        """
         return self.simulate(data, **kwargs).fit_percent
 
     # export -------------------------------------------------------------------------
@@ -271,8 +310,7 @@ class SystemResult:
                      outputs=list(space.outputs), states=states)
 
     def to_dict(self):
-        """The result as one flat row (the layout of
-        :meth:`algid.IdentificationResult.to_dict`).
+        """The result as one flat row, as :meth:`algid.IdentificationResult.to_dict`.
 
         Returns
         -------
@@ -292,7 +330,12 @@ class SystemResult:
         return row
 
     def to_pandas(self):
-        """The result as a pandas ``DataFrame`` of one row (:meth:`to_dict`)."""
+        """The result as a pandas ``DataFrame`` of one row (:meth:`to_dict`).
+
+        Returns
+        -------
+        pandas.DataFrame
+        """
         import pandas as pd
 
         return pd.DataFrame([self.to_dict()])

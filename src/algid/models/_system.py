@@ -76,7 +76,17 @@ class SystemModel:
         return "; ".join(model.equation for model in self.equations)
 
     def columns(self, index) -> list:
-        """Positions, in :attr:`parameters`, of equation ``index``'s parameters."""
+        """Positions, in :attr:`parameters`, of an equation's parameters.
+
+        Parameters
+        ----------
+        index : int
+            The equation's position in :attr:`equations`.
+
+        Returns
+        -------
+        list of int
+        """
         return [self.parameters.index(p) for p in self.equations[index].parameters]
 
     def __str__(self):
@@ -114,6 +124,15 @@ def parse_system(equations, parameters, *, outputs=None, name="custom") -> Syste
     ModelError
         One line naming the problem: an equation that cannot be read, two equations
         with one output, a parameter in no equation, no known term in the system.
+
+    Examples
+    --------
+    >>> from algid.models import parse_system
+    >>> system = parse_system(["m1*x1'' + c1*x1' + k1*x1 + k2*(x1 - x2) = u",
+    ...                        "m2*x2'' + c2*x2' + k2*(x2 - x1) = 0"],
+    ...                       "m1 c1 k1 k2 m2 c2")
+    >>> system.outputs, system.inputs, system.equations[1].parameters
+    (('x1', 'x2'), ('u',), ('k2', 'm2', 'c2'))
     """
     if isinstance(equations, SystemModel):
         return equations

@@ -332,7 +332,8 @@ def free_responses(space, t):
 def fit_initial_state(space, t, inputs, measured, fit_samples):
     """The initial state that best fits the measured outputs on the first samples.
 
-    Least squares over every output, each weighted by the inverse of its spread.
+    Least squares over the measured outputs (every output, or those of ``measured``
+    where some are hidden), each weighted by the inverse of its spread.
 
     Parameters
     ----------
@@ -340,7 +341,7 @@ def fit_initial_state(space, t, inputs, measured, fit_samples):
     t : numpy.ndarray
     inputs : mapping
     measured : mapping
-        Output name -> measured samples.
+        Output name -> measured samples (of some or all outputs).
     fit_samples : int
 
     Returns
@@ -355,7 +356,8 @@ def fit_initial_state(space, t, inputs, measured, fit_samples):
     forced = simulate_space(space, t, inputs)
     free = free_responses(space, t)
     rows, rhs = [], []
-    for j, y in enumerate(space.outputs):
+    for y in measured:
+        j = space.outputs.index(y)
         v = np.asarray(measured[y], dtype=float)
         scale = float(np.std(v)) or 1.0
         rows.append(free[:, j, :fit_samples].T / scale)
