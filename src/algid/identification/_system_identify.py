@@ -94,7 +94,7 @@ class _Rows:
             shifts.append(columns - known)
         self.g = np.full(P, -np.inf)
         for i, s in enumerate(shifts):
-            for local, p in enumerate(system.columns(i)):
+            for local, p in enumerate(_columns(system, problems[i])):
                 self.g[p] = max(self.g[p], s[local])
         self.g = self.g.astype(int)
         self.ids = None
@@ -102,7 +102,7 @@ class _Rows:
             A, b, ids = problem.rows(length, multiplicity)
             if self.ids is None:
                 self.ids = ids
-            where = system.columns(i)
+            where = _columns(system, problem)
             scale = np.ldexp(1.0, shifts[i] - self.g[where])
             phi = np.zeros((len(b), P + 1))
             phi[:, where] = A * scale
@@ -166,6 +166,11 @@ def _weights(rows, method):
         rms = float(np.sqrt(np.mean(r ** 2)))
         weights.append(1.0 / rms if rms > 0 else w * np.sqrt(len(r)))
     return weights
+
+
+def _columns(system, problem):
+    """Positions, in the system's parameters, of one equation's parameters."""
+    return [system.parameters.index(p) for p in problem.model.parameters]
 
 
 class _SystemFit(WindowFit):
@@ -343,12 +348,13 @@ def identify_system(data, equations, parameters=None, *, time=None, rate=None,
         multiplicities = check_multiplicities(model, multiplicities)
     segments, step, n_samples = prepare_records(data, system.signals, time=time, rate=rate,
                                                 min_length=min_length(multiplicities))
-    problems = []
+    problems = []   # the equations with parameters (a fully known one informs none)
     for model in system.equations:
         add_derivatives(model, segments, derivative_estimate)
         check_factors(model, segments)
-        problems.append(WindowProblem(model, segments, step))
-    noisy = system.outputs
+        if model.parameters:
+            problems.append(WindowProblem(model, segments, step))
+    noisy = tuple(y for y in system.outputs if any(y in p.model.signals for p in problems))
     bounds = {}
     for y in noisy:
         problem = next(p for p in problems if y in p.model.signals)
@@ -377,14 +383,14 @@ def identify_system(data, equations, parameters=None, *, time=None, rate=None,
     warnings = []
     stride = max(1, length // WINDOW_OVERLAP)
     shift = None
-    for i, (model, misfit) in enumerate(zip(system.equations, fit.misfits)):
+    for model, misfit in zip([p.model for p in problems], fit.misfits):
         limit = misfit_limit(fit.n_windows, length, len(system.parameters), stride)
         if misfit > limit:
             if shift is None:
                 shift = _shift(problems, system, noisy, bounds, length, multiplicities,
                                method, fit) or 0.0
             if shift > SHIFT_LIMIT:
-                warnings.append(f"equation {i + 1} ({model.equation}) does not explain the "
+                warnings.append(f"the equation {model.equation} does not explain the "
                                 f"records within the noise: its misfit is {misfit:.3g} "
                                 f"times the noise's and the estimates shift by {shift:.3g} "
                                 f"standard errors between windows")
@@ -394,7 +400,8 @@ def identify_system(data, equations, parameters=None, *, time=None, rate=None,
         window=(length - 1) * step, n_samples=n_samples, n_windows=fit.n_windows,
         method=method, multiplicities=multiplicities, time=time, rate=rate,
         numerical_error=dict(zip(system.parameters, fit.numerical_error.tolist())),
-        misfits=dict(zip(system.outputs, fit.misfits)), window_scores=scores,
+        misfits=dict(zip([p.model.output for p in problems], fit.misfits)),
+        window_scores=scores,
         warnings=warnings + _weak(system, fit.theta, fit.covariance))
     result = refine_system(result, segments, refine)
     if result.estimate == "refined":   # what the refined estimate determines

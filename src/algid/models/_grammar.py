@@ -601,8 +601,8 @@ def parse_equation(text, parameters, *, output=None, name="custom", signals=None
     within_system : bool
         The equation is one of a system (:func:`algid.identification.parse_system`): the
         parameters are those of the whole system, of which the model keeps the ones that
-        appear, and the equation may have no known term (another equation of the system
-        fixes the scale of the parameters it shares).
+        appear (none: a fully known equation), and the equation may have no known term
+        (another equation of the system fixes the scale of the parameters it shares).
 
     Returns
     -------
@@ -639,10 +639,8 @@ def parse_equation(text, parameters, *, output=None, name="custom", signals=None
     right = _parse_side(equation, sides[1], reader)
     terms = _to_terms(left + [(-c, p, f) for c, p, f in right], equation)
     used = {term.parameter for term in terms}
-    if within_system:
+    if within_system:   # (an equation of the system may be fully known)
         parameters = tuple(p for p in parameters if p in used)
-        if not parameters:
-            _fail(equation, "none of the parameters given appears in it")
     for parameter in parameters:
         if parameter not in used:
             _fail(equation, f"parameter {parameter} does not appear (or its terms cancel)")
