@@ -31,7 +31,7 @@ from algid_notebooks import find_kernel, notebook_names, runs_this_python  # noq
 
 NOTEBOOKS = ROOT / "notebooks"
 NAMES = ("01_derivation", "02_paper_figures", "03_noise_and_filter", "04_online_realisation",
-         "05_silverbox", "06_emps", "07_tracking")
+         "05_silverbox", "06_emps", "07_tracking", "08_systems")
 
 
 def test_every_notebook_is_executed():
@@ -322,3 +322,18 @@ def test_07_tracking(run_notebook, record_property):
     assert res["silverbox_K_amplitude_correlation"] > 0.9
     assert res["silverbox_K_mismatch_median"] < 0.005
     assert res["silverbox_K_mismatch_p95"] < 0.02
+
+
+def test_08_systems(run_notebook, record_property):
+    res, elapsed = run_notebook("08_systems")
+    record_property("seconds", round(elapsed, 1))
+    print(f"08_systems: {elapsed:.1f} s")
+    # every system refined by output error, every parameter within 4 standard errors
+    # and 1 % (both positions, the motor) or 3 % (the hidden position) of the truth
+    for case, limit in (("both", 0.01), ("hidden", 0.03), ("motor", 0.01)):
+        assert res[f"{case}_estimate"] == "refined", case
+        assert max(abs(v) for v in res[f"{case}_error_over_se"].values()) < 4, case
+        assert max(abs(v) for v in res[f"{case}_relative_error"].values()) < limit, case
+    # 40 dB of white noise caps the fit at 99 %
+    assert all(97.5 < f < 99.2 for f in res["both_fit_percent"].values())
+    assert "determine only 5 combinations of the 6 parameters" in res["refused"]

@@ -217,6 +217,9 @@ def build_parser() -> argparse.ArgumentParser:
                           "that share parameters (one measured output each)")
     ide.add_argument("--parameters", required=True, metavar="\"P1 P2 ...\"",
                      help="the unknown parameters, separated by spaces")
+    ide.add_argument("--hidden", default=None, metavar="SIGNAL", action="append",
+                     help="with several --equation: an output of the equations that is not "
+                          "measured (eliminated; once per hidden signal)")
     ide.add_argument("--time", default=None, metavar="COL",
                      help="time column (default: t or time when present)")
     ide.add_argument("--rate", type=_positive, default=None, metavar="HZ",
@@ -523,6 +526,8 @@ def _cmd_identify(args) -> int:
     if clash:
         raise ModelError(f"parameter name {clash[0]!r} is reserved by the output "
                          f"({', '.join(IDENTIFY_JSON_KEYS)}); rename it")
+    if args.hidden is not None and len(args.equation) == 1:
+        raise InputDataError("--hidden goes with several --equation (a system)")
     if args.by is not None and len(args.equation) > 1:
         raise InputDataError("--by identifies one equation per record; a system of "
                              "equations is identified on one record (or several together)")
@@ -542,13 +547,16 @@ def _cmd_identify(args) -> int:
         from algid._cli_fleet import check_out
 
         check_out(args.out)
-    names = list(model.signals) + ([args.time] if args.time else [])
+    hidden = set(args.hidden or ())
+    names = [s for s in model.signals if s not in hidden] + ([args.time] if args.time else [])
     # a time column is read with --rate too: the two must agree
     optional = () if args.time else TIME_COLUMNS
     records = [read_model_columns(sys.stdin if path == "-" else path, names, model, optional)
                for path in args.files]
+    options = {"hidden": args.hidden} if args.hidden else {}
     result = identify(records, model, time=args.time, rate=args.rate, window=args.window,
-                      method=args.method, refine="auto" if args.refine is None else args.refine)
+                      method=args.method, refine="auto" if args.refine is None else args.refine,
+                      **options)
     stderr = result.stderr
     source = args.files[0] if len(args.files) == 1 else f"{len(args.files)} records"
     source = "standard input" if source == "-" else source
