@@ -243,3 +243,41 @@ def test_hidden_set_that_the_measured_signals_cannot_determine_is_refused():
 def test_bad_hidden_signals_are_refused(equations, hidden, message):
     with pytest.raises(ModelError, match=message):
         algid.identify(motor_record(), equations, "L R K J b", hidden=hidden)
+
+
+# the tracker of a system ---------------------------------------------------------
+
+
+def test_tracker_of_a_system_equals_identify_at_its_window():
+    record = motor_record(seed=5)
+    fit = algid.identify(record, MOTOR, "L R K J b", window=0.2, refine=False)
+    tracker = algid.Tracker(MOTOR, "L R K J b", time="t", window=0.2)
+    last = None
+    for start in range(0, len(record["t"]), 777):   # chunks of any size
+        out = tracker.update({k: v[start:start + 777] for k, v in record.items()})
+        last = out if len(out) else last
+    for i, p in enumerate(fit.parameters):
+        assert abs(last.values[-1, i] - fit.values[p]) < 0.05 * fit.stderr[p], p
+        assert 0.5 < last.stderr[-1, i] / fit.stderr[p] < 2.0, p
+
+
+def test_tracker_follows_two_masses_within_three_standard_errors():
+    record = two_mass_record(noise_db=40.0, seed=2, duration=20.0, rate=1000.0)
+    tracker = algid.Tracker(TWO_MASS, list(TWO_MASS_TRUE), time="t")
+    for start in range(0, len(record["t"]), 1000):   # one second at a time
+        out = tracker.update({k: v[start:start + 1000] for k, v in record.items()})
+    assert out.t[-1] > 19.9
+    for i, (p, true) in enumerate(TWO_MASS_TRUE.items()):
+        assert abs(out.values[-1, i] - true) < 3 * out.stderr[-1, i], p
+        assert out.stderr[-1, i] < 0.05 * true, p
+
+
+def test_tracker_of_a_system_refuses_what_it_cannot_do():
+    with pytest.raises(InputDataError, match="raises no alarms"):
+        algid.Tracker(MOTOR, "L R K J b", rate=500, false_alarm_rate=0.1)
+    with pytest.raises(ModelError, match="needs derivatives"):
+        algid.Tracker(["L*i' + R*i + K*w = u", "J*w' + b*sign(w') = K*i"], "L R K J b",
+                      rate=500)
+    tracker = algid.Tracker(MOTOR, "L R K J b", rate=500)
+    with pytest.raises(InputDataError, match="no column 'w'"):
+        tracker.update({"u": [1.0], "i": [0.0]})

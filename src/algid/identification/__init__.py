@@ -30,7 +30,8 @@ from algid.identification._fleet import identify_many
 from algid.identification._identify import METHODS, identify
 from algid.identification._result import IdentificationResult, Validation
 from algid.identification._system_result import SystemResult, SystemValidation
-from algid.identification._tracker import Tracker, TrackUpdate
+from algid.identification._tracker import Tracker
+from algid.identification._tracker_state import TrackUpdate
 
 __all__ = ["identify", "identify_many", "IdentificationResult", "Validation", "Adequacy",
            "SystemResult", "SystemValidation", "Tracker", "TrackUpdate", "METHODS"]

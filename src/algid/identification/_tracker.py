@@ -31,7 +31,6 @@ from __future__ import annotations
 
 import math
 import types
-from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.polynomial import chebyshev
@@ -61,6 +60,7 @@ from algid.identification._tracker_state import (
     Sums,
     Tests,
     TrackerState,
+    TrackUpdate,
     Warmup,
 )
 from algid.identification._window_basis import DETERMINED_LEAK, ROUNDOFF_SEPARABILITY
@@ -77,6 +77,7 @@ from algid.models._compiled import model_of
 from algid.models._expression import Call, Signal
 from algid.models._grammar import parse_equation
 from algid.models._model import Model
+from algid.models._system import is_system, parse_system
 from algid.signals._differentiation import algebraic_derivative
 
 __all__ = ["Tracker", "TrackUpdate", "DEFAULT_WARMUP", "DEFAULT_FALSE_ALARM_RATE",
@@ -95,59 +96,6 @@ DERIVATIVE_STEPS = 20
 
 #: Steps seen before the sampling step of a time column is fixed (their median).
 STEP_SAMPLES = 16
-
-@dataclass
-class TrackUpdate:
-    """What :meth:`Tracker.update` reports for one chunk.
-
-    Attributes
-    ----------
-    parameters : tuple of str
-    t : numpy.ndarray
-        Times of the window ends reported (the stream's time of their last sample).
-    values, stderr, numerical_error : numpy.ndarray
-        Shape ``(len(t), p)``: estimates, standard errors and numerical errors (NaN
-        until the parameters are determined).
-    alarms : numpy.ndarray
-        Times of the alarms raised in the chunk.
-
-    Examples
-    --------
-    >>> import numpy as np
-    >>> from algid import Tracker
-    >>> t = np.arange(2000) / 100.0
-    >>> u = np.sin(t) + np.sin(3.1 * t)
-    >>> y = (np.sin(t - np.arctan(0.5)) / np.hypot(2, 1)
-    ...      + np.sin(3.1 * t - np.arctan(1.55)) / np.hypot(2, 3.1))
-    >>> out = Tracker("y' + a*y = b*u", "a b", rate=100, window=0.5).update({"y": y, "u": u})
-    >>> len(out) == len(out.t), out.parameters, round(float(out["a"][-1]), 4)
-    (True, ('a', 'b'), 2.0)
-    """
-
-    parameters: tuple
-    t: np.ndarray
-    values: np.ndarray
-    stderr: np.ndarray
-    numerical_error: np.ndarray
-    alarms: np.ndarray = field(default_factory=lambda: np.empty(0))
-
-    def __len__(self):
-        return len(self.t)
-
-    def __getitem__(self, name):
-        return self.values[:, self.parameters.index(name)]
-
-    def last(self):
-        """The last estimates.
-
-        Returns
-        -------
-        dict
-            ``{parameter: value}`` (empty before any window end).
-        """
-        return {} if not len(self.t) else dict(zip(self.parameters,
-                                                   self.values[-1].tolist()))
-
 
 def _exponent(x):
     return np.where(x > 0, np.frexp(np.where(x > 0, x, 1.0))[1] - 1, 0)
@@ -314,8 +262,11 @@ class Tracker:
 
     Parameters
     ----------
-    equation : str, Model or module
+    equation : str, Model, module or list of str
         The model, as for :func:`algid.identify` (equation text, or a compiled model).
+        A list of equations that share ``parameters`` makes a tracker of the system
+        (:class:`~algid.identification._system_tracker.SystemTracker`: the joint window
+        equations, no alarms, no ``save``; see the user guide, "Systems of equations").
     parameters : sequence of str or str
         The unknown parameters (not needed for a Model or a compiled model).
     rate : float, optional
@@ -362,6 +313,23 @@ class Tracker:
     >>> [round(float(v), 4) for v in out.values[-1]]
     [2.0, 1.0]
     """
+
+    def __new__(cls, equation=None, parameters=None, *, rate=None, time=None, output=None,
+                window=None, half_life=None, method="bc", warmup=DEFAULT_WARMUP,
+                false_alarm_rate=DEFAULT_FALSE_ALARM_RATE, every=None):
+        if not is_system(equation):
+            return super().__new__(cls)
+        # a system of equations: the joint window equations on the stream
+        from algid.identification._system_tracker import SystemTracker
+
+        if output is not None:
+            raise InputDataError("output: a system's tracker takes the output of each of "
+                                 "its equations")
+        if false_alarm_rate != DEFAULT_FALSE_ALARM_RATE:
+            raise InputDataError("false_alarm_rate: a system's tracker raises no alarms")
+        return SystemTracker(parse_system(equation, parameters), rate=rate, time=time,
+                             window=window, half_life=half_life, method=method,
+                             warmup=warmup, every=every)
 
     def __init__(self, equation, parameters=None, *, rate=None, time=None, output=None,
                  window=None, half_life=None, method="bc", warmup=DEFAULT_WARMUP,

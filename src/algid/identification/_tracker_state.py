@@ -20,7 +20,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-__all__ = ["TrackerState", "Warmup", "Sums", "Tests", "Pending", "Segment",
+__all__ = ["TrackerState", "TrackUpdate", "Warmup", "Sums", "Tests", "Pending", "Segment",
            "MAX_WINDOW_SAMPLES", "WARMUP_DOUBLINGS"]
 
 #: Longest window (samples) a tracker accepts: its state holds a few arrays of a
@@ -311,3 +311,56 @@ class TrackerState:
             n=flat["seg_n"], first=flat["seg_first"], ready=flat["seg_ready"],
             next_window=flat["next_window"], bound_upto=flat["bound_upto"])
         return state
+
+
+@dataclass
+class TrackUpdate:
+    """What :meth:`Tracker.update` reports for one chunk.
+
+    Attributes
+    ----------
+    parameters : tuple of str
+    t : numpy.ndarray
+        Times of the window ends reported (the stream's time of their last sample).
+    values, stderr, numerical_error : numpy.ndarray
+        Shape ``(len(t), p)``: estimates, standard errors and numerical errors (NaN
+        until the parameters are determined).
+    alarms : numpy.ndarray
+        Times of the alarms raised in the chunk.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from algid import Tracker
+    >>> t = np.arange(2000) / 100.0
+    >>> u = np.sin(t) + np.sin(3.1 * t)
+    >>> y = (np.sin(t - np.arctan(0.5)) / np.hypot(2, 1)
+    ...      + np.sin(3.1 * t - np.arctan(1.55)) / np.hypot(2, 3.1))
+    >>> out = Tracker("y' + a*y = b*u", "a b", rate=100, window=0.5).update({"y": y, "u": u})
+    >>> len(out) == len(out.t), out.parameters, round(float(out["a"][-1]), 4)
+    (True, ('a', 'b'), 2.0)
+    """
+
+    parameters: tuple
+    t: np.ndarray
+    values: np.ndarray
+    stderr: np.ndarray
+    numerical_error: np.ndarray
+    alarms: np.ndarray = field(default_factory=lambda: np.empty(0))
+
+    def __len__(self):
+        return len(self.t)
+
+    def __getitem__(self, name):
+        return self.values[:, self.parameters.index(name)]
+
+    def last(self):
+        """The last estimates.
+
+        Returns
+        -------
+        dict
+            ``{parameter: value}`` (empty before any window end).
+        """
+        return {} if not len(self.t) else dict(zip(self.parameters,
+                                                   self.values[-1].tolist()))

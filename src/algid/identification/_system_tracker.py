@@ -1,0 +1,471 @@
+"""On-line identification of a system of equations that share parameters.
+
+:class:`SystemTracker` is what :class:`algid.Tracker` becomes given a list of
+equations: the joint window equations of :mod:`algid.identification._system_identify`,
+formed as soon as each window's last sample has arrived and accumulated with
+exponential forgetting (``half_life``; None keeps every window).
+
+- **The window**: given, or chosen by :func:`algid.identify` on the first ``warmup``
+  seconds (the span doubled, three times at most, while it refuses them, leaves a
+  parameter poorly determined or keeps a window of at least half the longest they
+  allow).
+- **Rows in physical units**: each block of new windows is made by a
+  :class:`~algid.identification._window_problem.WindowProblem` on the samples that
+  hold them, whose powers of two are undone (exactly), so that the rows of every block
+  add up.  Per equation, the sums are ``sum w Phi^T Phi`` and, per noisy output,
+  ``sum w G`` (the noise covariance the window kernels give it); the outputs' noise
+  bounds accumulate the sums of their samples' differences.
+- **The solve** at every window end: Koopmans' estimator on the sums, each equation
+  weighted by the inverse rms of its residuals on the first windows (fixed then).
+- **Standard errors**: a sandwich whose middle accumulates the estimating equations of
+  the windows (at the estimate of their time) with their lagged products over the
+  windows' overlap, with the squared forgetting weights.
+
+The state is the last window's samples and sums of fixed size.  Nonlinear factors that
+need derivatives of the signals (``sign(q')``) are not tracked in systems.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+from math import comb
+
+import numpy as np
+
+from algid._record_input import (
+    TIME_COLUMNS,
+    as_record,
+    check_rate,
+    column_list,
+    is_record,
+    read_column,
+    refuse_infinite,
+)
+from algid.errors import InputDataError, ModelError
+from algid.identification._bias_compensation import koopmans
+from algid.identification._records import GAP_FACTOR, Segment
+from algid.identification._system_identify import WEAK_RELATIVE_ERROR
+from algid.identification._tracker_state import TrackUpdate
+from algid.identification._window_problem import MULTIPLICITIES, WINDOW_OVERLAP, WindowProblem
+from algid.identification._window_rule import MIN_SPARE_WINDOWS, min_length
+
+__all__ = ["SystemTracker"]
+
+#: Seconds of stream on which the window is chosen when none is given.
+DEFAULT_WARMUP = 2.0
+
+#: Doublings of the warm-up span while identify refuses it.
+WARMUP_DOUBLINGS = 3
+
+#: Orders of the differences that bound the outputs' noise variance.
+NOISE_ORDERS = range(1, 9)
+
+
+class SystemTracker:
+    """The streaming form of :func:`algid.identify` on a system of equations.
+
+    Made by :class:`algid.Tracker` given a list of equations; see the module notes.
+
+    Parameters
+    ----------
+    system : algid.models.SystemModel
+    rate, time, window, half_life, method, warmup, every
+        As for :class:`algid.Tracker`.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from algid import Tracker, simulate_system
+    >>> t = np.arange(0, 20, 0.01)
+    >>> u = np.sin(1.3 * t) + np.sin(4.1 * t)
+    >>> eqs = ["x1' + a*x1 = u", "x2' + x2 = b*x1"]
+    >>> y = simulate_system(eqs, {"a": 2.0, "b": 0.5}, t, {"u": u})
+    >>> tracker = Tracker(eqs, "a b", rate=100, window=1.0)
+    >>> out = tracker.update({"u": u, **y})
+    >>> {p: round(v, 3) for p, v in out.last().items()}
+    {'a': 2.0, 'b': 0.5}
+    """
+
+    def __init__(self, system, *, rate=None, time=None, window=None, half_life=None,
+                 method="bc", warmup=DEFAULT_WARMUP, every=None):
+        for model in system.equations:
+            if model.needs_derivatives:
+                raise ModelError(f"the equation {model.equation} needs derivatives inside a "
+                                 f"factor, which a system's tracker does not estimate")
+        if method not in ("bc", "ls"):
+            raise InputDataError(f"method must be 'bc' or 'ls' for a tracker, got {method!r}")
+        for name, value, allow_none in (("window", window, True),
+                                        ("half_life", half_life, True),
+                                        ("warmup", warmup, False), ("every", every, True)):
+            if value is None and allow_none:
+                continue
+            if isinstance(value, (bool, str)) or not isinstance(value, (int, float)) \
+                    or not (math.isfinite(value) and value > 0):
+                raise InputDataError(f"{name} must be a positive number of seconds"
+                                     f"{' or None' if allow_none else ''}, got {value!r}")
+        self.system = system
+        self.parameters = tuple(system.parameters)
+        self.models = [m for m in system.equations if m.parameters]
+        self.rate = None if rate is None else check_rate(rate)
+        self.time = time
+        self.method = method
+        self.half_life = half_life
+        self.every = every
+        self._warmup = self._first_warmup = float(warmup)
+        self._window = window
+        self._signals = list(system.signals)
+        self._noisy = [y for y in system.outputs
+                       if any(y in m.signals for m in self.models)]
+        self._buffer_t = np.empty(0)
+        self._buffer = {n: np.empty(0) for n in self._signals}
+        self._seen = 0
+        self._last_time = -np.inf
+        self.length = None          # samples per window
+        self.step = None
+        self._next_start = 0        # buffer index of the next window's first sample
+        self._sums = None
+        self._weights = None
+        self._theta_bar = None
+        self._recent = deque()
+        self._differences = {y: np.zeros((len(NOISE_ORDERS), 2)) for y in self._noisy}
+        self._tail = {y: np.empty(0) for y in self._noisy}
+
+    # ------------------------------------------------------------------ public
+    @property
+    def window(self):
+        """The window length (s), or None before it is chosen."""
+        return None if self.length is None else (self.length - 1) * self.step
+
+    def update(self, chunk, *, last=False):
+        """Stream the next samples (as :meth:`algid.Tracker.update`).
+
+        Parameters
+        ----------
+        chunk : mapping, pandas.DataFrame, xarray.Dataset or control.TimeResponseData
+            Column name -> samples: every measured signal of the equations and the time
+            column (or none, with ``rate``).
+        last : bool
+            The chunk ends the stream (its last window end is reported whatever
+            ``every``).
+
+        Returns
+        -------
+        algid.identification.TrackUpdate
+        """
+        t, columns = self._read(chunk)
+        self._accumulate_noise(columns)
+        self._out = []
+        self._last = last
+        self._buffer_t = np.concatenate([self._buffer_t, t])
+        for name in self._signals:
+            self._buffer[name] = np.concatenate([self._buffer[name], columns[name]])
+        if self.length is None:
+            self._configure(last)
+        if self.length is not None:
+            self._windows()
+        p = len(self.parameters)
+        if not self._out:
+            return TrackUpdate(self.parameters, np.empty(0), np.empty((0, p)),
+                               np.empty((0, p)), np.empty((0, p)), np.empty(0))
+        t_out, values, stderr, error = (np.array(x, dtype=float) for x in zip(*self._out))
+        return TrackUpdate(self.parameters, t_out, values.reshape(-1, p),
+                           stderr.reshape(-1, p), error.reshape(-1, p), np.empty(0))
+
+    # ------------------------------------------------------------------ input
+    def _read(self, chunk):
+        if not is_record(chunk):
+            raise InputDataError("a chunk must be a record: a mapping of column name -> "
+                                 "samples, a pandas DataFrame, an xarray Dataset or a "
+                                 "TimeResponseData")
+        chunk = as_record(chunk, "the chunk")
+        time = self.time
+        if time is None and self.rate is None:
+            time = next((c for c in TIME_COLUMNS if c in chunk), None)
+            if time is None:
+                raise InputDataError(f"no time column ({' or '.join(TIME_COLUMNS)}) in the "
+                                     f"stream; give time= (a column name) or rate= (Hz)")
+            self.time = time
+        columns, n = {}, None
+        for name in self._signals + ([time] if time is not None else []):
+            if name not in chunk:
+                raise InputDataError(f"no column {name!r} in the chunk (columns: "
+                                     f"{column_list(chunk)})")
+            values = read_column(chunk[name], f"column {name!r}")
+            refuse_infinite(values, f"column {name!r}", " of the chunk")
+            if n is not None and len(values) != n:
+                raise InputDataError("the columns of the chunk have different lengths")
+            columns[name], n = values, len(values)
+        if time is None:
+            t = (self._seen + np.arange(n)) / self.rate
+        else:
+            t = columns.pop(time)
+            if n and (not np.all(np.isfinite(t)) or np.any(np.diff(t) <= 0)
+                      or t[0] <= self._last_time):
+                raise InputDataError(f"the times of column {time!r} must be finite and "
+                                     f"increase")
+        self._seen += n
+        if n:
+            self._last_time = float(t[-1])
+        return t, columns
+
+    # ------------------------------------------------------------------ set-up
+    def _configure(self, last):
+        t = self._buffer_t
+        if len(t) < 2:
+            return
+        span = t[-1] - t[0]
+        needed = self._warmup if self._window is None else 0.0
+        if span < needed and not last:
+            return
+        step = float(np.median(np.diff(t)))
+        length = None
+        if self._window is not None:
+            length = int(round(self._window / step)) + 1
+            if length < min_length(MULTIPLICITIES):
+                raise InputDataError(f"window {self._window:g} s is shorter than the "
+                                     f"kernels need ({min_length(MULTIPLICITIES)} samples)")
+        else:
+            from algid.identification._system_identify import identify_system
+
+            record = {"t": t, **self._buffer}
+            more = not last and span < self._first_warmup * 2 ** WARMUP_DOUBLINGS
+            try:
+                fit = identify_system(record, self.system, refine=False, method=self.method)
+            except (InputDataError, ModelError):
+                if more:
+                    self._warmup = 2 * span
+                    return
+                raise
+            length = int(round(fit.window / step)) + 1
+            # a window of at least half the longest the span allows may want more data
+            # (as the Tracker of one equation), and so do poorly determined parameters
+            # (a span shorter than the slowest mode's period): the span doubles
+            longest = len(t) // (len(self.parameters) + MIN_SPARE_WINDOWS)
+            values = np.array([fit.values[p] for p in self.parameters])
+            stderr = np.array([fit.stderr[p] for p in self.parameters])
+            weak = np.any(stderr > WEAK_RELATIVE_ERROR * np.abs(values))
+            if more and (2 * length >= longest or weak):
+                self._warmup = 2 * span
+                return
+        self.step, self.length = step, length
+        self.stride = max(1, length // WINDOW_OVERLAP)
+        self.overlap = int(math.ceil(length / self.stride))
+        self.decay = 1.0 if self.half_life is None else \
+            2.0 ** (-self.stride * step / self.half_life)
+
+    # ------------------------------------------------------------------ windows
+    def _windows(self):
+        """Every window the buffer completes, run by run (a gap, missing rows or a NaN,
+        ends a run: windows never cross it); the buffer keeps what later windows need."""
+        while True:
+            t = self._buffer_t
+            finite = np.all([np.isfinite(self._buffer[n]) for n in self._signals], axis=0)
+            breaks = np.flatnonzero(np.concatenate(
+                [[not finite[0]] if len(t) else [],
+                 (np.diff(t) > GAP_FACTOR * self.step) | ~finite[1:]]))
+            if not breaks.size:
+                self._process(self._next_start, len(t))
+                self._drop(slice(self._next_start, None))
+                self._next_start = 0
+                return
+            cut = int(breaks[0])
+            self._process(self._next_start, cut)
+            self._drop(slice(cut if finite[cut] else cut + 1, None))
+            self._next_start = 0
+            self._recent.clear()   # windows across the break are not neighbours
+
+    def _drop(self, keep):
+        self._buffer_t = self._buffer_t[keep]
+        for n in self._signals:
+            self._buffer[n] = self._buffer[n][keep]
+
+    def _process(self, start, stop):
+        """Every window of the buffer's samples ``[start, stop)`` (a run without gap)."""
+        count = (stop - start - self.length) // self.stride + 1
+        if count <= 0:
+            return
+        end = start + (count - 1) * self.stride + self.length
+        seg_t = self._buffer_t[start:end]
+        values = {n: self._buffer[n][start:end] for n in self._signals}
+        segment = Segment(0, np.arange(len(seg_t)), seg_t, values, self.step)
+        blocks = {a: self._rows(segment, a) for a in MULTIPLICITIES}
+        ends = seg_t[self.length - 1::self.stride][:count]
+        for w in range(count):
+            self._add(blocks, w)
+            if self._weights is None:
+                continue
+            theta, stderr, error = self._solve()
+            if self._report(ends[w], w == count - 1):
+                self._out.append((ends[w], theta, stderr, error))
+        self._next_start = start + count * self.stride
+
+    def _report(self, end, final):
+        if self.every is None or (final and self._last):
+            return True
+        previous = getattr(self, "_last_report", -np.inf)
+        if math.floor(end / self.every) > math.floor(previous / self.every):
+            self._last_report = end
+            return True
+        return False
+
+    def _rows(self, segment, a):
+        """Per equation: rows ``[A | b]`` in the system's columns and physical units, and
+        per noisy output the noise covariances per unit variance."""
+        P = len(self.parameters)
+        out = []
+        for model in self.models:
+            problem = WindowProblem(model, [segment], self.step)
+            A, b, _ = problem.rows(self.length, a)
+            columns, known, _ = problem.exponents()
+            where = [self.parameters.index(p) for p in model.parameters]
+            scale = np.ones(P + 1)
+            scale[where] = np.ldexp(1.0, columns)
+            scale[P] = np.ldexp(1.0, known)
+            phi = np.zeros((len(b), P + 1))
+            phi[:, where] = A
+            phi[:, P] = b
+            phi *= scale
+            grams = {}
+            index = [*where, P]
+            for y in self._noisy:
+                if y not in model.signals:
+                    continue
+                g = problem.noise_grams(self.length, a, y)
+                unit = np.ldexp(1.0, -problem.signal_exponent(y))
+                full = np.zeros((len(b), P + 1, P + 1))
+                full[np.ix_(np.arange(len(b)), index, index)] = g
+                grams[y] = full * (scale[None, :, None] * scale[None, None, :]) * unit ** 2
+            out.append((phi, grams))
+        return out
+
+    def _accumulate_noise(self, columns):
+        """The sums of the new samples' differences (the noise bounds), a NaN ending a
+        run as a gap does."""
+        for y in self._noisy:
+            new = columns[y]
+            for run in np.split(new, np.flatnonzero(~np.isfinite(new))):
+                run = run[np.isfinite(run)]
+                tail = self._tail[y]
+                v = np.concatenate([tail, run])
+                for i, k in enumerate(NOISE_ORDERS):
+                    if len(v) > k:
+                        d = np.diff(v, k)[len(tail) - min(len(tail), k):]
+                        self._differences[y][i] += (float(d @ d), len(d))
+                self._tail[y] = v[-max(NOISE_ORDERS):]
+            if new.size and not np.isfinite(new[-1]):
+                self._tail[y] = np.empty(0)
+
+    def _bounds(self):
+        bounds = {}
+        for y, sums in self._differences.items():
+            ratios = [s / n / comb(2 * k, k) for (s, n), k in zip(sums, NOISE_ORDERS) if n]
+            bounds[y] = min(ratios) if ratios else np.inf
+        return bounds
+
+    def _add(self, blocks, w):
+        P = len(self.parameters)
+        if self._sums is None:
+            self._sums = {a: [{"normal": np.zeros((P + 1, P + 1)),
+                               "noise": {y: np.zeros((P + 1, P + 1)) for y in grams}}
+                              for _, grams in blocks[a]] for a in MULTIPLICITIES}
+            self._meat = np.zeros((P, P))
+            self._first = []
+        for a in MULTIPLICITIES:
+            for sums, (phi, grams) in zip(self._sums[a], blocks[a]):
+                sums["normal"] *= self.decay
+                sums["normal"] += np.outer(phi[w], phi[w])
+                for y, g in grams.items():
+                    sums["noise"][y] *= self.decay
+                    sums["noise"][y] += g[w]
+        top = max(MULTIPLICITIES)
+        if self._weights is None:
+            # weights from the first windows: each equation's residual rms at a first
+            # solve with its rows of unit norm (as identify's)
+            self._first.append([(phi[w], {y: g[w] for y, g in grams.items()})
+                                for phi, grams in blocks[top]])
+            # as many windows as the warm-up span holds (weights from a few windows let
+            # an equation without a known term drift to its trivial solution)
+            wanted = max(2 * self.overlap + P,
+                         int(self._first_warmup / (self.stride * self.step)))
+            if len(self._first) >= wanted:
+                self._set_weights()
+            return
+        self._score([(phi[w], {y: g[w] for y, g in grams.items()})
+                     for phi, grams in blocks[top]])
+
+    def _set_weights(self):
+        rows = list(zip(*self._first))   # per equation: [(phi, grams)] over windows
+        first = [1.0 / max(np.linalg.norm([r[0] for r in eq]), 1e-300) for eq in rows]
+        theta_bar = self._koopmans(max(MULTIPLICITIES), first)[0]
+        weights = []
+        for w0, eq in zip(first, rows):
+            r = np.array([row[0] @ theta_bar for row in eq])
+            rms = float(np.sqrt(np.mean(r ** 2)))
+            weights.append(1.0 / rms if rms > 0 else w0 * np.sqrt(len(r)))
+        self._weights = weights
+        self._theta_bar = self._koopmans(max(MULTIPLICITIES), weights)[0]
+        for window in self._first:
+            self._score(window)
+        self._first = []
+
+    def _koopmans(self, a, weights):
+        P = len(self.parameters)
+        bounds = self._bounds()
+        normal = sum(w ** 2 * s["normal"] for w, s in zip(weights, self._sums[a]))
+        noise = sum(w ** 2 * sum(bounds[y] * g for y, g in s["noise"].items())
+                    for w, s in zip(weights, self._sums[a]))
+        theta_bar, variance = None, 0.0
+        if self.method == "bc" and np.any(noise != 0):
+            theta_bar, variance, _ = koopmans(normal, noise, 1.0)
+            variance = variance or 0.0
+        if theta_bar is None:
+            d = np.sqrt(np.diag(normal)[:P])
+            d[d == 0] = 1.0
+            x = np.linalg.lstsq(normal[:P, :P] / d[:, None] / d[None, :],
+                                normal[:P, P] / d, rcond=None)[0] / d
+            theta_bar, variance = np.append(x, -1.0), 0.0
+        return theta_bar, variance, normal, noise
+
+    def _score(self, window):
+        """The window's estimating equations at the current estimate, into the HAC
+        middle (lagged products over the overlap, squared forgetting weights)."""
+        P = len(self.parameters)
+        theta_bar = self._theta_bar
+        variance = getattr(self, "_variance", 0.0)
+        bounds = self._bounds()
+        score = np.zeros(P)
+        for w, (phi, grams) in zip(self._weights, window):
+            score += w ** 2 * (-phi[:P] * (phi @ theta_bar))
+            if variance:
+                score += w ** 2 * variance * sum(
+                    bounds[y] * (g @ theta_bar)[:P] for y, g in grams.items())
+        decay2 = self.decay ** 2
+        self._meat *= decay2
+        self._meat += np.outer(score, score)
+        lags = 2 * self.overlap
+        for lag, previous in enumerate(reversed(self._recent), start=1):
+            weight = 1.0 if lag <= self.overlap else \
+                1.0 - (lag - self.overlap) / (lags - self.overlap + 1.0)
+            cross = np.outer(score, previous) * weight * self.decay ** lag
+            self._meat += cross + cross.T
+        self._recent.append(score)
+        if len(self._recent) > lags:
+            self._recent.popleft()
+
+    def _solve(self):
+        P = len(self.parameters)
+        top = max(MULTIPLICITIES)
+        theta_bar, variance, normal, noise = self._koopmans(top, self._weights)
+        self._theta_bar, self._variance = theta_bar, variance
+        jacobian = normal[:P, :P] - variance * noise[:P, :P]
+        d = np.sqrt(np.abs(np.diag(jacobian)))
+        d[d == 0] = 1.0
+        bread = np.linalg.pinv(jacobian / d[:, None] / d[None, :]) / d[:, None] / d[None, :]
+        values, vectors = np.linalg.eigh(self._meat)
+        meat = (vectors * np.abs(values)) @ vectors.T
+        stderr = np.sqrt(np.maximum(np.diag(bread @ meat @ bread.T), 0.0))
+        others = [self._koopmans(a, self._weights)[0][:P] for a in MULTIPLICITIES if a != top]
+        error = np.max([np.abs(o - theta_bar[:P]) for o in others], axis=0) if others \
+            else np.full(P, np.nan)
+        return theta_bar[:P], stderr, error
