@@ -196,3 +196,17 @@ def test_results_table_shows_the_emps_estimates_against_the_published_values():
     deviations = ", ".join(f"{100 * (fit.values[p] / value - 1):+.2f}".replace("-", "−")
                            for p, value in datasets.EMPS_PUBLISHED.items())
     assert results_table()["EMPS"].startswith(deviations + " %;"), deviations
+
+
+def test_results_table_shows_the_systems_study():
+    import json
+
+    study = json.loads((ROOT / "benchmarks" / "systems_results.json").read_text(
+        encoding="utf-8"))
+    ranges, coverage = [], []
+    for name in ("two_mass", "two_mass_hidden", "dc_motor"):
+        row = study[name]["reported"]
+        ranges.append(f"{min(row['rmse_over_crlb']):.2f}–{max(row['rmse_over_crlb']):.2f}")
+        coverage += [100 * c for c in row["coverage_2se"]]
+    assert results_table()["two masses (both measured / one hidden), DC motor, 40 dB"] == (
+        f"{' / '.join(ranges)}; {min(coverage):.0f}–{max(coverage):.0f} %")

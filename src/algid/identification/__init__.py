@@ -18,7 +18,8 @@ Public:
   :func:`identify` stacks the window equations of all of them into one joint estimate,
   refines it by output error on every output, and returns a :class:`SystemResult`
   (joint covariance, the coupled system's :class:`SystemValidation`, a MIMO
-  python-control model);
+  python-control model); ``hidden=[...]`` names outputs that are not measured
+  (eliminated), and :class:`Tracker` takes a list of equations too;
 - :data:`METHODS` are the solvers ``identify`` offers.
 
 Records are mappings of named columns (``{"t": ..., "u": ..., "y": ...}``), with a time
