@@ -98,6 +98,31 @@ def check_arguments(equation, parameters, *, time, rate, output, window, method,
     return multiplicities
 
 
+def check_seconds(**values):
+    """Refuse values that are not positive numbers of seconds.
+
+    Parameters
+    ----------
+    **values
+        Name -> value; a name ending in ``_or_none`` may also be None (the suffix is
+        left out of the message).
+
+    Raises
+    ------
+    InputDataError
+        Naming the first bad value.
+    """
+    for key, value in values.items():
+        optional = key.endswith("_or_none")
+        name = key.removesuffix("_or_none")
+        if value is None and optional:
+            continue
+        if isinstance(value, (bool, str)) or not isinstance(value, (int, float)) \
+                or not (math.isfinite(value) and value > 0):
+            raise InputDataError(f"{name} must be a positive number of seconds"
+                                 f"{' or None' if optional else ''}, got {value!r}")
+
+
 def check_model_columns(model, time):
     """Refuse a time column that is also a signal of the model.
 

@@ -15,7 +15,7 @@ from algid.models._expression import Constant, Signal, Time
 from algid.simulation._model import fit_initial_state, simulate_model
 from algid.simulation._output_equation import OutputEquation
 
-__all__ = ["IdentificationResult", "Validation", "ROW_KEYS", "WARNING_SEPARATOR",
+__all__ = ["IdentificationResult", "ResultRow", "Validation", "ROW_KEYS", "WARNING_SEPARATOR",
            "check_fit_samples",
            "check_row_names"]
 
@@ -99,8 +99,111 @@ class Validation:
                               / np.linalg.norm(y - y.mean())))
 
 
+class ResultRow:
+    """What every result of identify holds: its values as attributes, standard errors, and
+    the flat row of a results table (:class:`IdentificationResult` and
+    :class:`algid.identification.SystemResult`; they name ``parameter_names`` and hold
+    ``values``, ``covariance``, ``numerical_error``, ``window``, ``n_samples``,
+    ``estimate`` and ``warnings``)."""
+
+    def __getattr__(self, name):
+        values = self.__dict__.get("values", {})
+        if name in values:
+            return values[name]
+        raise AttributeError(f"{type(self).__name__!r} object has no attribute {name!r}")
+
+    @property
+    def parameters(self):
+        """Parameter name -> estimate."""
+        return dict(self.values)
+
+    @property
+    def stderr(self):
+        """Parameter name -> standard error."""
+        se = np.sqrt(np.maximum(np.diag(self.covariance), 0.0))
+        return dict(zip(self.parameter_names, se.tolist()))
+
+    def to_dict(self):
+        """The result as one flat row: a value per parameter, its errors, the window.
+
+        The row of a table of results (:func:`algid.identify_many` makes one of a
+        fleet): every value a plain Python scalar, so that it goes as it is into JSON,
+        a pandas ``DataFrame``, a CSV or a Parquet file.
+
+        Returns
+        -------
+        dict
+            In this order: each parameter's value (under its own name); each one's
+            standard error ``stderr_<p>``; each one's numerical error
+            ``numerical_error_<p>`` (NaN where none was estimated); ``window`` (s),
+            ``n_samples``, ``estimate`` (``"refined"`` or ``"algebraic"``) and
+            ``warnings``: the warnings joined by ``" | "`` in one string (``""`` when
+            there are none; a warning is one line without ``|``, and
+            ``row["warnings"].split(" | ")`` gives ``result.warnings`` back), so that the
+            row holds only scalars.
+
+        Raises
+        ------
+        ModelError
+            A parameter named like another key of the row (``window``,
+            ``stderr_K``...).
+
+        Examples
+        --------
+        >>> from algid.identification import identify
+        >>> from algid.simulation import simulate
+        >>> sim = simulate("sine", frequency=3.0, duration=10.0, rate=100.0, noise_std=1e-4, seed=0)
+        >>> record = {"t": sim.t, "f": sim.f, "x": sim.x}
+        >>> row = identify(record, "x'' + B*x' + K*x = f", "B K").to_dict()
+        >>> list(row)  # doctest: +NORMALIZE_WHITESPACE
+        ['B', 'K', 'stderr_B', 'stderr_K', 'numerical_error_B', 'numerical_error_K',
+         'window', 'n_samples', 'estimate', 'warnings']
+        >>> round(row["K"], 2), row["n_samples"], row["estimate"], row["warnings"]
+        (3.0, 1001, 'refined', '')
+        """
+        parameters = self.parameter_names
+        check_row_names(parameters)
+        stderr = self.stderr
+        row = {p: float(self.values[p]) for p in parameters}
+        row.update({f"stderr_{p}": float(stderr[p]) for p in parameters})
+        row.update({f"numerical_error_{p}": float(self.numerical_error.get(p, math.nan))
+                    for p in parameters})
+        row["window"] = float(self.window)
+        row["n_samples"] = int(self.n_samples)
+        row["estimate"] = str(self.estimate)
+        row["warnings"] = WARNING_SEPARATOR.join(str(w) for w in self.warnings)
+        return row
+
+    def to_pandas(self):
+        """The result as a pandas ``DataFrame`` of one row (:meth:`to_dict`).
+
+        Concatenate the rows of several results (``pandas.concat``) to compare them,
+        or let :func:`algid.identify_many` make the table of a fleet.
+
+        Returns
+        -------
+        pandas.DataFrame
+            One row (index 0), the columns of :meth:`to_dict` in its order.
+
+        Examples
+        --------
+        >>> from algid.identification import identify
+        >>> from algid.simulation import simulate
+        >>> sim = simulate("sine", frequency=3.0, duration=10.0, rate=100.0, noise_std=1e-4, seed=0)
+        >>> record = {"t": sim.t, "f": sim.f, "x": sim.x}
+        >>> table = identify(record, "x'' + B*x' + K*x = f", "B K").to_pandas()
+        >>> table.shape, table.loc[0, "estimate"], round(float(table.loc[0, "B"]), 3)
+        ((1, 10), 'refined', 2.0)
+        """
+        import pandas as pd
+
+        return pd.DataFrame([self.to_dict()])
+
+
+
+
 @dataclass
-class IdentificationResult:
+class IdentificationResult(ResultRow):
     """Parameters identified on records, their uncertainty and validation helpers.
 
     Made by :func:`algid.identify` (or :meth:`from_values`); every parameter below is
@@ -188,27 +291,15 @@ class IdentificationResult:
     algebraic: dict | None = None
     refinement: object = None
 
-    def __getattr__(self, name):
-        values = self.__dict__.get("values", {})
-        if name in values:
-            return values[name]
-        raise AttributeError(f"{type(self).__name__!r} object has no attribute {name!r}")
-
     @property
-    def parameters(self):
-        """Parameter name -> estimate."""
-        return dict(self.values)
+    def parameter_names(self):
+        """The parameters, in the order of ``covariance``."""
+        return self.model.parameters
 
     @property
     def equation(self):
         """The model equation as written."""
         return self.model.equation
-
-    @property
-    def stderr(self):
-        """Parameter name -> standard error."""
-        se = np.sqrt(np.maximum(np.diag(self.covariance), 0.0))
-        return dict(zip(self.model.parameters, se.tolist()))
 
     def __repr__(self):
         def piece(p, v):
@@ -547,83 +638,6 @@ class IdentificationResult:
         return ax
 
     # export -----------------------------------------------------------------------------
-
-    def to_dict(self):
-        """The result as one flat row: a value per parameter, its errors, the window.
-
-        The row of a table of results (:func:`algid.identify_many` makes one of a
-        fleet): every value a plain Python scalar, so that it goes as it is into JSON,
-        a pandas ``DataFrame``, a CSV or a Parquet file.
-
-        Returns
-        -------
-        dict
-            In this order: each parameter's value (under its own name); each one's
-            standard error ``stderr_<p>``; each one's numerical error
-            ``numerical_error_<p>`` (NaN where none was estimated); ``window`` (s),
-            ``n_samples``, ``estimate`` (``"refined"`` or ``"algebraic"``) and
-            ``warnings``: the warnings joined by ``" | "`` in one string (``""`` when
-            there are none; a warning is one line without ``|``, and
-            ``row["warnings"].split(" | ")`` gives ``result.warnings`` back), so that the
-            row holds only scalars.
-
-        Raises
-        ------
-        ModelError
-            A parameter named like another key of the row (``window``,
-            ``stderr_K``...).
-
-        Examples
-        --------
-        >>> from algid.identification import identify
-        >>> from algid.simulation import simulate
-        >>> sim = simulate("sine", frequency=3.0, duration=10.0, rate=100.0, noise_std=1e-4, seed=0)
-        >>> record = {"t": sim.t, "f": sim.f, "x": sim.x}
-        >>> row = identify(record, "x'' + B*x' + K*x = f", "B K").to_dict()
-        >>> list(row)  # doctest: +NORMALIZE_WHITESPACE
-        ['B', 'K', 'stderr_B', 'stderr_K', 'numerical_error_B', 'numerical_error_K',
-         'window', 'n_samples', 'estimate', 'warnings']
-        >>> round(row["K"], 2), row["n_samples"], row["estimate"], row["warnings"]
-        (3.0, 1001, 'refined', '')
-        """
-        parameters = self.model.parameters
-        check_row_names(parameters)
-        stderr = self.stderr
-        row = {p: float(self.values[p]) for p in parameters}
-        row.update({f"stderr_{p}": float(stderr[p]) for p in parameters})
-        row.update({f"numerical_error_{p}": float(self.numerical_error.get(p, math.nan))
-                    for p in parameters})
-        row["window"] = float(self.window)
-        row["n_samples"] = int(self.n_samples)
-        row["estimate"] = str(self.estimate)
-        row["warnings"] = WARNING_SEPARATOR.join(str(w) for w in self.warnings)
-        return row
-
-    def to_pandas(self):
-        """The result as a pandas ``DataFrame`` of one row (:meth:`to_dict`).
-
-        Concatenate the rows of several results (``pandas.concat``) to compare them,
-        or let :func:`algid.identify_many` make the table of a fleet.
-
-        Returns
-        -------
-        pandas.DataFrame
-            One row (index 0), the columns of :meth:`to_dict` in its order.
-
-        Examples
-        --------
-        >>> from algid.identification import identify
-        >>> from algid.simulation import simulate
-        >>> sim = simulate("sine", frequency=3.0, duration=10.0, rate=100.0, noise_std=1e-4, seed=0)
-        >>> record = {"t": sim.t, "f": sim.f, "x": sim.x}
-        >>> table = identify(record, "x'' + B*x' + K*x = f", "B K").to_pandas()
-        >>> table.shape, table.loc[0, "estimate"], round(float(table.loc[0, "B"]), 3)
-        ((1, 10), 'refined', 2.0)
-        """
-        import pandas as pd
-
-        return pd.DataFrame([self.to_dict()])
-
 
     def to_control(self, kind="tf"):
         """Export the identified linear model to python-control.

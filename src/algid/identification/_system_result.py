@@ -3,14 +3,13 @@ their joint covariance, the coupled system's simulation and export."""
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from algid.errors import InputDataError, ModelError
 from algid.identification._records import prepare_records
-from algid.identification._result import WARNING_SEPARATOR, check_fit_samples, check_row_names
+from algid.identification._result import ResultRow, check_fit_samples
 
 __all__ = ["SystemResult", "SystemValidation"]
 
@@ -70,7 +69,7 @@ class SystemValidation:
 
 
 @dataclass
-class SystemResult:
+class SystemResult(ResultRow):
     """Shared parameters of a system of equations identified on records.
 
     Made by :func:`algid.identify` given a list of equations; every parameter is also
@@ -158,16 +157,10 @@ class SystemResult:
     hidden: tuple = ()
     elimination: object = None
 
-    def __getattr__(self, name):
-        values = self.__dict__.get("values", {})
-        if name in values:
-            return values[name]
-        raise AttributeError(f"{type(self).__name__!r} object has no attribute {name!r}")
-
     @property
-    def parameters(self):
-        """Parameter name -> estimate."""
-        return dict(self.values)
+    def parameter_names(self):
+        """The parameters, in the order of ``covariance``."""
+        return self.system.parameters
 
     @property
     def equations(self):
@@ -183,12 +176,6 @@ class SystemResult:
     def measured(self):
         """The outputs that are measured (not hidden)."""
         return tuple(y for y in self.system.outputs if y not in self.hidden)
-
-    @property
-    def stderr(self):
-        """Parameter name -> standard error."""
-        se = np.sqrt(np.maximum(np.diag(self.covariance), 0.0))
-        return dict(zip(self.system.parameters, se.tolist()))
 
     @property
     def correlation(self):
@@ -295,7 +282,7 @@ class SystemResult:
         Raises
         ------
         ModelError
-            A nonlinear system (:meth:`to_nlsys` is not offered for systems yet).
+            A nonlinear system (no state-space form; not offered for systems yet).
         """
         import control as ct
 
@@ -308,34 +295,3 @@ class SystemResult:
                                                           len(space.channels))),
                      inputs=[names.get(c, c) for c in space.channels],
                      outputs=list(space.outputs), states=states)
-
-    def to_dict(self):
-        """The result as one flat row, as :meth:`algid.IdentificationResult.to_dict`.
-
-        Returns
-        -------
-        dict
-        """
-        parameters = self.system.parameters
-        check_row_names(parameters)
-        stderr = self.stderr
-        row = {p: float(self.values[p]) for p in parameters}
-        row.update({f"stderr_{p}": float(stderr[p]) for p in parameters})
-        row.update({f"numerical_error_{p}": float(self.numerical_error.get(p, math.nan))
-                    for p in parameters})
-        row["window"] = float(self.window)
-        row["n_samples"] = int(self.n_samples)
-        row["estimate"] = str(self.estimate)
-        row["warnings"] = WARNING_SEPARATOR.join(str(w) for w in self.warnings)
-        return row
-
-    def to_pandas(self):
-        """The result as a pandas ``DataFrame`` of one row (:meth:`to_dict`).
-
-        Returns
-        -------
-        pandas.DataFrame
-        """
-        import pandas as pd
-
-        return pd.DataFrame([self.to_dict()])

@@ -43,6 +43,7 @@ from algid._record_input import (
     refuse_infinite,
 )
 from algid.errors import InputDataError, ModelError
+from algid.identification._arguments import check_seconds
 from algid.identification._bias_compensation import koopmans
 from algid.identification._records import GAP_FACTOR, Segment
 from algid.identification._system_identify import WEAK_RELATIVE_ERROR
@@ -95,15 +96,8 @@ class SystemTracker:
                                  f"factor, which a system's tracker does not estimate")
         if method not in ("bc", "ls"):
             raise InputDataError(f"method must be 'bc' or 'ls' for a tracker, got {method!r}")
-        for name, value, allow_none in (("window", window, True),
-                                        ("half_life", half_life, True),
-                                        ("warmup", warmup, False), ("every", every, True)):
-            if value is None and allow_none:
-                continue
-            if isinstance(value, (bool, str)) or not isinstance(value, (int, float)) \
-                    or not (math.isfinite(value) and value > 0):
-                raise InputDataError(f"{name} must be a positive number of seconds"
-                                     f"{' or None' if allow_none else ''}, got {value!r}")
+        check_seconds(window_or_none=window, half_life_or_none=half_life, warmup=warmup,
+                      every_or_none=every)
         self.system = system
         self.parameters = tuple(system.parameters)
         self.models = [m for m in system.equations if m.parameters]

@@ -46,7 +46,7 @@ from algid._record_input import (
     refuse_infinite,
 )
 from algid.errors import AlgidError, InputDataError
-from algid.identification._arguments import check_arguments, check_model_columns
+from algid.identification._arguments import check_arguments, check_model_columns, check_seconds
 from algid.identification._bias_compensation import koopmans_stack
 from algid.identification._change_detection import INCREMENT_CAP, cusum_reference, cusum_threshold
 from algid.identification._methods import TRACKER_METHODS
@@ -343,15 +343,8 @@ class Tracker:
         check_arguments(equation, parameters, time=time, rate=rate, output=output,
                         window=window, method=method, methods=TRACKER_METHODS,
                         multiplicities=(8, 12), name="custom", iterations=1)
-        for name, value, allow_none in (("half_life", half_life, True), ("warmup", warmup,
-                                        False), ("false_alarm_rate", false_alarm_rate, False),
-                                        ("every", every, True)):
-            if value is None and allow_none:
-                continue
-            if isinstance(value, (bool, str)) or not isinstance(value, (int, float)) \
-                    or not (math.isfinite(value) and value > 0):
-                raise InputDataError(f"{name} must be a positive number of seconds"
-                                     f"{' or None' if allow_none else ''}, got {value!r}")
+        check_seconds(half_life_or_none=half_life, warmup=warmup,
+                      false_alarm_rate=false_alarm_rate, every_or_none=every)
         model = equation if isinstance(equation, Model) else parse_equation(
             equation, parameters, output=output)
         check_model_columns(model, time)
