@@ -281,3 +281,8 @@ def test_tracker_of_a_system_refuses_what_it_cannot_do():
     tracker = algid.Tracker(MOTOR, "L R K J b", rate=500)
     with pytest.raises(InputDataError, match="no column 'w'"):
         tracker.update({"u": [1.0], "i": [0.0]})
+
+
+def test_fleets_take_one_equation():
+    with pytest.raises(ModelError, match="identify_many takes one equation"):
+        algid.identify_many({0: motor_record()}, MOTOR, "L R K J b")

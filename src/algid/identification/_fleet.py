@@ -33,7 +33,7 @@ import uuid
 
 import numpy as np
 
-from algid.errors import AlgidError, InputDataError
+from algid.errors import AlgidError, InputDataError, ModelError
 
 __all__ = ["identify_many", "fleet_row", "fleet_groups", "FLEET_KEYS"]
 
@@ -181,6 +181,9 @@ def _model_arguments(equation, parameters, options, index_name):
                         f"{unknown[0]!r} (identify's options: {', '.join(known)})")
     given = {**known, **options}
     check_refine(given["refine"])
+    if isinstance(equation, (list, tuple)) or given["hidden"] is not None:
+        raise ModelError("identify_many takes one equation; identify a system of equations "
+                         "record by record with algid.identify")
     if isinstance(equation, types.ModuleType):  # a compiled model: its own equation
         equation = model_of(estimator_module(equation, parameters))
     multiplicities = check_arguments(
