@@ -257,8 +257,9 @@ def fleet_command(args, model):
     options = {"time": args.time, "rate": args.rate, "window": args.window,
                "method": args.method, "refine": "auto" if args.refine is None else args.refine}
     with _cluster(args):
-        results = identify_many(table, args.equation, args.parameters, by=args.by,
-                                progress=args.progress, output=args.output, **options)
+        results = identify_many(table, args.equation[0], args.parameters, by=args.by,
+                                progress=args.progress,
+                                output=args.output[0] if args.output else None, **options)
     refused = int(results["error"].notna().sum())
     warned = int((results["warnings"].fillna("") != "").sum())
     if refused:
