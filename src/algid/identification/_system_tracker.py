@@ -17,9 +17,11 @@ exponential forgetting (``half_life``; None keeps every window).
   bounds accumulate the sums of their samples' differences.
 - **The solve** at every window end: Koopmans' estimator on the sums, each equation
   weighted by the inverse rms of its residuals on the first windows (fixed then).
-- **Standard errors**: a sandwich whose middle accumulates the estimating equations of
-  the windows (at the estimate of their time) with their lagged products over the
-  windows' overlap, with the squared forgetting weights.
+- **Standard errors**: a sandwich whose middle is that of identify (the windows'
+  estimating equations and their lagged products over the overlap, squared forgetting
+  weights) at the current estimate: the estimating equations are linear in it, so their
+  components' products are what accumulates (bounded: ``(k p (p + 1))**2`` numbers for
+  ``p`` parameters and ``k - 1`` noisy outputs).
 
 The state is the last window's samples and sums of fixed size.  Nonlinear factors that
 need derivatives of the signals (``sign(q')``) are not tracked in systems.
@@ -120,7 +122,6 @@ class SystemTracker:
         self._next_start = 0        # buffer index of the next window's first sample
         self._sums = None
         self._weights = None
-        self._theta_bar = None
         self._recent = deque()
         self._differences = {y: np.zeros((len(NOISE_ORDERS), 2)) for y in self._noisy}
         self._tail = {y: np.empty(0) for y in self._noisy}
@@ -363,7 +364,7 @@ class SystemTracker:
             self._sums = {a: [{"normal": np.zeros((P + 1, P + 1)),
                                "noise": {y: np.zeros((P + 1, P + 1)) for y in grams}}
                               for _, grams in blocks[a]] for a in MULTIPLICITIES}
-            self._meat = np.zeros((P, P))
+            self._products = None
             self._first = []
         for a in MULTIPLICITIES:
             for sums, (phi, grams) in zip(self._sums[a], blocks[a]):
@@ -398,7 +399,6 @@ class SystemTracker:
             rms = float(np.sqrt(np.mean(r ** 2)))
             weights.append(1.0 / rms if rms > 0 else w0 * np.sqrt(len(r)))
         self._weights = weights
-        self._theta_bar = self._koopmans(max(MULTIPLICITIES), weights)[0]
         for window in self._first:
             self._score(window)
         self._first = []
@@ -422,41 +422,52 @@ class SystemTracker:
         return theta_bar, variance, normal, noise
 
     def _score(self, window):
-        """The window's estimating equations at the current estimate, into the HAC
-        middle (lagged products over the overlap, squared forgetting weights)."""
+        """A window's estimating equations into the HAC middle, as the components that
+        multiply the estimate: ``score = sum_c coef_c K_c theta_bar`` with ``K_0 = -sum_i
+        w_i^2 phi_i[:p] phi_i^T`` and ``K_j = sum_i w_i^2 G_ij[:p]`` (``coef_j`` the noise
+        variance of output ``j``), so that the middle is exact at every new estimate:
+        ``L T L^T``, ``T`` the weighted sum of the products of the windows' flattened
+        components over the overlap's lags (squared forgetting weights)."""
         P = len(self.parameters)
-        theta_bar = self._theta_bar
-        variance = getattr(self, "_variance", 0.0)
-        bounds = self._bounds()
-        score = np.zeros(P)
+        parts = np.zeros((1 + len(self._noisy), P, P + 1))
         for w, (phi, grams) in zip(self._weights, window):
-            score += w ** 2 * (-phi[:P] * (phi @ theta_bar))
-            if variance:
-                score += w ** 2 * variance * sum(
-                    bounds[y] * (g @ theta_bar)[:P] for y, g in grams.items())
-        decay2 = self.decay ** 2
-        self._meat *= decay2
-        self._meat += np.outer(score, score)
+            parts[0] -= w ** 2 * np.outer(phi[:P], phi)
+            for k, y in enumerate(self._noisy, start=1):
+                if y in grams:
+                    parts[k] += w ** 2 * grams[y][:P]
+        v = parts.ravel()
+        if self._products is None:
+            self._products = np.zeros((v.size, v.size))
+        self._products *= self.decay ** 2
+        self._products += np.outer(v, v)
         lags = 2 * self.overlap
         for lag, previous in enumerate(reversed(self._recent), start=1):
             weight = 1.0 if lag <= self.overlap else \
                 1.0 - (lag - self.overlap) / (lags - self.overlap + 1.0)
-            cross = np.outer(score, previous) * weight * self.decay ** lag
-            self._meat += cross + cross.T
-        self._recent.append(score)
+            cross = np.outer(v, previous) * (weight * self.decay ** lag)
+            self._products += cross + cross.T
+        self._recent.append(v)
         if len(self._recent) > lags:
             self._recent.popleft()
+
+    def _meat(self, theta_bar, variance):
+        """The HAC middle at ``theta_bar`` (see :meth:`_score`)."""
+        P = len(self.parameters)
+        bounds = self._bounds()
+        coef = np.array([1.0] + [variance * bounds[y] for y in self._noisy])
+        # L[a, (c, a', k)] = coef_c theta_bar_k [a == a']
+        L = np.einsum("c,ab,k->acbk", coef, np.eye(P), theta_bar).reshape(P, -1)
+        return L @ self._products @ L.T
 
     def _solve(self):
         P = len(self.parameters)
         top = max(MULTIPLICITIES)
         theta_bar, variance, normal, noise = self._koopmans(top, self._weights)
-        self._theta_bar, self._variance = theta_bar, variance
         jacobian = normal[:P, :P] - variance * noise[:P, :P]
         d = np.sqrt(np.abs(np.diag(jacobian)))
         d[d == 0] = 1.0
         bread = np.linalg.pinv(jacobian / d[:, None] / d[None, :]) / d[:, None] / d[None, :]
-        values, vectors = np.linalg.eigh(self._meat)
+        values, vectors = np.linalg.eigh(self._meat(theta_bar, variance))
         meat = (vectors * np.abs(values)) @ vectors.T
         stderr = np.sqrt(np.maximum(np.diag(bread @ meat @ bread.T), 0.0))
         others = [self._koopmans(a, self._weights)[0][:P] for a in MULTIPLICITIES if a != top]
