@@ -123,6 +123,23 @@ class ResultRow:
         se = np.sqrt(np.maximum(np.diag(self.covariance), 0.0))
         return dict(zip(self.parameter_names, se.tolist()))
 
+    def fit_percent(self, data, **kwargs):
+        """Fit (%) of the simulated output on a record (of each output, for a system).
+
+        Parameters
+        ----------
+        data : mapping
+            One record.
+        **kwargs
+            Options of ``simulate``.
+
+        Returns
+        -------
+        float or dict
+            The fit; for a system, output name -> fit.
+        """
+        return self.simulate(data, **kwargs).fit_percent
+
     def to_dict(self):
         """The result as one flat row: a value per parameter, its errors, the window.
 
@@ -534,22 +551,6 @@ class IdentificationResult(ResultRow):
                              f"t = {start:.6g} s on with parameters "
                              f"{', '.join(f'{p}={v:.6g}' for p, v in self.values.items())}")
         return Validation(seg.t, y, simulated, x0, fit_samples)
-
-    def fit_percent(self, data, **kwargs):
-        """Fit (%) of the simulated output on a record.
-
-        Parameters
-        ----------
-        data : mapping
-            One record.
-        **kwargs
-            Options of :meth:`simulate`.
-
-        Returns
-        -------
-        float
-        """
-        return self.simulate(data, **kwargs).fit_percent
 
     def residuals(self, data, **kwargs):
         """Measured minus simulated output on a record.

@@ -249,23 +249,6 @@ class SystemResult(ResultRow):
         return SystemValidation(seg.t, measured, {y: simulated[y] for y in measured}, x0,
                                 fit_samples)
 
-    def fit_percent(self, data, **kwargs):
-        """Fit (%) of each simulated output on a record (:meth:`simulate`).
-
-        Parameters
-        ----------
-        data : mapping
-            One record.
-        **kwargs
-            Options of :meth:`simulate`.
-
-        Returns
-        -------
-        dict
-            Output name -> fit (%).
-        """
-        return self.simulate(data, **kwargs).fit_percent
-
     # export -------------------------------------------------------------------------
 
     def to_control(self):
