@@ -85,7 +85,7 @@ class _Rows:
     """The stacked window equations of every equation at one length and multiplicity, in
     the parameters of the system scaled by powers of two (``phi = theta * 2**g``)."""
 
-    def __init__(self, problems, system, noisy, bounds, length, multiplicity, gram=True):
+    def __init__(self, problems, system, noisy, bounds, length, multiplicity):
         P = len(system.parameters)
         self.blocks, self.grams = [], []
         shifts = []
@@ -113,8 +113,6 @@ class _Rows:
                 raise InputDataError(f"the window equations of equation {i + 1} overflow "
                                      f"floating point in these units: rescale the signals")
             self.blocks.append(phi)
-            if not gram:
-                continue
             full = np.append(scale, 1.0)
             index = [*where, P]
             total = np.zeros((len(b), P + 1, P + 1))
@@ -176,9 +174,8 @@ def _columns(system, problem):
 class _SystemFit(WindowFit):
     """A :class:`WindowFit` of a system, with its per-equation diagnostics."""
 
-    def __init__(self, *args, weights=None, misfits=None, null=None, **kwargs):
+    def __init__(self, *args, misfits=None, null=None, **kwargs):
         super().__init__(*args, **kwargs)
-        self.weights = weights
         self.misfits = misfits
         self.null = null
 
@@ -216,7 +213,7 @@ def _solve(problems, system, noisy, bounds, length, multiplicities, method):
         rms_b = max(float(np.sqrt(np.mean(b ** 2))), 1e-300)
         effect = np.ldexp(np.sqrt(np.mean(stacked[:, :P] ** 2, axis=0)) / rms_b, rows.g)
         fit = _SystemFit(theta, covariance, None, effect, np.concatenate(residuals),
-                         len(rows.ids), weights=weights, misfits=misfits, null=null)
+                         len(rows.ids), misfits=misfits, null=null)
     fit.separate = separate
     return fit
 
@@ -237,8 +234,8 @@ def _refuse_null(system, null):
     weight = np.abs(null)
     named = [p for p, v in zip(system.parameters, weight) if v >= NAMED_WEIGHT * weight.max()]
     if len(named) == 1:
-        raise ModelError(f"the records cannot determine {named[0]}: its terms vanish or "
-                         f"another equation's fix its scale nowhere")
+        raise ModelError(f"the records cannot determine {named[0]}: its terms vanish on "
+                         f"them")
     raise ModelError(f"the records cannot separate {', '.join(named)}: only a combination "
                      f"of them is determined (fix one, or add an equation or a known term "
                      f"that sets their scale)")
