@@ -157,9 +157,13 @@ def parse_system(equations, parameters, *, outputs=None, name="custom") -> Syste
         if not isinstance(equation, str):
             raise ModelError(f"equation {i + 1} of the system must be a text equation, got "
                              f"{type(equation).__name__}")
-        models.append(parse_equation(equation, parameters, within_system=True,
-                                     output=None if outputs is None else outputs[i],
-                                     name=f"{name}_{i + 1}"))
+        try:
+            models.append(parse_equation(equation, parameters, within_system=True,
+                                         output=None if outputs is None else outputs[i],
+                                         name=f"{name}_{i + 1}"))
+        except ModelError as error:   # a system names its outputs in one list
+            raise ModelError(str(error).replace("give output=", "give outputs=[...], one "
+                                                "per equation")) from None
     parameters = _all_parameters(parameters, models)
     seen = {}
     for i, model in enumerate(models):
