@@ -599,7 +599,7 @@ def parse_equation(text, parameters, *, output=None, name="custom", signals=None
     signals : sequence of str, optional
         Names of the available measured signals; when given, any other name is refused.
     within_system : bool
-        The equation is one of a system (:func:`algid.identification.parse_system`): the
+        The equation is one of a system (:func:`algid.models.parse_system`): the
         parameters are those of the whole system, of which the model keeps the ones that
         appear (none: a fully known equation), and the equation may have no known term
         (another equation of the system fixes the scale of the parameters it shares).
