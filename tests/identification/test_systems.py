@@ -286,3 +286,30 @@ def test_tracker_of_a_system_refuses_what_it_cannot_do():
 def test_fleets_take_one_equation():
     with pytest.raises(ModelError, match="identify_many takes one equation"):
         algid.identify_many({0: motor_record()}, MOTOR, "L R K J b")
+
+
+def test_outputs_named_through_parse_system():
+    # both equations read i and w at the same derivative order: the default is ambiguous
+    equations = ["L*i' + R*i + K*w' = u", "J*w' + b*w + c*i' = K*i"]
+    with pytest.raises(ModelError, match=r"give outputs=\[\.\.\.\]"):
+        parse_system(equations, "L R K J b c")
+    system = parse_system(equations, "L R K J b c", outputs=["i", "w"])
+    assert system.outputs == ("i", "w")
+
+
+def test_top_derivatives_coupled_between_equations():
+    # w' in the electrical equation and i' in the mechanical one: the state-space form
+    # solves for both top derivatives together
+    system = parse_system(["L*i' + R*i + K*w' = u", "J*w' + b*w + c*i' = K*i"],
+                          "L R K J b c", outputs=["i", "w"])
+    true = {"L": 0.5, "R": 2.0, "K": 0.3, "J": 0.2, "b": 0.1, "c": 0.05}
+    t = np.arange(0.0, 10.0, 2e-3)
+    u = _multisine(t, [0.1, 0.3, 0.6, 1.1, 1.9, 3.1, 5.0], 777)
+    clean = simulate_system(system, true, t, {"u": u})
+    rng = np.random.default_rng(0)
+    record = {"t": t, "u": u, **{k: v + 0.01 * v.std() * rng.standard_normal(v.size)
+                                 for k, v in clean.items()}}
+    fit = algid.identify(record, system)
+    assert fit.estimate == "refined"
+    for p, value in true.items():
+        assert abs(fit.values[p] - value) < 4 * fit.stderr[p], p
