@@ -191,7 +191,7 @@ def eliminate(system, hidden):
                 else:
                     pieces.append(_term(name, expr, channel, k))
                     tex.append(_tex(expr, channel, k))
-        equations.append(" + ".join(pieces) + " = 0")
+        equations.append(" + ".join(pieces).replace("+ -", "- ") + " = 0")
         latex.append(" + ".join(tex) + " = 0")
     for name in coefficients:
         if name in system.signals:

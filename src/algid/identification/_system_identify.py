@@ -457,9 +457,10 @@ def _identify_hidden(data, system, hidden, *, time, rate, window, method, multip
         warnings=warnings + _weak(system, theta, theta_covariance), hidden=hidden,
         elimination=elimination)
     result = refine_system(result, segments, refine)
-    if result.estimate == "refined":
+    if result.estimate == "refined":   # (the coefficients' warnings were the start's)
         theta = np.array([result.values[p] for p in system.parameters])
-        result.warnings = warnings + _weak(system, theta, result.covariance)
+        result.warnings = warnings[len(io.warnings):] + _weak(system, theta,
+                                                               result.covariance)
     return result
 
 
