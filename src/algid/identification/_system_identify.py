@@ -66,7 +66,7 @@ from algid.identification._window_rule import (
 )
 from algid.models._system import SystemModel, parse_system
 
-__all__ = ["identify_system", "SYSTEM_METHODS", "WEAK_RELATIVE_ERROR"]
+__all__ = ["identify_system", "solve_normal", "SYSTEM_METHODS", "WEAK_RELATIVE_ERROR"]
 
 #: Methods offered for systems (instrumental variables need a simulation of every
 #: output: not for systems).
@@ -135,15 +135,7 @@ def _solve_rows(rows, weights, method):
     normal = sum(w ** 2 * (phi.T @ phi) for w, phi in zip(weights, rows.blocks))
     noise = sum(w ** 2 * g.sum(axis=0) for w, g in zip(weights, rows.grams)) \
         if rows.grams else np.zeros_like(normal)
-    theta_bar, variance = None, None
-    if method == "bc":
-        theta_bar, variance, _ = koopmans(normal, noise, 1.0)
-    if theta_bar is None:
-        d = np.sqrt(np.diag(normal)[:P])
-        d[d == 0] = 1.0
-        H = normal[:P, :P] / d[:, None] / d[None, :]
-        x = np.linalg.lstsq(H, normal[:P, P] / d, rcond=None)[0] / d
-        theta_bar, variance = np.append(x, -1.0), 0.0
+    theta_bar, variance = solve_normal(normal, noise, method)
     residuals = rows.residuals(theta_bar)
     scores = sum(w ** 2 * (-phi[:, :P] * r[:, None]) for w, phi, r in
                  zip(weights, rows.blocks, residuals))
@@ -152,6 +144,24 @@ def _solve_rows(rows, weights, method):
                                          for w, g in zip(weights, rows.grams))
     jacobian = normal[:P, :P] - variance * noise[:P, :P]
     return theta_bar, scores, jacobian, variance, residuals
+
+
+def solve_normal(normal, noise, method):
+    """``theta_bar = (theta, -1)`` and the noise variance factor of the correction from
+    the sums ``normal = Phi^T Phi`` and ``noise`` of weighted stacked rows: Koopmans'
+    estimator (``method="bc"``, the factor at most 1: the noise bounds are in
+    ``noise``), or least squares (factor 0) where it makes no correction or for
+    ``"ls"``."""
+    P = normal.shape[0] - 1
+    if method == "bc":
+        theta_bar, variance, _ = koopmans(normal, noise, 1.0)
+        if theta_bar is not None:
+            return theta_bar, variance
+    d = np.sqrt(np.diag(normal)[:P])
+    d[d == 0] = 1.0
+    H = normal[:P, :P] / d[:, None] / d[None, :]
+    x = np.linalg.lstsq(H, normal[:P, P] / d, rcond=None)[0] / d
+    return np.append(x, -1.0), 0.0
 
 
 def _weights(rows, method):

@@ -31,7 +31,6 @@ from __future__ import annotations
 
 import math
 from collections import deque
-from math import comb
 
 import numpy as np
 
@@ -46,11 +45,16 @@ from algid._record_input import (
 )
 from algid.errors import InputDataError, ModelError
 from algid.identification._arguments import check_seconds
-from algid.identification._bias_compensation import koopmans
 from algid.identification._records import GAP_FACTOR, Segment
-from algid.identification._system_identify import WEAK_RELATIVE_ERROR
+from algid.identification._system_identify import WEAK_RELATIVE_ERROR, solve_normal
 from algid.identification._tracker_state import TrackUpdate
-from algid.identification._window_problem import MULTIPLICITIES, WINDOW_OVERLAP, WindowProblem
+from algid.identification._window_problem import (
+    DIFFERENCE_ORDERS,
+    MULTIPLICITIES,
+    WINDOW_OVERLAP,
+    WindowProblem,
+    noise_bound_from_sums,
+)
 from algid.identification._window_rule import MIN_SPARE_WINDOWS, min_length
 
 __all__ = ["SystemTracker"]
@@ -61,8 +65,6 @@ DEFAULT_WARMUP = 2.0
 #: Doublings of the warm-up span while identify refuses it.
 WARMUP_DOUBLINGS = 3
 
-#: Orders of the differences that bound the outputs' noise variance.
-NOISE_ORDERS = range(1, 9)
 
 
 class SystemTracker:
@@ -123,7 +125,7 @@ class SystemTracker:
         self._sums = None
         self._weights = None
         self._recent = deque()
-        self._differences = {y: np.zeros((len(NOISE_ORDERS), 2)) for y in self._noisy}
+        self._differences = {y: np.zeros((len(DIFFERENCE_ORDERS), 2)) for y in self._noisy}
         self._tail = {y: np.empty(0) for y in self._noisy}
 
     # ------------------------------------------------------------------ public
@@ -343,20 +345,16 @@ class SystemTracker:
                 run = run[np.isfinite(run)]
                 tail = self._tail[y]
                 v = np.concatenate([tail, run])
-                for i, k in enumerate(NOISE_ORDERS):
+                for i, k in enumerate(DIFFERENCE_ORDERS):
                     if len(v) > k:
                         d = np.diff(v, k)[len(tail) - min(len(tail), k):]
                         self._differences[y][i] += (float(d @ d), len(d))
-                self._tail[y] = v[-max(NOISE_ORDERS):]
+                self._tail[y] = v[-max(DIFFERENCE_ORDERS):]
             if new.size and not np.isfinite(new[-1]):
                 self._tail[y] = np.empty(0)
 
     def _bounds(self):
-        bounds = {}
-        for y, sums in self._differences.items():
-            ratios = [s / n / comb(2 * k, k) for (s, n), k in zip(sums, NOISE_ORDERS) if n]
-            bounds[y] = min(ratios) if ratios else np.inf
-        return bounds
+        return {y: noise_bound_from_sums(sums) for y, sums in self._differences.items()}
 
     def _add(self, blocks, w):
         P = len(self.parameters)
@@ -404,21 +402,11 @@ class SystemTracker:
         self._first = []
 
     def _koopmans(self, a, weights):
-        P = len(self.parameters)
         bounds = self._bounds()
         normal = sum(w ** 2 * s["normal"] for w, s in zip(weights, self._sums[a]))
         noise = sum(w ** 2 * sum(bounds[y] * g for y, g in s["noise"].items())
                     for w, s in zip(weights, self._sums[a]))
-        theta_bar, variance = None, 0.0
-        if self.method == "bc" and np.any(noise != 0):
-            theta_bar, variance, _ = koopmans(normal, noise, 1.0)
-            variance = variance or 0.0
-        if theta_bar is None:
-            d = np.sqrt(np.diag(normal)[:P])
-            d[d == 0] = 1.0
-            x = np.linalg.lstsq(normal[:P, :P] / d[:, None] / d[None, :],
-                                normal[:P, P] / d, rcond=None)[0] / d
-            theta_bar, variance = np.append(x, -1.0), 0.0
+        theta_bar, variance = solve_normal(normal, noise, self.method)
         return theta_bar, variance, normal, noise
 
     def _score(self, window):

@@ -34,7 +34,8 @@ from algid.models._expression import Call, Signal
 from algid.signals._differentiation import algebraic_derivative
 
 __all__ = ["WindowProblem", "ProblemCache", "FactorSamples", "term_rows",
-           "factor_sensitivity", "difference_noise_bound", "add_derivatives",
+           "factor_sensitivity", "difference_noise_bound", "noise_bound_from_sums",
+           "DIFFERENCE_ORDERS", "add_derivatives",
            "derivative_estimate", "MULTIPLICITIES", "WINDOW_OVERLAP"]
 
 #: Kernel multiplicities stacked in every estimate (their difference drives the window rule).
@@ -42,6 +43,9 @@ MULTIPLICITIES = (8, 12)
 
 #: Windows overlap: a window starts every ``length // WINDOW_OVERLAP`` samples.
 WINDOW_OVERLAP = 8
+
+#: Orders of the samples' differences that bound the variance of white noise on them.
+DIFFERENCE_ORDERS = range(1, 9)
 
 
 class FactorSamples(NamedTuple):
@@ -344,12 +348,18 @@ class WindowProblem:
 
 def difference_noise_bound(y):
     """The bound of :meth:`WindowProblem.noise_bound` on samples ``y`` (one array per segment)."""
-    bounds = []
-    for k in range(1, 9):
+    sums = []
+    for k in DIFFERENCE_ORDERS:
         d = [np.diff(v, k) for v in y if len(v) > k]
-        count = sum(len(v) for v in d)
-        if count:
-            bounds.append(sum(float(v @ v) for v in d) / count / comb(2 * k, k))
+        sums.append((sum(float(v @ v) for v in d), sum(len(v) for v in d)))
+    return noise_bound_from_sums(sums)
+
+
+def noise_bound_from_sums(sums):
+    """The noise bound from the sums of squares and counts of the differences of each
+    order of :data:`DIFFERENCE_ORDERS` (accumulated over a record or a stream)."""
+    bounds = [total / count / comb(2 * k, k)
+              for (total, count), k in zip(sums, DIFFERENCE_ORDERS) if count]
     return min(bounds) if bounds else np.inf
 
 
