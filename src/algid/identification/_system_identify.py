@@ -60,6 +60,7 @@ from algid.identification._window_rule import (
     independent_windows,
     longest_window,
     min_length,
+    needed_windows,
     window_criterion,
     window_grid,
     window_length,
@@ -262,8 +263,6 @@ def _choose_window(problems, system, noisy, bounds, multiplicities, method):
     n_min = min_length(multiplicities)
     grid_problem = _Grid(problems[0].segments, system.parameters)
     longest = longest_window(grid_problem, n_min) + 1
-    from algid.identification._window_rule import needed_windows
-
     grid = [n for n in window_grid(n_min, max(n_min, longest))
             if independent_windows(grid_problem, n) >= needed_windows(grid_problem)]
     if not grid:
@@ -307,8 +306,6 @@ def _shift(problems, system, noisy, bounds, length, multiplicities, method, fit)
     """Largest shift, in standard errors, of the estimates on windows half and twice as
     long (within the rule's limits), or None where neither fits."""
     grid_problem = _Grid(problems[0].segments, system.parameters)
-    from algid.identification._window_rule import needed_windows
-
     shifts = []
     for other in (length // 2, 2 * length):
         if other < min_length(multiplicities) or \
@@ -446,12 +443,10 @@ def _identify_hidden(data, system, hidden, *, time, rate, window, method, multip
                "multiplicities": multiplicities, "refine": False}
     # one input-output equation per measured output, sharing the coefficients of det P
     io = identify_system(data, elimination.equations, elimination.coefficients, **options)
-    coefficients = [io.values[c] for c in elimination.coefficients]
-    order = [list(io.values).index(c) for c in elimination.coefficients]
-    covariance = io.covariance[np.ix_(order, order)]
+    # (the system of the input-output equations has the coefficients as its parameters,
+    # in their order)
     theta, theta_covariance, others = physical_parameters(
-        elimination, system.parameters, dict(zip(elimination.coefficients, coefficients)),
-        covariance)
+        elimination, system.parameters, io.values, io.covariance)
     warnings = [f"input-output equation: {w}" for w in io.warnings]
     for other in others:
         warnings.append("the coefficients fit another parameter set as well: "
