@@ -41,19 +41,28 @@ from algid.identification._adequacy import misfit_ratio, missing_terms, model_ad
 from algid.identification._arguments import check_arguments, check_memory, check_model_columns
 from algid.identification._bias_compensation import solve_equilibrated
 from algid.identification._methods import METHODS
+from algid._memory import check_fits
+from algid.identification._record_source import is_streamed_input, record_source
 from algid.identification._records import (
     check_factors,
     estimate_derivative,
     prepare_records,
 )
 from algid.identification._sign_crossings import crossing_jumps
+from algid.identification._streamed_problem import (
+    CHUNK_SAMPLES,
+    STREAM_SAMPLES,
+    StreamedProblem,
+    scan_record,
+    stream_refusal,
+)
 from algid.identification._window_basis import (
     WindowBasis,
     check_excited,
     check_finite,
     separability,
 )
-from algid.identification._window_covariance import hac_meat, noise_meat, sandwich
+from algid.identification._window_covariance import hac_meat, sandwich
 from algid.identification._window_problem import (
     MULTIPLICITIES,
     WINDOW_OVERLAP,
@@ -78,6 +87,7 @@ from algid.models._model import Model
 from algid.models._system import is_system
 
 __all__ = ["identify", "METHODS", "MULTIPLICITIES", "AGREEMENT", "CROSSING_PASSES",
+           "STREAM_SAMPLES", "CHUNK_SAMPLES", "EXCERPT_SAMPLES", "EXCERPTS",
            "window_criterion", "window_grid"]
 
 
@@ -92,6 +102,23 @@ CROSSING_PASSES = 2
 #: Round-off standard error of the solution, per sample of a window, relative to the
 #: known side (in the orthonormal basis of :mod:`algid.identification._window_basis`).
 ROUNDOFF = 4 * np.finfo(float).eps
+
+
+#: The automatic window of a record read in chunks is chosen on this many samples of it,
+#: in :data:`EXCERPTS` excerpts spread over the record (standard errors scaled to the
+#: whole record's samples).
+EXCERPT_SAMPLES = 2**18
+
+#: Excerpts of the window rule on a record read in chunks.
+EXCERPTS = 8
+
+#: Why a record read in chunks is not refined.
+STREAMED_UNREFINED = ("a record read in chunks is not refined (the output-error fit "
+                      "simulates it whole): load it and call result.refine(record)")
+
+#: Memory per window of each length and multiplicity of a streamed fit (bytes per row
+#: entry; the rows, their orthonormal basis, the scores and the solver's copies).
+ROW_BYTES = 8 * 8
 
 
 class _Solution(NamedTuple):
@@ -171,8 +198,8 @@ def _solve(problem, length, multiplicities, instruments=None, method="ls"):
     solution = solution._replace(grams=None)
     if variance is not None and np.isfinite(variance) and variance > 0:
         beta = np.ldexp(1.0, -basis.b_shift)
-        noise = variance * beta ** 2 * noise_meat(problem, length, top, theta_bar,
-                                                  solution.weights, stride)
+        noise = variance * beta ** 2 * problem.noise_meat(length, top, theta_bar,
+                                                          solution.weights, stride)
     covariance, middle = sandwich(
         bread, hac_meat(solution.scores, ids, int(np.ceil(length / stride))), noise,
         AGREEMENT, floor=ROUNDOFF * length * np.linalg.norm(basis.b), middle=True)
@@ -233,6 +260,104 @@ def _idle_records(data, segments, length, step):
             for i in range(len(data)) if i not in used]
 
 
+def _streamed_source(data, model, *, method, refine, chunk):
+    """The chunked source of ``data`` when it is read in chunks, else None.
+
+    Files, Dask DataFrames and ``chunk=`` ask for it (refused where it cannot be);
+    otherwise a single record longer than :data:`STREAM_SAMPLES` is read in chunks where
+    nothing needs it whole (the model, ``method="iv"``, ``refine=True``)."""
+    if chunk is not None and (isinstance(chunk, bool) or not isinstance(
+            chunk, (int, np.integer)) or chunk < 2):
+        raise InputDataError(f"chunk must be a number of rows of at least 2, got {chunk!r}")
+    if not (is_streamed_input(data) or chunk is not None):
+        if refine is True or METHODS[method].instrumental or stream_refusal(model) \
+                or isinstance(data, (list, tuple)):
+            return None
+        try:
+            source = record_source(data)
+        except (InputDataError, TypeError):
+            return None
+        return source if source.n_rows > STREAM_SAMPLES else None
+    if isinstance(data, (list, tuple)):
+        raise InputDataError("chunk: a record is read in chunks one at a time; identify a "
+                             "list of records in memory (without chunk=), or each alone")
+    why = stream_refusal(model)
+    if why is not None:
+        raise ModelError(f"{why}: a record read in chunks takes models whose terms read "
+                         f"the output linearly (load the record and pass it in memory)")
+    if METHODS[method].instrumental:
+        raise ModelError(f"method={method!r} simulates the whole record: a record read in "
+                         f"chunks takes method 'bc' or 'ls'")
+    if refine is True:
+        raise ModelError(f"refine: {STREAMED_UNREFINED}")
+    return record_source(data)
+
+
+def _identify_streamed(source, model, *, time, rate, window, method, multiplicities, refine,
+                       chunk):
+    """:func:`identify` on a record read in chunks (the module notes of
+    :mod:`algid.identification._streamed_problem`)."""
+    chunk = CHUNK_SAMPLES if chunk is None else int(chunk)
+    shortest = min_length(multiplicities)
+    scan = scan_record(source, model, time=time, rate=rate, chunk=chunk, min_length=shortest)
+    problem = StreamedProblem(model, source, scan, time=time, rate=rate, chunk=chunk)
+    length = window_length(window, scan.step, problem, multiplicities)
+    scores, separations = None, {}
+    if length is None:
+        length, scores = _excerpt_window(problem, multiplicities, method, separations)
+    longest = max(len(run) for run in scan.runs)
+    keys = [(n, a) for n in (length, 2 * length - 1, (length + 1) // 2)
+            if shortest <= n <= longest for a in multiplicities]
+    windows = sum(sum(problem.windows(n)) for n, _ in keys)
+    check_fits(windows, ROW_BYTES * (len(model.parameters) + 1),
+               what=f"identify on windows of {(length - 1) * scan.step:.4g} s (a longer "
+                    f"window= needs fewer)", unit="windows")
+    problem.prefetch(keys)
+    fit = _solve(problem, length, multiplicities, method=method)
+    return _result(problem, fit, length, method=method, multiplicities=multiplicities,
+                   scores=scores, separations=separations, n_samples=scan.n_samples,
+                   time=time, rate=rate, refine=refine, unrefined=STREAMED_UNREFINED,
+                   grid=lambda found: _excerpt_window(problem, multiplicities, method,
+                                                      found)[1])
+
+
+def _excerpt_window(problem, multiplicities, method, separations):
+    """The window rule on :data:`EXCERPTS` excerpts of a record read in chunks, the
+    standard errors scaled to the record's samples (the whole record when it has at
+    most :data:`EXCERPT_SAMPLES`)."""
+    scan = problem.scan
+    total = scan.n_samples
+    ranges = [(run.start, run.stop) for run in scan.runs]
+    if total > EXCERPT_SAMPLES:
+        ranges, size = [], EXCERPT_SAMPLES // EXCERPTS
+        ends = np.cumsum([len(run) for run in scan.runs])
+        for k in range(EXCERPTS):
+            at = int((k + 0.5) * total / EXCERPTS)
+            i = int(np.searchsorted(ends, at, side="right"))
+            run = scan.runs[i]
+            start = max(run.start, min(run.start + at - (ends[i] - len(run)) - size // 2,
+                                       run.stop - size))
+            ranges.append((start, min(run.stop, start + size)))
+    pieces = problem.source.read(problem.columns, ranges, problem.chunk)
+    time, rate = problem.time_column, problem.rate
+    if not any(name in pieces[0] for name in (time, "t", "time") if name):
+        for piece, (start, stop) in zip(pieces, ranges):   # the record's own times
+            piece["t"] = (start + np.arange(stop - start)) / rate
+        time = "t"
+    segments, step, n_samples = prepare_records(pieces, problem.model.signals, time=time,
+                                                min_length=min_length(multiplicities))
+    excerpt = WindowProblem(problem.model, segments, step)
+    share = n_samples / total
+
+    def solve(sub, length, multiplicities, instruments=None, method="ls"):
+        fit = _solve(sub, length, multiplicities, instruments, method=method)
+        fit.covariance = fit.covariance * share   # as on the whole record
+        return fit
+
+    return choose_window(excerpt, multiplicities, solve, method=method,
+                         separations=separations)
+
+
 def _least_squares_misfit(segments, step, equation, parameters, output, length, multiplicities):
     """Misfit of another equation on the same signals, fitted by least squares."""
     problem = WindowProblem(parse_equation(equation, parameters, output=output), segments, step)
@@ -242,17 +367,20 @@ def _least_squares_misfit(segments, step, equation, parameters, output, length, 
 
 def identify(data, equation, parameters=None, *, time=None, rate=None, output=None,
              window=None, method="bc", multiplicities=MULTIPLICITIES, name="custom",
-             iterations=3, refine="auto", hidden=None):
+             iterations=3, refine="auto", hidden=None, chunk=None):
     """Identify the parameters of a model equation on measured records.
 
     Parameters
     ----------
-    data : record or list of records
+    data : record, list of records, path or Dask DataFrame
         A record: a mapping of column name -> samples, a pandas ``DataFrame`` (time as
         a column or as its index), an xarray ``Dataset`` or a python-control
         ``TimeResponseData``; a list of records is identified together.  Rows may be
         missing from a record with a time column (gaps), and NaN (or masked) samples
-        are dropped (an infinite one is refused).
+        are dropped (an infinite one is refused).  A path to a Parquet or CSV file, or
+        a Dask ``DataFrame``, is one record read in chunks, never whole (as is a
+        record of more than :data:`STREAM_SAMPLES` samples): see the user guide,
+        "Fleets and long records".
     equation : str, Model, module or list of str
         The model, e.g. ``"M*q'' + Fv*q' + Fc*sign(q') + off = F"``, or a compiled
         model (:func:`algid.compile_equation`): the same model argument as
@@ -297,6 +425,13 @@ def identify(data, equation, parameters=None, *, time=None, rate=None, output=No
     hidden : sequence of str, optional
         For a system of equations: outputs of its equations that are not measured
         (eliminated from a linear system; see the user guide, "Systems of equations").
+    chunk : int, optional
+        Read the record in chunks of this many rows (by default a file, a Dask
+        ``DataFrame`` or a record of more than :data:`STREAM_SAMPLES` samples is read in
+        chunks of :data:`CHUNK_SAMPLES`).  A record read in chunks takes models whose
+        terms read the output linearly, ``method`` "bc" or "ls", uniformly sampled runs,
+        and is not refined; it is never held whole in memory.  Its automatic window is
+        chosen on excerpts of the record (:data:`EXCERPT_SAMPLES` samples in all).
 
     Returns
     -------
@@ -321,12 +456,7 @@ def identify(data, equation, parameters=None, *, time=None, rate=None, output=No
     >>> round(result.B, 3), round(result.K, 2), result.warnings
     (2.0, 3.0, [])
     """
-    from algid.identification._output_error import (
-        check_refine,
-        refine_result,
-        simulates_stably,
-    )
-    from algid.identification._result import IdentificationResult
+    from algid.identification._output_error import check_refine
 
     if is_system(equation):   # several equations sharing parameters
         from algid.identification._system_identify import identify_system
@@ -350,8 +480,13 @@ def identify(data, equation, parameters=None, *, time=None, rate=None, output=No
     model = equation if isinstance(equation, Model) else parse_equation(
         equation, parameters, output=output, name=name)
     check_model_columns(model, time)
-    check_memory(data, model)
     multiplicities = check_multiplicities(model, multiplicities)
+    source = _streamed_source(data, model, method=method, refine=refine, chunk=chunk)
+    if source is not None:   # read in chunks: a file, a Dask DataFrame or a long record
+        return _identify_streamed(source, model, time=time, rate=rate, window=window,
+                                  method=method, multiplicities=multiplicities,
+                                  refine=refine, chunk=chunk)
+    check_memory(data, model)
     segments, step, n_samples = prepare_records(data, model.signals, time=time, rate=rate,
                                                 min_length=min_length(multiplicities))
     add_derivatives(model, segments, derivative_estimate)
@@ -378,14 +513,35 @@ def identify(data, equation, parameters=None, *, time=None, rate=None, output=No
                                      "first estimate diverges; use method='bc'")
             instruments = {a: problem.rows(length, a, "simulated") for a in multiplicities}
             fit = _solve(problem, length, multiplicities, instruments)
+    return _result(problem, fit, length, method=method, multiplicities=multiplicities,
+                   scores=scores, separations=separations, n_samples=n_samples, time=time,
+                   rate=rate, refine=refine, missing=lambda eq, names: _least_squares_misfit(
+                       segments, step, eq, names, model.output, length, multiplicities),
+                   idle=_idle_records(data, segments, length, step), segments=segments)
+
+
+def _result(problem, fit, length, *, method, multiplicities, scores, separations, n_samples,
+            time, rate, refine, missing=None, idle=(), segments=(), unrefined=None,
+            grid=None):
+    """The result of a fit on ``length``-sample windows: its adequacy, what the records
+    separate (refused, or warned with advice on the window), then the refinement.
+
+    ``missing`` refits another equation (the adequacy test's missing terms; None: not
+    looked for); ``separations`` holds the window rule's checks of its grid, or is
+    empty (then, for advice, ``grid(separations)`` fills it and returns the grid's
+    scores; by default the rule on ``problem``); ``unrefined`` says why the records
+    cannot be refined (None: they can)."""
+    from algid.identification._output_error import refine_result, simulates_stably
+    from algid.identification._result import IdentificationResult
+
+    model = problem.model
     adequacy = model_adequacy(problem, length, fit, _solve, method, min_length(multiplicities),
                               max(1, length // WINDOW_OVERLAP))
     # where the misfit is output noise, a combination no better determined than the
     # noise or the misfit is free; where it is more, the model's error may be the cause
     noise_like = adequacy.misfit <= adequacy.misfit_limit
-    if not noise_like:  # would a term the model lacks explain most of the misfit?
-        adequacy = missing_terms(adequacy, model, lambda eq, names: _least_squares_misfit(
-            segments, step, eq, names, model.output, length, multiplicities))
+    if not noise_like and missing is not None:   # would a term the model lacks explain it?
+        adequacy = missing_terms(adequacy, model, missing)
 
     grid_scores = scores
 
@@ -396,18 +552,19 @@ def identify(data, equation, parameters=None, *, time=None, rate=None, output=No
         nonlocal grid_scores
         if not separations:
             try:
-                grid_scores = choose_window(problem, multiplicities, _solve, method=method,
-                                            separations=separations)[1]
+                grid_scores = grid(separations) if grid else choose_window(
+                    problem, multiplicities, _solve, method=method,
+                    separations=separations)[1]
             except (InputDataError, ModelError, np.linalg.LinAlgError):
                 return ""
-        return window_advice(separations, step, grid_scores)
+        return window_advice(separations, problem.step, grid_scores)
 
     if noise_like and (fit.separation.free or fit.separation.misfit_free):
         raise ModelError(f"{fit.separation.message(model.parameters)}; {advice()}".rstrip("; "))
     weak = fit.separation.poorly_separated(adequacy.adequate)
-    idle = _idle_records(data, segments, length, step)
     separation = fit.separation.warnings(model.parameters, adequacy.adequate,
                                          advice() if weak else "")
+    idle = list(idle)
     unstable = []
     if METHODS[method].instrumental and model.is_linear and not simulates_stably(
             model, dict(zip(model.parameters, fit.theta.tolist()))):
@@ -417,7 +574,7 @@ def identify(data, equation, parameters=None, *, time=None, rate=None, output=No
                     "(use method='bc')"]
     result = IdentificationResult(
         model=model, values=dict(zip(model.parameters, fit.theta.tolist())),
-        covariance=fit.covariance, window=(length - 1) * step, n_samples=n_samples,
+        covariance=fit.covariance, window=(length - 1) * problem.step, n_samples=n_samples,
         n_windows=fit.n_windows, method=method, multiplicities=multiplicities,
         time=time, rate=rate, window_scores=scores,
         separate={a: dict(zip(model.parameters, v.tolist())) for a, v in fit.separate.items()},
@@ -426,4 +583,5 @@ def identify(data, equation, parameters=None, *, time=None, rate=None, output=No
         warnings=adequacy.warnings() + separation + idle + unstable)
     # (what the records can determine holds for a refined estimate too; whether the
     # model explains them is asked of its simulation residuals instead)
-    return refine_result(result, segments, step, refine, separation + idle + unstable)
+    return refine_result(result, segments, problem.step, refine, separation + idle + unstable,
+                         unavailable=unrefined)

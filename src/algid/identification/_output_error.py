@@ -413,7 +413,7 @@ def _not_refined(result, algebraic, why, refine):
                    refinement=Refinement(applied=False, reason=why))
 
 
-def refine_result(result, segments, step, refine, data_warnings=()):
+def refine_result(result, segments, step, refine, data_warnings=(), unavailable=None):
     """``result`` refined by output error (:func:`refine_linear`) where ``refine`` asks.
 
     Parameters
@@ -436,6 +436,9 @@ def refine_result(result, segments, step, refine, data_warnings=()):
         algebraic model's fit): kept in a refined result, whose other warnings are
         those of its residual test (all the algebraic ones stay in
         ``algebraic["warnings"]``).
+    unavailable : str, optional
+        Why these records cannot be refined (a record read in chunks): the algebraic
+        estimate, with this reason (refused with ``refine=True``).
 
     Returns
     -------
@@ -459,7 +462,7 @@ def refine_result(result, segments, step, refine, data_warnings=()):
             applied=False, reason="not asked (refine=False)"))
     model = result.model
     nonlinear = not model.is_linear
-    why = refinement_unavailable(model)
+    why = unavailable or refinement_unavailable(model)
     if why is None and any(seg.step is None for seg in segments):
         why = "the output-error refinement needs uniformly sampled records"
     elif why is None:   # the runs' own steps (exact from their ends), as one

@@ -132,7 +132,8 @@ class WindowBasis:
         Parameters
         ----------
         grams : numpy.ndarray, shape (windows, p + 1, p + 1)
-            Those of the original ``[A | b]`` (overwritten).
+            Those of the original ``[A | b]`` (overwritten; a read-only broadcast of
+            one window's, as a streamed record's, is transformed once).
 
         Returns
         -------
@@ -143,6 +144,8 @@ class WindowBasis:
         full = np.zeros((p + 1, p + 1))
         full[:p, :p] = np.ldexp(np.linalg.inv(self.R[:p, :p]), -self.shifts[:, None])
         full[p, p] = np.ldexp(1.0, -self.b_shift)
+        if not grams.flags.writeable and grams.strides[0] == 0:   # one for every window
+            return np.broadcast_to(full.T @ grams[0] @ full, grams.shape)
         for start in range(0, len(grams), 4096):   # in place, in blocks: no full copies
             block = grams[start:start + 4096]
             block[...] = full.T @ block @ full

@@ -28,7 +28,7 @@ from numpy.polynomial import chebyshev
 from algid._generated.modulating import MAX_MULTIPLICITY, TERM_KERNELS
 from algid.errors import ModelError
 
-__all__ = ["term_kernel", "uniform_window_integrals", "window_integrals",
+__all__ = ["term_kernel", "uniform_window_integrals", "block_window_integrals", "window_integrals",
            "window_noise_products", "window_sample_weights", "sign_changes",
            "step_window_integrals",
            "sign_samples", "MAX_MULTIPLICITY"]
@@ -98,6 +98,44 @@ def uniform_window_integrals(z, step, length, multiplicity, derivative, stride=1
 
         full = fftconvolve(z, g[::-1], mode="valid")
     return full[::stride]
+
+
+def block_window_integrals(z, step, length, multiplicity, derivative, stride=1):
+    """The integrals of :func:`uniform_window_integrals`, summed in blocks of ``stride``.
+
+    The samples are cut into blocks of ``stride`` and the kernel's weights likewise, so
+    that window ``w`` (blocks ``w`` to ``w + J - 1``) sums one column of a matrix
+    product: about ``J * len(z)`` multiplications for ``J = ceil(length / stride)``
+    (nine at the windows' usual overlap), whatever the window, and exact sums (no FFT
+    round-off).  The windows of a record read in chunks are made this way.
+
+    Parameters
+    ----------
+    z, step, length, multiplicity, derivative, stride
+        As in :func:`uniform_window_integrals` (``z`` starts at a window's start).
+
+    Returns
+    -------
+    numpy.ndarray
+        The integrals of the windows starting at ``0, stride, 2 * stride, ...`` that
+        end within ``z``.
+    """
+    z = np.asarray(z, dtype=float)
+    count = (len(z) - length) // stride + 1 if len(z) >= length else 0
+    if count == 0:
+        return np.zeros(0)
+    g = window_sample_weights(None, step, length, multiplicity, derivative)
+    blocks = -(-length // stride)
+    kernel = np.zeros(blocks * stride)
+    kernel[:length] = g
+    padded = np.zeros((count + blocks - 1) * stride)
+    used = min(len(z), len(padded))
+    padded[:used] = z[:used]
+    products = padded.reshape(-1, stride) @ kernel.reshape(blocks, stride).T
+    out = products[:count, 0].copy()
+    for j in range(1, blocks):
+        out += products[j:j + count, j]
+    return out
 
 
 def window_integrals(z, t, length, multiplicity, derivative, stride=1):

@@ -23,6 +23,7 @@ from algid.errors import InputDataError
 from algid.identification._records import Segment
 from algid.identification._sign_crossings import crossing_motion, sign_factor
 from algid.identification._window_basis import exponent
+from algid.identification._window_covariance import noise_meat
 from algid.identification._window_kernels import (
     step_window_integrals,
     uniform_window_integrals,
@@ -174,15 +175,21 @@ class WindowProblem:
             self.cache.samples[key] = FactorSamples(samples, e)
         return self.cache.samples[key].values
 
+    def factor_exponent(self, factor, which="measured"):
+        """The power of two of a factor's largest sample (that of :meth:`factor_samples`)."""
+        self.factor_samples(factor, which)
+        return self.cache.samples[(factor, which)].exponent
+
+    def factor_largest(self, factor):
+        """A factor's largest absolute sample, in its power of two (at most 2)."""
+        return max(float(np.max(np.abs(v))) for v in self.factor_samples(factor))
+
     def exponents(self, which="measured"):
         """Powers of two of the columns of :meth:`rows` and of its known side, and of
         every term within its column (``{term index: shift}``, at most 0)."""
         unit = int(np.round(np.log2(self.time_unit)))
-        own = []
-        for term in self.model.terms:
-            self.factor_samples(term.factor, which)
-            own.append(self.cache.samples[(term.factor, which)].exponent
-                       - term.derivative * unit)
+        own = [self.factor_exponent(term.factor, which) - term.derivative * unit
+               for term in self.model.terms]
         key = (which, tuple(own))
         if key in self._exponents:
             return self._exponents[key]
@@ -245,8 +252,7 @@ class WindowProblem:
         bound = np.zeros(len(self.parameters) + 1)
         index = {p: i for i, p in enumerate(self.parameters)}
         for i, term in enumerate(self.model.terms):
-            z = self.factor_samples(term.factor)
-            largest = max(float(np.max(np.abs(v))) for v in z)
+            largest = self.factor_largest(term.factor)
             kernel = np.sum(np.abs(window_sample_weights(None, self.unit_step, length,
                                                          multiplicity, term.derivative)))
             column = len(self.parameters) if term.parameter is None else index[term.parameter]
@@ -344,6 +350,28 @@ class WindowProblem:
                         grams[:, c2, c1] += v
             blocks.append(grams)
         return np.concatenate(blocks)
+
+
+    def noise_meat(self, length, multiplicity, theta_bar, scores, stride):
+        """The covariance that unit white output noise gives ``sum_w scores_w e_w``
+        (:func:`algid.identification._window_covariance.noise_meat`).
+
+        Parameters
+        ----------
+        length, multiplicity : int
+            Samples per window and kernel multiplicity.
+        theta_bar : numpy.ndarray
+            The parameters followed by -1.
+        scores : numpy.ndarray, shape (windows, k)
+            The weights of every window.
+        stride : int
+            Samples between the starts of consecutive windows.
+
+        Returns
+        -------
+        numpy.ndarray, shape (k, k)
+        """
+        return noise_meat(self, length, multiplicity, theta_bar, scores, stride)
 
 
 def difference_noise_bound(y):

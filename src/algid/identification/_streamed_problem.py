@@ -1,0 +1,512 @@
+"""The window equations of a record read in chunks: :func:`algid.identify` as a
+streamed reduction.
+
+A record longer than :data:`STREAM_SAMPLES`, or kept in a file or a Dask ``DataFrame``
+(:mod:`algid.identification._record_source`), is never held whole.  Its window
+equations are made in passes over its chunks, each pass holding a chunk and the last
+window's samples of the run it is in:
+
+1. :func:`scan_record` checks every chunk as the record layer checks a whole record,
+   cuts the record into runs of contiguous samples (at gaps and NaN rows, as
+   :func:`algid.identification._records.prepare_records` does) and sums what the
+   problem's scaling and noise bound need: every factor's largest sample, and the sums
+   of squares of the output's differences (:func:`noise_bound_from_sums`).
+2. :meth:`StreamedProblem.prefetch` makes the rows ``[A | b]`` of several window
+   lengths and multiplicities in one pass.  The rows are what the solve keeps: one per
+   window, a few per thousand samples; the samples are dropped chunk by chunk.
+
+The solve, the window rule's criterion, the covariance and the adequacy test are then
+those of an in-memory record (:mod:`algid.identification._identify`), and the
+estimate equals the in-memory one at the same window to round-off (the window
+integrals are summed in blocks rather than by FFT).  What makes this exact with only
+the rows: every term that reads the output reads it linearly (:func:`stream_refusal`),
+so the noise the output puts into a window's equation, and into the covariance of
+neighbouring windows, is the same on every window of a uniformly sampled run.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from algid._record_input import record_columns, refuse_infinite
+from algid.errors import InputDataError
+from algid.identification._records import GAP_FACTOR, UNIFORM_TOLERANCE, Segment, check_factors
+from algid.identification._window_basis import exponent
+from algid.identification._window_kernels import (
+    block_window_integrals,
+    window_noise_products,
+    window_sample_weights,
+)
+from algid.identification._window_problem import (
+    DIFFERENCE_ORDERS,
+    WINDOW_OVERLAP,
+    ProblemCache,
+    WindowProblem,
+    noise_bound_from_sums,
+    term_rows,
+)
+from algid.models._expression import Call, Signal
+
+__all__ = ["StreamedProblem", "RecordScan", "Run", "scan_record", "stream_refusal",
+           "STREAM_SAMPLES", "CHUNK_SAMPLES"]
+
+#: A record of more samples than this is identified in chunks (fewer: in memory, as
+#: before; every benchmark record is shorter).
+STREAM_SAMPLES = 2**18
+
+#: Rows per chunk of a pass.
+CHUNK_SAMPLES = 2**16
+
+
+def stream_refusal(model):
+    """Why a model's window equations cannot be made chunk by chunk, or None.
+
+    A term must read the output linearly (the output itself, times a parameter or a
+    function of the inputs), and no factor may hold a derivative estimated on the whole
+    record or a ``sign`` whose steps are placed on it.
+
+    Parameters
+    ----------
+    model : algid.models._model.Model
+
+    Returns
+    -------
+    str or None
+    """
+    output = model.output
+    if model.needs_derivatives:
+        name, k = model.needs_derivatives[0]
+        return (f"the derivative {name}{chr(39) * k} inside a nonlinear factor is "
+                f"estimated on the whole record")
+    for term in model.terms:
+        factor = term.factor
+        if _has_sign(factor):
+            return f"the steps of {factor} are placed on the whole record"
+        if output in factor.signals() and factor != Signal(output):
+            return (f"the term {factor} reads the output {output} nonlinearly (its noise "
+                    f"changes from window to window)")
+    return None
+
+
+def _has_sign(expression):
+    if isinstance(expression, Call) and expression.function == "sign":
+        return True
+    return any(_has_sign(a) for a in getattr(expression, "args", ()))
+
+
+@dataclass
+class Run:
+    """Contiguous samples of a streamed record (rows ``[start, stop)``).
+
+    Attributes
+    ----------
+    start, stop : int
+        Rows of the record.
+    t0, t_end : float
+        Times of the first and last samples (s).
+    step : float
+        The sampling step in the problem's time unit (from the run's ends), set by
+        :class:`StreamedProblem`.
+    record : int
+        Always 0 (one record).
+    """
+
+    start: int
+    stop: int
+    t0: float
+    t_end: float
+    step: float = 0.0
+    record: int = 0
+
+    def __len__(self):
+        return self.stop - self.start
+
+    @property
+    def user_step(self):
+        """The sampling step (s), from the run's ends."""
+        return (self.t_end - self.t0) / (len(self) - 1)
+
+
+@dataclass
+class RecordScan:
+    """What the first pass over a streamed record found (:func:`scan_record`).
+
+    Attributes
+    ----------
+    runs : list of Run
+        Runs of contiguous samples at least as long as a window must be.
+    step : float
+        The sampling step (s): ``1 / rate``, or the median step of the first chunk.
+    largest : dict
+        Factor -> its largest absolute sample on the runs.
+    differences : list of tuple
+        Per order of :data:`DIFFERENCE_ORDERS`: the sum of squares and the count of the
+        output's differences on the runs (in the output's own units).
+    rows : int
+        Rows of the record.
+    """
+
+    runs: list
+    step: float
+    largest: dict
+    differences: list
+    rows: int = 0
+    signals: list = field(default_factory=list)
+
+    @property
+    def n_samples(self):
+        """Samples in the runs."""
+        return sum(len(run) for run in self.runs)
+
+
+class _RunSums:
+    """A run being scanned: its ends, factors' largest samples, output differences."""
+
+    def __init__(self, start, t0, factors):
+        self.start, self.stop, self.t0, self.t_end = start, start, t0, t0
+        self.largest = dict.fromkeys(factors, 0.0)
+        self.sums = [[0.0, 0] for _ in DIFFERENCE_ORDERS]
+        self.carry = np.empty(0)
+
+    def add(self, t, values, model):
+        self.stop += len(t)
+        self.t_end = float(t[-1])
+        for factor in self.largest:
+            with np.errstate(over="ignore", under="ignore", invalid="ignore"):
+                z = np.asarray(factor.evaluate(values, t), dtype=float) * np.ones(len(t))
+            self.largest[factor] = max(self.largest[factor], float(np.max(np.abs(z))))
+        y = np.concatenate([self.carry, values[model.output]])
+        for sums, k in zip(self.sums, DIFFERENCE_ORDERS):
+            d = np.diff(y, k)[max(0, len(self.carry) - k):]
+            sums[0] += float(d @ d)
+            sums[1] += len(d)
+        self.carry = y[-max(DIFFERENCE_ORDERS):]
+
+
+def _chunk_columns(chunk, first, signals, time, rate):
+    """The times and signals of one chunk, checked as a record's (rows named in the
+    record)."""
+    try:
+        t, columns = record_columns(chunk, signals, time=time, rate=rate, first_sample=first)
+        for name, values in columns.items():
+            refuse_infinite(values, f"record 0: column {name!r}")
+    except InputDataError as error:
+        raise InputDataError(f"{error} (in the chunk from row {first})") from None
+    return t, columns
+
+
+def scan_record(source, model, *, time=None, rate=None, chunk=CHUNK_SAMPLES, min_length=8):
+    """The first pass over a streamed record (see the module notes).
+
+    Parameters
+    ----------
+    source : object
+        The record's chunks (:func:`algid.identification._record_source.record_source`).
+    model : algid.models._model.Model
+        The model (its signals and terms).
+    time : str, optional
+        Name of the time column.
+    rate : float, optional
+        Sampling rate (Hz) of a record without one.
+    chunk : int
+        Rows per chunk.
+    min_length : int
+        Runs shorter than this are dropped.
+
+    Returns
+    -------
+    RecordScan
+
+    Raises
+    ------
+    InputDataError
+        As the record layer, for any chunk; or no run of ``min_length`` samples.
+    """
+    signals = list(model.signals)
+    names = signals + [name for name in (time, "t", "time") if name and name not in signals]
+    factors = list(dict.fromkeys(term.factor for term in model.terms))
+    runs, largest = [], dict.fromkeys(factors, 0.0)
+    differences = [[0.0, 0] for _ in DIFFERENCE_ORDERS]
+    step, last_t, current, rows = None if rate is None else 1.0 / rate, None, None, 0
+
+    def close(run):
+        if run is None or len(run.carry) == 0 or run.stop - run.start < min_length:
+            return
+        runs.append(Run(run.start, run.stop, run.t0, run.t_end))
+        for factor, value in run.largest.items():
+            largest[factor] = max(largest[factor], value)
+        for total, (square, count) in zip(differences, run.sums):
+            total[0] += square
+            total[1] += count
+
+    for first, part in source.chunks(names, chunk):
+        t, columns = _chunk_columns(part, first, signals, time, rate)
+        n = len(t)
+        rows = first + n
+        if n == 0:
+            continue
+        if last_t is not None and not t[0] > last_t:
+            raise InputDataError(f"record 0: the time does not increase at row {first}")
+        if step is None:
+            if n < 2:
+                raise InputDataError("record 0: the first chunk holds one sample: give "
+                                     "rate= or a longer chunk")
+            step = float(np.median(np.diff(t)))
+        valid = np.all([~np.isnan(v) for v in columns.values()], axis=0)
+        gap = np.diff(t, prepend=np.nan if last_t is None else last_t) > GAP_FACTOR * step
+        previous = np.concatenate([[current is not None], valid[:-1]])
+        starts = np.flatnonzero(valid & ~(previous & ~gap))
+        ends = np.flatnonzero(valid & ~np.concatenate([valid[1:] & ~gap[1:], [True]]))
+        pieces = np.flatnonzero(valid)
+        if pieces.size:
+            # the pieces of runs in this chunk: from a run's start (or the chunk's) to its end
+            bounds = np.union1d(starts, ends + 1)
+            edges = np.union1d(bounds, [pieces[0], n])
+            for lo, hi in zip(edges[:-1], edges[1:]):
+                if not valid[lo]:
+                    continue
+                if lo in starts:
+                    close(current)
+                    current = _RunSums(first + lo, float(t[lo]), factors)
+                values = {name: v[lo:hi] for name, v in columns.items()}
+                check_factors(model, [Segment(0, np.arange(first + lo, first + hi), t[lo:hi],
+                                              values)])
+                current.add(t[lo:hi], values, model)
+        if not valid[-1]:
+            close(current)
+            current = None
+        last_t = float(t[-1])
+    close(current)
+    if not runs:
+        raise InputDataError(f"no run of {min_length} contiguous samples without gaps or "
+                             f"NaN in the record: nothing to identify on")
+    return RecordScan(runs, step, largest, [tuple(d) for d in differences], rows, signals)
+
+
+class StreamedProblem(WindowProblem):
+    """:class:`~algid.identification._window_problem.WindowProblem` of a streamed record.
+
+    Its rows are made in passes over the record's chunks (:meth:`prefetch`) and kept;
+    the samples are not.  The scaling, the noise bound and the excitation check come
+    from the first pass (:class:`RecordScan`); the noise covariances of the rows, the
+    same on every window, from one window of the kernels (:meth:`noise_grams`,
+    :meth:`noise_meat`).
+
+    Parameters
+    ----------
+    model : algid.models._model.Model
+        A model :func:`stream_refusal` accepts.
+    source : object
+        The record's chunks.
+    scan : RecordScan
+        The first pass over it.
+    time, rate : optional
+        The time column or the sampling rate, as for :func:`scan_record`.
+    chunk : int
+        Rows per chunk.
+    """
+
+    def __init__(self, model, source, scan, *, time=None, rate=None, chunk=CHUNK_SAMPLES):
+        self.model = model
+        self.source, self.scan, self.chunk = source, scan, chunk
+        self.time_column, self.rate = time, rate
+        signals = scan.signals
+        #: the columns read: the signals, then the time column if there is one
+        self.columns = signals + [n for n in (time, "t", "time") if n and n not in signals]
+        self.time_unit = float(np.ldexp(1.0, int(np.round(np.log2(scan.step)))))
+        for run in scan.runs:
+            run.step = run.user_step / self.time_unit
+        self.segments = self.user_segments = scan.runs
+        self.step = scan.step
+        self.unit_step = scan.step / self.time_unit
+        self.parameters = model.parameters
+        self.output_exponent = exponent(scan.largest[Signal(model.output)])
+        self.output_unit = float(np.ldexp(1.0, self.output_exponent))
+        self.cache = ProblemCache()
+        self._exponents = {}
+        self.sign_jumps, self.first_values, self.crossings, self.steps = {}, {}, {}, {}
+        self._rows = {}
+
+    def factor_exponent(self, factor, which="measured"):
+        """The power of two of a factor's largest sample (from the scan)."""
+        return exponent(self.scan.largest[factor])
+
+    def factor_largest(self, factor):
+        """A factor's largest absolute sample, in its power of two."""
+        return float(np.ldexp(self.scan.largest[factor], -self.factor_exponent(factor)))
+
+    def noise_bound(self, signal=None):
+        """The bound of :meth:`WindowProblem.noise_bound` from the scan's sums."""
+        if self.cache.noise_bound is None:   # the sums were taken in the output's units
+            self.cache.noise_bound = noise_bound_from_sums(
+                [(float(np.ldexp(total, -2 * self.output_exponent)), count)
+                 for total, count in self.scan.differences])
+        return self.cache.noise_bound
+
+    def rows(self, length, multiplicity, which="measured"):
+        """Regressors, known side and window runs for one window length and
+        multiplicity (made by a pass over the record unless :meth:`prefetch` made them)."""
+        key = (length, multiplicity)
+        if key not in self._rows:
+            self.prefetch([key])
+        A, b, ids = self._rows[key]
+        if len(ids) == 0:
+            raise InputDataError(f"no segment holds a window of {length} samples")
+        return A, b, ids
+
+    def windows(self, length):
+        """Windows of ``length`` samples per run."""
+        stride = max(1, length // WINDOW_OVERLAP)
+        return [(len(run) - length) // stride + 1 if len(run) >= length else 0
+                for run in self.segments]
+
+    def prefetch(self, keys):
+        """Make the rows of every ``(length, multiplicity)`` of ``keys`` in one pass.
+
+        Parameters
+        ----------
+        keys : sequence of tuple of int
+            Window lengths (samples) and kernel multiplicities.
+        """
+        keys = [k for k in dict.fromkeys(keys) if k not in self._rows]
+        if not keys:
+            return
+        shifts = self.exponents()[2]
+        factors = list(dict.fromkeys(term.factor for term in self.model.terms))
+        units = {f: self.factor_exponent(f) for f in factors}
+        blocks = {k: ([], [], []) for k in keys}
+        runs = iter(enumerate(self.segments))
+        index, run = next(runs)
+        buffer, origin, done = None, 0, None
+        for first, part in self.source.chunks(self.columns, self.chunk):
+            t, columns = _chunk_columns(part, first, self.scan.signals, self.time_column,
+                                        self.rate)
+            last = first + len(t)
+            while run is not None and run.start < last:
+                lo, hi = max(run.start, first) - first, min(run.stop, last) - first
+                if lo >= hi:   # the run starts in a later chunk
+                    break
+                if buffer is None:
+                    buffer, origin, done = {f: np.empty(0) for f in factors}, 0, dict.fromkeys(keys, 0)
+                self._check_uniform(run, t[lo:hi], first + lo)
+                values = {name: v[lo:hi] for name, v in columns.items()}
+                for f in factors:
+                    with np.errstate(over="ignore", under="ignore", invalid="ignore"):
+                        z = np.asarray(f.evaluate(values, t[lo:hi]), dtype=float) \
+                            * np.ones(hi - lo)
+                    buffer[f] = np.concatenate([buffer[f], np.ldexp(z, -units[f])])
+                end = first + hi - run.start   # samples of the run read so far
+                origin = self._windows_of(run, index, buffer, origin, end, done, blocks, shifts)
+                if run.stop > last:
+                    break
+                buffer = None
+                index, run = next(runs, (None, None))
+        for key, (a_blocks, b_blocks, id_blocks) in blocks.items():
+            p = len(self.parameters)
+            self._rows[key] = (np.vstack(a_blocks) if a_blocks else np.zeros((0, p)),
+                               np.concatenate(b_blocks) if b_blocks else np.zeros(0),
+                               np.concatenate(id_blocks) if id_blocks else np.zeros(0, int))
+
+    def _windows_of(self, run, index, buffer, origin, end, done, blocks, shifts):
+        """Rows of the windows of ``run`` that end within its first ``end`` samples;
+        the buffer's samples before the next window of every key are dropped.  Returns
+        the run's sample at which the buffer now starts."""
+        for length, multiplicity in done:
+            stride = max(1, length // WINDOW_OVERLAP)
+            total = (len(run) - length) // stride + 1 if len(run) >= length else 0
+            ready = min(total, (end - length) // stride + 1 if end >= length else 0)
+            w = done[(length, multiplicity)]
+            if ready <= w:
+                continue
+            lo = w * stride - origin
+            hi = (ready - 1) * stride + length - origin
+            integrals = [block_window_integrals(buffer[term.factor][lo:hi], run.step,
+                                                length, multiplicity, term.derivative, stride)
+                         for term in self.model.terms]
+            A, b = term_rows(self.model, integrals, shifts, ready - w)
+            a_blocks, b_blocks, id_blocks = blocks[(length, multiplicity)]
+            a_blocks.append(A)
+            b_blocks.append(b)
+            id_blocks.append(np.full(ready - w, index))
+            done[(length, multiplicity)] = ready
+        keep = min(done[k] * max(1, k[0] // WINDOW_OVERLAP) for k in done)
+        keep = min(keep, end)
+        if keep > origin:
+            for f in buffer:
+                buffer[f] = buffer[f][keep - origin:]
+            origin = keep
+        return origin
+
+    def _check_uniform(self, run, t, first):
+        grid = run.t0 + (np.arange(first - run.start, first - run.start + len(t))
+                         * run.user_step)
+        off = np.abs(t - grid)
+        if len(t) and float(np.max(off)) > UNIFORM_TOLERANCE * run.user_step:
+            row = first + int(np.argmax(off))
+            raise InputDataError(
+                f"record 0: the sample at row {row} is {float(np.max(off)) / run.user_step:.3g} "
+                f"steps off the uniform grid of its run: a record read in chunks must be "
+                f"uniformly sampled (load it and pass it in memory, or resample it)")
+
+    def noise_grams(self, length, multiplicity, signal=None):
+        """Per-window noise covariance of ``[A | b]`` (the same on every window of a
+        run: a read-only broadcast)."""
+        p = len(self.parameters)
+        index = {q: i for i, q in enumerate(self.parameters)}
+        noisy = []
+        for term in self.model.terms:
+            if self.model.output not in term.factor.signals():
+                continue
+            weight = term.coefficient * self.term_scale(term)
+            column = p if term.parameter is None else index[term.parameter]
+            noisy.append((column, -weight if term.parameter is None else weight,
+                          term.derivative))
+        counts = self.windows(length)
+        blocks = []
+        for run, count in zip(self.segments, counts):
+            if count == 0:
+                continue
+            gram = np.zeros((p + 1, p + 1))
+            for i, (c1, w1, k1) in enumerate(noisy):
+                for c2, w2, k2 in noisy[i:]:
+                    v = w1 * w2 * window_noise_products(
+                        np.ones(length), None, run.step, length, (multiplicity, k1),
+                        (multiplicity, k2))[0]
+                    gram[c1, c2] += v
+                    if (c2, w2, k2) != (c1, w1, k1):
+                        gram[c2, c1] += v
+            blocks.append((gram, count))
+        if len({g.tobytes() for g, _ in blocks}) == 1:
+            return np.broadcast_to(blocks[0][0], (sum(counts), p + 1, p + 1))
+        return np.concatenate([np.broadcast_to(g, (c, p + 1, p + 1)) for g, c in blocks])
+
+    def noise_meat(self, length, multiplicity, theta_bar, scores, stride):
+        """The covariance of :func:`algid.identification._window_covariance.noise_meat`,
+        its sample weights being the same in every window of a run."""
+        p = len(self.parameters)
+        index = {q: i for i, q in enumerate(self.parameters)}
+        meat = np.zeros((scores.shape[1], scores.shape[1]))
+        first = 0
+        for run, n_win in zip(self.segments, self.windows(length)):
+            if n_win == 0:
+                continue
+            g = scores[first:first + n_win]
+            first += n_win
+            weights = np.zeros(length)
+            for term in self.model.terms:
+                if self.model.output not in term.factor.signals():
+                    continue
+                if term.parameter is None:
+                    factor = -theta_bar[p] * term.coefficient
+                else:
+                    factor = theta_bar[index[term.parameter]] * term.coefficient
+                weights += factor * self.term_scale(term) * window_sample_weights(
+                    None, run.step, length, multiplicity, term.derivative)
+            for lag in range(min(n_win, -(-length // stride))):
+                shift = lag * stride
+                c = float(weights[shift:] @ weights[:length - shift])
+                cross = c * (g[:n_win - lag].T @ g[lag:])
+                meat += cross if lag == 0 else cross + cross.T
+        return meat
