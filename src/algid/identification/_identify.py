@@ -74,6 +74,7 @@ from algid.identification._window_rule import (
     WindowFit,
     check_multiplicities,
     choose_window,
+    grid_lengths,
     min_length,
     window_advice,
     window_criterion,
@@ -339,14 +340,28 @@ def _excerpt_window(problem, multiplicities, method, separations):
                                        run.stop - size))
             ranges.append((start, min(run.stop, start + size)))
     pieces = problem.source.read(problem.columns, ranges, problem.chunk)
-    time, rate = problem.time_column, problem.rate
-    if not any(name in pieces[0] for name in (time, "t", "time") if name):
-        for piece, (start, stop) in zip(pieces, ranges):   # the record's own times
-            piece["t"] = (start + np.arange(stop - start)) / rate
+    time = problem.time_column or next((n for n in ("t", "time") if n in pieces[0]), None)
+    if time is None:   # the record's own times, from the rate
+        for piece, (start, stop) in zip(pieces, ranges):
+            piece["t"] = (start + np.arange(stop - start)) / problem.rate
         time = "t"
-    segments, step, n_samples = prepare_records(pieces, problem.model.signals, time=time,
-                                                min_length=min_length(multiplicities))
-    excerpt = WindowProblem(problem.model, segments, step)
+    # the excerpts as one record, a NaN row between two (a break of the runs)
+    joined = {name: [] for name in pieces[0]}
+    for i, piece in enumerate(pieces):
+        for name, values in piece.items():
+            joined[name].append(values)
+            if i + 1 < len(pieces):
+                joined[name].append([(values[-1] + pieces[i + 1][name][0]) / 2
+                                     if name == time else np.nan])
+    record = {name: np.concatenate(parts) for name, parts in joined.items()}
+    source = record_source(record)
+    shortest = min_length(multiplicities)
+    scan = scan_record(source, problem.model, time=time, chunk=source.n_rows,
+                       min_length=shortest)
+    excerpt = StreamedProblem(problem.model, source, scan, time=time, chunk=source.n_rows)
+    excerpt.prefetch([(n, a) for n in grid_lengths(excerpt, multiplicities)
+                      for a in multiplicities])   # the grid's rows in one pass
+    n_samples = scan.n_samples
     share = n_samples / total
 
     def solve(sub, length, multiplicities, instruments=None, method="ls"):

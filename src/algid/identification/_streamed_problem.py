@@ -59,6 +59,11 @@ STREAM_SAMPLES = 2**18
 #: Rows per chunk of a pass.
 CHUNK_SAMPLES = 2**16
 
+#: Runs whose sampling steps (from their ends) agree to this fraction are given their
+#: common step (their noise covariances are then one for every window; the estimates
+#: move by about as much, far below the noise).
+SAME_STEP = 1e-9
+
 
 def stream_refusal(model):
     """Why a model's window equations cannot be made chunk by chunk, or None.
@@ -316,8 +321,12 @@ class StreamedProblem(WindowProblem):
         #: the columns read: the signals, then the time column if there is one
         self.columns = signals + [n for n in (time, "t", "time") if n and n not in signals]
         self.time_unit = float(np.ldexp(1.0, int(np.round(np.log2(scan.step)))))
-        for run in scan.runs:
-            run.step = run.user_step / self.time_unit
+        steps = np.array([run.user_step for run in scan.runs])
+        common = float(np.average(steps, weights=[len(run) for run in scan.runs]))
+        if np.all(np.abs(steps - common) <= SAME_STEP * common):
+            steps[:] = common   # one step: one noise covariance for every window
+        for run, step in zip(scan.runs, steps):
+            run.step = step / self.time_unit
         self.segments = self.user_segments = scan.runs
         self.step = scan.step
         self.unit_step = scan.step / self.time_unit
@@ -464,9 +473,12 @@ class StreamedProblem(WindowProblem):
             noisy.append((column, -weight if term.parameter is None else weight,
                           term.derivative))
         counts = self.windows(length)
-        blocks = []
+        blocks, made = [], {}
         for run, count in zip(self.segments, counts):
             if count == 0:
+                continue
+            if run.step in made:
+                blocks.append((made[run.step], count))
                 continue
             gram = np.zeros((p + 1, p + 1))
             for i, (c1, w1, k1) in enumerate(noisy):
@@ -477,8 +489,9 @@ class StreamedProblem(WindowProblem):
                     gram[c1, c2] += v
                     if (c2, w2, k2) != (c1, w1, k1):
                         gram[c2, c1] += v
+            made[run.step] = gram
             blocks.append((gram, count))
-        if len({g.tobytes() for g, _ in blocks}) == 1:
+        if len(made) == 1:
             return np.broadcast_to(blocks[0][0], (sum(counts), p + 1, p + 1))
         return np.concatenate([np.broadcast_to(g, (c, p + 1, p + 1)) for g, c in blocks])
 

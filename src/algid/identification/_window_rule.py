@@ -31,7 +31,8 @@ from algid.identification._window_basis import (
     WEAK_RATIO,
 )
 
-__all__ = ["WindowFit", "check_multiplicities", "window_grid", "window_criterion",
+__all__ = ["WindowFit", "check_multiplicities", "window_grid", "grid_lengths",
+           "window_criterion",
            "choose_window", "window_advice", "noise_factor", "window_length", "min_length",
            "longest_window",
            "independent_windows", "needed_windows", "MIN_SPARE_WINDOWS", "NEGLIGIBLE_TERM",
@@ -349,6 +350,37 @@ def window_criterion(fits):
     return scores
 
 
+def grid_lengths(problem, multiplicities, n_max=None):
+    """The window lengths the automatic rule solves (:func:`choose_window`).
+
+    Parameters
+    ----------
+    problem : object
+        The windowed problem of :func:`algid.identify`.
+    multiplicities : tuple of int
+        Kernel multiplicities.
+    n_max : int, optional
+        Longest window (samples), as in :func:`choose_window`.
+
+    Returns
+    -------
+    list of int
+        Increasing lengths (samples); empty for records too short for any window.
+    """
+    n_min = min_length(multiplicities)
+    allowed = longest_window(problem, n_min) + 1
+    n_max = allowed if n_max is None else min(n_max, allowed)
+    grid = [n for n in window_grid(n_min, max(n_min, n_max))
+            if independent_windows(problem, n) >= needed_windows(problem)]
+    # the longest window too (the grid may stop up to a ratio short of it): where the
+    # parameters separate only on the longest windows, a fixed window there would
+    # determine them, and the rule must not refuse what a fixed window determines
+    if grid and n_max > grid[-1] * 1.05 \
+            and independent_windows(problem, n_max) >= needed_windows(problem):
+        grid.append(n_max)
+    return grid
+
+
 def choose_window(problem, multiplicities, solve, *, n_max=None, method="ls",
                   separations=None):
     """Window length (samples) by the rule of this module.
@@ -384,17 +416,8 @@ def choose_window(problem, multiplicities, solve, *, n_max=None, method="ls",
     InputDataError
         Records too short for any window.
     """
+    grid = grid_lengths(problem, multiplicities, n_max)
     n_min = min_length(multiplicities)
-    allowed = longest_window(problem, n_min) + 1
-    n_max = allowed if n_max is None else min(n_max, allowed)
-    grid = [n for n in window_grid(n_min, max(n_min, n_max))
-            if independent_windows(problem, n) >= needed_windows(problem)]
-    # the longest window too (the grid may stop up to a ratio short of it): where the
-    # parameters separate only on the longest windows, a fixed window there would
-    # determine them, and the rule must not refuse what a fixed window determines
-    if grid and n_max > grid[-1] * 1.05 \
-            and independent_windows(problem, n_max) >= needed_windows(problem):
-        grid.append(n_max)
     if not grid:
         raise InputDataError(f"the records are too short: windows of at least {n_min} "
                              f"samples must leave {needed_windows(problem)} non-overlapping "
