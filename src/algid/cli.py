@@ -210,7 +210,8 @@ def build_parser() -> argparse.ArgumentParser:
     )
     ide.add_argument("files", nargs="+", metavar="FILE",
                      help="data files (.csv, .txt, .csv.gz, .txt.gz, .mat), identified "
-                          "together, or - for CSV on standard input; with --by, one table "
+                          "together, or - for CSV on standard input, or one .parquet "
+                          "record (read in chunks); with --by, one table "
                           "of many records (.parquet, a folder of Parquet files, .csv or -)")
     ide.add_argument("--equation", required=True, metavar="EQ", action="append",
                      help="the model equation; several times for a system of equations "
@@ -238,6 +239,10 @@ def build_parser() -> argparse.ArgumentParser:
                           "white output noise); default: where it is safe (the model "
                           "simulates stably, the simulation error drops and the fit is "
                           "not less precise than the algebraic estimate)")
+    ide.add_argument("--chunk", type=_positive_int, default=None, metavar="ROWS",
+                     help="read the one record FILE (.csv or .parquet) in chunks of ROWS "
+                          "rows, never whole (a .parquet record always is; see the user "
+                          "guide, Fleets and long records)")
     ide.add_argument("--json", action="store_true",
                      help="print one JSON object: a key per parameter, stderr, window, "
                           "n_samples, warnings, estimate (refined or algebraic) and the "
@@ -531,6 +536,9 @@ def _cmd_identify(args) -> int:
     if args.by is not None and len(args.equation) > 1:
         raise InputDataError("--by identifies one equation per record; a system of "
                              "equations is identified on one record (or several together)")
+    if args.by is not None and args.chunk is not None:
+        raise InputDataError("--chunk reads one long record; with --by, each record of the "
+                             "table is identified in memory")
     if args.by is not None:
         from algid._cli_fleet import fleet_command
 
@@ -551,9 +559,20 @@ def _cmd_identify(args) -> int:
     names = [s for s in model.signals if s not in hidden] + ([args.time] if args.time else [])
     # a time column is read with --rate too: the two must agree
     optional = () if args.time else TIME_COLUMNS
-    records = [read_model_columns(sys.stdin if path == "-" else path, names, model, optional)
-               for path in args.files]
     options = {"hidden": args.hidden} if args.hidden else {}
+    from algid.identification._record_source import PARQUET_SUFFIXES
+
+    streamed = args.chunk is not None or any(
+        str(path).lower().endswith(PARQUET_SUFFIXES) for path in args.files)
+    if streamed:   # one record read in chunks, never whole
+        if len(args.files) > 1 or args.files[0] == "-":
+            raise InputDataError("a record read in chunks (a Parquet file, or --chunk) is "
+                                 "one file: give it alone")
+        records = args.files[0]
+        options["chunk"] = args.chunk
+    else:
+        records = [read_model_columns(sys.stdin if path == "-" else path, names, model,
+                                      optional) for path in args.files]
     result = identify(records, model, time=args.time, rate=args.rate, window=args.window,
                       method=args.method, refine="auto" if args.refine is None else args.refine,
                       **options)

@@ -1,0 +1,180 @@
+"""identify on a record read in chunks: the same estimate as in memory, from files, Dask
+DataFrames and memory maps; refusals of what cannot be streamed."""
+
+import numpy as np
+import pytest
+from conftest import assert_one_line_error
+
+import algid
+from algid.cli import main
+from algid.errors import InputDataError, ModelError
+from algid.identification import _identify
+from algid.identification._window_kernels import (
+    block_window_integrals,
+    uniform_window_integrals,
+)
+from benchmarks.synthetic_records import LINEAR_EQUATION, linear_offsets
+
+FIELDS = ("values", "stderr", "numerical_error")
+
+
+@pytest.fixture(scope="module")
+def record():
+    data, truth = linear_offsets(3, n=6000)
+    return data, truth
+
+
+def assert_same(streamed, memory, rtol=1e-9):
+    """Equal estimates, standard errors, numerical errors, window and samples."""
+    assert streamed.window == pytest.approx(memory.window, rel=1e-12)
+    assert streamed.n_samples == memory.n_samples
+    assert streamed.n_windows == memory.n_windows
+    for field in FIELDS:
+        a, b = getattr(streamed, field), getattr(memory, field)
+        for p in memory.parameters:
+            assert a[p] == pytest.approx(b[p], rel=rtol, abs=1e-300), (field, p)
+    assert streamed.warnings == memory.warnings
+
+
+@pytest.mark.parametrize("length", [12, 16, 65, 100, 887])
+def test_block_integrals_equal_the_fft_ones(length):
+    z = np.random.default_rng(length).normal(size=5003)
+    stride = max(1, length // 8)
+    for k in (0, 1, 2):
+        a = uniform_window_integrals(z, 0.25, length, 12, k, stride)
+        b = block_window_integrals(z, 0.25, length, 12, k, stride)
+        assert a.shape == b.shape
+        np.testing.assert_allclose(b, a, rtol=0, atol=1e-14 * np.max(np.abs(a)))
+
+
+@pytest.mark.parametrize("method", ["bc", "ls"])
+@pytest.mark.parametrize("window", [0.5, None])
+def test_chunks_give_the_in_memory_estimate(record, method, window):
+    data, _ = record
+    memory = algid.identify(data, *LINEAR_EQUATION, window=window, method=method,
+                            refine=False)
+    streamed = algid.identify(data, *LINEAR_EQUATION, window=window, method=method,
+                              refine=False, chunk=700)
+    assert_same(streamed, memory)
+
+
+def test_gaps_nan_rows_and_a_rate_stream_as_in_memory(record):
+    data, _ = record
+    gappy = {k: np.delete(v, np.s_[2500:2540]) for k, v in data.items()}   # missing rows
+    gappy["y"] = gappy["y"].copy()
+    gappy["y"][[700, 4100]] = np.nan                                       # NaN samples
+    memory = algid.identify(gappy, *LINEAR_EQUATION, window=0.4, refine=False)
+    assert_same(algid.identify(gappy, *LINEAR_EQUATION, window=0.4, refine=False,
+                               chunk=512), memory)
+    no_time = {"u": data["u"], "y": data["y"]}
+    memory = algid.identify(no_time, *LINEAR_EQUATION, rate=80.0, window=0.4, refine=False)
+    assert_same(algid.identify(no_time, *LINEAR_EQUATION, rate=80.0, window=0.4,
+                               refine=False, chunk=999), memory)
+
+
+def test_files_memory_maps_and_dask_frames_are_read_in_chunks(record, tmp_path):
+    pd = pytest.importorskip("pandas")
+    pytest.importorskip("pyarrow")
+    dd = pytest.importorskip("dask.dataframe")
+    data, _ = record
+    memory = algid.identify(data, *LINEAR_EQUATION, window=0.5, refine=False)
+    frame = pd.DataFrame(data)
+    frame.to_parquet(tmp_path / "r.parquet", row_group_size=1000)
+    frame.to_csv(tmp_path / "r.csv", index=False)
+    maps = {}
+    for name, values in data.items():
+        np.save(tmp_path / f"{name}.npy", values)
+        maps[name] = np.load(tmp_path / f"{name}.npy", mmap_mode="r")
+    for source in (tmp_path / "r.parquet", str(tmp_path / "r.csv"), maps,
+                   dd.from_pandas(frame, npartitions=4)):
+        streamed = algid.identify(source, *LINEAR_EQUATION, window=0.5,
+                                  chunk=None if not isinstance(source, dict) else 800)
+        # a CSV's numbers are printed to 17 digits and read back: the same samples
+        assert_same(streamed, memory)
+        assert streamed.refinement.reason.startswith("a record read in chunks")
+
+
+def test_a_long_record_streams_and_says_why_it_is_not_refined(record, monkeypatch):
+    data, truth = record
+    monkeypatch.setattr(_identify, "STREAM_SAMPLES", 4000)
+    monkeypatch.setattr(_identify, "EXCERPT_SAMPLES", 2400)
+    result = algid.identify(data, *LINEAR_EQUATION)   # 6000 samples: streamed
+    assert result.estimate == "algebraic"
+    assert "read in chunks" in result.refinement.reason
+    for p, value in truth.items():   # the window from excerpts of 2400 samples
+        assert abs(result.values[p] - value) < 4 * result.stderr[p], p
+    # what cannot be streamed stays in memory: refinement asked for, a nonlinear output
+    assert algid.identify(data, *LINEAR_EQUATION, refine=True).estimate == "refined"
+    cubic = algid.identify(data, "y'' + B*y' + K*y + K3*y**3 = G*u + d", "B K K3 G d",
+                           window=0.5, refine=False)
+    assert "chunks" not in cubic.refinement.reason
+
+
+@pytest.mark.parametrize("call, kind, fragments", [
+    (dict(equation=("y'' + B*y' + K*y + K3*y**3 = G*u + d", "B K K3 G d")), ModelError,
+     ["y**3", "reads the output", "linearly"]),
+    (dict(method="iv"), ModelError, ["method='iv'", "'bc' or 'ls'"]),
+    (dict(refine=True), ModelError, ["refine:", "result.refine(record)"]),
+    (dict(chunk=1), InputDataError, ["chunk must be", "at least 2"]),
+    (dict(chunk=True), InputDataError, ["chunk must be"]),
+    (dict(chunk="many"), InputDataError, ["chunk must be"]),
+    (dict(data="list"), InputDataError, ["one at a time"]),
+    (dict(data="jitter"), InputDataError, ["row", "off the uniform grid", "resample"]),
+    (dict(data="missing.parquet"), InputDataError, ["missing.parquet", "no such file"]),
+])
+def test_what_cannot_be_streamed_is_refused_in_one_line(record, tmp_path, call, kind,
+                                                        fragments):
+    data, _ = record
+    equation = call.pop("equation", LINEAR_EQUATION)
+    which = call.pop("data", None)
+    if which == "list":
+        data = [data, data]
+    elif which == "jitter":
+        data = dict(data, t=data["t"] + np.where(np.arange(len(data["t"])) == 3000,
+                                                 0.3 / 80, 0.0))
+    elif which is not None:
+        data = str(tmp_path / which)
+    options = {"window": 0.5, "chunk": 600, **call}
+    with pytest.raises(kind) as error:
+        algid.identify(data, *equation, **options)
+    message = str(error.value)
+    assert "\n" not in message
+    for fragment in fragments:
+        assert fragment in message
+
+
+def test_a_file_of_another_kind_and_a_bad_column_are_named(tmp_path, record):
+    data, _ = record
+    (tmp_path / "r.txt").write_text("t,u,y\n0,1,2\n")
+    with pytest.raises(InputDataError, match="Parquet .* or CSV"):
+        algid.identify(str(tmp_path / "r.txt"), *LINEAR_EQUATION)
+    pd = pytest.importorskip("pandas")
+    pytest.importorskip("pyarrow")
+    frame = pd.DataFrame(data)
+    frame["y"] = frame["y"].astype(str)
+    frame.loc[5000, "y"] = "broken"
+    frame.to_parquet(tmp_path / "bad.parquet")
+    with pytest.raises(InputDataError) as error:
+        algid.identify(tmp_path / "bad.parquet", *LINEAR_EQUATION, window=0.5)
+    assert "'y'" in str(error.value) and "\n" not in str(error.value)
+
+
+def test_the_command_line_streams_a_parquet_record(tmp_path, record, capsys):
+    pd = pytest.importorskip("pandas")
+    pytest.importorskip("pyarrow")
+    data, _ = record
+    pd.DataFrame(data).to_parquet(tmp_path / "r.parquet")
+    memory = algid.identify(data, *LINEAR_EQUATION, window=0.5, refine=False)
+    code = main(["identify", str(tmp_path / "r.parquet"), "--equation", LINEAR_EQUATION[0],
+                 "--parameters", LINEAR_EQUATION[1], "--window", "0.5", "--json"])
+    out, err = capsys.readouterr()
+    assert code == 0, err
+    import json
+
+    values = json.loads(out)
+    for p in memory.parameters:
+        assert values[p] == pytest.approx(memory.values[p], rel=1e-9)
+    code = main(["identify", str(tmp_path / "r.parquet"), "--equation",
+                 "y'' + B*y' + K*y**3 = G*u", "--parameters", "B K G", "--window", "0.5"])
+    out, err = capsys.readouterr()
+    assert_one_line_error(code, err, "reads the output")
