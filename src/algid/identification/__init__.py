@@ -20,7 +20,11 @@ Public:
   (joint covariance, the coupled system's :class:`SystemValidation`, a MIMO
   python-control model); ``hidden=[...]`` names outputs that are not measured
   (eliminated), and :class:`Tracker` takes a list of equations too;
-- :data:`METHODS` are the solvers ``identify`` offers.
+- :data:`METHODS` are the solvers ``identify`` offers;
+- a Parquet or CSV path, a Dask ``DataFrame`` or a record of more than
+  :data:`STREAM_SAMPLES` samples is read in chunks (:data:`CHUNK_SAMPLES` rows), never
+  whole: ``identify`` keeps the window equations, not the samples, and chooses its
+  window on excerpts (:data:`EXCERPT_SAMPLES`, :data:`EXCERPTS`).
 
 Records are mappings of named columns (``{"t": ..., "u": ..., "y": ...}``), with a time
 column or a sampling rate; several records are identified together.
@@ -28,11 +32,19 @@ column or a sampling rate; several records are identified together.
 
 from algid.identification._adequacy import Adequacy
 from algid.identification._fleet import identify_many
-from algid.identification._identify import METHODS, identify
+from algid.identification._identify import (
+    CHUNK_SAMPLES,
+    EXCERPT_SAMPLES,
+    EXCERPTS,
+    METHODS,
+    STREAM_SAMPLES,
+    identify,
+)
 from algid.identification._result import IdentificationResult, Validation
 from algid.identification._system_result import SystemResult, SystemValidation
 from algid.identification._tracker import Tracker
 from algid.identification._tracker_state import TrackUpdate
 
 __all__ = ["identify", "identify_many", "IdentificationResult", "Validation", "Adequacy",
-           "SystemResult", "SystemValidation", "Tracker", "TrackUpdate", "METHODS"]
+           "SystemResult", "SystemValidation", "Tracker", "TrackUpdate", "METHODS",
+           "STREAM_SAMPLES", "CHUNK_SAMPLES", "EXCERPT_SAMPLES", "EXCERPTS"]
