@@ -4,8 +4,9 @@
 input of 12 lines from 0.1 to 5 Hz, 30 dB of white output noise; simulated exactly
 (first-order hold) chunk by chunk, so that no record is ever built larger than asked.
 
-Every measurement runs in a fresh process, after the record is made, so that its peak
-memory (``ru_maxrss``) beyond the record is what ``identify`` itself needs:
+Every measurement runs in a fresh process that loads the record (saved as ``.npy``
+files), so that its peak memory (``ru_maxrss``) beyond the record is what ``identify``
+itself needs:
 
 1. CPU time and peak memory of ``identify`` on records of ``--sizes`` samples, at a
    given window (0.887 s) and with the automatic window, every record read in chunks
@@ -92,11 +93,16 @@ def _peak_mb():
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
 
 
-def measure(n, window, chunk, parquet=None):
-    """One identify in this process: CPU time, peak memory before and after (MB)."""
+def measure(n, window, chunk, source):
+    """One identify in this process: CPU time, peak memory before and after (MB).
+
+    ``source``: a Parquet file, or the folder of the record's ``.npy`` files (loaded
+    whole, so that the peak before ``identify`` is the record's)."""
     import algid
 
-    data = parquet if parquet else make_record(int(n))
+    parquet = str(source).endswith(".parquet")
+    data = source if parquet else {name: np.load(Path(source) / f"{name}.npy")
+                                   for name in ("t", "u", "y")}
     before = _peak_mb()
     start = time.process_time()
     options = {"rate": RATE} if parquet else {"chunk": chunk}
@@ -146,22 +152,27 @@ def main(argv=None):
     parser.add_argument("--equality", type=float, default=1e6)
     parser.add_argument("--out", default=str(ROOT / "long_records_results.json"))
     parser.add_argument("--one", nargs=4, default=None, help=argparse.SUPPRESS)
+    # (--one N WINDOW CHUNK SOURCE: one measurement in a fresh process)
     args = parser.parse_args(argv)
     if args.one:   # a measurement in this (fresh) process
         n, window, chunk, parquet = args.one
         print(json.dumps(measure(float(n), None if window == "auto" else float(window),
-                                 int(chunk), None if parquet == "-" else parquet)))
+                                 int(chunk), parquet)))
         return
     rows = []
     for n in args.sizes:
+        folder = tempfile.TemporaryDirectory()
+        for name, values in make_record(int(n)).items():
+            np.save(Path(folder.name) / f"{name}.npy", values)
         for window in (WINDOW, "auto"):
-            row = _in_fresh_process(int(n), window, 2**16, "-")
+            row = _in_fresh_process(int(n), window, 2**16, folder.name)
             row["record_mb"] = 3 * 8 * int(n) / 2**20
             row["beyond_record_mb"] = row["peak_mb"] - row["peak_before_mb"]
             rows.append(row)
             print(f"n={int(n):>10} window={window!s:>6}: {row['cpu_s']:7.2f} s CPU, "
                   f"{row['beyond_record_mb']:6.0f} MB beyond the record, chosen "
                   f"{row['window']:.4g} s", flush=True)
+        folder.cleanup()
     summary = {}
     for window in (WINDOW, "auto"):
         mine = [r for r in rows if r["window_given"] == (None if window == "auto" else window)]

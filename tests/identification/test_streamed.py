@@ -3,6 +3,7 @@ DataFrames and memory maps; refusals of what cannot be streamed."""
 
 import numpy as np
 import pytest
+from benchmarks.synthetic_records import LINEAR_EQUATION, linear_offsets
 from conftest import assert_one_line_error
 
 import algid
@@ -13,7 +14,6 @@ from algid.identification._window_kernels import (
     block_window_integrals,
     uniform_window_integrals,
 )
-from benchmarks.synthetic_records import LINEAR_EQUATION, linear_offsets
 
 FIELDS = ("values", "stderr", "numerical_error")
 

@@ -36,12 +36,12 @@ from typing import NamedTuple
 
 import numpy as np
 
+from algid._memory import check_fits
 from algid.errors import InputDataError, ModelError
 from algid.identification._adequacy import misfit_ratio, missing_terms, model_adequacy
 from algid.identification._arguments import check_arguments, check_memory, check_model_columns
 from algid.identification._bias_compensation import solve_equilibrated
 from algid.identification._methods import METHODS
-from algid._memory import check_fits
 from algid.identification._record_source import is_streamed_input, record_source
 from algid.identification._records import (
     check_factors,
@@ -306,14 +306,13 @@ def _identify_streamed(source, model, *, time, rate, window, method, multiplicit
     scores, separations = None, {}
     if length is None:
         length, scores = _excerpt_window(problem, multiplicities, method, separations)
-    longest = max(len(run) for run in scan.runs)
-    keys = [(n, a) for n in (length, 2 * length - 1, (length + 1) // 2)
-            if shortest <= n <= longest for a in multiplicities]
-    windows = sum(sum(problem.windows(n)) for n, _ in keys)
+    # a pass per window length (the fit's, then the adequacy test's twice and half as
+    # long), the rows of one length in memory at a time: the half windows' the most
+    windows = sum(problem.windows(max(shortest, (length + 1) // 2))) * len(multiplicities)
     check_fits(windows, ROW_BYTES * (len(model.parameters) + 1),
                what=f"identify on windows of {(length - 1) * scan.step:.4g} s (a longer "
                     f"window= needs fewer)", unit="windows")
-    problem.prefetch(keys)
+    problem.multiplicities = multiplicities
     fit = _solve(problem, length, multiplicities, method=method)
     return _result(problem, fit, length, method=method, multiplicities=multiplicities,
                    scores=scores, separations=separations, n_samples=scan.n_samples,

@@ -12,8 +12,10 @@ window's samples of the run it is in:
    problem's scaling and noise bound need: every factor's largest sample, and the sums
    of squares of the output's differences (:func:`noise_bound_from_sums`).
 2. :meth:`StreamedProblem.prefetch` makes the rows ``[A | b]`` of several window
-   lengths and multiplicities in one pass.  The rows are what the solve keeps: one per
-   window, a few per thousand samples; the samples are dropped chunk by chunk.
+   lengths and multiplicities in one pass (:meth:`StreamedProblem.rows`: a pass per
+   window length asked for, the rows of the previous length dropped).  The rows are
+   what the solve keeps: one per window, a few per thousand samples; the samples are
+   dropped chunk by chunk.
 
 The solve, the window rule's criterion, the covariance and the adequacy test are then
 those of an in-memory record (:mod:`algid.identification._identify`), and the
@@ -337,6 +339,8 @@ class StreamedProblem(WindowProblem):
         self._exponents = {}
         self.sign_jumps, self.first_values, self.crossings, self.steps = {}, {}, {}, {}
         self._rows = {}
+        #: the kernel multiplicities whose rows one pass makes together
+        self.multiplicities = ()
 
     def factor_exponent(self, factor, which="measured"):
         """The power of two of a factor's largest sample (from the scan)."""
@@ -358,8 +362,10 @@ class StreamedProblem(WindowProblem):
         """Regressors, known side and window runs for one window length and
         multiplicity (made by a pass over the record unless :meth:`prefetch` made them)."""
         key = (length, multiplicity)
-        if key not in self._rows:
-            self.prefetch([key])
+        if key not in self._rows:   # a pass for this length's multiplicities; the rows of
+            # other lengths are dropped (the solves ask for one length after another)
+            self._rows = {k: v for k, v in self._rows.items() if k[0] == length}
+            self.prefetch([(length, a) for a in (*self.multiplicities, multiplicity)])
         A, b, ids = self._rows[key]
         if len(ids) == 0:
             raise InputDataError(f"no segment holds a window of {length} samples")
@@ -397,8 +403,9 @@ class StreamedProblem(WindowProblem):
                 lo, hi = max(run.start, first) - first, min(run.stop, last) - first
                 if lo >= hi:   # the run starts in a later chunk
                     break
-                if buffer is None:
-                    buffer, origin, done = {f: np.empty(0) for f in factors}, 0, dict.fromkeys(keys, 0)
+                if buffer is None:   # a new run: no samples, no windows yet
+                    buffer, origin = {f: np.empty(0) for f in factors}, 0
+                    done = dict.fromkeys(keys, 0)
                 self._check_uniform(run, t[lo:hi], first + lo)
                 values = {name: v[lo:hi] for name, v in columns.items()}
                 for f in factors:
