@@ -274,11 +274,11 @@ def _streamed_source(data, model, *, method, refine, chunk):
         if refine is True or METHODS[method].instrumental or stream_refusal(model) \
                 or isinstance(data, (list, tuple)):
             return None
-        try:
-            source = record_source(data)
-        except (InputDataError, TypeError):
-            return None
-        return source if source.n_rows > STREAM_SAMPLES else None
+        try:   # (counted before any conversion of the record)
+            rows = len(data) if hasattr(data, "columns") else len(data[model.output])
+        except (KeyError, TypeError, IndexError, ValueError):
+            return None   # (not a record with that column: refused in memory)
+        return record_source(data) if rows > STREAM_SAMPLES else None
     if isinstance(data, (list, tuple)):
         raise InputDataError("chunk: a record is read in chunks one at a time; identify a "
                              "list of records in memory (without chunk=), or each alone")

@@ -77,8 +77,11 @@ def record_source(data):
     """
     if isinstance(data, (str, os.PathLike)):
         path = Path(data)
-        if not path.is_file():
+        if not path.exists():
             raise InputDataError(f"{path}: no such file")
+        if not path.is_file():
+            raise InputDataError(f"{path}: not a file (a streamed record is one Parquet "
+                                 f"or CSV file)")
         suffix = path.suffix.lower()
         if suffix in PARQUET_SUFFIXES:
             return ParquetSource(path)
@@ -194,10 +197,16 @@ class ParquetSource(_Source):
     def chunks(self, names, size):
         present = [name for name in names if name in self.columns]
         first = 0
-        for batch in self._file.iter_batches(batch_size=size, columns=present):
-            yield first, {name: _floats(batch.column(name), self.path)
-                          for name in present}
-            first += batch.num_rows
+        # a row group at a time (pyarrow's own batch iterator reads ahead: the whole
+        # file's memory for a long record)
+        for group in range(self._file.num_row_groups):
+            table = self._file.read_row_group(group, columns=present, use_threads=False)
+            for start in range(0, table.num_rows, size):
+                batch = table.slice(start, size)
+                yield first, {name: _floats(batch.column(name), (self.path, name, first))
+                              for name in present}
+                first += batch.num_rows
+            del table
 
 
 class CsvSource(_Source):
@@ -236,7 +245,8 @@ class CsvSource(_Source):
             except Exception as error:
                 raise InputDataError(f"{self.path}: unreadable after row {first} "
                                      f"({str(error).splitlines()[0]})") from None
-            yield first, {name: _floats(batch.column(name), self.path) for name in present}
+            yield first, {name: _floats(batch.column(name), (self.path, name, first))
+                          for name in present}
             first += batch.num_rows
         self.n_rows = first
 
@@ -265,14 +275,27 @@ class DaskSource(_Source):
         self.n_rows = first
 
 
-def _floats(values, path=None):
-    """A chunk's column as floats (nulls of a file as NaN: missing samples)."""
+def _floats(values, where=None):
+    """A chunk's column as floats (nulls of a file as NaN: missing samples).
+
+    ``where``: ``(file, column, first row)`` of a file's column, whose first entry that
+    is not a number is refused here (a file's reader may have read the whole column as
+    text); elsewhere the record layer names it."""
     if hasattr(values, "to_numpy") and hasattr(values, "null_count"):   # pyarrow
         values = values.to_numpy(zero_copy_only=False)
     try:
         return np.asarray(values, dtype=float)
     except (TypeError, ValueError):
-        return np.asarray(values)   # the record layer names the column that is not numeric
+        if where is None:
+            return np.asarray(values)
+    path, name, first = where
+    for row, value in enumerate(values):
+        try:
+            float(value)
+        except (TypeError, ValueError):
+            raise InputDataError(f"{path}: column {name!r} is not numeric: row {first + row} "
+                                 f"holds {str(value)[:40]!r}") from None
+    return np.asarray(values, dtype=float)
 
 
 def _pyarrow(module):
