@@ -5,7 +5,7 @@ input of 12 lines from 0.1 to 5 Hz, 30 dB of white output noise; simulated exact
 (first-order hold) chunk by chunk, so that no record is ever built larger than asked.
 
 Every measurement runs in a fresh process that loads the record (saved as ``.npy``
-files), so that its peak memory (``ru_maxrss``) beyond the record is what ``identify``
+files), so that its peak memory (``VmHWM``) beyond the record is what ``identify``
 itself needs:
 
 1. CPU time and peak memory of ``identify`` on records of ``--sizes`` samples, at a
@@ -90,6 +90,15 @@ def write_parquet(path, n, seed=0):
 
 
 def _peak_mb():
+    """The process's peak resident memory (MB): ``VmHWM`` on Linux (``ru_maxrss`` keeps
+    the parent's across ``fork`` and ``exec``: the record the parent made)."""
+    try:
+        with open("/proc/self/status", encoding="ascii") as status:
+            for line in status:
+                if line.startswith("VmHWM:"):
+                    return int(line.split()[1]) / 1024
+    except OSError:
+        pass
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
 
 
