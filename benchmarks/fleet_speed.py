@@ -18,9 +18,12 @@ records on 2 workers.  ``--json FILE`` writes the figures.
 On a machine shared with other work the wall-time ratio says as much about the others
 as about the fleet, so two more figures are printed: the *capacity*, the ratio that
 ``--workers`` processes of pure CPU work reach over one on this machine now (what the
-fleet could reach at best), and the CPU seconds of the workers' processes against those
-of the serial loop (the cost of the cluster itself: scheduling, transfers, the workers'
-own threads).  Run it on an idle machine, with ``OPENBLAS_NUM_THREADS=1`` (as the
+fleet could reach at best), the same for ``identify``'s own work on 100 of the records
+in plain processes without Dask (two such processes share the caches and the memory
+bus as the workers do: on this 2-core machine each ran 35 % slower side by side, a ratio
+of 1.48), and the CPU seconds of the workers' processes against those of the serial
+loop (the cost of the cluster itself: scheduling, transfers, the workers' own threads,
+and that slowing).  Run it on an idle machine, with ``OPENBLAS_NUM_THREADS=1`` (as the
 workers run: a multithreaded BLAS slows the serial loop on small matrices).
 """
 
@@ -115,6 +118,31 @@ def capacity(workers, seconds=1.0):
     return workers * one / many
 
 
+def _identify_loop(records, options):
+    """Wall seconds of ``identify`` on every record (refusals caught)."""
+    start = time.perf_counter()
+    serial_rows(records, **options)
+    return time.perf_counter() - start
+
+
+def workload_capacity(records, workers, options):
+    """How many times one process's ``identify`` work ``workers`` plain processes do
+    side by side (no Dask): what the fleet could reach at best on this machine now,
+    caches and memory shared as the workers share them."""
+    import multiprocessing
+
+    context = multiprocessing.get_context("spawn")
+    with context.Pool(workers) as pool:
+        pool.starmap(_identify_loop, [(dict(list(records.items())[:2]), options)] * workers)
+        start = time.perf_counter()
+        pool.starmap(_identify_loop, [(records, options)])
+        one = time.perf_counter() - start
+        start = time.perf_counter()
+        pool.starmap(_identify_loop, [(records, options)] * workers, chunksize=1)
+        many = time.perf_counter() - start
+    return workers * one / many
+
+
 def _cpu_seconds():
     """CPU seconds (user and system) of this process so far."""
     import psutil
@@ -163,13 +191,16 @@ def main(argv=None):
         parallel = time.perf_counter() - start
         workers_cpu = sum(client.run(_cpu_seconds).values()) - before
     possible = capacity(args.workers)
+    sample = {key: fleet[key] for key in list(fleet)[:min(len(fleet), 100)]}
+    possible_identify = workload_capacity(sample, args.workers, options)
     ratio = serial / parallel
     same = identical(table, rows)
     refused = sorted(table.index[table["error"].notna()])
     print(f"identify_many on {args.workers} workers: {parallel:.2f} s ({workers_cpu:.2f} CPU s "
           f"in the workers: {workers_cpu / serial_cpu:.2f} times the serial loop's)")
     print(f"speed ratio: {ratio:.2f}x (target for 1000 records on 2 workers: 1.7x); this "
-          f"machine's capacity now: {possible:.2f}x")
+          f"machine's capacity now: {possible:.2f}x for pure CPU work, "
+          f"{possible_identify:.2f}x for identify's work in plain processes (no Dask)")
     print(f"identical to the serial identify: {'yes' if same else 'NO'}")
     print(f"bad records reported as rows with an error: {len(refused)} of {len(bad)} "
           f"({'exactly the bad ones' if refused == sorted(bad) else 'NOT the bad ones'})")
@@ -177,7 +208,7 @@ def main(argv=None):
         figures = {"records": args.records, "workers": args.workers, "bad": len(bad),
                    "serial_s": serial, "identify_many_s": parallel, "ratio": ratio,
                    "serial_cpu_s": serial_cpu, "workers_cpu_s": workers_cpu,
-                   "capacity": possible,
+                   "capacity": possible, "identify_capacity": possible_identify,
                    "identical": same, "refused_are_the_bad": refused == sorted(bad),
                    "options": options, "cpus": os.cpu_count(),
                    "load": os.getloadavg()[0],

@@ -14,7 +14,7 @@ import numpy as np
 from matplotlib.figure import Figure
 
 __all__ = ["plot_input_response", "plot_responses", "plot_estimates", "estimate_ylim",
-           "save_figure"]
+           "plot_fleet", "save_figure"]
 
 #: Colours of the parameters (matplotlib's default cycle, fixed so figures agree).
 PARAMETER_COLORS = {"B": "C0", "K": "C3", "c": "C0", "k": "C3", "m": "C2"}
@@ -265,6 +265,87 @@ def plot_estimates(result, *, true_values=None, parameters=None, t_max=None, yli
         ax.legend(loc="upper right", fontsize="small", ncol=2)
     if title:
         ax.set_title(title)
+    return fig
+
+
+def plot_fleet(table, parameters=None, *, true_values=None, threshold=None,
+               figsize=None):
+    """The parameters of a fleet, record by record, its outliers flagged.
+
+    One panel per parameter: every identified record's estimate with its ±2σ error
+    bar, in the order of the table, the fleet's median and its spread (the band of
+    :func:`algid.identification.fleet_outliers`' threshold), the outliers in red and
+    named, and the count of refused records in the title.
+
+    Parameters
+    ----------
+    table : pandas.DataFrame
+        The table of :func:`algid.identify_many`.
+    parameters : sequence of str, optional
+        The parameters to draw (default: all of the table's).
+    true_values : dict, optional
+        Parameter -> a value drawn as a dashed line (a nominal value, say).
+    threshold : float, optional
+        The outlier threshold (default that of :func:`~algid.identification.fleet_outliers`).
+    figsize : (float, float), optional
+        Default: 7.5 wide, 2.4 per panel.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+
+    Examples
+    --------
+    >>> import pandas as pd
+    >>> from algid.plotting import plot_fleet
+    >>> table = pd.DataFrame({"K": [3.0, 3.1, 2.9, 6.0], "stderr_K": [0.05] * 4,
+    ...                       "error": [None] * 4}, index=["m1", "m2", "m3", "m4"])
+    >>> fig = plot_fleet(table)
+    >>> fig.axes[0].get_title()
+    'K: 1 outlier (m4)'
+    """
+    from algid.identification import fleet_outliers
+
+    options = {} if threshold is None else {"threshold": threshold}
+    flags = fleet_outliers(table, parameters, **options)
+    names = list(flags.columns)
+    limit = options.get("threshold")
+    if limit is None:
+        from algid.identification._fleet import OUTLIER_THRESHOLD as limit
+    refused = int(table["error"].notna().sum()) if "error" in table else 0
+    fig = Figure(figsize=figsize or (7.5, 0.6 + 2.4 * len(names)), layout="constrained")
+    axes = fig.subplots(len(names), 1, sharex=True, squeeze=False)[:, 0]
+    order = np.arange(len(table))
+    for ax, name in zip(axes, names):
+        x = table[name].astype(float).to_numpy()
+        e = table[f"stderr_{name}"].astype(float).to_numpy()
+        out = flags[name].to_numpy()
+        known = np.isfinite(x)
+        median = float(np.median(x[known])) if known.any() else np.nan
+        spread = 1.4826 * float(np.median(np.abs(x[known] - median))) if known.any() else 0
+        ax.axhspan(median - limit * spread, median + limit * spread, color="0.9",
+                   label=f"median ± {limit:g} spreads")
+        ax.axhline(median, color="0.4", lw=1)
+        keep = known & ~out
+        ax.errorbar(order[keep], x[keep], 2 * e[keep], fmt="o", ms=2.5, lw=0.8,
+                    color=PARAMETER_COLORS.get(name, "C0"), label="record ± 2σ")
+        ax.errorbar(order[out], x[out], 2 * e[out], fmt="o", ms=4, lw=1, color="red",
+                    label="outlier")
+        for i in np.flatnonzero(out):
+            ax.annotate(str(table.index[i]), (order[i], x[i]), textcoords="offset points",
+                        xytext=(4, 4), fontsize="x-small", color="red")
+        if true_values and name in true_values:
+            ax.axhline(true_values[name], color="k", ls="--", lw=1, label="nominal")
+        ax.set_ylabel(name)
+        ax.grid(True, alpha=0.3)
+        count = int(out.sum())
+        named = ", ".join(str(table.index[i]) for i in np.flatnonzero(out)[:5])
+        ax.set_title(f"{name}: {count} outlier{'' if count == 1 else 's'}"
+                     + (f" ({named}{', ...' if count > 5 else ''})" if count else ""))
+    handles, labels = axes[0].get_legend_handles_labels()
+    fig.legend(handles, labels, loc="outside lower center", fontsize="small", ncol=4,
+               frameon=False)   # below the panels: no point hidden
+    axes[-1].set_xlabel(f"record (in the table's order; {refused} refused, not drawn)")
     return fig
 
 

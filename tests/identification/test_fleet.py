@@ -335,3 +335,50 @@ def test_command_line_refuses_an_unreadable_table(tmp_path, capsys):
     code, _, err = run(capsys, "identify", broken, "--by", "machine", "--equation",
                        EQUATION[0], "--parameters", EQUATION[1])
     assert_one_line_error(code, err, "not a readable Parquet table")
+
+
+# ------------------------------------------------------------------ outliers
+
+
+def test_outliers_are_flagged_against_the_fleet_spread_and_their_own_error():
+    from algid.identification import fleet_outliers
+
+    rng = np.random.default_rng(0)
+    k = 30 * (1 + 0.02 * rng.normal(size=60))
+    k[[7, 40]] = [36.0, 24.0]
+    table = pd.DataFrame({"K": k, "stderr_K": np.full(60, 0.05), "B": np.full(60, 2.0),
+                          "stderr_B": np.full(60, 0.01)},
+                         index=[f"m{i}" for i in range(60)])
+    table.loc["m3", ["K", "stderr_K"]] = np.nan          # a refused record
+    flags = fleet_outliers(table)
+    assert list(table.index[flags["K"]]) == ["m7", "m40"]
+    assert not flags["B"].any() and not flags.loc["m3"].any()
+    # a record whose own error covers its distance is not one
+    table.loc["m7", "stderr_K"] = 5.0
+    assert list(table.index[fleet_outliers(table, "K")["K"]]) == ["m40"]
+
+
+@pytest.mark.parametrize("call, fragment", [
+    (dict(parameters=["M"]), "no column 'M'"),
+    (dict(threshold=0), "threshold must be a positive number"),
+    (dict(threshold=True), "threshold must be a positive number"),
+])
+def test_outliers_refuse_what_the_table_does_not_hold(call, fragment):
+    from algid.identification import fleet_outliers
+
+    table = pd.DataFrame({"K": [1.0, 2.0], "stderr_K": [0.1, 0.1]})
+    with pytest.raises(InputDataError, match=fragment):
+        fleet_outliers(table, **call)
+
+
+def test_the_fleet_figure_names_the_outliers_and_counts_the_refused():
+    pytest.importorskip("matplotlib")
+    from algid.plotting import plot_fleet
+
+    table = pd.DataFrame({"K": [3.0, 3.1, 2.9, 3.05, 6.0, np.nan],
+                          "stderr_K": [0.05] * 5 + [np.nan],
+                          "error": [None] * 5 + ["record 0: too short"]},
+                         index=["a", "b", "c", "d", "e", "f"])
+    fig = plot_fleet(table, true_values={"K": 3.0})
+    assert fig.axes[0].get_title() == "K: 1 outlier (e)"
+    assert "1 refused" in fig.axes[0].get_xlabel()

@@ -178,3 +178,22 @@ def test_the_command_line_streams_a_parquet_record(tmp_path, record, capsys):
                  "y'' + B*y' + K*y**3 = G*u", "--parameters", "B K G", "--window", "0.5"])
     out, err = capsys.readouterr()
     assert_one_line_error(code, err, "reads the output")
+
+
+def test_a_dask_frame_is_reduced_on_the_cluster(record):
+    pd = pytest.importorskip("pandas")
+    dd = pytest.importorskip("dask.dataframe")
+    distributed = pytest.importorskip("distributed")
+    data, _ = record
+    memory = algid.identify(data, *LINEAR_EQUATION, window=0.5, refine=False)
+    frame = dd.from_pandas(pd.DataFrame(data), npartitions=5)
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                                  dashboard_address=None) as cluster, \
+            distributed.Client(cluster) as client, \
+            distributed.get_task_stream(client) as tasks:
+        streamed = algid.identify(frame, *LINEAR_EQUATION, window=0.5, chunk=1000)
+    assert_same(streamed, memory)
+    # the partitions were fed to the passes on the workers: a chain of five tasks a pass
+    fed = [t for t in tasks.data if "_feed_partition" in t["key"][0]
+           or "_feed_partition" in str(t["key"])]
+    assert len(fed) >= 3 * 5   # the scan, the window's pass and the adequacy's two

@@ -13,7 +13,8 @@ Public:
 - :func:`identify_many` identifies every record of a fleet on its own (a long pandas
   ``DataFrame``, a mapping id -> record or a Dask ``DataFrame``), on a
   ``dask.distributed`` cluster when one is active, and returns a table: one row of
-  results per record, or the one-line refusal of a record it could not identify;
+  results per record, or the one-line refusal of a record it could not identify
+  (:func:`fleet_outliers` flags the records that stand out);
 - given a list of equations that share parameters (one measured output each),
   :func:`identify` stacks the window equations of all of them into one joint estimate,
   refines it by output error on every output, and returns a :class:`SystemResult`
@@ -31,7 +32,7 @@ column or a sampling rate; several records are identified together.
 """
 
 from algid.identification._adequacy import Adequacy
-from algid.identification._fleet import identify_many
+from algid.identification._fleet import fleet_outliers, identify_many
 from algid.identification._identify import (
     CHUNK_SAMPLES,
     EXCERPT_SAMPLES,
@@ -45,6 +46,7 @@ from algid.identification._system_result import SystemResult, SystemValidation
 from algid.identification._tracker import Tracker
 from algid.identification._tracker_state import TrackUpdate
 
-__all__ = ["identify", "identify_many", "IdentificationResult", "Validation", "Adequacy",
+__all__ = ["identify", "identify_many", "fleet_outliers", "IdentificationResult", "Validation",
+           "Adequacy",
            "SystemResult", "SystemValidation", "Tracker", "TrackUpdate", "METHODS",
            "STREAM_SAMPLES", "CHUNK_SAMPLES", "EXCERPT_SAMPLES", "EXCERPTS"]

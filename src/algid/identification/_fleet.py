@@ -35,7 +35,8 @@ import numpy as np
 
 from algid.errors import AlgidError, InputDataError, ModelError
 
-__all__ = ["identify_many", "fleet_row", "fleet_groups", "FLEET_KEYS"]
+__all__ = ["identify_many", "fleet_outliers", "fleet_row", "fleet_groups", "FLEET_KEYS",
+           "OUTLIER_THRESHOLD"]
 
 #: Columns of the table of :func:`identify_many` besides those of a result's row.
 FLEET_KEYS = ("error",)
@@ -349,6 +350,78 @@ def _table(ids, rows, parameters, index_name):
         values = table[column].astype(object)
         table[column] = values.where(values.notna(), None)
     return table
+
+
+#: A record's parameter is an outlier of its fleet when it is further than this many
+#: spreads from the fleet's median (:func:`fleet_outliers`).
+OUTLIER_THRESHOLD = 3.5
+
+
+def fleet_outliers(table, parameters=None, *, threshold=OUTLIER_THRESHOLD):
+    """The records whose parameters stand out from their fleet.
+
+    A record's value ``x`` of a parameter is an outlier when
+    ``|x - median| > threshold * sqrt(s**2 + e**2)``, where the median and ``s`` (the
+    median absolute deviation times 1.4826, the standard deviation of a normal
+    spread) are the fleet's, over the records identified, and ``e`` is the record's
+    standard error: a machine off by more than its fleet's spread and its own
+    uncertainty together.  Robust to the outliers themselves (up to half the fleet).
+
+    Parameters
+    ----------
+    table : pandas.DataFrame
+        The table of :func:`identify_many`.
+    parameters : sequence of str, optional
+        The parameters to look at (default: every column with a ``stderr_`` column).
+    threshold : float
+        Spreads from the median (default :data:`OUTLIER_THRESHOLD`).
+
+    Returns
+    -------
+    pandas.DataFrame
+        Booleans, a column per parameter, indexed as ``table`` (False for a refused
+        record).
+
+    Raises
+    ------
+    InputDataError
+        A parameter the table has no column (or standard error) for, or a threshold
+        that is not a positive number.
+
+    Examples
+    --------
+    >>> import pandas as pd
+    >>> from algid.identification import fleet_outliers
+    >>> table = pd.DataFrame({"K": [3.0, 3.1, 2.9, 3.05, 6.0],
+    ...                       "stderr_K": [0.01] * 5}, index=list("abcde"))
+    >>> fleet_outliers(table)["K"].tolist()
+    [False, False, False, False, True]
+    """
+    import pandas as pd
+
+    if parameters is None:
+        parameters = [c[len("stderr_"):] for c in table.columns
+                      if str(c).startswith("stderr_") and c[len("stderr_"):] in table]
+    elif isinstance(parameters, str):
+        parameters = parameters.split()
+    if isinstance(threshold, bool) or not isinstance(threshold, (int, float)) \
+            or not threshold > 0 or not np.isfinite(threshold):
+        raise InputDataError(f"threshold must be a positive number of spreads, got "
+                             f"{threshold!r}")
+    flags = {}
+    for p in parameters:
+        if p not in table or f"stderr_{p}" not in table:
+            raise InputDataError(f"the table has no column {p!r} with its standard error "
+                                 f"stderr_{p} (columns: {', '.join(map(str, table.columns))})")
+        x = table[p].astype(float).to_numpy()
+        e = table[f"stderr_{p}"].astype(float).to_numpy()
+        known = np.isfinite(x)
+        median = float(np.median(x[known])) if known.any() else np.nan
+        spread = 1.4826 * float(np.median(np.abs(x[known] - median))) if known.any() else 0.0
+        with np.errstate(invalid="ignore"):
+            flags[p] = known & (np.abs(x - median)
+                                > threshold * np.sqrt(spread ** 2 + np.nan_to_num(e) ** 2))
+    return pd.DataFrame(flags, index=table.index)
 
 
 def identify_many(data, equation, parameters=None, *, by=None, progress=None,

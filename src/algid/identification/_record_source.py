@@ -10,8 +10,11 @@ source of a record:
   mmap_mode="r")``) are read from disk a chunk at a time;
 - a path to a Parquet file (``.parquet``, ``.pq``; read by pyarrow, its row batches
   one at a time) or a CSV file (``.csv``; pyarrow's streaming reader);
-- a Dask ``DataFrame``: its partitions are computed one at a time, in order (on the
-  active ``dask.distributed`` client when there is one) and brought to this process.
+- a Dask ``DataFrame``: each pass is a chain of tasks where the partitions are (on the
+  active ``dask.distributed`` client when there is one), a task feeding its partition
+  to the pass's state that the previous task left (:meth:`DaskSource.reduce`); only
+  the window equations and the states travel, never the samples (the automatic
+  window's excerpts come from the partitions that hold them).
 
 Each chunk is a mapping of the columns asked for (float arrays) that the record layer
 (:func:`algid._record_input.record_columns`) then checks as it checks a whole record.
@@ -121,6 +124,28 @@ class _Source:
             Column name -> samples.
         """
         raise NotImplementedError
+
+    def reduce(self, machine, names, size):
+        """Feed the record's chunks in order to ``machine`` (a pass of the streamed
+        reduction: ``machine.feed(first, chunk)``).
+
+        Parameters
+        ----------
+        machine : object
+            The pass's state, with ``feed``, ``take`` and ``absorb``.
+        names : sequence of str
+            Columns to read.
+        size : int
+            Rows per chunk.
+
+        Returns
+        -------
+        object
+            ``machine``, having seen every chunk.
+        """
+        for first, chunk in self.chunks(names, size):
+            machine.feed(first, chunk)
+        return machine
 
     def read(self, names, ranges, size):
         """Rows ``[start, stop)`` of each range, in one pass.
@@ -265,6 +290,49 @@ class DaskSource(_Source):
         index = getattr(frame.index, "name", None)
         self.columns = [str(c) for c in frame.columns] + ([str(index)] if index else [])
 
+    def reduce(self, machine, names, size):
+        """The pass on the partitions where they are (a ``dask.distributed`` cluster,
+        or dask's scheduler): a chain of tasks, each feeding its partition to the
+        state the previous one left, hands over what it made (``machine.take()``); only
+        those and the final state come to this process, never the samples."""
+        import dask
+
+        state, made = machine, []
+        for part in self.frame.to_delayed():
+            step = dask.delayed(_feed_partition, nout=3, pure=False)(state, part, names, size)
+            state, rows, output = step[0], step[1], step[2]
+            made.append((rows, output))
+        final, made = dask.compute(state, made)
+        final.absorb([output for _, output in made])
+        self.lengths = [rows for rows, _ in made]
+        self.n_rows = sum(self.lengths)
+        return final
+
+    def read(self, names, ranges, size):
+        """Rows ``[start, stop)`` of each range: only the partitions that hold them are
+        computed (once a pass has counted the partitions' rows)."""
+        if getattr(self, "lengths", None) is None:
+            return super().read(names, ranges, size)
+        import dask
+
+        ends = np.cumsum(self.lengths)
+        starts = ends - np.asarray(self.lengths)
+        wanted = [i for i, (lo, hi) in enumerate(zip(starts, ends))
+                  if any(start < hi and lo < stop for start, stop in ranges)]
+        parts = self.frame.to_delayed()
+        frames = dask.compute(*[parts[i] for i in wanted])
+        pieces = [{name: [] for name in names} for _ in ranges]
+        for i, frame in zip(wanted, frames):
+            source = ArraySource(frame)
+            chunk = next(source.chunks(names, max(source.n_rows, 1)))[1]
+            for (start, stop), piece in zip(ranges, pieces):
+                lo, hi = max(start, starts[i]), min(stop, ends[i])
+                if lo < hi:
+                    for name in chunk:
+                        piece[name].append(chunk[name][lo - starts[i]:hi - starts[i]])
+        return [{name: np.concatenate(parts) for name, parts in piece.items() if parts}
+                for piece in pieces]
+
     def chunks(self, names, size):
         first = 0
         for part in self.frame.to_delayed():
@@ -273,6 +341,17 @@ class DaskSource(_Source):
                 yield first + start, chunk
             first += source.n_rows
         self.n_rows = first
+
+
+def _feed_partition(machine, part, names, size):
+    """One task of :meth:`DaskSource.reduce`: the partition's chunks fed to ``machine``
+    (its rows counted from where the previous partition ended)."""
+    source = ArraySource(part)
+    first = getattr(machine, "fed_rows", 0)
+    for start, chunk in source.chunks(names, size):
+        machine.feed(first + start, chunk)
+    machine.fed_rows = first + source.n_rows
+    return machine, source.n_rows, machine.take()
 
 
 def _floats(values, where=None):

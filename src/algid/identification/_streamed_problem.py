@@ -231,65 +231,89 @@ def scan_record(source, model, *, time=None, rate=None, chunk=CHUNK_SAMPLES, min
     InputDataError
         As the record layer, for any chunk; or no run of ``min_length`` samples.
     """
-    signals = list(model.signals)
-    names = signals + [name for name in (time, "t", "time") if name and name not in signals]
-    factors = list(dict.fromkeys(term.factor for term in model.terms))
-    runs, largest = [], dict.fromkeys(factors, 0.0)
-    differences = [[0.0, 0] for _ in DIFFERENCE_ORDERS]
-    step, last_t, current, rows = None if rate is None else 1.0 / rate, None, None, 0
+    scan = _Scan(model, time, rate, min_length)
+    return source.reduce(scan, scan.columns, chunk).finish()
 
-    def close(run):
-        if run is None or len(run.carry) == 0 or run.stop - run.start < min_length:
+
+class _Scan:
+    """The first pass's state, fed the record's chunks in order (:meth:`feed`): in this
+    process, or along a chain of tasks on a cluster (it pickles)."""
+
+    def __init__(self, model, time, rate, min_length):
+        self.model, self.time, self.rate, self.min_length = model, time, rate, min_length
+        self.signals = list(model.signals)
+        self.columns = self.signals + [n for n in (time, "t", "time")
+                                       if n and n not in self.signals]
+        self.factors = list(dict.fromkeys(term.factor for term in model.terms))
+        self.runs, self.largest = [], dict.fromkeys(self.factors, 0.0)
+        self.differences = [[0.0, 0] for _ in DIFFERENCE_ORDERS]
+        self.step = None if rate is None else 1.0 / rate
+        self.last_t, self.current, self.rows = None, None, 0
+
+    def _close(self):
+        run, self.current = self.current, None
+        if run is None or len(run.carry) == 0 or run.stop - run.start < self.min_length:
             return
-        runs.append(Run(run.start, run.stop, run.t0, run.t_end))
+        self.runs.append(Run(run.start, run.stop, run.t0, run.t_end))
         for factor, value in run.largest.items():
-            largest[factor] = max(largest[factor], value)
-        for total, (square, count) in zip(differences, run.sums):
+            self.largest[factor] = max(self.largest[factor], value)
+        for total, (square, count) in zip(self.differences, run.sums):
             total[0] += square
             total[1] += count
 
-    for first, part in source.chunks(names, chunk):
-        t, columns = _chunk_columns(part, first, signals, time, rate)
+    def feed(self, first, part):
+        """Take the chunk of rows from ``first`` (a mapping of columns)."""
+        t, columns = _chunk_columns(part, first, self.signals, self.time, self.rate)
         n = len(t)
-        rows = first + n
+        self.rows = first + n
         if n == 0:
-            continue
-        if last_t is not None and not t[0] > last_t:
+            return
+        if self.last_t is not None and not t[0] > self.last_t:
             raise InputDataError(f"record 0: the time does not increase at row {first}")
-        if step is None:
+        if self.step is None:
             if n < 2:
                 raise InputDataError("record 0: the first chunk holds one sample: give "
                                      "rate= or a longer chunk")
-            step = float(np.median(np.diff(t)))
+            self.step = float(np.median(np.diff(t)))
         valid = np.all([~np.isnan(v) for v in columns.values()], axis=0)
-        gap = np.diff(t, prepend=np.nan if last_t is None else last_t) > GAP_FACTOR * step
-        previous = np.concatenate([[current is not None], valid[:-1]])
+        before = np.nan if self.last_t is None else self.last_t
+        gap = np.diff(t, prepend=before) > GAP_FACTOR * self.step
+        previous = np.concatenate([[self.current is not None], valid[:-1]])
         starts = np.flatnonzero(valid & ~(previous & ~gap))
         ends = np.flatnonzero(valid & ~np.concatenate([valid[1:] & ~gap[1:], [True]]))
         pieces = np.flatnonzero(valid)
         if pieces.size:
             # the pieces of runs in this chunk: from a run's start (or the chunk's) to its end
-            bounds = np.union1d(starts, ends + 1)
-            edges = np.union1d(bounds, [pieces[0], n])
+            edges = np.union1d(np.union1d(starts, ends + 1), [pieces[0], n])
             for lo, hi in zip(edges[:-1], edges[1:]):
                 if not valid[lo]:
                     continue
                 if lo in starts:
-                    close(current)
-                    current = _RunSums(first + lo, float(t[lo]), factors)
+                    self._close()
+                    self.current = _RunSums(first + lo, float(t[lo]), self.factors)
                 values = {name: v[lo:hi] for name, v in columns.items()}
-                check_factors(model, [Segment(0, np.arange(first + lo, first + hi), t[lo:hi],
-                                              values)])
-                current.add(t[lo:hi], values, model)
+                check_factors(self.model, [Segment(0, np.arange(first + lo, first + hi),
+                                                   t[lo:hi], values)])
+                self.current.add(t[lo:hi], values, self.model)
         if not valid[-1]:
-            close(current)
-            current = None
-        last_t = float(t[-1])
-    close(current)
-    if not runs:
-        raise InputDataError(f"no run of {min_length} contiguous samples without gaps or "
-                             f"NaN in the record: nothing to identify on")
-    return RecordScan(runs, step, largest, [tuple(d) for d in differences], rows, signals)
+            self._close()
+        self.last_t = float(t[-1])
+
+    def take(self):
+        """What the pass hands over chunk by chunk: nothing (it is all in the state)."""
+        return None
+
+    def absorb(self, outputs):
+        """Nothing to gather (:meth:`take`)."""
+
+    def finish(self):
+        """The scan of the whole record (:class:`RecordScan`)."""
+        self._close()
+        if not self.runs:
+            raise InputDataError(f"no run of {self.min_length} contiguous samples without "
+                                 f"gaps or NaN in the record: nothing to identify on")
+        return RecordScan(self.runs, self.step, self.largest,
+                          [tuple(d) for d in self.differences], self.rows, self.signals)
 
 
 class StreamedProblem(WindowProblem):
@@ -388,83 +412,10 @@ class StreamedProblem(WindowProblem):
         keys = [k for k in dict.fromkeys(keys) if k not in self._rows]
         if not keys:
             return
-        shifts = self.exponents()[2]
-        factors = list(dict.fromkeys(term.factor for term in self.model.terms))
-        units = {f: self.factor_exponent(f) for f in factors}
-        blocks = {k: ([], [], []) for k in keys}
-        runs = iter(enumerate(self.segments))
-        index, run = next(runs)
-        buffer, origin, done = None, 0, None
-        for first, part in self.source.chunks(self.columns, self.chunk):
-            t, columns = _chunk_columns(part, first, self.scan.signals, self.time_column,
-                                        self.rate)
-            last = first + len(t)
-            while run is not None and run.start < last:
-                lo, hi = max(run.start, first) - first, min(run.stop, last) - first
-                if lo >= hi:   # the run starts in a later chunk
-                    break
-                if buffer is None:   # a new run: no samples, no windows yet
-                    buffer, origin = {f: np.empty(0) for f in factors}, 0
-                    done = dict.fromkeys(keys, 0)
-                self._check_uniform(run, t[lo:hi], first + lo)
-                values = {name: v[lo:hi] for name, v in columns.items()}
-                for f in factors:
-                    with np.errstate(over="ignore", under="ignore", invalid="ignore"):
-                        z = np.asarray(f.evaluate(values, t[lo:hi]), dtype=float) \
-                            * np.ones(hi - lo)
-                    buffer[f] = np.concatenate([buffer[f], np.ldexp(z, -units[f])])
-                end = first + hi - run.start   # samples of the run read so far
-                origin = self._windows_of(run, index, buffer, origin, end, done, blocks, shifts)
-                if run.stop > last:
-                    break
-                buffer = None
-                index, run = next(runs, (None, None))
-        for key, (a_blocks, b_blocks, id_blocks) in blocks.items():
-            p = len(self.parameters)
-            self._rows[key] = (np.vstack(a_blocks) if a_blocks else np.zeros((0, p)),
-                               np.concatenate(b_blocks) if b_blocks else np.zeros(0),
-                               np.concatenate(id_blocks) if id_blocks else np.zeros(0, int))
-
-    def _windows_of(self, run, index, buffer, origin, end, done, blocks, shifts):
-        """Rows of the windows of ``run`` that end within its first ``end`` samples;
-        the buffer's samples before the next window of every key are dropped.  Returns
-        the run's sample at which the buffer now starts."""
-        for length, multiplicity in done:
-            stride = max(1, length // WINDOW_OVERLAP)
-            total = (len(run) - length) // stride + 1 if len(run) >= length else 0
-            ready = min(total, (end - length) // stride + 1 if end >= length else 0)
-            w = done[(length, multiplicity)]
-            if ready <= w:
-                continue
-            lo = w * stride - origin
-            hi = (ready - 1) * stride + length - origin
-            integrals = [block_window_integrals(buffer[term.factor][lo:hi], run.step,
-                                                length, multiplicity, term.derivative, stride)
-                         for term in self.model.terms]
-            A, b = term_rows(self.model, integrals, shifts, ready - w)
-            a_blocks, b_blocks, id_blocks = blocks[(length, multiplicity)]
-            a_blocks.append(A)
-            b_blocks.append(b)
-            id_blocks.append(np.full(ready - w, index))
-            done[(length, multiplicity)] = ready
-        keep = min(done[k] * max(1, k[0] // WINDOW_OVERLAP) for k in done)
-        keep = min(keep, end)
-        if keep > origin:
-            for f in buffer:
-                buffer[f] = buffer[f][keep - origin:]
-            origin = keep
-        return origin
-
-    def _check_uniform(self, run, t, first):
-        grid = run.t0 + (np.arange(first - run.start, first - run.start + len(t))
-                         * run.user_step)
-        off = np.abs(t - grid)
-        if len(t) and float(np.max(off)) > UNIFORM_TOLERANCE * run.user_step:
-            row = first + int(np.argmax(off))
-            raise InputDataError(
-                f"record 0: the sample at row {row} is {float(np.max(off)) / run.user_step:.3g} "
-                f"steps off the uniform grid of its run: a record read in chunks must be "
-                f"uniformly sampled (load it and pass it in memory, or resample it)")
+        rows = _RowPass(self.model, self.segments, keys, self.exponents()[2],
+                        {f: self.factor_exponent(f) for f in self.scan.largest},
+                        self.scan.signals, self.time_column, self.rate)
+        self._rows.update(self.source.reduce(rows, self.columns, self.chunk).finish())
 
     def noise_grams(self, length, multiplicity, signal=None):
         """Per-window noise covariance of ``[A | b]`` (the same on every window of a
@@ -530,3 +481,99 @@ class StreamedProblem(WindowProblem):
                 cross = c * (g[:n_win - lag].T @ g[lag:])
                 meat += cross if lag == 0 else cross + cross.T
         return meat
+
+
+class _RowPass:
+    """A pass making the rows of several window lengths and multiplicities, fed the
+    record's chunks in order (:meth:`feed`): in this process, or along a chain of tasks
+    on a cluster (it pickles; :meth:`take` hands over the rows made so far)."""
+
+    def __init__(self, model, runs, keys, shifts, units, signals, time, rate):
+        self.model, self.runs, self.keys, self.shifts = model, runs, keys, shifts
+        self.units, self.signals, self.time, self.rate = units, signals, time, rate
+        self.run = 0                      # the run being read
+        self.buffer, self.origin, self.done = None, 0, None
+        self.blocks = {k: ([], [], []) for k in keys}
+
+    def feed(self, first, part):
+        """Take the chunk of rows from ``first`` (a mapping of columns)."""
+        t, columns = _chunk_columns(part, first, self.signals, self.time, self.rate)
+        last = first + len(t)
+        while self.run < len(self.runs) and self.runs[self.run].start < last:
+            run = self.runs[self.run]
+            lo, hi = max(run.start, first) - first, min(run.stop, last) - first
+            if lo >= hi:   # the run starts in a later chunk
+                break
+            if self.buffer is None:   # a new run: no samples, no windows yet
+                self.buffer, self.origin = {f: np.empty(0) for f in self.units}, 0
+                self.done = dict.fromkeys(self.keys, 0)
+            _check_uniform(run, t[lo:hi], first + lo)
+            values = {name: v[lo:hi] for name, v in columns.items()}
+            for f, unit in self.units.items():
+                with np.errstate(over="ignore", under="ignore", invalid="ignore"):
+                    z = np.asarray(f.evaluate(values, t[lo:hi]), dtype=float) * np.ones(hi - lo)
+                self.buffer[f] = np.concatenate([self.buffer[f], np.ldexp(z, -unit)])
+            self._windows(run, first + hi - run.start)
+            if run.stop > last:
+                break
+            self.buffer = None
+            self.run += 1
+
+    def _windows(self, run, end):
+        """Rows of the windows of ``run`` that end within its first ``end`` samples; the
+        buffer's samples before the next window of every key are dropped."""
+        buffer, origin, done = self.buffer, self.origin, self.done
+        for length, multiplicity in done:
+            stride = max(1, length // WINDOW_OVERLAP)
+            total = (len(run) - length) // stride + 1 if len(run) >= length else 0
+            ready = min(total, (end - length) // stride + 1 if end >= length else 0)
+            w = done[(length, multiplicity)]
+            if ready <= w:
+                continue
+            lo = w * stride - origin
+            hi = (ready - 1) * stride + length - origin
+            integrals = [block_window_integrals(buffer[term.factor][lo:hi], run.step,
+                                                length, multiplicity, term.derivative, stride)
+                         for term in self.model.terms]
+            A, b = term_rows(self.model, integrals, self.shifts, ready - w)
+            a_blocks, b_blocks, id_blocks = self.blocks[(length, multiplicity)]
+            a_blocks.append(A)
+            b_blocks.append(b)
+            id_blocks.append(np.full(ready - w, self.run))
+            done[(length, multiplicity)] = ready
+        keep = min(min(done[k] * max(1, k[0] // WINDOW_OVERLAP) for k in done), end)
+        if keep > origin:
+            for f in buffer:
+                buffer[f] = buffer[f][keep - origin:]
+            self.origin = keep
+
+    def take(self):
+        """The rows made since the last call (put back by :meth:`absorb`)."""
+        made, self.blocks = self.blocks, {k: ([], [], []) for k in self.keys}
+        return made
+
+    def absorb(self, outputs):
+        """Put back the rows :meth:`take` handed over, in the order they were made."""
+        made = [*outputs, self.take()]
+        self.blocks = {k: tuple(sum((m[k][i] for m in made), []) for i in range(3))
+                       for k in self.keys}
+
+    def finish(self):
+        """``{(length, multiplicity): (A, b, ids)}`` of the whole record."""
+        p = len(self.model.parameters)
+        return {key: (np.vstack(a) if a else np.zeros((0, p)),
+                      np.concatenate(b) if b else np.zeros(0),
+                      np.concatenate(ids) if ids else np.zeros(0, int))
+                for key, (a, b, ids) in self.blocks.items()}
+
+
+def _check_uniform(run, t, first):
+    """Refuse samples off the uniform grid of their run (rows from ``first``)."""
+    grid = run.t0 + np.arange(first - run.start, first - run.start + len(t)) * run.user_step
+    off = np.abs(t - grid)
+    if len(t) and float(np.max(off)) > UNIFORM_TOLERANCE * run.user_step:
+        row = first + int(np.argmax(off))
+        raise InputDataError(
+            f"record 0: the sample at row {row} is {float(np.max(off)) / run.user_step:.3g} "
+            f"steps off the uniform grid of its run: a record read in chunks must be "
+            f"uniformly sampled (load it and pass it in memory, or resample it)")
