@@ -284,8 +284,9 @@ def _streamed_source(data, model, *, method, refine, chunk):
                              "list of records in memory (without chunk=), or each alone")
     why = stream_refusal(model)
     if why is not None:
-        raise ModelError(f"{why}: a record read in chunks takes models whose terms read "
-                         f"the output linearly (load the record and pass it in memory)")
+        raise ModelError(f"{why}: a record read in chunks takes models without sign() "
+                         f"or derivatives inside nonlinear factors (load the record and "
+                         f"pass it in memory)")
     if METHODS[method].instrumental:
         raise ModelError(f"method={method!r} simulates the whole record: a record read in "
                          f"chunks takes method 'bc' or 'ls'")
@@ -443,7 +444,8 @@ def identify(data, equation, parameters=None, *, time=None, rate=None, output=No
         Read the record in chunks of this many rows (by default a file, a Dask
         ``DataFrame`` or a record of more than :data:`STREAM_SAMPLES` samples is read in
         chunks of :data:`CHUNK_SAMPLES`).  A record read in chunks takes models whose
-        terms read the output linearly, ``method`` "bc" or "ls", uniformly sampled runs,
+        factors hold no ``sign`` and no derivative, ``method`` "bc" or "ls", uniformly
+        sampled runs,
         and is not refined; it is never held whole in memory.  Its automatic window is
         chosen on excerpts of the record (:data:`EXCERPT_SAMPLES` samples in all).
 

@@ -16,14 +16,19 @@ window's samples of the run it is in:
    window length asked for, the rows of the previous length dropped).  The rows are
    what the solve keeps: one per window, a few per thousand samples; the samples are
    dropped chunk by chunk.
+3. Where a term reads the output nonlinearly (``K3*y**3``), the noise it puts into a
+   window's equation changes from window to window: its covariance is made with the
+   rows, and the covariance of neighbouring windows' noise (the sandwich's middle) by a
+   pass of its own once the estimate is known (:class:`_MeatPass`).  Where every term
+   reads the output as itself, both are the same on every window of a uniformly
+   sampled run, from one window of the kernels.
 
 The solve, the window rule's criterion, the covariance and the adequacy test are then
 those of an in-memory record (:mod:`algid.identification._identify`), and the
 estimate equals the in-memory one at the same window to round-off (the window
-integrals are summed in blocks rather than by FFT).  What makes this exact with only
-the rows: every term that reads the output reads it linearly (:func:`stream_refusal`),
-so the noise the output puts into a window's equation, and into the covariance of
-neighbouring windows, is the same on every window of a uniformly sampled run.
+integrals are summed in blocks rather than by FFT).  What cannot be made chunk by
+chunk (:func:`stream_refusal`): a ``sign`` whose steps are placed by fits on the whole
+record, a derivative inside a nonlinear factor estimated on it.
 """
 
 from __future__ import annotations
@@ -38,6 +43,7 @@ from algid.identification._records import GAP_FACTOR, UNIFORM_TOLERANCE, Segment
 from algid.identification._window_basis import exponent
 from algid.identification._window_kernels import (
     block_window_integrals,
+    block_window_sums,
     window_noise_products,
     window_sample_weights,
 )
@@ -46,6 +52,7 @@ from algid.identification._window_problem import (
     WINDOW_OVERLAP,
     ProblemCache,
     WindowProblem,
+    factor_sensitivity,
     noise_bound_from_sums,
     term_rows,
 )
@@ -70,9 +77,8 @@ SAME_STEP = 1e-9
 def stream_refusal(model):
     """Why a model's window equations cannot be made chunk by chunk, or None.
 
-    A term must read the output linearly (the output itself, times a parameter or a
-    function of the inputs), and no factor may hold a derivative estimated on the whole
-    record or a ``sign`` whose steps are placed on it.
+    No factor may hold a derivative estimated on the whole record or a ``sign`` whose
+    steps are placed on it.
 
     Parameters
     ----------
@@ -82,18 +88,13 @@ def stream_refusal(model):
     -------
     str or None
     """
-    output = model.output
+    for term in model.terms:
+        if _has_sign(term.factor):
+            return f"the steps of {term.factor} are placed on the whole record"
     if model.needs_derivatives:
         name, k = model.needs_derivatives[0]
         return (f"the derivative {name}{chr(39) * k} inside a nonlinear factor is "
                 f"estimated on the whole record")
-    for term in model.terms:
-        factor = term.factor
-        if _has_sign(factor):
-            return f"the steps of {factor} are placed on the whole record"
-        if output in factor.signals() and factor != Signal(output):
-            return (f"the term {factor} reads the output {output} nonlinearly (its noise "
-                    f"changes from window to window)")
     return None
 
 
@@ -118,6 +119,9 @@ class Run:
         :class:`StreamedProblem`.
     record : int
         Always 0 (one record).
+    output_largest : float
+        The output's largest absolute sample on the run (the step of its factors'
+        sensitivities, as in memory).
     """
 
     start: int
@@ -126,6 +130,7 @@ class Run:
     t_end: float
     step: float = 0.0
     record: int = 0
+    output_largest: float = 0.0
 
     def __len__(self):
         return self.stop - self.start
@@ -254,7 +259,8 @@ class _Scan:
         run, self.current = self.current, None
         if run is None or len(run.carry) == 0 or run.stop - run.start < self.min_length:
             return
-        self.runs.append(Run(run.start, run.stop, run.t0, run.t_end))
+        self.runs.append(Run(run.start, run.stop, run.t0, run.t_end,
+                             output_largest=run.largest[Signal(self.model.output)]))
         for factor, value in run.largest.items():
             self.largest[factor] = max(self.largest[factor], value)
         for total, (square, count) in zip(self.differences, run.sums):
@@ -365,6 +371,12 @@ class StreamedProblem(WindowProblem):
         self._rows = {}
         #: the kernel multiplicities whose rows one pass makes together
         self.multiplicities = ()
+        self._grams = {}
+        output = Signal(model.output)
+        #: whether every term reads the output as itself (its noise then enters every
+        #: window alike: one noise covariance for all, no pass for the sandwich's middle)
+        self.constant_noise = all(term.factor == output for term in model.terms
+                                  if model.output in term.factor.signals())
 
     def factor_exponent(self, factor, which="measured"):
         """The power of two of a factor's largest sample (from the scan)."""
@@ -389,6 +401,7 @@ class StreamedProblem(WindowProblem):
         if key not in self._rows:   # a pass for this length's multiplicities; the rows of
             # other lengths are dropped (the solves ask for one length after another)
             self._rows = {k: v for k, v in self._rows.items() if k[0] == length}
+            self._grams = {k: v for k, v in self._grams.items() if k in self._rows}
             self.prefetch([(length, a) for a in (*self.multiplicities, multiplicity)])
         A, b, ids = self._rows[key]
         if len(ids) == 0:
@@ -414,12 +427,38 @@ class StreamedProblem(WindowProblem):
             return
         rows = _RowPass(self.model, self.segments, keys, self.exponents()[2],
                         {f: self.factor_exponent(f) for f in self.scan.largest},
-                        self.scan.signals, self.time_column, self.rate)
-        self._rows.update(self.source.reduce(rows, self.columns, self.chunk).finish())
+                        self.scan.signals, self.time_column, self.rate,
+                        None if self.constant_noise else self.noise_paths())
+        for key, (A, b, ids, grams) in self.source.reduce(rows, self.columns,
+                                                          self.chunk).finish().items():
+            self._rows[key] = (A, b, ids)
+            self._grams[key] = grams
+
+    def noise_paths(self):
+        """The terms that read the output: ``(column, weight, derivative, factor,
+        shift)`` each, ``shift`` the power of two of its sensitivity (as in memory)."""
+        p = len(self.parameters)
+        index = {q: i for i, q in enumerate(self.parameters)}
+        paths = []
+        for term in self.model.terms:
+            if self.model.output not in term.factor.signals():
+                continue
+            weight = term.coefficient * self.term_scale(term)
+            shift = self.output_exponent - self.factor_exponent(term.factor)
+            if term.parameter is None:
+                paths.append((p, -weight, term.derivative, term.factor, shift))
+            else:
+                paths.append((index[term.parameter], weight, term.derivative, term.factor,
+                              shift))
+        return paths
 
     def noise_grams(self, length, multiplicity, signal=None):
-        """Per-window noise covariance of ``[A | b]`` (the same on every window of a
-        run: a read-only broadcast)."""
+        """Per-window noise covariance of ``[A | b]`` (with every term reading the
+        output as itself, the same on every window of a run: a read-only broadcast;
+        else made with the rows)."""
+        if not self.constant_noise:
+            self.rows(length, multiplicity)
+            return self._grams[(length, multiplicity)].copy()   # (the solve overwrites it)
         p = len(self.parameters)
         index = {q: i for i, q in enumerate(self.parameters)}
         noisy = []
@@ -454,8 +493,14 @@ class StreamedProblem(WindowProblem):
         return np.concatenate([np.broadcast_to(g, (c, p + 1, p + 1)) for g, c in blocks])
 
     def noise_meat(self, length, multiplicity, theta_bar, scores, stride):
-        """The covariance of :func:`algid.identification._window_covariance.noise_meat`,
-        its sample weights being the same in every window of a run."""
+        """The covariance of :func:`algid.identification._window_covariance.noise_meat`:
+        its sample weights the same in every window of a run where every term reads the
+        output as itself, else a pass over the record (:class:`_MeatPass`)."""
+        if not self.constant_noise:
+            meat = _MeatPass(self.segments, self.windows(length), length, multiplicity,
+                             theta_bar, scores, stride, self.noise_paths(), self.model,
+                             self.scan.signals, self.time_column, self.rate)
+            return self.source.reduce(meat, self.columns, self.chunk).finish()
         p = len(self.parameters)
         index = {q: i for i, q in enumerate(self.parameters)}
         meat = np.zeros((scores.shape[1], scores.shape[1]))
@@ -488,12 +533,13 @@ class _RowPass:
     record's chunks in order (:meth:`feed`): in this process, or along a chain of tasks
     on a cluster (it pickles; :meth:`take` hands over the rows made so far)."""
 
-    def __init__(self, model, runs, keys, shifts, units, signals, time, rate):
+    def __init__(self, model, runs, keys, shifts, units, signals, time, rate, paths=None):
         self.model, self.runs, self.keys, self.shifts = model, runs, keys, shifts
         self.units, self.signals, self.time, self.rate = units, signals, time, rate
+        self.paths = paths                # the noise's paths (None: the same in every window)
         self.run = 0                      # the run being read
         self.buffer, self.origin, self.done = None, 0, None
-        self.blocks = {k: ([], [], []) for k in keys}
+        self.blocks = {k: ([], [], [], []) for k in keys}
 
     def feed(self, first, part):
         """Take the chunk of rows from ``first`` (a mapping of columns)."""
@@ -506,6 +552,9 @@ class _RowPass:
                 break
             if self.buffer is None:   # a new run: no samples, no windows yet
                 self.buffer, self.origin = {f: np.empty(0) for f in self.units}, 0
+                if self.paths:
+                    self.buffer.update({("sensitivity", f): np.empty(0)
+                                        for *_, f, _ in self.paths})
                 self.done = dict.fromkeys(self.keys, 0)
             _check_uniform(run, t[lo:hi], first + lo)
             values = {name: v[lo:hi] for name, v in columns.items()}
@@ -513,6 +562,10 @@ class _RowPass:
                 with np.errstate(over="ignore", under="ignore", invalid="ignore"):
                     z = np.asarray(f.evaluate(values, t[lo:hi]), dtype=float) * np.ones(hi - lo)
                 self.buffer[f] = np.concatenate([self.buffer[f], np.ldexp(z, -unit)])
+            for f, z in _sensitivities(self.paths or (), self.model.output, values, t[lo:hi],
+                                       run).items():
+                key = ("sensitivity", f)
+                self.buffer[key] = np.concatenate([self.buffer[key], z])
             self._windows(run, first + hi - run.start)
             if run.stop > last:
                 break
@@ -536,10 +589,13 @@ class _RowPass:
                                                 length, multiplicity, term.derivative, stride)
                          for term in self.model.terms]
             A, b = term_rows(self.model, integrals, self.shifts, ready - w)
-            a_blocks, b_blocks, id_blocks = self.blocks[(length, multiplicity)]
+            a_blocks, b_blocks, id_blocks, gram_blocks = self.blocks[(length, multiplicity)]
             a_blocks.append(A)
             b_blocks.append(b)
             id_blocks.append(np.full(ready - w, self.run))
+            if self.paths:
+                gram_blocks.append(self._grams(run, lo, hi, length, multiplicity, stride,
+                                               ready - w))
             done[(length, multiplicity)] = ready
         keep = min(min(done[k] * max(1, k[0] // WINDOW_OVERLAP) for k in done), end)
         if keep > origin:
@@ -547,24 +603,45 @@ class _RowPass:
                 buffer[f] = buffer[f][keep - origin:]
             self.origin = keep
 
+    def _grams(self, run, lo, hi, length, multiplicity, stride, count):
+        """The noise covariances of ``count`` windows (buffer samples ``lo:hi``), as
+        :meth:`WindowProblem.noise_grams` makes them in memory."""
+        p = len(self.model.parameters)
+        grams = np.zeros((count, p + 1, p + 1))
+        paths = self.paths
+        for i, (c1, w1, k1, f1, _) in enumerate(paths):
+            for j, (c2, w2, k2, f2, _) in enumerate(paths[i:], start=i):
+                product = self.buffer[("sensitivity", f1)][lo:hi] \
+                    * self.buffer[("sensitivity", f2)][lo:hi]
+                weights = window_sample_weights(None, run.step, length, multiplicity, k1) \
+                    * window_sample_weights(None, run.step, length, multiplicity, k2)
+                v = w1 * w2 * block_window_sums(product, weights, stride)
+                grams[:, c1, c2] += v
+                if j != i:
+                    grams[:, c2, c1] += v
+        return grams
+
     def take(self):
         """The rows made since the last call (put back by :meth:`absorb`)."""
-        made, self.blocks = self.blocks, {k: ([], [], []) for k in self.keys}
+        made, self.blocks = self.blocks, {k: ([], [], [], []) for k in self.keys}
         return made
 
     def absorb(self, outputs):
         """Put back the rows :meth:`take` handed over, in the order they were made."""
         made = [*outputs, self.take()]
-        self.blocks = {k: tuple(sum((m[k][i] for m in made), []) for i in range(3))
+        self.blocks = {k: tuple(sum((m[k][i] for m in made), []) for i in range(4))
                        for k in self.keys}
 
     def finish(self):
-        """``{(length, multiplicity): (A, b, ids)}`` of the whole record."""
+        """``{(length, multiplicity): (A, b, ids, grams)}`` of the whole record
+        (``grams`` None where the noise is the same in every window)."""
         p = len(self.model.parameters)
         return {key: (np.vstack(a) if a else np.zeros((0, p)),
                       np.concatenate(b) if b else np.zeros(0),
-                      np.concatenate(ids) if ids else np.zeros(0, int))
-                for key, (a, b, ids) in self.blocks.items()}
+                      np.concatenate(ids) if ids else np.zeros(0, int),
+                      (np.concatenate(grams) if grams else np.zeros((0, p + 1, p + 1)))
+                      if self.paths else None)
+                for key, (a, b, ids, grams) in self.blocks.items()}
 
 
 def _check_uniform(run, t, first):
@@ -577,3 +654,115 @@ def _check_uniform(run, t, first):
             f"record 0: the sample at row {row} is {float(np.max(off)) / run.user_step:.3g} "
             f"steps off the uniform grid of its run: a record read in chunks must be "
             f"uniformly sampled (load it and pass it in memory, or resample it)")
+
+
+def _sensitivities(paths, output, values, t, run):
+    """Per factor of ``paths``, its derivative with respect to the output's samples, in
+    the units of the rows (as :meth:`WindowProblem.sensitivity`: the step of the central
+    differences from the run's largest output sample)."""
+    out = {}
+    for *_, factor, shift in paths:
+        if factor in out:
+            continue
+        if factor == Signal(output):
+            out[factor] = np.ones(len(t))
+        else:
+            h = 1e-6 * max(run.output_largest, 1e-300)
+            out[factor] = np.ldexp(factor_sensitivity(factor, output, values, t, h), shift)
+    return out
+
+
+class _MeatPass:
+    """A pass for the middle of the sandwich under output noise whose weights change
+    from window to window (terms reading the output nonlinearly): that of
+    :func:`algid.identification._window_covariance.noise_meat`, windows taken in blocks
+    with the neighbours they share samples with."""
+
+    def __init__(self, runs, counts, length, multiplicity, theta_bar, scores, stride, paths,
+                 model, signals, time, rate):
+        self.runs, self.counts, self.length, self.multiplicity = runs, counts, length, \
+            multiplicity
+        self.stride, self.paths, self.model = stride, paths, model
+        self.signals, self.time, self.rate = signals, time, rate
+        self.scores = scores
+        self.factors = [w * theta_bar[c] for c, w, *_ in paths]   # (noise_meat's)
+        self.lags = -(-length // stride)
+        self.run, self.first_window = 0, 0
+        self.buffer, self.origin, self.done = None, 0, 0
+        self.meat = np.zeros((scores.shape[1], scores.shape[1]))
+
+    def feed(self, first, part):
+        """Take the chunk of rows from ``first`` (a mapping of columns)."""
+        t, columns = _chunk_columns(part, first, self.signals, self.time, self.rate)
+        last = first + len(t)
+        while self.run < len(self.runs) and self.runs[self.run].start < last:
+            run = self.runs[self.run]
+            lo, hi = max(run.start, first) - first, min(run.stop, last) - first
+            if lo >= hi:
+                break
+            if self.buffer is None:
+                self.buffer = {f: np.empty(0) for *_, f, _ in self.paths}
+                self.origin, self.done = 0, 0
+            values = {name: v[lo:hi] for name, v in columns.items()}
+            for f, z in _sensitivities(self.paths, self.model.output, values, t[lo:hi],
+                                       run).items():
+                self.buffer[f] = np.concatenate([self.buffer[f], z])
+            self._windows(run, first + hi - run.start, run.stop <= last)
+            if run.stop > last:
+                break
+            self.first_window += self.counts[self.run]
+            self.buffer = None
+            self.run += 1
+
+    def _weights(self, run, start, count):
+        """The noise weight of every sample of windows ``start ..`` (``count`` of them)."""
+        length, stride = self.length, self.stride
+        lo = start * stride - self.origin
+        weights = np.zeros((count, length))
+        for (_, _, k, f, _), factor in zip(self.paths, self.factors):
+            kernel = window_sample_weights(None, run.step, length, self.multiplicity, k)
+            z = self.buffer[f][lo:lo + (count - 1) * stride + length]
+            windows = np.lib.stride_tricks.sliding_window_view(z, length)[::stride]
+            weights += factor * windows * kernel
+        return weights
+
+    def _windows(self, run, end, ended):
+        """The middle's terms of the windows whose neighbours within the lags end
+        within the run's first ``end`` samples (all of them at the run's end)."""
+        n_win, length, stride = self.counts[self.run], self.length, self.stride
+        if n_win == 0:
+            return
+        available = (end - length) // stride + 1 if end >= length else 0
+        stop = n_win if ended else max(self.done, min(n_win, available - self.lags))
+        if stop <= self.done:
+            return
+        start, upto = self.done, min(n_win, stop + self.lags)
+        weights = self._weights(run, start, upto - start)
+        g = self.scores[self.first_window + start:self.first_window + upto]
+        own = stop - start
+        for lag in range(min(n_win, self.lags)):
+            shift = lag * stride
+            pairs = min(own, upto - start - lag)
+            if pairs <= 0:
+                continue
+            c = np.einsum("ij,ij->i", weights[:pairs, shift:], weights[lag:lag + pairs,
+                                                                       :length - shift])
+            cross = (g[:pairs] * c[:, None]).T @ g[lag:lag + pairs]
+            self.meat += cross if lag == 0 else cross + cross.T
+        self.done = stop
+        keep = stop * stride
+        if keep > self.origin:
+            for f in self.buffer:
+                self.buffer[f] = self.buffer[f][keep - self.origin:]
+            self.origin = keep
+
+    def take(self):
+        """Nothing handed over chunk by chunk (the middle is a sum in the state)."""
+        return None
+
+    def absorb(self, outputs):
+        """Nothing to gather (:meth:`take`)."""
+
+    def finish(self):
+        """The middle of the sandwich (``k x k``)."""
+        return self.meat

@@ -28,7 +28,8 @@ from numpy.polynomial import chebyshev
 from algid._generated.modulating import MAX_MULTIPLICITY, TERM_KERNELS
 from algid.errors import ModelError
 
-__all__ = ["term_kernel", "uniform_window_integrals", "block_window_integrals", "window_integrals",
+__all__ = ["term_kernel", "uniform_window_integrals", "block_window_integrals",
+           "block_window_sums", "window_integrals",
            "window_noise_products", "window_sample_weights", "sign_changes",
            "step_window_integrals",
            "sign_samples", "MAX_MULTIPLICITY"]
@@ -120,11 +121,33 @@ def block_window_integrals(z, step, length, multiplicity, derivative, stride=1):
         The integrals of the windows starting at ``0, stride, 2 * stride, ...`` that
         end within ``z``.
     """
+    return block_window_sums(z, window_sample_weights(None, step, length, multiplicity,
+                                                      derivative), stride)
+
+
+def block_window_sums(z, weights, stride=1):
+    """``weights @ z[w * stride : w * stride + len(weights)]`` for every window ``w`` that
+    ends within ``z``, summed in blocks (:func:`block_window_integrals`).
+
+    Parameters
+    ----------
+    z : array_like
+        Samples (starting at a window's start).
+    weights : numpy.ndarray
+        The weight of every sample of a window.
+    stride : int
+        Samples between the starts of consecutive windows.
+
+    Returns
+    -------
+    numpy.ndarray
+    """
     z = np.asarray(z, dtype=float)
+    g = np.asarray(weights, dtype=float)
+    length = len(g)
     count = (len(z) - length) // stride + 1 if len(z) >= length else 0
     if count == 0:
         return np.zeros(0)
-    g = window_sample_weights(None, step, length, multiplicity, derivative)
     blocks = -(-length // stride)
     kernel = np.zeros(blocks * stride)
     kernel[:length] = g
