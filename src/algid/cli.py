@@ -565,7 +565,10 @@ def _cmd_identify(args) -> int:
     streamed = args.chunk is not None or any(
         str(path).lower().endswith(PARQUET_SUFFIXES) for path in args.files)
     if streamed:   # one record read in chunks, never whole
-        if len(args.files) > 1 or args.files[0] == "-":
+        if args.files[0] == "-" or "-" in args.files:
+            raise InputDataError("--chunk reads a file: standard input is read whole "
+                                 "(drop --chunk, or save it to a file)")
+        if len(args.files) > 1:
             raise InputDataError("a record read in chunks (a Parquet file, or --chunk) is "
                                  "one file: give it alone")
         records = args.files[0]

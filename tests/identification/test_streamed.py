@@ -117,7 +117,7 @@ def test_a_long_record_streams_and_says_why_it_is_not_refined(record, monkeypatc
      ["derivative", "y'", "nonlinear factor"]),
     (dict(method="iv"), ModelError, ["method='iv'", "'bc' or 'ls'"]),
     (dict(refine=True), ModelError, ["refine:", "result.refine(record)"]),
-    (dict(chunk=1), InputDataError, ["chunk must be", "at least 2"]),
+    (dict(chunk=-1), InputDataError, ["chunk must be", "from 1"]),
     (dict(chunk=True), InputDataError, ["chunk must be"]),
     (dict(chunk="many"), InputDataError, ["chunk must be"]),
     (dict(data="list"), InputDataError, ["one at a time"]),
@@ -214,3 +214,100 @@ def test_a_model_nonlinear_in_the_output_streams_as_in_memory(window):
         memory = algid.identify(data, *eq, window=window, refine=False)
         streamed = algid.identify(data, *eq, window=window, chunk=777)
         assert_same(streamed, memory)
+
+
+# ------------------------------------------------------------------ found by trying to break it
+
+
+def test_dates_masks_and_odd_column_types_are_read_as_in_memory(record, tmp_path):
+    pd = pytest.importorskip("pandas")
+    data, _ = record
+    memory = algid.identify(data, *LINEAR_EQUATION, window=0.5, refine=False)
+    stamps = pd.Timestamp("2024-01-01") + pd.to_timedelta(data["t"], unit="s")
+    dated = pd.DataFrame({"t": stamps, "u": data["u"], "y": data["y"]})
+    assert_same(algid.identify(dated, *LINEAR_EQUATION, window=0.5, chunk=1000), memory)
+    assert_same(algid.identify(dated.set_index("t"), *LINEAR_EQUATION, window=0.5,
+                               chunk=999), memory)
+    pytest.importorskip("pyarrow")
+    dated.to_parquet(tmp_path / "dated.parquet", row_group_size=1000)
+    assert_same(algid.identify(tmp_path / "dated.parquet", *LINEAR_EQUATION, window=0.5),
+                memory)
+    # masked samples are missing, as in memory (not zeros)
+    y = np.ma.masked_array(data["y"].copy(), mask=np.zeros(len(data["y"]), bool))
+    y[[10, 2000, 2001, 4500]] = np.ma.masked
+    masked = dict(data, y=y)
+    assert_same(algid.identify(masked, *LINEAR_EQUATION, window=0.5, chunk=700),
+                algid.identify(masked, *LINEAR_EQUATION, window=0.5, refine=False))
+    for bad, fragment in ((data["u"] > 0, "boolean"), (data["u"] + 0j, "complex")):
+        with pytest.raises(InputDataError, match=fragment):
+            algid.identify(dict(data, u=bad), *LINEAR_EQUATION, window=0.5, chunk=700)
+
+
+def test_excerpts_of_runs_shorter_than_an_excerpt_do_not_overlap(monkeypatch):
+    monkeypatch.setattr(_identify, "EXCERPT_SAMPLES", 8 * 4096)
+    data, _ = linear_offsets(3, n=7 * 3001)
+    for j in range(1, 7):
+        data["y"][j * 3001 - 1] = np.nan      # runs of 3000 samples, under 4096
+    streamed = algid.identify(data, *LINEAR_EQUATION, chunk=5000)
+    assert streamed.n_samples == 7 * 3001 - 6
+
+
+@pytest.mark.parametrize("scale", [1e-200, 1e160])
+def test_any_amplitude_gives_the_in_memory_estimate(record, scale):
+    data, _ = record
+    big = dict(data, u=data["u"] * scale, y=data["y"] * scale)
+    equation = ("y'' + B*y' + K*y = G*u", "B K G")
+    assert_same(algid.identify(big, *equation, window=0.5, chunk=600),
+                algid.identify(big, *equation, window=0.5, refine=False))
+
+
+def test_the_step_comes_from_more_than_the_first_chunk(record):
+    data, _ = record
+    lead = {k: np.concatenate([[v[0] - 0.5 if k == "t" else np.nan], v])
+            for k, v in data.items()}
+    memory = algid.identify(lead, *LINEAR_EQUATION, refine=False)
+    for chunk in (1, 2, 3):
+        assert_same(algid.identify(lead, *LINEAR_EQUATION, chunk=chunk), memory)
+
+
+def test_single_precision_times_stream_as_uniform(record):
+    data, _ = record
+    coarse = dict(data, t=data["t"].astype(np.float32))
+    streamed = algid.identify(coarse, *LINEAR_EQUATION, window=0.5, chunk=800)
+    memory = algid.identify(coarse, *LINEAR_EQUATION, window=0.5, refine=False)
+    for p in memory.parameters:   # in memory: the quantised times' own integrals
+        assert abs(streamed.values[p] - memory.values[p]) < 0.1 * memory.stderr[p]
+
+
+def test_a_missing_term_is_named_as_in_memory(record):
+    data, _ = record
+    equation = ("y'' + B*y' + K*y = G*u", "B K G")     # the offset is missing
+    memory = algid.identify(data, *equation, window=0.5, refine=False)
+    assert memory.warnings
+    assert_same(algid.identify(data, *equation, window=0.5, chunk=1000), memory)
+
+
+@pytest.mark.parametrize("call, fragment", [
+    (dict(chunk=2**63), "from 1 to 2\\*\\*40"),
+    (dict(chunk=0), "from 1 to 2\\*\\*40"),
+    (dict(u=1.0), "u"),
+    (dict(system=True), "system of equations"),
+])
+def test_more_bad_calls_get_one_line(record, call, fragment):
+    data, _ = record
+    equation = [LINEAR_EQUATION[0]] if call.pop("system", False) else LINEAR_EQUATION[0]
+    if "u" in call:
+        data = dict(data, u=call.pop("u"))
+    with pytest.raises(InputDataError, match=fragment) as error:
+        algid.identify(data, equation, LINEAR_EQUATION[1], window=0.5,
+                       **{"chunk": 500, **call})
+    assert "\n" not in str(error.value)
+
+
+def test_rows_in_messages_are_the_records(record):
+    data, _ = record
+    bad = dict(data, y=data["y"].copy())
+    bad["y"][4321] = np.inf
+    with pytest.raises(InputDataError, match="row 4321") as error:
+        algid.identify(bad, *LINEAR_EQUATION, window=0.5, chunk=1000)
+    assert "chunk" not in str(error.value)

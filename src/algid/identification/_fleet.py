@@ -374,7 +374,7 @@ def fleet_outliers(table, parameters=None, *, threshold=OUTLIER_THRESHOLD):
     parameters : sequence of str, optional
         The parameters to look at (default: every column with a ``stderr_`` column).
     threshold : float
-        Spreads from the median (default :data:`OUTLIER_THRESHOLD`).
+        Spreads from the median (default 3.5).
 
     Returns
     -------

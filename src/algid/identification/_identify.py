@@ -87,7 +87,7 @@ from algid.models._grammar import parse_equation
 from algid.models._model import Model
 from algid.models._system import is_system
 
-__all__ = ["identify", "METHODS", "MULTIPLICITIES", "AGREEMENT", "CROSSING_PASSES",
+__all__ = ["identify", "check_chunk", "METHODS", "MULTIPLICITIES", "AGREEMENT", "CROSSING_PASSES",
            "STREAM_SAMPLES", "CHUNK_SAMPLES", "EXCERPT_SAMPLES", "EXCERPTS",
            "window_criterion", "window_grid"]
 
@@ -261,15 +261,25 @@ def _idle_records(data, segments, length, step):
             for i in range(len(data)) if i not in used]
 
 
+#: The most rows a chunk may be given.
+MAX_CHUNK = 2**40
+
+
+def check_chunk(chunk):
+    """Refuse a ``chunk=`` that is not a number of rows (None passes)."""
+    if chunk is not None and (isinstance(chunk, bool) or not isinstance(
+            chunk, (int, np.integer)) or not 1 <= chunk <= MAX_CHUNK):
+        raise InputDataError(f"chunk must be a number of rows from 1 to 2**40, got "
+                             f"{chunk!r}")
+
+
 def _streamed_source(data, model, *, method, refine, chunk):
     """The chunked source of ``data`` when it is read in chunks, else None.
 
     Files, Dask DataFrames and ``chunk=`` ask for it (refused where it cannot be);
     otherwise a single record longer than :data:`STREAM_SAMPLES` is read in chunks where
     nothing needs it whole (the model, ``method="iv"``, ``refine=True``)."""
-    if chunk is not None and (isinstance(chunk, bool) or not isinstance(
-            chunk, (int, np.integer)) or chunk < 2):
-        raise InputDataError(f"chunk must be a number of rows of at least 2, got {chunk!r}")
+    check_chunk(chunk)
     if not (is_streamed_input(data) or chunk is not None):
         if refine is True or METHODS[method].instrumental or stream_refusal(model) \
                 or isinstance(data, (list, tuple)):
@@ -315,9 +325,18 @@ def _identify_streamed(source, model, *, time, rate, window, method, multiplicit
                     f"window= needs fewer)", unit="windows")
     problem.multiplicities = multiplicities
     fit = _solve(problem, length, multiplicities, method=method)
+    def missing(equation, parameters):   # another equation, on the same passes' terms
+        other = parse_equation(equation, parameters, output=model.output)
+        other_scan = scan_record(source, other, time=time, rate=rate, chunk=chunk,
+                                 min_length=shortest)
+        refit = StreamedProblem(other, source, other_scan, time=time, rate=rate, chunk=chunk)
+        refit.multiplicities = multiplicities
+        return _misfit_of(refit, length, multiplicities)
+
     return _result(problem, fit, length, method=method, multiplicities=multiplicities,
                    scores=scores, separations=separations, n_samples=scan.n_samples,
                    time=time, rate=rate, refine=refine, unrefined=STREAMED_UNREFINED,
+                   missing=missing,
                    grid=lambda found: _excerpt_window(problem, multiplicities, method,
                                                       found)[1])
 
@@ -326,42 +345,10 @@ def _excerpt_window(problem, multiplicities, method, separations):
     """The window rule on :data:`EXCERPTS` excerpts of a record read in chunks, the
     standard errors scaled to the record's samples (the whole record when it has at
     most :data:`EXCERPT_SAMPLES`)."""
-    scan = problem.scan
-    total = scan.n_samples
-    ranges = [(run.start, run.stop) for run in scan.runs]
-    if total > EXCERPT_SAMPLES:
-        ranges, size = [], EXCERPT_SAMPLES // EXCERPTS
-        ends = np.cumsum([len(run) for run in scan.runs])
-        for k in range(EXCERPTS):
-            at = int((k + 0.5) * total / EXCERPTS)
-            i = int(np.searchsorted(ends, at, side="right"))
-            run = scan.runs[i]
-            start = max(run.start, min(run.start + at - (ends[i] - len(run)) - size // 2,
-                                       run.stop - size))
-            ranges.append((start, min(run.stop, start + size)))
-    pieces = problem.source.read(problem.columns, ranges, problem.chunk)
-    time = problem.time_column or next((n for n in ("t", "time") if n in pieces[0]), None)
-    if time is None:   # the record's own times, from the rate
-        for piece, (start, stop) in zip(pieces, ranges):
-            piece["t"] = (start + np.arange(stop - start)) / problem.rate
-        time = "t"
-    # the excerpts as one record, a NaN row between two (a break of the runs)
-    joined = {name: [] for name in pieces[0]}
-    for i, piece in enumerate(pieces):
-        for name, values in piece.items():
-            joined[name].append(values)
-            if i + 1 < len(pieces):
-                joined[name].append([(values[-1] + pieces[i + 1][name][0]) / 2
-                                     if name == time else np.nan])
-    record = {name: np.concatenate(parts) for name, parts in joined.items()}
-    source = record_source(record)
-    shortest = min_length(multiplicities)
-    scan = scan_record(source, problem.model, time=time, chunk=source.n_rows,
-                       min_length=shortest)
-    excerpt = StreamedProblem(problem.model, source, scan, time=time, chunk=source.n_rows)
+    excerpt = problem.excerpts(EXCERPT_SAMPLES, EXCERPTS, min_length(multiplicities))
     excerpt.prefetch([(n, a) for n in grid_lengths(excerpt, multiplicities)
                       for a in multiplicities])   # the grid's rows in one pass
-    n_samples = scan.n_samples
+    n_samples, total = excerpt.scan.n_samples, problem.scan.n_samples
     share = n_samples / total
 
     def solve(sub, length, multiplicities, instruments=None, method="ls"):
@@ -376,6 +363,11 @@ def _excerpt_window(problem, multiplicities, method, separations):
 def _least_squares_misfit(segments, step, equation, parameters, output, length, multiplicities):
     """Misfit of another equation on the same signals, fitted by least squares."""
     problem = WindowProblem(parse_equation(equation, parameters, output=output), segments, step)
+    return _misfit_of(problem, length, multiplicities)
+
+
+def _misfit_of(problem, length, multiplicities):
+    """The misfit of a problem's equation fitted by least squares on ``length``."""
     fit = _solve(problem, length, multiplicities, method="ls")
     return misfit_ratio(problem, length, max(fit.separate), problem.to_rows(fit.theta))
 
@@ -477,6 +469,11 @@ def identify(data, equation, parameters=None, *, time=None, rate=None, output=No
     if is_system(equation):   # several equations sharing parameters
         from algid.identification._system_identify import identify_system
 
+        check_chunk(chunk)
+        if chunk is not None or is_streamed_input(data):
+            raise InputDataError("a system of equations is identified on records in "
+                                 "memory: a file, a Dask DataFrame or chunk= is for one "
+                                 "equation (load the record)")
         if output is not None:
             raise ModelError("output: a system of equations takes outputs=[...] through "
                              "algid.models.parse_system, one per equation")

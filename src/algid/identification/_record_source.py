@@ -174,7 +174,7 @@ class _Source:
                         piece[name].append(chunk[name][lo - first:hi - first])
             if ranges and last >= ranges[-1][1]:
                 break
-        return [{name: np.concatenate(parts) for name, parts in piece.items() if parts}
+        return [{name: _join(parts) for name, parts in piece.items() if parts}
                 for piece in pieces]
 
 
@@ -195,7 +195,7 @@ class ArraySource(_Source):
 
     def chunks(self, names, size):
         for first in range(0, max(self.n_rows, 1), size):
-            yield first, {name: _floats(self.columns[name][first:first + size])
+            yield first, {name: _rows(self.columns[name], first, size)
                           for name in names if name in self.columns}
 
 
@@ -225,10 +225,14 @@ class ParquetSource(_Source):
         # a row group at a time (pyarrow's own batch iterator reads ahead: the whole
         # file's memory for a long record)
         for group in range(self._file.num_row_groups):
-            table = self._file.read_row_group(group, columns=present, use_threads=False)
+            try:
+                table = self._file.read_row_group(group, columns=present, use_threads=False)
+            except Exception as error:   # a damaged page: pyarrow's OSError, ArrowInvalid
+                raise InputDataError(f"{self.path}: row group {group} (from row {first}) "
+                                     f"cannot be read ({str(error).splitlines()[0]})") from None
             for start in range(0, table.num_rows, size):
                 batch = table.slice(start, size)
-                yield first, {name: _floats(batch.column(name), (self.path, name, first))
+                yield first, {name: _file_column(batch.column(name), (self.path, name, first))
                               for name in present}
                 first += batch.num_rows
             del table
@@ -270,7 +274,7 @@ class CsvSource(_Source):
             except Exception as error:
                 raise InputDataError(f"{self.path}: unreadable after row {first} "
                                      f"({str(error).splitlines()[0]})") from None
-            yield first, {name: _floats(batch.column(name), (self.path, name, first))
+            yield first, {name: _file_column(batch.column(name), (self.path, name, first))
                           for name in present}
             first += batch.num_rows
         self.n_rows = first
@@ -330,7 +334,7 @@ class DaskSource(_Source):
                 if lo < hi:
                     for name in chunk:
                         piece[name].append(chunk[name][lo - starts[i]:hi - starts[i]])
-        return [{name: np.concatenate(parts) for name, parts in piece.items() if parts}
+        return [{name: _join(parts) for name, parts in piece.items() if parts}
                 for piece in pieces]
 
     def chunks(self, names, size):
@@ -354,27 +358,41 @@ def _feed_partition(machine, part, names, size):
     return machine, source.n_rows, machine.take()
 
 
-def _floats(values, where=None):
-    """A chunk's column as floats (nulls of a file as NaN: missing samples).
+def _join(parts):
+    """Pieces of a column as one (masks kept)."""
+    if any(isinstance(p, np.ma.MaskedArray) for p in parts):
+        return np.ma.concatenate(parts)
+    return np.concatenate([np.asarray(p) for p in parts])
 
-    ``where``: ``(file, column, first row)`` of a file's column, whose first entry that
-    is not a number is refused here (a file's reader may have read the whole column as
-    text); elsewhere the record layer names it."""
-    if hasattr(values, "to_numpy") and hasattr(values, "null_count"):   # pyarrow
-        values = values.to_numpy(zero_copy_only=False)
-    try:
-        return np.asarray(values, dtype=float)
-    except (TypeError, ValueError):
-        if where is None:
-            return np.asarray(values)
-    path, name, first = where
-    for row, value in enumerate(values):
+
+def _rows(values, first, size):
+    """Rows ``first .. first + size`` of a column (a scalar as it is: the record layer
+    refuses it); its type kept (masks, dates, integers: the record layer reads them)."""
+    return values[first:first + size] if np.ndim(values) >= 1 else values
+
+
+def _file_column(values, where):
+    """A file's column as NumPy (nulls as NaN: missing samples; dates as dates).
+
+    ``where``: ``(file, column, first row)``.  A column a reader took as text because
+    of one entry that is not a number is refused here, naming that entry's row."""
+    kind = str(values.type)
+    values = values.to_numpy(zero_copy_only=False)
+    if kind in ("string", "large_string"):
+        path, name, first = where
+        for row, value in enumerate(values):
+            try:
+                float(value)
+            except (TypeError, ValueError):
+                raise InputDataError(f"{path}: column {name!r} is not numeric: row "
+                                     f"{first + row} holds {str(value)[:40]!r}") from None
+        return values.astype(float)
+    if values.dtype == object:   # nullable integers and the like: None is missing
         try:
-            float(value)
+            return np.array([np.nan if v is None else v for v in values], dtype=float)
         except (TypeError, ValueError):
-            raise InputDataError(f"{path}: column {name!r} is not numeric: row {first + row} "
-                                 f"holds {str(value)[:40]!r}") from None
-    return np.asarray(values, dtype=float)
+            return values
+    return values
 
 
 def _pyarrow(module):

@@ -33,13 +33,15 @@ record, a derivative inside a nonlinear factor estimated on it.
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass, field
 
 import numpy as np
 
-from algid._record_input import record_columns, refuse_infinite
+from algid._record_input import TIME_COLUMNS, record_columns, refuse_infinite
 from algid.errors import InputDataError
-from algid.identification._records import GAP_FACTOR, UNIFORM_TOLERANCE, Segment, check_factors
+from algid.identification._record_source import ArraySource
+from algid.identification._records import GAP_FACTOR, Segment, check_factors
 from algid.identification._window_basis import exponent
 from algid.identification._window_kernels import (
     block_window_integrals,
@@ -59,6 +61,7 @@ from algid.identification._window_problem import (
 from algid.models._expression import Call, Signal
 
 __all__ = ["StreamedProblem", "RecordScan", "Run", "scan_record", "stream_refusal",
+           "chunk_columns",
            "STREAM_SAMPLES", "CHUNK_SAMPLES"]
 
 #: A record of more samples than this is identified in chunks (fewer: in memory, as
@@ -67,6 +70,15 @@ STREAM_SAMPLES = 2**18
 
 #: Rows per chunk of a pass.
 CHUNK_SAMPLES = 2**16
+
+#: The sampling step of a record with a time column is the median step of its first
+#: rows, this many (or all): what cuts its runs at gaps.
+STEP_ROWS = 4096
+
+#: A run read in chunks is taken as uniformly sampled when no sample time is further
+#: than this fraction of a step from its grid (times stored in single precision are
+#: off by up to a few thousandths of a step); further, it is refused.
+STREAM_JITTER = 1e-2
 
 #: Runs whose sampling steps (from their ends) agree to this fraction are given their
 #: common step (their noise covariances are then one for every window; the estimates
@@ -155,9 +167,15 @@ class RecordScan:
         Factor -> its largest absolute sample on the runs.
     differences : list of tuple
         Per order of :data:`DIFFERENCE_ORDERS`: the sum of squares and the count of the
-        output's differences on the runs (in the output's own units).
+        output's differences on the runs, in the unit of the output's largest sample
+        (``2**e`` bringing it into ``[1, 2)``).
     rows : int
         Rows of the record.
+    signals : list of str
+        The signals read.
+    origin : numpy.datetime64, numpy.timedelta64 or None
+        The first time of a record whose times are dates or durations (its times are
+        seconds from it).
     """
 
     runs: list
@@ -166,6 +184,7 @@ class RecordScan:
     differences: list
     rows: int = 0
     signals: list = field(default_factory=list)
+    origin: object = None
 
     @property
     def n_samples(self):
@@ -179,7 +198,10 @@ class _RunSums:
     def __init__(self, start, t0, factors):
         self.start, self.stop, self.t0, self.t_end = start, start, t0, t0
         self.largest = dict.fromkeys(factors, 0.0)
+        # per order: the sum of squares over 4**scale, and the count (scaled by powers
+        # of two chunk by chunk: no overflow or underflow at any amplitude)
         self.sums = [[0.0, 0] for _ in DIFFERENCE_ORDERS]
+        self.scale = None
         self.carry = np.empty(0)
 
     def add(self, t, values, model):
@@ -190,22 +212,41 @@ class _RunSums:
                 z = np.asarray(factor.evaluate(values, t), dtype=float) * np.ones(len(t))
             self.largest[factor] = max(self.largest[factor], float(np.max(np.abs(z))))
         y = np.concatenate([self.carry, values[model.output]])
+        e = exponent(y)
+        if self.scale is None or e > self.scale:   # to the larger power of two
+            for sums in self.sums:
+                sums[0] = float(np.ldexp(sums[0], 2 * ((self.scale or e) - e)))
+            self.scale = e
+        scaled = np.ldexp(y, -self.scale)
         for sums, k in zip(self.sums, DIFFERENCE_ORDERS):
-            d = np.diff(y, k)[max(0, len(self.carry) - k):]
+            d = np.diff(scaled, k)[max(0, len(self.carry) - k):]
             sums[0] += float(d @ d)
             sums[1] += len(d)
         self.carry = y[-max(DIFFERENCE_ORDERS):]
 
 
-def _chunk_columns(chunk, first, signals, time, rate):
-    """The times and signals of one chunk, checked as a record's (rows named in the
-    record)."""
+def chunk_columns(chunk, first, signals, time, rate, clock):
+    """The times and signals of one chunk, checked as a record's.
+
+    ``clock`` holds the record's first time when it is a date or a duration (the times
+    are then seconds from it, as in memory: ``[origin]``, set at the first chunk).  The
+    rows named in a refusal are the record's."""
+    name = time or next((c for c in TIME_COLUMNS if c in chunk), None)
+    if name is not None and name in chunk:
+        stamps = np.asarray(chunk[name])
+        if stamps.dtype.kind in "mM" and len(stamps):
+            if clock[0] is None:
+                clock[0] = stamps[0]
+            chunk = dict(chunk)
+            chunk[name] = (stamps - clock[0]) / np.timedelta64(1, "s")
     try:
         t, columns = record_columns(chunk, signals, time=time, rate=rate, first_sample=first)
-        for name, values in columns.items():
-            refuse_infinite(values, f"record 0: column {name!r}")
+        for column, values in columns.items():
+            refuse_infinite(values, f"record 0: column {column!r}")
     except InputDataError as error:
-        raise InputDataError(f"{error} (in the chunk from row {first})") from None
+        message = re.sub(r"\brow (\d+)", lambda m: f"row {first + int(m.group(1))}",
+                         str(error))
+        raise InputDataError(message) from None
     return t, columns
 
 
@@ -251,9 +292,12 @@ class _Scan:
                                        if n and n not in self.signals]
         self.factors = list(dict.fromkeys(term.factor for term in model.terms))
         self.runs, self.largest = [], dict.fromkeys(self.factors, 0.0)
-        self.differences = [[0.0, 0] for _ in DIFFERENCE_ORDERS]
-        self.step = None if rate is None else 1.0 / rate
+        self.differences = [[0.0, 0] for _ in DIFFERENCE_ORDERS]   # over 4**self.scale
+        self.scale = None
+        self.rate, self.step = rate, None
         self.last_t, self.current, self.rows = None, None, 0
+        self.clock = [None]
+        self.waiting = []   # chunks read before the step is known
 
     def _close(self):
         run, self.current = self.current, None
@@ -263,24 +307,51 @@ class _Scan:
                              output_largest=run.largest[Signal(self.model.output)]))
         for factor, value in run.largest.items():
             self.largest[factor] = max(self.largest[factor], value)
-        for total, (square, count) in zip(self.differences, run.sums):
-            total[0] += square
-            total[1] += count
+        if run.scale is not None:
+            if self.scale is None or run.scale > self.scale:
+                for total in self.differences:
+                    total[0] = float(np.ldexp(total[0], 2 * ((self.scale or run.scale)
+                                                             - run.scale)))
+                self.scale = run.scale
+            for total, (square, count) in zip(self.differences, run.sums):
+                total[0] += float(np.ldexp(square, 2 * (run.scale - self.scale)))
+                total[1] += count
 
     def feed(self, first, part):
         """Take the chunk of rows from ``first`` (a mapping of columns)."""
-        t, columns = _chunk_columns(part, first, self.signals, self.time, self.rate)
-        n = len(t)
-        self.rows = first + n
-        if n == 0:
+        t, columns = chunk_columns(part, first, self.signals, self.time, self.rate,
+                                    self.clock)
+        self.rows = first + len(t)
+        if len(t) == 0:
             return
         if self.last_t is not None and not t[0] > self.last_t:
             raise InputDataError(f"record 0: the time does not increase at row {first}")
-        if self.step is None:
-            if n < 2:
-                raise InputDataError("record 0: the first chunk holds one sample: give "
-                                     "rate= or a longer chunk")
+        self.last_t = float(t[-1])
+        if self.step is None:   # the median step of the first STEP_ROWS rows (or all)
+            self.waiting.append((first, t, columns))
+            if sum(len(w[1]) for w in self.waiting) < STEP_ROWS:
+                return
+            self._set_step()
+            return
+        self._runs(first, t, columns)
+
+    def _set_step(self):
+        """The step from the chunks waiting, then their runs."""
+        t = np.concatenate([w[1] for w in self.waiting])
+        if len(t) >= 2:
             self.step = float(np.median(np.diff(t)))
+        elif self.rate is not None:
+            self.step = 1.0 / self.rate
+        else:
+            self.step = np.inf   # one sample: no run
+        waiting, self.waiting, self.last_t = self.waiting, [], None
+        for first, t, columns in waiting:
+            self._runs(first, t, columns)
+            self.last_t = float(t[-1])
+
+    def _runs(self, first, t, columns):
+        """Cut a chunk into the pieces of runs, and take them."""
+        n = len(t)
         valid = np.all([~np.isnan(v) for v in columns.values()], axis=0)
         before = np.nan if self.last_t is None else self.last_t
         gap = np.diff(t, prepend=before) > GAP_FACTOR * self.step
@@ -314,12 +385,17 @@ class _Scan:
 
     def finish(self):
         """The scan of the whole record (:class:`RecordScan`)."""
+        if self.step is None:
+            self._set_step()
         self._close()
         if not self.runs:
             raise InputDataError(f"no run of {self.min_length} contiguous samples without "
                                  f"gaps or NaN in the record: nothing to identify on")
+        unit = exponent(self.largest[Signal(self.model.output)])
         return RecordScan(self.runs, self.step, self.largest,
-                          [tuple(d) for d in self.differences], self.rows, self.signals)
+                          [(float(np.ldexp(total, 2 * ((self.scale or 0) - unit))), count)
+                           for total, count in self.differences],
+                          self.rows, self.signals, self.clock[0])
 
 
 class StreamedProblem(WindowProblem):
@@ -378,6 +454,60 @@ class StreamedProblem(WindowProblem):
         self.constant_noise = all(term.factor == output for term in model.terms
                                   if model.output in term.factor.signals())
 
+    def excerpts(self, samples, count, min_length):
+        """The problem on ``count`` excerpts of the record, ``samples`` in all, spread
+        over it (the whole record when it is no longer), each within a run, read in one
+        pass and held in memory as one record (a NaN row between two).
+
+        Parameters
+        ----------
+        samples, count : int
+            Samples in all, and excerpts.
+        min_length : int
+            Runs shorter than this are dropped.
+
+        Returns
+        -------
+        StreamedProblem
+        """
+        scan = self.scan
+        total = scan.n_samples
+        ranges = [(run.start, run.stop) for run in scan.runs]
+        if total > samples:
+            ranges, size = [], samples // count
+            ends = np.cumsum([len(run) for run in scan.runs])
+            for k in range(count):
+                at = int((k + 0.5) * total / count)
+                i = int(np.searchsorted(ends, at, side="right"))
+                run = scan.runs[i]
+                start = max(run.start, min(run.start + at - (ends[i] - len(run)) - size // 2,
+                                           run.stop - size))
+                if ranges:   # disjoint, in order
+                    start = max(start, ranges[-1][1])
+                stop = min(run.stop, start + size)
+                if stop - start >= min_length:
+                    ranges.append((start, stop))
+        pieces = self.source.read(self.columns, ranges, self.chunk)
+        parts = {"t": [], **{name: [] for name in scan.signals}}
+        for i, (piece, (start, _)) in enumerate(zip(pieces, ranges)):
+            t, columns = chunk_columns(piece, start, scan.signals, self.time_column,
+                                       self.rate, [scan.origin])
+            if i:   # a row between two excerpts, NaN: a break of the runs
+                parts["t"].append([(parts["t"][-1][-1] + t[0]) / 2])
+                for name in scan.signals:
+                    parts[name].append([np.nan])
+            parts["t"].append(t)
+            for name in scan.signals:
+                parts[name].append(columns[name])
+        record = {name: np.concatenate(p) for name, p in parts.items()}
+        source = ArraySource(record)
+        chunk = max(source.n_rows, 1)
+        excerpt_scan = scan_record(source, self.model, time="t", chunk=chunk,
+                                   min_length=min_length)
+        excerpt = StreamedProblem(self.model, source, excerpt_scan, time="t", chunk=chunk)
+        excerpt.multiplicities = self.multiplicities
+        return excerpt
+
     def factor_exponent(self, factor, which="measured"):
         """The power of two of a factor's largest sample (from the scan)."""
         return exponent(self.scan.largest[factor])
@@ -388,10 +518,8 @@ class StreamedProblem(WindowProblem):
 
     def noise_bound(self, signal=None):
         """The bound of :meth:`WindowProblem.noise_bound` from the scan's sums."""
-        if self.cache.noise_bound is None:   # the sums were taken in the output's units
-            self.cache.noise_bound = noise_bound_from_sums(
-                [(float(np.ldexp(total, -2 * self.output_exponent)), count)
-                 for total, count in self.scan.differences])
+        if self.cache.noise_bound is None:   # (the sums are in the output's unit)
+            self.cache.noise_bound = noise_bound_from_sums(self.scan.differences)
         return self.cache.noise_bound
 
     def rows(self, length, multiplicity, which="measured"):
@@ -429,6 +557,7 @@ class StreamedProblem(WindowProblem):
                         {f: self.factor_exponent(f) for f in self.scan.largest},
                         self.scan.signals, self.time_column, self.rate,
                         None if self.constant_noise else self.noise_paths())
+        rows.clock = [self.scan.origin]
         for key, (A, b, ids, grams) in self.source.reduce(rows, self.columns,
                                                           self.chunk).finish().items():
             self._rows[key] = (A, b, ids)
@@ -500,6 +629,7 @@ class StreamedProblem(WindowProblem):
             meat = _MeatPass(self.segments, self.windows(length), length, multiplicity,
                              theta_bar, scores, stride, self.noise_paths(), self.model,
                              self.scan.signals, self.time_column, self.rate)
+            meat.clock = [self.scan.origin]
             return self.source.reduce(meat, self.columns, self.chunk).finish()
         p = len(self.parameters)
         index = {q: i for i, q in enumerate(self.parameters)}
@@ -537,13 +667,15 @@ class _RowPass:
         self.model, self.runs, self.keys, self.shifts = model, runs, keys, shifts
         self.units, self.signals, self.time, self.rate = units, signals, time, rate
         self.paths = paths                # the noise's paths (None: the same in every window)
+        self.clock = [None]               # the first time of a record of dates
         self.run = 0                      # the run being read
         self.buffer, self.origin, self.done = None, 0, None
         self.blocks = {k: ([], [], [], []) for k in keys}
 
     def feed(self, first, part):
         """Take the chunk of rows from ``first`` (a mapping of columns)."""
-        t, columns = _chunk_columns(part, first, self.signals, self.time, self.rate)
+        t, columns = chunk_columns(part, first, self.signals, self.time, self.rate,
+                                    self.clock)
         last = first + len(t)
         while self.run < len(self.runs) and self.runs[self.run].start < last:
             run = self.runs[self.run]
@@ -648,7 +780,7 @@ def _check_uniform(run, t, first):
     """Refuse samples off the uniform grid of their run (rows from ``first``)."""
     grid = run.t0 + np.arange(first - run.start, first - run.start + len(t)) * run.user_step
     off = np.abs(t - grid)
-    if len(t) and float(np.max(off)) > UNIFORM_TOLERANCE * run.user_step:
+    if len(t) and float(np.max(off)) > STREAM_JITTER * run.user_step:
         row = first + int(np.argmax(off))
         raise InputDataError(
             f"record 0: the sample at row {row} is {float(np.max(off)) / run.user_step:.3g} "
@@ -685,6 +817,7 @@ class _MeatPass:
         self.stride, self.paths, self.model = stride, paths, model
         self.signals, self.time, self.rate = signals, time, rate
         self.scores = scores
+        self.clock = [None]
         self.factors = [w * theta_bar[c] for c, w, *_ in paths]   # (noise_meat's)
         self.lags = -(-length // stride)
         self.run, self.first_window = 0, 0
@@ -693,7 +826,8 @@ class _MeatPass:
 
     def feed(self, first, part):
         """Take the chunk of rows from ``first`` (a mapping of columns)."""
-        t, columns = _chunk_columns(part, first, self.signals, self.time, self.rate)
+        t, columns = chunk_columns(part, first, self.signals, self.time, self.rate,
+                                    self.clock)
         last = first + len(t)
         while self.run < len(self.runs) and self.runs[self.run].start < last:
             run = self.runs[self.run]
