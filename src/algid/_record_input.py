@@ -126,9 +126,9 @@ def _series_values(values):
     """A pandas column or index as an array: a nullable numeric one's missing values as
     NaN, dates with a time zone as UTC dates."""
     dtype = values.dtype
-    if getattr(dtype, "tz", None) is not None:
-        values = values.tz_convert(None) if hasattr(values, "tz_convert") else \
-            values.dt.tz_convert(None)
+    if getattr(dtype, "tz", None) is not None:   # (a Series' own tz_convert is its index's)
+        values = values.dt.tz_convert(None) if hasattr(values, "dt") else \
+            values.tz_convert(None)
     elif not isinstance(dtype, np.dtype) and getattr(dtype, "kind", "O") in "iuf":
         return values.to_numpy(dtype=float, na_value=np.nan)
     return values.to_numpy()

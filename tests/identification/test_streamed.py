@@ -311,3 +311,44 @@ def test_rows_in_messages_are_the_records(record):
     with pytest.raises(InputDataError, match="row 4321") as error:
         algid.identify(bad, *LINEAR_EQUATION, window=0.5, chunk=1000)
     assert "chunk" not in str(error.value)
+
+
+def test_a_gap_on_a_chunk_boundary_cuts_the_runs():
+    data, _ = linear_offsets(3, n=12000)
+    data["t"] = data["t"] + np.where(np.arange(12000) >= 6000, 10.0, 0.0)
+    memory = algid.identify(data, *LINEAR_EQUATION, window=0.5, refine=False)
+    for chunk in (6000, 3000, 1000):
+        assert_same(algid.identify(data, *LINEAR_EQUATION, window=0.5, chunk=chunk), memory)
+
+
+def test_an_output_growing_past_a_power_of_two_keeps_its_noise_bound(record):
+    data, _ = record
+    grown = dict(data, y=data["y"] / np.max(np.abs(data["y"])) * np.linspace(1.9, 2.1, 6000))
+    memory = algid.identify(grown, *LINEAR_EQUATION, window=0.5, refine=False)
+    for chunk in (7, 1000):
+        assert_same(algid.identify(grown, *LINEAR_EQUATION, window=0.5, chunk=chunk), memory)
+
+
+def test_an_empty_file_and_a_zone_aware_time_get_one_line(record, tmp_path):
+    pd = pytest.importorskip("pandas")
+    pytest.importorskip("pyarrow")
+    data, _ = record
+    pd.DataFrame({"t": [], "u": [], "y": []}).to_parquet(tmp_path / "empty.parquet")
+    (tmp_path / "header.csv").write_text("t,u,y\n")
+    for path in ("empty.parquet", "header.csv"):
+        with pytest.raises(InputDataError, match="nothing to identify"):
+            algid.identify(tmp_path / path, *LINEAR_EQUATION)
+    stamps = pd.Timestamp("2024-01-01", tz="Europe/Paris") + pd.to_timedelta(data["t"],
+                                                                             unit="s")
+    zoned = pd.DataFrame({"t": stamps, "u": data["u"], "y": data["y"]})
+    memory = algid.identify(data, *LINEAR_EQUATION, window=0.5, refine=False)
+    assert_same(algid.identify(zoned, *LINEAR_EQUATION, window=0.5, refine=False), memory)
+    assert_same(algid.identify(zoned, *LINEAR_EQUATION, window=0.5, chunk=1000), memory)
+
+
+def test_jittered_double_precision_times_are_refused_not_smoothed(record):
+    data, _ = record
+    jitter = 0.002 / 80 * np.random.default_rng(1).uniform(-1, 1, 6000)
+    with pytest.raises(InputDataError, match="off the uniform grid"):
+        algid.identify(dict(data, t=data["t"] + jitter), *LINEAR_EQUATION, window=0.5,
+                       chunk=1000)

@@ -41,7 +41,12 @@ import numpy as np
 from algid._record_input import TIME_COLUMNS, record_columns, refuse_infinite
 from algid.errors import InputDataError
 from algid.identification._record_source import ArraySource
-from algid.identification._records import GAP_FACTOR, Segment, check_factors
+from algid.identification._records import (
+    GAP_FACTOR,
+    UNIFORM_TOLERANCE,
+    Segment,
+    check_factors,
+)
 from algid.identification._window_basis import exponent
 from algid.identification._window_kernels import (
     block_window_integrals,
@@ -75,9 +80,10 @@ CHUNK_SAMPLES = 2**16
 #: rows, this many (or all): what cuts its runs at gaps.
 STEP_ROWS = 4096
 
-#: A run read in chunks is taken as uniformly sampled when no sample time is further
-#: than this fraction of a step from its grid (times stored in single precision are
-#: off by up to a few thousandths of a step); further, it is refused.
+#: A run read in chunks is taken as uniformly sampled when no sample time is further from
+#: its grid than single precision rounds times (twice its rounding), within
+#: this fraction of a step, or than :data:`~algid.identification._records.UNIFORM_TOLERANCE`
+#: of a step; further (jitter), it is refused.
 STREAM_JITTER = 1e-2
 
 #: Runs whose sampling steps (from their ends) agree to this fraction are given their
@@ -214,8 +220,9 @@ class _RunSums:
         y = np.concatenate([self.carry, values[model.output]])
         e = exponent(y)
         if self.scale is None or e > self.scale:   # to the larger power of two
-            for sums in self.sums:
-                sums[0] = float(np.ldexp(sums[0], 2 * ((self.scale or e) - e)))
+            if self.scale is not None:
+                for sums in self.sums:
+                    sums[0] = float(np.ldexp(sums[0], 2 * (self.scale - e)))
             self.scale = e
         scaled = np.ldexp(y, -self.scale)
         for sums, k in zip(self.sums, DIFFERENCE_ORDERS):
@@ -295,7 +302,8 @@ class _Scan:
         self.differences = [[0.0, 0] for _ in DIFFERENCE_ORDERS]   # over 4**self.scale
         self.scale = None
         self.rate, self.step = rate, None
-        self.last_t, self.current, self.rows = None, None, 0
+        # the last time read (increasing), and the last one cut into runs (gaps)
+        self.latest, self.last_t, self.current, self.rows = None, None, None, 0
         self.clock = [None]
         self.waiting = []   # chunks read before the step is known
 
@@ -309,9 +317,9 @@ class _Scan:
             self.largest[factor] = max(self.largest[factor], value)
         if run.scale is not None:
             if self.scale is None or run.scale > self.scale:
-                for total in self.differences:
-                    total[0] = float(np.ldexp(total[0], 2 * ((self.scale or run.scale)
-                                                             - run.scale)))
+                if self.scale is not None:
+                    for total in self.differences:
+                        total[0] = float(np.ldexp(total[0], 2 * (self.scale - run.scale)))
                 self.scale = run.scale
             for total, (square, count) in zip(self.differences, run.sums):
                 total[0] += float(np.ldexp(square, 2 * (run.scale - self.scale)))
@@ -324,9 +332,9 @@ class _Scan:
         self.rows = first + len(t)
         if len(t) == 0:
             return
-        if self.last_t is not None and not t[0] > self.last_t:
+        if self.latest is not None and not t[0] > self.latest:
             raise InputDataError(f"record 0: the time does not increase at row {first}")
-        self.last_t = float(t[-1])
+        self.latest = float(t[-1])
         if self.step is None:   # the median step of the first STEP_ROWS rows (or all)
             self.waiting.append((first, t, columns))
             if sum(len(w[1]) for w in self.waiting) < STEP_ROWS:
@@ -337,17 +345,16 @@ class _Scan:
 
     def _set_step(self):
         """The step from the chunks waiting, then their runs."""
-        t = np.concatenate([w[1] for w in self.waiting])
+        t = np.concatenate([w[1] for w in self.waiting]) if self.waiting else np.zeros(0)
         if len(t) >= 2:
             self.step = float(np.median(np.diff(t)))
         elif self.rate is not None:
             self.step = 1.0 / self.rate
         else:
             self.step = np.inf   # one sample: no run
-        waiting, self.waiting, self.last_t = self.waiting, [], None
+        waiting, self.waiting = self.waiting, []
         for first, t, columns in waiting:
             self._runs(first, t, columns)
-            self.last_t = float(t[-1])
 
     def _runs(self, first, t, columns):
         """Cut a chunk into the pieces of runs, and take them."""
@@ -780,7 +787,12 @@ def _check_uniform(run, t, first):
     """Refuse samples off the uniform grid of their run (rows from ``first``)."""
     grid = run.t0 + np.arange(first - run.start, first - run.start + len(t)) * run.user_step
     off = np.abs(t - grid)
-    if len(t) and float(np.max(off)) > STREAM_JITTER * run.user_step:
+    # what single-precision times are off by (two halves of their last place), at most
+    # STREAM_JITTER of a step; more is jitter: refused (in memory, exact integrals)
+    quantum = np.finfo(np.float32).eps * max(abs(run.t0), abs(run.t_end))
+    allowed = min(STREAM_JITTER * run.user_step, max(UNIFORM_TOLERANCE * run.user_step,
+                                                     quantum))
+    if len(t) and float(np.max(off)) > allowed:
         row = first + int(np.argmax(off))
         raise InputDataError(
             f"record 0: the sample at row {row} is {float(np.max(off)) / run.user_step:.3g} "
