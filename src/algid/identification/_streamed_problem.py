@@ -665,7 +665,37 @@ class StreamedProblem(WindowProblem):
         return meat
 
 
-class _RowPass:
+class _RunPass:
+    """A pass over the runs of a record, fed its chunks in order (:meth:`feed`): each
+    run's pieces go to :meth:`_piece`, after :meth:`_start_run` at its first, and
+    :meth:`_end_run` follows its last."""
+
+    def feed(self, first, part):
+        """Take the chunk of rows from ``first`` (a mapping of columns)."""
+        t, columns = chunk_columns(part, first, self.signals, self.time, self.rate,
+                                   self.clock)
+        last = first + len(t)
+        while self.run < len(self.runs) and self.runs[self.run].start < last:
+            run = self.runs[self.run]
+            lo, hi = max(run.start, first) - first, min(run.stop, last) - first
+            if lo >= hi:   # the run starts in a later chunk
+                break
+            if self.buffer is None:   # a new run: no samples, no windows yet
+                self._start_run()
+            values = {name: v[lo:hi] for name, v in columns.items()}
+            self._piece(run, t[lo:hi], values, first + lo, first + hi - run.start,
+                        run.stop <= last)
+            if run.stop > last:
+                break
+            self._end_run()
+            self.buffer = None
+            self.run += 1
+
+    def _end_run(self):
+        """After a run's last piece."""
+
+
+class _RowPass(_RunPass):
     """A pass making the rows of several window lengths and multiplicities, fed the
     record's chunks in order (:meth:`feed`): in this process, or along a chain of tasks
     on a cluster (it pickles; :meth:`take` hands over the rows made so far)."""
@@ -679,37 +709,24 @@ class _RowPass:
         self.buffer, self.origin, self.done = None, 0, None
         self.blocks = {k: ([], [], [], []) for k in keys}
 
-    def feed(self, first, part):
-        """Take the chunk of rows from ``first`` (a mapping of columns)."""
-        t, columns = chunk_columns(part, first, self.signals, self.time, self.rate,
-                                    self.clock)
-        last = first + len(t)
-        while self.run < len(self.runs) and self.runs[self.run].start < last:
-            run = self.runs[self.run]
-            lo, hi = max(run.start, first) - first, min(run.stop, last) - first
-            if lo >= hi:   # the run starts in a later chunk
-                break
-            if self.buffer is None:   # a new run: no samples, no windows yet
-                self.buffer, self.origin = {f: np.empty(0) for f in self.units}, 0
-                if self.paths:
-                    self.buffer.update({("sensitivity", f): np.empty(0)
-                                        for *_, f, _ in self.paths})
-                self.done = dict.fromkeys(self.keys, 0)
-            _check_uniform(run, t[lo:hi], first + lo)
-            values = {name: v[lo:hi] for name, v in columns.items()}
-            for f, unit in self.units.items():
-                with np.errstate(over="ignore", under="ignore", invalid="ignore"):
-                    z = np.asarray(f.evaluate(values, t[lo:hi]), dtype=float) * np.ones(hi - lo)
-                self.buffer[f] = np.concatenate([self.buffer[f], np.ldexp(z, -unit)])
-            for f, z in _sensitivities(self.paths or (), self.model.output, values, t[lo:hi],
-                                       run).items():
-                key = ("sensitivity", f)
-                self.buffer[key] = np.concatenate([self.buffer[key], z])
-            self._windows(run, first + hi - run.start)
-            if run.stop > last:
-                break
-            self.buffer = None
-            self.run += 1
+    def _start_run(self):
+        self.buffer, self.origin = {f: np.empty(0) for f in self.units}, 0
+        if self.paths:
+            self.buffer.update({("sensitivity", f): np.empty(0) for *_, f, _ in self.paths})
+        self.done = dict.fromkeys(self.keys, 0)
+
+    def _piece(self, run, t, values, row, end, ended):
+        """A run's samples at rows ``row ..``, its first ``end`` samples read so far."""
+        _check_uniform(run, t, row)
+        for f, unit in self.units.items():
+            with np.errstate(over="ignore", under="ignore", invalid="ignore"):
+                z = np.asarray(f.evaluate(values, t), dtype=float) * np.ones(len(t))
+            self.buffer[f] = np.concatenate([self.buffer[f], np.ldexp(z, -unit)])
+        for f, z in _sensitivities(self.paths or (), self.model.output, values, t,
+                                   run).items():
+            key = ("sensitivity", f)
+            self.buffer[key] = np.concatenate([self.buffer[key], z])
+        self._windows(run, end)
 
     def _windows(self, run, end):
         """Rows of the windows of ``run`` that end within its first ``end`` samples; the
@@ -816,7 +833,7 @@ def _sensitivities(paths, output, values, t, run):
     return out
 
 
-class _MeatPass:
+class _MeatPass(_RunPass):
     """A pass for the middle of the sandwich under output noise whose weights change
     from window to window (terms reading the output nonlinearly): that of
     :func:`algid.identification._window_covariance.noise_meat`, windows taken in blocks
@@ -836,29 +853,18 @@ class _MeatPass:
         self.buffer, self.origin, self.done = None, 0, 0
         self.meat = np.zeros((scores.shape[1], scores.shape[1]))
 
-    def feed(self, first, part):
-        """Take the chunk of rows from ``first`` (a mapping of columns)."""
-        t, columns = chunk_columns(part, first, self.signals, self.time, self.rate,
-                                    self.clock)
-        last = first + len(t)
-        while self.run < len(self.runs) and self.runs[self.run].start < last:
-            run = self.runs[self.run]
-            lo, hi = max(run.start, first) - first, min(run.stop, last) - first
-            if lo >= hi:
-                break
-            if self.buffer is None:
-                self.buffer = {f: np.empty(0) for *_, f, _ in self.paths}
-                self.origin, self.done = 0, 0
-            values = {name: v[lo:hi] for name, v in columns.items()}
-            for f, z in _sensitivities(self.paths, self.model.output, values, t[lo:hi],
-                                       run).items():
-                self.buffer[f] = np.concatenate([self.buffer[f], z])
-            self._windows(run, first + hi - run.start, run.stop <= last)
-            if run.stop > last:
-                break
-            self.first_window += self.counts[self.run]
-            self.buffer = None
-            self.run += 1
+    def _start_run(self):
+        self.buffer = {f: np.empty(0) for *_, f, _ in self.paths}
+        self.origin, self.done = 0, 0
+
+    def _piece(self, run, t, values, row, end, ended):
+        """A run's samples at rows ``row ..``, its first ``end`` samples read so far."""
+        for f, z in _sensitivities(self.paths, self.model.output, values, t, run).items():
+            self.buffer[f] = np.concatenate([self.buffer[f], z])
+        self._windows(run, end, ended)
+
+    def _end_run(self):
+        self.first_window += self.counts[self.run]
 
     def _weights(self, run, start, count):
         """The noise weight of every sample of windows ``start ..`` (``count`` of them)."""
