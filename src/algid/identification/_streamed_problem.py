@@ -60,10 +60,11 @@ from algid.identification._window_problem import (
     ProblemCache,
     WindowProblem,
     factor_sensitivity,
+    is_sign_factor,
     noise_bound_from_sums,
     term_rows,
 )
-from algid.models._expression import Call, Signal
+from algid.models._expression import Signal
 
 __all__ = ["StreamedProblem", "RecordScan", "Run", "scan_record", "stream_refusal",
            "chunk_columns",
@@ -107,19 +108,13 @@ def stream_refusal(model):
     str or None
     """
     for term in model.terms:
-        if _has_sign(term.factor):
+        if is_sign_factor(term.factor):
             return f"the steps of {term.factor} are placed on the whole record"
     if model.needs_derivatives:
         name, k = model.needs_derivatives[0]
         return (f"the derivative {name}{chr(39) * k} inside a nonlinear factor is "
                 f"estimated on the whole record")
     return None
-
-
-def _has_sign(expression):
-    if isinstance(expression, Call) and expression.function == "sign":
-        return True
-    return any(_has_sign(a) for a in getattr(expression, "args", ()))
 
 
 @dataclass
@@ -596,15 +591,7 @@ class StreamedProblem(WindowProblem):
             self.rows(length, multiplicity)
             return self._grams[(length, multiplicity)].copy()   # (the solve overwrites it)
         p = len(self.parameters)
-        index = {q: i for i, q in enumerate(self.parameters)}
-        noisy = []
-        for term in self.model.terms:
-            if self.model.output not in term.factor.signals():
-                continue
-            weight = term.coefficient * self.term_scale(term)
-            column = p if term.parameter is None else index[term.parameter]
-            noisy.append((column, -weight if term.parameter is None else weight,
-                          term.derivative))
+        paths = self.noise_paths()
         counts = self.windows(length)
         blocks, made = [], {}
         for run, count in zip(self.segments, counts):
@@ -614,13 +601,13 @@ class StreamedProblem(WindowProblem):
                 blocks.append((made[run.step], count))
                 continue
             gram = np.zeros((p + 1, p + 1))
-            for i, (c1, w1, k1) in enumerate(noisy):
-                for c2, w2, k2 in noisy[i:]:
+            for i, (c1, w1, k1, _, _) in enumerate(paths):
+                for j, (c2, w2, k2, _, _) in enumerate(paths[i:], start=i):
                     v = w1 * w2 * window_noise_products(
                         np.ones(length), None, run.step, length, (multiplicity, k1),
                         (multiplicity, k2))[0]
                     gram[c1, c2] += v
-                    if (c2, w2, k2) != (c1, w1, k1):
+                    if j != i:
                         gram[c2, c1] += v
             made[run.step] = gram
             blocks.append((gram, count))
@@ -638,8 +625,7 @@ class StreamedProblem(WindowProblem):
                              self.scan.signals, self.time_column, self.rate)
             meat.clock = [self.scan.origin]
             return self.source.reduce(meat, self.columns, self.chunk).finish()
-        p = len(self.parameters)
-        index = {q: i for i, q in enumerate(self.parameters)}
+        paths = self.noise_paths()
         meat = np.zeros((scores.shape[1], scores.shape[1]))
         first = 0
         for run, n_win in zip(self.segments, self.windows(length)):
@@ -648,15 +634,9 @@ class StreamedProblem(WindowProblem):
             g = scores[first:first + n_win]
             first += n_win
             weights = np.zeros(length)
-            for term in self.model.terms:
-                if self.model.output not in term.factor.signals():
-                    continue
-                if term.parameter is None:
-                    factor = -theta_bar[p] * term.coefficient
-                else:
-                    factor = theta_bar[index[term.parameter]] * term.coefficient
-                weights += factor * self.term_scale(term) * window_sample_weights(
-                    None, run.step, length, multiplicity, term.derivative)
+            for column, weight, derivative, _, _ in paths:   # (noise_meat's factors)
+                weights += weight * theta_bar[column] * window_sample_weights(
+                    None, run.step, length, multiplicity, derivative)
             for lag in range(min(n_win, -(-length // stride))):
                 shift = lag * stride
                 c = float(weights[shift:] @ weights[:length - shift])

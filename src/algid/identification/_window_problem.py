@@ -34,7 +34,7 @@ from algid.identification._window_kernels import (
 from algid.models._expression import Call, Signal
 from algid.signals._differentiation import algebraic_derivative
 
-__all__ = ["WindowProblem", "ProblemCache", "FactorSamples", "term_rows",
+__all__ = ["WindowProblem", "ProblemCache", "FactorSamples", "term_rows", "is_sign_factor",
            "factor_sensitivity", "difference_noise_bound", "noise_bound_from_sums",
            "DIFFERENCE_ORDERS", "add_derivatives",
            "derivative_estimate", "MULTIPLICITIES", "WINDOW_OVERLAP"]
@@ -137,7 +137,7 @@ class WindowProblem:
             samples, steps, crossings = [], [], []
             for seg in self.user_segments:
                 values = seg.values if which == "measured" else seg.simulated
-                if isinstance(factor, Call) and factor.function == "sign":
+                if is_sign_factor(factor):
                     refine = which == "measured" and factor in self.sign_jumps
                     motion = crossing_motion(self.model, self.first_values, values,
                                              seg.t) if refine else None
@@ -372,6 +372,12 @@ class WindowProblem:
         numpy.ndarray, shape (k, k)
         """
         return noise_meat(self, length, multiplicity, theta_bar, scores, stride)
+
+
+def is_sign_factor(factor):
+    """Whether a term's factor is ``sign(...)``: a piecewise-constant signal whose window
+    integrals are exact sums over its steps (placed on the whole record)."""
+    return isinstance(factor, Call) and factor.function == "sign"
 
 
 def difference_noise_bound(y):
