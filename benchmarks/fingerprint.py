@@ -2,8 +2,9 @@
 
 ``PYTHONPATH=src:. python -m benchmarks.fingerprint OUT.json`` writes, for the paper's
 estimator (both engines, batch and a stream of odd chunks), identify (EMPS by ls, bc and
-iv, the Silverbox's cubic model, the three synthetic records) and the tracker (both
-paths, with and without forgetting, saved and loaded mid-stream, a chosen window: its
+iv, the Silverbox's cubic model, the three synthetic records) and the tracker (its loops
+compiled by numba, and run as Python in a process with ``ALGID_TRACKER_PYTHON=1``; with
+and without forgetting, saved and loaded mid-stream, a chosen window: its
 estimates, errors, times and alarms), the exact ``repr`` of the scalar
 results and a SHA-256 of each array's bytes.  Two checkouts that give the same file give
 the same numbers: ``diff`` the files before and after a change that must not move any (a
@@ -15,6 +16,8 @@ from __future__ import annotations
 
 import hashlib
 import json
+import os
+import subprocess
 import sys
 import tempfile
 
@@ -85,42 +88,59 @@ def _tracked(reports):
 
 
 def tracker_entries(emps, directory):
+    """The tracker's entries, on the loops of this process (compiled or Python)."""
     out = {}
-    for compiled in (True, False):
-        tracker_kernels.USE_NUMBA = compiled
-        for half_life in (None, 2.0):
-            tracker = algid.Tracker(*EMPS, window=0.03, half_life=half_life)
-            reports = [tracker.update({n: x[s:s + 1000] for n, x in emps.items()})
-                       for s in range(0, 8000, 1000)]
-            out[f"tracker/numba={compiled}/hl={half_life}"] = _tracked(reports)
-        # saved and loaded mid-stream: the rest as the whole stream gives it
-        tracker = algid.Tracker(*EMPS, window=0.03, half_life=2.0)
-        reports = [tracker.update({n: x[:4500] for n, x in emps.items()})]
-        path = f"{directory}/tracker.npz"
-        tracker.save(path)
-        loaded = algid.Tracker.load(path)
-        reports.append(loaded.update({n: x[4500:8000] for n, x in emps.items()}))
-        out[f"tracker/numba={compiled}/saved"] = _tracked(reports)
-        tracker = algid.Tracker(*LINEAR_EQUATION)
-        report = tracker.update(linear_offsets(0)[0])
-        out[f"tracker/numba={compiled}/linear-auto"] = [digest(report.values),
-                                                        digest(report.stderr),
-                                                        repr(tracker.window)]
-    tracker_kernels.USE_NUMBA = tracker_kernels._numba_available()
+    compiled = tracker_kernels.USE_NUMBA
+    for half_life in (None, 2.0):
+        tracker = algid.Tracker(*EMPS, window=0.03, half_life=half_life)
+        reports = [tracker.update({n: x[s:s + 1000] for n, x in emps.items()})
+                   for s in range(0, 8000, 1000)]
+        out[f"tracker/numba={compiled}/hl={half_life}"] = _tracked(reports)
+    # saved and loaded mid-stream: the rest as the whole stream gives it
+    tracker = algid.Tracker(*EMPS, window=0.03, half_life=2.0)
+    reports = [tracker.update({n: x[:4500] for n, x in emps.items()})]
+    path = f"{directory}/tracker.npz"
+    tracker.save(path)
+    loaded = algid.Tracker.load(path)
+    reports.append(loaded.update({n: x[4500:8000] for n, x in emps.items()}))
+    out[f"tracker/numba={compiled}/saved"] = _tracked(reports)
+    tracker = algid.Tracker(*LINEAR_EQUATION)
+    report = tracker.update(linear_offsets(0)[0])
+    out[f"tracker/numba={compiled}/linear-auto"] = [digest(report.values),
+                                                    digest(report.stderr),
+                                                    repr(tracker.window)]
     return out
+
+
+def _python_tracker_entries(directory):
+    """The tracker's entries with its loops run as Python (a process of its own: the
+    choice is made at import)."""
+    path = f"{directory}/python.json"
+    env = {**os.environ, "ALGID_TRACKER_PYTHON": "1"}
+    subprocess.run([sys.executable, "-m", "benchmarks.fingerprint", "--tracker", path],
+                   env=env, check=True)
+    with open(path) as f:
+        return json.load(f)
 
 
 def main(argv=None):
     """Write the fingerprint to the file named by the first argument."""
     argv = sys.argv[1:] if argv is None else argv
+    tracker_only = argv[:1] == ["--tracker"]
+    argv = argv[1:] if tracker_only else argv
     if len(argv) != 1:
         print("usage: python -m benchmarks.fingerprint OUT.json", file=sys.stderr)
         return 2
     rec = algid.datasets.emps()
     emps = {"t": rec.t, "q": rec.qm, "F": rec.F}
     with tempfile.TemporaryDirectory() as directory:
-        out = {**estimator_entries(), **identify_entries(emps),
-               **tracker_entries(emps, directory)}
+        if tracker_only:
+            out = tracker_entries(emps, directory)
+        else:
+            out = {**estimator_entries(), **identify_entries(emps),
+                   **tracker_entries(emps, directory)}
+            if tracker_kernels.USE_NUMBA:
+                out.update(_python_tracker_entries(directory))
     with open(argv[0], "w") as f:
         json.dump(out, f, indent=1, sort_keys=True)
     print(f"wrote {argv[0]}: {len(out)} entries")

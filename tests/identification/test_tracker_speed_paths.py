@@ -1,5 +1,11 @@
-"""algid.Tracker: the compiled and the NumPy recurrences, and parameters reported as soon
-as the equations determine them."""
+"""algid.Tracker: its loops compiled and run as Python, and parameters reported as soon as
+the equations determine them."""
+
+import os
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -26,38 +32,85 @@ def stream(tracker, record, sizes):
             for key in ("t", "values", "stderr", "numerical_error", "alarms")}
 
 
-@pytest.fixture
-def numpy_path(monkeypatch):
-    monkeypatch.setattr(_tracker_kernels, "USE_NUMBA", False)
+KEYS = ("t", "values", "stderr", "numerical_error", "alarms")
+
+#: Run as Python (``ALGID_TRACKER_PYTHON=1``: the choice is made at import), in a process
+#: of its own: the tracker on a record in several chunkings, and identify.
+PYTHON_RUN = textwrap.dedent("""
+    import sys
+    import numpy as np
+    import algid
+    from algid.identification import _tracker_kernels
+    sys.path[:0] = sys.argv[2:]
+    from test_tracker_speed_paths import RUNS, stream
+    assert not _tracker_kernels.USE_NUMBA
+    out = {}
+    for name, (make, settings, sizes) in RUNS.items():
+        record = make()
+        for k, chunks in enumerate(sizes):
+            tracked = stream(algid.Tracker(**settings), record, chunks)
+            out.update({f"{name}/{k}/{key}": value for key, value in tracked.items()})
+    np.savez(sys.argv[1], **out)
+""")
 
 
-def test_numpy_path_same_whatever_the_chunking_and_as_identify(numpy_path):
-    record, _ = linear_offsets(5, n=900)
-    outputs = [stream(Tracker(EQUATION, PARAMETERS, time="t", window=WINDOW), record, sizes)
-               for sizes in ([1000], [1], [7], [3, 50, 1, 400])]
-    for other in outputs[1:]:
-        for key, value in outputs[0].items():
-            assert np.array_equal(value, other[key], equal_nan=True), key
-    reference = algid.identify(record, EQUATION, PARAMETERS, window=WINDOW, refine=False)
+def _emps_start():
+    rec = emps()
+    return {k: np.asarray(rec[k], dtype=float)[:3500] for k in ("t", "qm", "F")}
+
+
+RUNS = {   # name: (record, tracker settings, chunkings)
+    "linear": (lambda: linear_offsets(5, n=900)[0],
+               {"equation": EQUATION, "parameters": PARAMETERS, "time": "t",
+                "window": WINDOW}, ([1000], [1], [7], [3, 50, 1, 400])),
+    "forgetting": (lambda: linear_offsets(6, n=900)[0],
+                   {"equation": EQUATION, "parameters": PARAMETERS, "time": "t",
+                    "window": WINDOW, "half_life": 2.0}, ([1000],)),
+    # the sign term's exact integrals, its proportional phase (Fc and off one parameter
+    # before the first reversal) and the bias compensation
+    "emps": (_emps_start, {"equation": EMPS_EQUATION, "parameters": list(EMPS_PUBLISHED),
+                           "window": 0.03, "half_life": 1.0}, ([1000], [7])),
+}
+
+
+@pytest.fixture(scope="module")
+def python_runs(tmp_path_factory):
+    """The outputs of :data:`RUNS` with the loops run as Python."""
+    path = tmp_path_factory.mktemp("python") / "runs.npz"
+    env = {**os.environ, "ALGID_TRACKER_PYTHON": "1"}
+    here = Path(__file__).resolve().parent
+    subprocess.run([sys.executable, "-c", PYTHON_RUN, str(path), str(here), str(here.parents[1])],
+                   env=env, check=True, timeout=600)
+    with np.load(path) as data:
+        return dict(data)
+
+
+def test_python_loops_same_whatever_the_chunking_and_as_identify(python_runs):
+    make, settings, sizes = RUNS["linear"]
+    for k in range(1, len(sizes)):
+        for key in KEYS:
+            assert np.array_equal(python_runs[f"linear/0/{key}"],
+                                  python_runs[f"linear/{k}/{key}"], equal_nan=True), key
+    reference = algid.identify(make(), EQUATION, PARAMETERS, window=WINDOW, refine=False)
     expected = np.array([reference.values[p] for p in PARAMETERS])
-    assert np.max(np.abs(outputs[0]["values"][-1] / expected - 1)) < 1e-9
+    assert np.max(np.abs(python_runs["linear/0/values"][-1] / expected - 1)) < 1e-9
 
 
-def test_numpy_and_compiled_paths_agree(monkeypatch):
+@pytest.mark.parametrize("name", list(RUNS))
+def test_python_loops_give_the_compiled_numbers(python_runs, name):
+    """One implementation: the loops compiled are the loops run as Python, bit for bit
+    (both call the C library's ``hypot``, as ``numpy.hypot`` does: CPython's own
+    ``math.hypot`` rounds differently)."""
     pytest.importorskip("numba")
-    record, _ = linear_offsets(6, n=900)
-    results = []
-    for compiled in (True, False):
-        monkeypatch.setattr(_tracker_kernels, "USE_NUMBA", compiled)
-        results.append(Tracker(EQUATION, PARAMETERS, time="t", window=WINDOW,
-                               half_life=2.0).update(record))
-    # the same recurrences in another order of operations: round-off apart
-    finite = np.isfinite(results[0].values)
-    assert np.array_equal(finite, np.isfinite(results[1].values))
-    np.testing.assert_allclose(results[1].values[finite], results[0].values[finite],
-                               rtol=1e-9)
-    np.testing.assert_allclose(results[1].stderr[finite], results[0].stderr[finite],
-                               rtol=1e-6)
+    if not _tracker_kernels.USE_NUMBA:
+        pytest.skip("the loops are not compiled in this process")
+    make, settings, sizes = RUNS[name]
+    record = make()
+    for k, chunks in enumerate(sizes):
+        compiled = stream(Tracker(**settings), record, chunks)
+        for key in KEYS:
+            assert np.array_equal(compiled[key], python_runs[f"{name}/{k}/{key}"],
+                                  equal_nan=True), f"{name}/{k}/{key}"
 
 
 def test_parameters_reported_as_soon_as_determined():
@@ -81,13 +134,7 @@ def test_parameters_reported_as_soon_as_determined():
     assert abs(last[0] / EMPS_PUBLISHED["M"] - 1) < 0.05
 
 
-@pytest.fixture
-def compiled_path(monkeypatch):
-    pytest.importorskip("numba")
-    monkeypatch.setattr(_tracker_kernels, "USE_NUMBA", True)
-
-
-def test_compiled_path_same_whatever_the_chunking_on_irregular_times(compiled_path):
+def test_same_whatever_the_chunking_on_irregular_times():
     """Windows whose times are not uniform take the exact weights of their own times
     (outside the compiled loop); the outputs still do not depend on the chunking."""
     record, _ = linear_offsets(7, n=700)
@@ -102,27 +149,3 @@ def test_compiled_path_same_whatever_the_chunking_on_irregular_times(compiled_pa
             assert np.array_equal(value, other[key], equal_nan=True), key
 
 
-def test_numpy_and_compiled_paths_agree_on_emps(monkeypatch):
-    """The sign term's exact integrals, its proportional phase (Fc and off one
-    parameter) and the bias compensation, on both paths."""
-    pytest.importorskip("numba")
-    rec = emps()
-    record = {k: np.asarray(rec[k], dtype=float)[:4500] for k in ("t", "qm", "F")}
-    results = []
-    for compiled in (True, False):
-        monkeypatch.setattr(_tracker_kernels, "USE_NUMBA", compiled)
-        results.append(Tracker(EMPS_EQUATION, list(EMPS_PUBLISHED), window=0.03,
-                               half_life=1.0).update(record))
-    finite = np.isfinite(results[0].values)
-    assert np.array_equal(finite, np.isfinite(results[1].values))
-    assert finite[:, :2].any() and (~finite[:, 2:]).any() and finite.all(axis=1).any()
-    # the first windows after the first reversal solve nearly proportional columns
-    # (condition ~1e9): compared before them (M and Fv) and from 0.1 s after them
-    reversal = results[0].t[finite.all(axis=1)][0]
-    settled = results[0].t > reversal + 0.1
-    before = (results[0].t < reversal)[:, None] & finite
-    for key in ("values", "stderr"):
-        first, second = getattr(results[0], key), getattr(results[1], key)
-        tolerance = 1e-9 if key == "values" else 1e-6
-        np.testing.assert_allclose(second[before], first[before], rtol=tolerance)
-        np.testing.assert_allclose(second[settled], first[settled], rtol=tolerance)

@@ -47,11 +47,10 @@ from algid._record_input import (
 )
 from algid.errors import AlgidError, InputDataError
 from algid.identification._arguments import check_arguments, check_model_columns, check_seconds
-from algid.identification._bias_compensation import koopmans_stack
 from algid.identification._change_detection import INCREMENT_CAP, cusum_reference, cusum_threshold
 from algid.identification._methods import TRACKER_METHODS
 from algid.identification._records import GAP_FACTOR, UNIFORM_TOLERANCE
-from algid.identification._tracker_kernels import kernels, solvers
+from algid.identification._tracker_kernels import kernels
 from algid.identification._tracker_state import (
     MAX_WINDOW_SAMPLES,
     WARMUP_DOUBLINGS,
@@ -63,14 +62,11 @@ from algid.identification._tracker_state import (
     TrackUpdate,
     Warmup,
 )
-from algid.identification._window_basis import DETERMINED_LEAK, ROUNDOFF_SEPARABILITY
-from algid.identification._window_covariance import sandwich_stack
 from algid.identification._window_kernels import (
     TERM_KERNELS,
-    step_window_integrals,
     window_sample_weights,
 )
-from algid.identification._window_problem import WINDOW_OVERLAP, factor_sensitivity, term_rows
+from algid.identification._window_problem import WINDOW_OVERLAP, factor_sensitivity
 from algid.identification._window_rule import MIN_SPARE_WINDOWS, check_multiplicities, min_length
 from algid.models._argument import estimator_module
 from algid.models._compiled import model_of
@@ -96,133 +92,6 @@ DERIVATIVE_STEPS = 20
 
 #: Steps seen before the sampling step of a time column is fixed (their median).
 STEP_SAMPLES = 16
-
-def _exponent(x):
-    return np.where(x > 0, np.frexp(np.where(x > 0, x, 1.0))[1] - 1, 0)
-
-
-def _solve_full(R, G, bound, method, separable=None):
-    """identify's solve on accumulated factors ``R`` of ``[A | b]`` and noise sums ``G``
-    (a stack, one batched call per step).
-
-    Returns the estimates, the basis quantities the covariance needs and ``ok``, False
-    where the equations do not determine every parameter (``separable``: the check of
-    the smallest singular value, when already made).
-    """
-    k, q1, _ = R.shape
-    p = q1 - 1
-    norms = np.sqrt(np.sum(R * R, axis=1))
-    ok = np.all(norms[:, :p] > 0, axis=1)
-    shifts = _exponent(norms) + 1             # the column scaling of WindowBasis
-    Rs = np.ldexp(R, -shifts[:, None, :])
-    with np.errstate(divide="ignore", invalid="ignore"):
-        unit = Rs[:, :, :p] / np.sqrt(np.sum(Rs[:, :, :p] ** 2, axis=1))[:, None, :]
-    if separable is None:
-        unit[~ok] = np.eye(q1, p)
-        separable = np.linalg.svd(unit, compute_uv=False)[:, -1] >= ROUNDOFF_SEPARABILITY
-    ok &= separable
-    square = np.where(ok[:, None, None], Rs[:, :p, :p], np.eye(p))
-    inverse = np.linalg.inv(square)
-    c = Rs[:, :p, p]
-    normal = np.broadcast_to(np.eye(q1), (k, q1, q1)).copy()
-    normal[:, :p, p] = normal[:, p, :p] = c
-    normal[:, p, p] = np.sum(Rs[:, :, p] ** 2, axis=1)
-    full = np.zeros((k, q1, q1))          # [A | b] -> the orthonormal basis
-    full[:, :p, :p] = np.ldexp(inverse, -shifts[:, :p, None])
-    full[:, p, p] = np.ldexp(1.0, -shifts[:, p])
-    noise = np.swapaxes(full, 1, 2) @ G @ full
-    variance = np.full(k, np.nan)
-    phi = c.copy()
-    if method == "bc" and np.any(ok):
-        theta_bar, variance, _ = koopmans_stack(normal[ok], noise[ok], bound[ok])
-        corrected = np.isfinite(variance)
-        rows = np.flatnonzero(ok)[corrected]
-        phi[rows] = theta_bar[corrected, :p]
-        variance = np.where(ok, _scatter(variance, ok, k), np.nan)
-    jacobian = np.eye(p) - np.nan_to_num(variance)[:, None, None] * noise[:, :p, :p]
-    mapping = np.ldexp(inverse, (shifts[:, p:] - shifts[:, :p])[:, :, None])
-    theta = (mapping @ phi[:, :, None])[:, :, 0]
-    return {"ok": ok, "theta": theta, "full": full, "jacobian": jacobian, "mapping": mapping}
-
-
-def _solve_stack(R, G, bound, method):
-    """:func:`_solve_full`, and where it fails, the parameters the equations do determine.
-
-    Terms proportional so far (``sign(q')`` and an offset before the first reversal of
-    ``q'``) leave the other parameters determined: a parameter whose unit direction has
-    no share (:data:`DETERMINED_LEAK`) in the null space of the unit-column regressors
-    (singular values below ``ROUNDOFF_SEPARABILITY``) is estimated by dropping, per null
-    direction, the column of largest share, and solving the rest; the parameters of the
-    proportional combination stay NaN.  Returns, beside :func:`_solve_full`'s, ``values``
-    (the estimates in the residuals: the kept columns' solution, 0 for the dropped ones),
-    ``theta`` (NaN where not determined) and ``kept`` (columns solved for).
-    """
-    k, q1, _ = R.shape
-    p = q1 - 1
-    norms = np.sqrt(np.sum(R[:, :p, :p] ** 2, axis=1))
-    unit = R[:, :p, :p] / np.where(norms > 0, norms, 1.0)[:, None, :]
-    _, singular, vh = np.linalg.svd(unit)
-    null = singular < ROUNDOFF_SEPARABILITY
-    out = {"ok": np.zeros(k, bool), "theta": np.full((k, p), np.nan),
-           "values": np.full((k, p), np.nan), "kept": np.full(k, p),
-           "full": np.full((k, q1, q1), np.nan), "jacobian": np.full((k, p, p), np.nan),
-           "mapping": np.full((k, p, p), np.nan)}
-    separable = np.flatnonzero(~null[:, -1] & np.all(norms > 0, axis=1))
-    if separable.size:
-        sub = _solve_full(R[separable], G[separable], bound[separable], method,
-                          separable=np.ones(separable.size, bool))
-        good = sub["ok"]
-        rows = separable[good]
-        out["ok"][rows] = True
-        for key in ("theta", "full", "jacobian", "mapping"):
-            out[key][rows] = sub[key][good]
-        out["values"][rows] = sub["theta"][good]
-    groups = {}   # the windows of each set of kept columns
-    for i in np.flatnonzero(null.any(axis=1)):
-        leak = np.sqrt(np.sum(vh[i][null[i]] ** 2, axis=0))
-        determined = (leak < DETERMINED_LEAK) & (norms[i] > 0)
-        if not determined.any():
-            continue
-        keep = np.ones(p, bool)
-        for r in np.flatnonzero(null[i]):
-            keep[np.argmax(np.where(keep, np.abs(vh[i, r]), -1.0))] = False
-        if keep.any():
-            groups.setdefault(tuple(keep), []).append((i, determined))
-    for pattern, members in groups.items():
-        rows = np.array([i for i, _ in members])
-        determined = np.array([d for _, d in members])
-        idx = np.flatnonzero(pattern)
-        columns = np.append(idx, p)
-        reduced = np.linalg.qr(R[rows][:, :, columns], mode="r")
-        sub = _solve_full(reduced, G[rows][:, columns][:, :, columns], bound[rows], method)
-        good = sub["ok"]
-        rows, m = rows[good], len(idx)
-        if not rows.size:
-            continue
-        out["ok"][rows] = True
-        out["kept"][rows] = m
-        values = np.zeros((rows.size, p))
-        values[:, idx] = sub["theta"][good]
-        out["values"][rows] = values
-        out["theta"][rows] = np.where(determined[good], values, np.nan)
-        full = np.zeros((rows.size, q1, q1))
-        full[np.ix_(np.arange(rows.size), idx, idx)] = sub["full"][good, :m, :m]
-        full[:, p, p] = sub["full"][good, m, m]
-        out["full"][rows] = full
-        jacobian = np.broadcast_to(np.eye(p), (rows.size, p, p)).copy()
-        jacobian[np.ix_(np.arange(rows.size), idx, idx)] = sub["jacobian"][good]
-        out["jacobian"][rows] = jacobian
-        mapping = np.zeros((rows.size, p, p))
-        mapping[np.ix_(np.arange(rows.size), idx, idx)] = sub["mapping"][good]
-        out["mapping"][rows] = mapping
-    return out
-
-
-def _scatter(values, mask, size):
-    out = np.full(size, np.nan)
-    out[mask] = values
-    return out
-
 
 def _lag_weights(overlap):
     lags = 2 * overlap
@@ -726,17 +595,16 @@ class Tracker:
         self._central = np.array([math.comb(2 * k, k) for k in range(1, 9)], dtype=float)
         self._half_life = np.inf if self.config["half_life"] is None \
             else float(self.config["half_life"])
-        self._unit_weights = {(a, term.derivative): window_sample_weights(
-            None, 1.0, length, a, term.derivative)
-            for a in self.multiplicities for term in self.model.terms}
         # the kernels' primitives (zero at the window's start), as step_window_integrals's
         self._primitives = {(a, k): chebyshev.chebint(TERM_KERNELS[(a, k)], scl=0.5, lbnd=-1)
                             for a in self.multiplicities for k in {
                                 self.model.terms[i].derivative for i in self._sign_terms}}
         self._output_terms = {i for i in self._noisy
                               if self.model.terms[i].factor == Signal(self.model.output)}
-        terms = self.model.terms   # the same, as arrays for the compiled window equations
-        self._weight_table = np.array([[self._unit_weights[(a, term.derivative)]
+        terms = self.model.terms   # as arrays for the loops' window equations
+        # the quadrature weights of a uniform window of unit step, per multiplicity, term
+        self._weight_table = np.array([[window_sample_weights(None, 1.0, length, a,
+                                                              term.derivative)
                                         for term in terms] for a in self.multiplicities])
         self._term_table = {
             "derivatives": np.array([term.derivative for term in terms], dtype=np.int64),
@@ -982,13 +850,8 @@ class Tracker:
         n_eff = sums["W"][:, 0] ** 2 / sums["W"][:, 1] / self.overlap
         wanted = (tested | report) & (n_eff >= self.needed)   # enough for one parameter
         bounds = self._bounds(sums["bound"])
-        compiled = solvers()
-        if compiled is None:
-            theta, stderr, error, residual, kappa = self._solve_numpy(
-                rows, ends, sums, bounds, n_eff, wanted, report)
-        else:
-            theta, stderr, error, residual, kappa = self._solve_compiled(
-                compiled, rows, ends, sums, bounds, n_eff, wanted, report)
+        theta, stderr, error, residual, kappa = self._solve(rows, ends, sums, bounds, n_eff,
+                                                             wanted, report)
         top = self.multiplicities.index(max(self.multiplicities))
         for w in np.flatnonzero(tested):
             self._test(ends[w], rows[top, w], theta[w], residual[w], kappa[w], n_eff[w])
@@ -999,57 +862,6 @@ class Tracker:
         self._out["stderr"].extend(stderr[report])
         self._out["error"].extend(error[report])
         seg.next_window = count
-
-    def _solve_numpy(self, rows, ends, sums, bounds, n_eff, wanted, report):
-        """Estimates, standard errors, numerical errors, CUSUM residuals and long-run
-        variance factors of a chunk's window ends, in batched NumPy calls."""
-        n = len(ends)
-        q1 = len(self.parameters) + 1
-        top = self.multiplicities.index(max(self.multiplicities))
-        low = self.multiplicities.index(min(self.multiplicities))
-        p = q1 - 1
-        theta = np.full((n, p), np.nan)
-        full, jacobian, mapping = (np.full((n, q1, q1), np.nan), np.full((n, p, p), np.nan),
-                                   np.full((n, p, p), np.nan))
-        where = np.flatnonzero(wanted)
-        lower = np.full((n, p), np.nan)
-        values = np.full((n, p), np.nan)     # the estimates in the residuals
-        kept = np.full(n, p)
-        if where.size:   # both multiplicities in one stack (their difference: the error)
-            k = len(where)
-            solved = _solve_stack(np.concatenate([sums["R"][where, top], sums["R"][where, low]]),
-                                  np.concatenate([sums["G"][where, top], sums["G"][where, low]]),
-                                  np.concatenate([bounds[where], bounds[where]]),
-                                  self.config["method"])
-            # as many windows beyond the parameters solved for as identify's rule asks
-            enough = n_eff[np.concatenate([where, where])] >= solved["kept"] + MIN_SPARE_WINDOWS
-            solved["ok"] &= enough
-            good = solved["ok"][:k]
-            ok = where[good]
-            theta[ok] = solved["theta"][:k][good]
-            values[ok] = solved["values"][:k][good]
-            kept[ok] = solved["kept"][:k][good]
-            for key, array in (("full", full), ("jacobian", jacobian), ("mapping", mapping)):
-                array[ok] = solved[key][:k][good]
-            lower[where[solved["ok"][k:]]] = solved["theta"][k:][solved["ok"][k:]]
-        bars = np.concatenate([values, -np.ones((n, 1))], axis=1)
-        hac, trace = self._scores(rows[top], ends, sums["decay"], bars)
-        solved = np.flatnonzero(np.isfinite(values[:, 0]))
-        stderr = np.full((n, p), np.nan)
-        kappa = np.full(n, np.nan)
-        if solved.size:
-            stderr[solved], kappa[solved] = self._stderr(
-                sums["R"][solved, top], sums["W"][solved], bars[solved], hac[solved],
-                trace[solved], full[solved], jacobian[solved], mapping[solved], kept[solved])
-            stderr[np.isnan(theta)] = np.nan
-        solved = np.flatnonzero(np.isfinite(theta).all(axis=1))   # the CUSUM's
-        error = np.where(report[:, None], np.abs(theta - lower), np.nan)
-        residual = np.full(n, np.nan)
-        if solved.size:
-            R = sums["R"][solved, top]
-            residual[solved] = np.sum((R @ bars[solved, :, None])[:, :, 0] ** 2, axis=1) \
-                / sums["W"][solved, 0]
-        return theta, stderr, error, residual, kappa
 
     def _scores(self, rows, ends, decays, bars):
         """The lagged products of the windows' scores (their overlap and forgetting) in
@@ -1064,9 +876,10 @@ class Tracker:
         sums.ring_count = int(ring[0])
         return hac, trace
 
-    def _solve_compiled(self, compiled, rows, ends, sums, bounds, n_eff, wanted, report):
-        """:meth:`_solve_numpy` window after window in compiled loops."""
-        solve_windows, window_stderr = compiled.solve_windows, compiled.window_stderr
+    def _solve(self, rows, ends, sums, bounds, n_eff, wanted, report):
+        """Estimates, standard errors, numerical errors, CUSUM residuals and long-run
+        variance factors at a chunk's window ends."""
+        solve_windows, window_stderr = kernels().solve_windows, kernels().window_stderr
         n, p = len(ends), len(self.parameters)
         top = self.multiplicities.index(max(self.multiplicities))
         low = self.multiplicities.index(min(self.multiplicities))
@@ -1102,44 +915,14 @@ class Tracker:
         squares = np.zeros((hi - lo, 8))
         if hi > lo:   # repeated differences (as identify's), elementwise: any chunking
             d = seg.signals[self.model.output][lo - 8 - seg.first:hi - seg.first]
-            compiled = solvers()
-            if compiled is not None:   # the same operations, in a compiled loop
-                compiled.difference_squares(d, squares)
-                return squares, ranges
-            for k in range(8):
-                d = d[1:] - d[:-1]
-                squares[:, k] = d[7 - k:] ** 2
+            kernels().difference_squares(d, squares)
         return squares, ranges
 
     def _bounds(self, sums):
         """identify's bound on the output noise variance, per window (from its sums)."""
-        compiled = solvers()
-        if compiled is not None:
-            bounds = np.empty(len(sums))
-            compiled.noise_bounds(sums, self._central, bounds)
-            return bounds
-        counts = sums[:, 1]
-        with np.errstate(divide="ignore", invalid="ignore"):
-            ratios = np.where(counts > 0, sums[:, 0] / counts / self._central, np.inf)
-        return np.min(ratios, axis=1)
-
-    def _stderr(self, R, W, bars, hac, trace, full, jacobian, mapping, kept):
-        """Standard errors and long-run variance factors of solved windows (stacked)."""
-        p = hac.shape[1]
-        # centred: the scores' mean (the bias correction's share) is no scatter
-        mean = -(np.swapaxes(R, 1, 2) @ (R @ bars[:, :, None]))[:, :p, 0] / W[:, :1]
-        hac = hac - ((2.0 * self.lag_weights.sum() - 1.0) * W[:, 1])[:, None, None] \
-            * (mean[:, :, None] * mean[:, None, :])
-        scale = full[:, :p, :p] * full[:, p:, p:]        # raw scores -> the basis
-        middle = np.swapaxes(scale, 1, 2) @ hac @ scale
-        # degrees of freedom: the non-overlapping windows (as counted by the weights)
-        independent = W[:, 0] ** 2 / W[:, 1] / self.overlap
-        covariance = mapping @ sandwich_stack(np.linalg.inv(jacobian), middle) \
-            @ np.swapaxes(mapping, 1, 2)
-        covariance *= (independent / np.maximum(independent - kept, 1.0))[:, None, None]
-        variances = np.maximum(np.einsum("kii->ki", covariance), 0.0)
-        long_run = np.einsum("kii->k", hac) / np.maximum(trace, 1e-300)
-        return np.sqrt(variances), long_run
+        bounds = np.empty(len(sums))
+        kernels().noise_bounds(sums, self._central, bounds)
+        return bounds
 
     def _test(self, end, row, theta, residual, kappa, n_eff):
         """The CUSUM step of a window that shares no sample with the last tested one."""
@@ -1162,22 +945,11 @@ class Tracker:
         else:
             s.tests.previous_test = np.full(p + 2, np.nan)
 
-    def _window_samples(self, starts):
-        """Per window: the indices of its samples, its step (span / (length - 1)), whether
-        it is uniform, and its times."""
-        L = self.length
-        index = starts[:, None] + np.arange(L)
-        tw = self.state.segment.t[index]
-        step = (tw[:, -1] - tw[:, 0]) / (L - 1)
-        if self.config["rate"] is not None:
-            return index, step, np.ones(len(starts), bool), tw
-        grid = tw[:, :1] + step[:, None] * np.arange(L)
-        uniform = np.max(np.abs(tw - grid), axis=1) <= UNIFORM_TOLERANCE * step
-        return index, step, uniform, tw
-
-    def _rows_and_grams_compiled(self, window_rows, step_integrals, starts):
-        """:meth:`_rows_and_grams` window after window in a compiled loop (the exact
-        integrals of steps and irregular windows as there)."""
+    def _rows_and_grams(self, starts):
+        """The window equations ``[A | b]`` (identify's kernels and ``term_rows``) and the
+        covariance unit white output noise puts into them, per multiplicity: uniform
+        windows in the loop, the exact weights of irregular windows' own times here."""
+        window_rows, step_integrals = kernels().window_rows, kernels().step_integrals
         seg = self.state.segment
         L = self.length
         n, m, q1 = len(starts), len(self.multiplicities), len(self.parameters) + 1
@@ -1216,7 +988,7 @@ class Tracker:
                     table["sign_terms"], table["noisy"], table["noisy_weights"], integrals,
                     rows, grams)
         noisy = self._noisy_columns
-        for j in np.flatnonzero(irregular):   # as in _rows_and_grams
+        for j in np.flatnonzero(irregular):
             tw = seg.t[starts[j]:starts[j] + L]
             for y, (c1, w1, k1, i1) in enumerate(noisy):
                 for c2, w2, k2, i2 in noisy[y:]:
@@ -1229,59 +1001,4 @@ class Tracker:
                         grams[x, j, c1, c2] += v
                         if (c1, k1, i1) != (c2, k2, i2):
                             grams[x, j, c2, c1] += v
-        return rows, grams
-
-    def _rows_and_grams(self, starts):
-        """The window equations ``[A | b]`` (identify's kernels and ``term_rows``) and the
-        covariance unit white output noise puts into them, per multiplicity."""
-        compiled = solvers()
-        if compiled is not None:
-            return self._rows_and_grams_compiled(compiled.window_rows,
-                                                 compiled.step_integrals, starts)
-        s = self.state
-        seg = s.segment
-        L = self.length
-        index, step, uniform, tw = self._window_samples(starts)
-        irregular = np.flatnonzero(~uniform)
-        n, m, q1 = len(starts), len(self.multiplicities), len(self.parameters) + 1
-        integrals = [[] for _ in self.multiplicities]
-        for i, term in enumerate(self.model.terms):
-            k = term.derivative
-            if i in self._sign_terms:   # each window from its own start: any chunking
-                levels = np.sign(seg.factors[i][starts])
-                times = seg.sign_times[i]
-                inside = (times > tw[0, 0]) & (times < tw[-1, -1])
-                for x, a in enumerate(self.multiplicities):
-                    integrals[x].append(step_window_integrals(
-                        seg.t[starts[0]:starts[-1] + L], 0.0, times[inside],
-                        seg.sign_steps[i][inside], L, a, k, self.stride, levels=levels))
-                continue
-            zw = seg.factors[i][index]
-            scale = step ** k
-            for x, a in enumerate(self.multiplicities):
-                w = np.einsum("ij,j->i", zw, self._unit_weights[(a, k)]) / scale
-                for j in irregular:
-                    w[j] = float(window_sample_weights(tw[j], None, L, a, k)[0] @ zw[j])
-                integrals[x].append(w)
-        rows = np.empty((m, n, q1))
-        for x in range(m):
-            A, b = term_rows(self.model, integrals[x], [0] * len(self.model.terms), n)
-            rows[x, :, :-1] = A
-            rows[x, :, -1] = b
-        grams = np.zeros((m, n, q1, q1))
-        noisy = self._noisy_columns
-        for y, (c1, w1, k1, i1) in enumerate(noisy):
-            for c2, w2, k2, i2 in noisy[y:]:
-                pw = seg.sensitivities[i1][index] * seg.sensitivities[i2][index]
-                scale = step ** -(k1 + k2) * (w1 * w2)
-                for x, a in enumerate(self.multiplicities):
-                    g = self._unit_weights[(a, k1)] * self._unit_weights[(a, k2)]
-                    v = np.einsum("ij,j->i", pw, g) * scale
-                    for j in irregular:
-                        g = window_sample_weights(tw[j], None, L, a, k1) \
-                            * window_sample_weights(tw[j], None, L, a, k2)
-                        v[j] = float(g[0] @ pw[j]) * (w1 * w2)
-                    grams[x, :, c1, c2] += v
-                    if (c1, k1, i1) != (c2, k2, i2):
-                        grams[x, :, c2, c1] += v
         return rows, grams

@@ -1,23 +1,25 @@
-"""The per-window recurrences of :class:`algid.Tracker`, compiled by numba when installed.
+"""The per-window loops of :class:`algid.Tracker`: one implementation, compiled by numba
+when installed, run as Python otherwise.
 
-:class:`~algid.Tracker` forms the window equations of a chunk at once (NumPy, identify's
-kernels); what remains sequential is the accumulation, window after window:
+:class:`~algid.Tracker` gathers a chunk's new windows and hands them to loops that run
+window after window in a fixed order, so that the results do not depend on how the
+stream is cut into chunks:
 
-- :func:`window_sums`: the forgetting factor of each window, the Givens update of the
-  triangular factors ``R`` of ``[A | b]`` (one per kernel multiplicity), the noise sums
-  ``G``, the weight sums and the sums of squared output differences of the noise bound,
-  with a copy of each after every window (the estimates of all the chunk's window ends
-  are then solved in one batched call);
-- :func:`window_scores`: the lagged products of the windows' scores and, at each window
-  to be reported, their contraction with the estimate there (the HAC middle of the
-  standard errors).
+- here, the accumulation: :func:`window_sums` (the forgetting factor of each window, the
+  Givens update of the triangular factors ``R`` of ``[A | b]``, one per kernel
+  multiplicity, the noise sums ``G``, the weight sums and the sums of squared output
+  differences of the noise bound, with a copy of each after every window) and
+  :func:`window_scores` (the lagged products of the windows' scores and, at each window
+  to be reported, their contraction with the estimate there: the HAC middle of the
+  standard errors);
+- in :mod:`algid.identification._tracker_solve`, the window equations, the noise bound
+  and the per-window solve and covariance.
 
-Each runs window after window in a fixed order, so the results do not depend on how
-the stream is cut into chunks.  Without numba (or with the environment variable
-``ALGID_TRACKER_NUMPY=1`` set before the import, or :data:`USE_NUMBA` set to False) the
-same :func:`window_sums` runs as Python, and :func:`window_scores_numpy` does the work of
-:func:`window_scores` in operations on whole matrices: slower, the same recurrences, not
-bit for bit the compiled results.
+The loops use scalars, fixed-size arrays and ``math`` only, so that they compile (numba
+today, C99 later) and run unchanged as Python.  :func:`kernels` gives the compiled ones
+when :data:`USE_NUMBA`, else the Python functions: the same operations in the same
+order, about 15 to 60 times slower.  numba is not used when it is not installed, or when
+the environment variable ``ALGID_TRACKER_PYTHON=1`` is set before the import.
 """
 
 from __future__ import annotations
@@ -31,39 +33,33 @@ from typing import NamedTuple
 
 import numpy as np
 
-__all__ = ["USE_NUMBA", "Recurrences", "Solvers", "window_sums", "window_scores",
-           "window_scores_numpy", "kernels", "solvers"]
+__all__ = ["USE_NUMBA", "Kernels", "window_sums", "window_scores", "jit", "kernels"]
 
 
 def _numba_available():
     """Whether numba is installed (found, not imported: importing it takes a third of a
-    second, paid at the first compiled call instead)."""
-    if os.environ.get("ALGID_TRACKER_NUMPY", "") not in ("", "0"):
+    second, paid at the first compiled call instead) and not declined."""
+    if os.environ.get("ALGID_TRACKER_PYTHON", "") not in ("", "0"):
         return False
     return importlib.util.find_spec("numba") is not None
 
 
-#: Whether :func:`kernels` compiles the recurrences with numba.
+#: Whether :func:`kernels` gives the loops compiled by numba (fixed at import: the loops
+#: of :mod:`algid.identification._tracker_solve` are compiled as it is imported).
 USE_NUMBA = _numba_available()
 
 
-class Recurrences(NamedTuple):
-    """The per-window recurrences of the tracker."""
+class Kernels(NamedTuple):
+    """The tracker's per-window loops (compiled, or the Python functions)."""
 
     window_sums: Callable
     window_scores: Callable
-
-
-class Solvers(NamedTuple):
-    """The compiled per-window solves and window equations
-    (:mod:`algid.identification._tracker_solve`)."""
-
-    solve_windows: Callable
-    window_stderr: Callable
     window_rows: Callable
     step_integrals: Callable
     difference_squares: Callable
     noise_bounds: Callable
+    solve_windows: Callable
+    window_stderr: Callable
 
 
 def window_sums(rows, grams, ends, last_end, half_life, squares, ranges, R, G, W, bound,
@@ -125,7 +121,7 @@ def window_sums(rows, grams, ends, last_end, half_life, squares, ranges, R, G, W
             for i in range(q1):       # Givens rotations: the new row into R
                 if x[i] == 0.0:
                     continue
-                r = math.hypot(R[a, i, i], x[i])
+                r = np.hypot(R[a, i, i], x[i])
                 c = R[a, i, i] / r
                 s = x[i] / r
                 R[a, i, i] = r
@@ -236,81 +232,39 @@ def window_scores(rows, ends, decays, half_life, bars, lag_weights, U, ring_rows
         out_trace[w] = trace
 
 
-def window_scores_numpy(rows, ends, decays, half_life, bars, lag_weights, U, ring_rows,
-                        ring_times, count, out_hac, out_trace):
-    """:func:`window_scores` in NumPy operations on whole matrices (the path without
-    numba: the same recurrence, not bit for bit the compiled one)."""
-    n, q1 = rows.shape
-    p = q1 - 1
-    lags = ring_rows.shape[0]
-    for w in range(n):
-        score = np.outer(rows[w, :p], rows[w]).reshape(-1)
-        U *= decays[w] * decays[w]
-        U[0] += np.outer(score, score)
-        used = min(int(count[0]), lags)
-        if used:
-            back = np.arange(1, used + 1)
-            slots = (count[0] - back) % lags
-            weights = np.ones(used) if math.isinf(half_life) else \
-                2.0 ** (-(ends[w] - ring_times[slots]) / half_life)
-            U[back] += (weights[:, None] * ring_rows[slots])[:, :, None] * score
-        ring_rows[count[0] % lags] = score
-        ring_times[count[0] % lags] = ends[w]
-        count[0] += 1
-        if math.isnan(bars[w, 0]):
-            continue
-        lagged = np.einsum("lacbd,c,d->lab", U.reshape(lags + 1, p, q1, p, q1), bars[w],
-                           bars[w])
-        out_hac[w] = lagged[0] + np.einsum("l,lab->ab", lag_weights[1:],
-                                           lagged[1:] + lagged[1:].transpose(0, 2, 1))
-        out_trace[w] = np.trace(lagged[0])
+def jit(function):
+    """``function`` compiled by numba (cached on disk) when :data:`USE_NUMBA`, else itself.
+
+    Helpers called by compiled loops must be compiled too: decorate every loop of the
+    tracker with this.
+    """
+    if not USE_NUMBA:
+        return function
+    return _numba_jit()(function)
 
 
 @cache
-def _compiled():
+def _numba_jit():
     import numba
 
     from algid._compile_notice import watch
 
-    watch()
-
-    jit = numba.njit(cache=True, nogil=True)
-    return Recurrences(jit(window_sums), jit(window_scores))
-
-
-def kernels():
-    """The recurrences: compiled when :data:`USE_NUMBA`, else the Python functions.
-
-    Returns
-    -------
-    Recurrences
-        :func:`window_sums` and :func:`window_scores` (compiled), or
-        :func:`window_sums` and :func:`window_scores_numpy`.
-    """
-    return _compiled() if USE_NUMBA else Recurrences(window_sums, window_scores_numpy)
+    watch()   # a line on stderr while numba compiles these for more than a second
+    return numba.njit(cache=True, nogil=True)
 
 
 @cache
-def _compiled_solvers():
-    from algid.identification._tracker_solve import (
-        difference_squares,
-        noise_bounds,
-        solve_windows,
-        step_integrals,
-        window_rows,
-        window_stderr,
-    )
-
-    return Solvers(solve_windows, window_stderr, window_rows, step_integrals,
-                   difference_squares, noise_bounds)
-
-
-def solvers():
-    """The compiled per-window solves (:mod:`algid.identification._tracker_solve`) when
-    :data:`USE_NUMBA`, else None (the tracker then solves in batched NumPy calls).
+def kernels():
+    """The tracker's per-window loops, compiled when :data:`USE_NUMBA`.
 
     Returns
     -------
-    Solvers or None
+    Kernels
+        The functions of this module and of
+        :mod:`algid.identification._tracker_solve`.
     """
-    return _compiled_solvers() if USE_NUMBA else None
+    from algid.identification import _tracker_solve as solve
+
+    return Kernels(jit(window_sums), jit(window_scores), solve.window_rows,
+                   solve.step_integrals, solve.difference_squares, solve.noise_bounds,
+                   solve.solve_windows, solve.window_stderr)

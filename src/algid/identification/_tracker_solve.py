@@ -1,10 +1,9 @@
-"""The per-window solves of :class:`algid.Tracker`, compiled (numba).
+"""The per-window solves of :class:`algid.Tracker`: loops compiled by numba when
+installed, run as Python otherwise (:func:`algid.identification._tracker_kernels.jit`).
 
-The NumPy path of the tracker solves the window ends of a chunk in batched calls
-(``_solve_stack``, ``koopmans_stack``, ``sandwich_stack``); on a stream fed one sample
-at a time a window end arrives every few samples and those calls cost far more than
-their arithmetic.  Here the same mathematics runs window after window in compiled
-loops over systems of ``p + 1 <= 13`` columns:
+On a stream a window end arrives every few samples; here identify's mathematics runs
+window after window over systems of ``p + 1 <= 13`` columns, in scalars and fixed-size
+arrays (so that it compiles, and can be written in C99):
 
 - :func:`solve_windows`: identify's solve on the accumulated triangular factor
   (columns scaled by powers of two, the triangular inverse), the check that the
@@ -21,30 +20,25 @@ loops over systems of ``p + 1 <= 13`` columns:
   the CUSUM.
 
 Each window's result depends on that window's sums alone, so the outputs do not depend
-on how the stream is cut into chunks; they agree with the NumPy path to round-off.
-Imported only when numba is.
+on how the stream is cut into chunks; they agree with :func:`algid.identify` on the same
+windows to round-off (LAPACK there, Jacobi rotations here).
 """
 
 from __future__ import annotations
 
 import math
 
-import numba
 import numpy as np
 
-from algid._compile_notice import watch
+from algid.identification._tracker_kernels import jit as _jit
 from algid.identification._window_basis import DETERMINED_LEAK, ROUNDOFF_SEPARABILITY
 from algid.identification._window_covariance import INDEFINITE_RTOL
-
-watch()   # a line on stderr while numba compiles these for more than a second
 
 __all__ = ["solve_windows", "window_stderr", "window_rows", "step_integrals",
            "difference_squares", "noise_bounds"]
 
 
 _SWEEPS = 60   # Jacobi sweeps (a few suffice at p <= 12)
-
-_jit = numba.njit(cache=True, nogil=True)
 
 
 @_jit
@@ -348,7 +342,7 @@ def _smallest_singular(Rs, norms, m):
 @_jit
 def _solve_full(R, G, bound, bc, separability, theta, full, jacobian, mapping):
     """identify's solve of one window on its triangular factor ``R`` of ``[A | b]`` and
-    noise sums ``G`` (as the NumPy path's ``_solve_full``); False where the equations do
+    noise sums ``G`` (``WindowBasis`` and ``_bias_compensation``); False where the equations do
     not determine every parameter (with ``separability > 0``: where the smallest singular
     value of the unit columns is below it).  A number, not a flag: numba compiles a
     function once per literal flag it is called with."""
@@ -367,7 +361,7 @@ def _solve_full(R, G, bound, bc, separability, theta, full, jacobian, mapping):
     Rs = np.empty((rows, q))
     for i in range(rows):
         for j in range(q):
-            Rs[i, j] = math.ldexp(R[i, j], -shifts[j])
+            Rs[i, j] = math.ldexp(R[i, j], -int(shifts[j]))
     if separability > 0.0:
         unit_norms = np.empty(p)
         for j in range(p):
@@ -393,8 +387,8 @@ def _solve_full(R, G, bound, bc, separability, theta, full, jacobian, mapping):
             full[i, j] = 0.0
     for i in range(p):
         for j in range(p):
-            full[i, j] = math.ldexp(inverse[i, j], -shifts[i])
-    full[p, p] = math.ldexp(1.0, -shifts[p])
+            full[i, j] = math.ldexp(inverse[i, j], -int(shifts[i]))
+    full[p, p] = math.ldexp(1.0, -int(shifts[p]))
     noise = _product(_product(full, G, True, False), full, False, False)
     phi = np.empty(p)
     for i in range(p):
@@ -410,7 +404,7 @@ def _solve_full(R, G, bound, bc, separability, theta, full, jacobian, mapping):
     for i in range(p):
         for j in range(p):
             jacobian[i, j] = (1.0 if i == j else 0.0) - variance * noise[i, j]
-            mapping[i, j] = math.ldexp(inverse[i, j], shifts[p] - shifts[i])
+            mapping[i, j] = math.ldexp(inverse[i, j], int(shifts[p] - shifts[i]))
     for i in range(p):
         total = 0.0
         for j in range(p):
@@ -432,7 +426,7 @@ def _qr_columns(R, columns):
         for i in range(j + 1, rows):
             if A[i, j] == 0.0:
                 continue
-            r = math.hypot(A[j, j], A[i, j])
+            r = np.hypot(A[j, j], A[i, j])
             c = A[j, j] / r
             s = A[i, j] / r
             for k in range(j, n):
@@ -446,9 +440,11 @@ def _qr_columns(R, columns):
 
 @_jit
 def _solve_window(R, G, bound, bc, theta, values, full, jacobian, mapping):
-    """The NumPy path's ``_solve_stack`` for one window: the kept columns' count (-1
-    where not solved); ``values`` the estimates in the residuals, ``theta`` NaN where
-    not determined."""
+    """One window's solve, and where it fails the parameters the equations do determine
+    (a parameter without a share :data:`DETERMINED_LEAK` in the null space of the unit
+    columns is solved for with, per null direction, the column of largest share
+    dropped): the kept columns' count (-1 where not solved); ``values`` the estimates
+    in the residuals, ``theta`` NaN where not determined."""
     q = R.shape[1]
     p = q - 1
     norms = np.empty(p)
@@ -611,7 +607,8 @@ def solve_windows(R, G, top, low, bounds, n_eff, wanted, bc, spare, theta, value
 def window_stderr(R, top, W, bars, hac, trace, full, jacobian, mapping, kept, theta, lag_sum,
                   overlap, stderr, kappa, residual):
     """Standard errors, long-run variance factors and CUSUM residuals of the solved
-    windows (as the NumPy path's ``_stderr``), NaN elsewhere.
+    windows (identify's sandwich with the overlap's and the forgetting's weights), NaN
+    elsewhere.
 
     Parameters
     ----------
@@ -712,8 +709,8 @@ def window_stderr(R, top, W, bars, hac, trace, full, jacobian, mapping, kept, th
 @_jit
 def window_rows(fac, sen, starts, step, irregular, weights, derivatives, coefficients,
                 columns, sign_terms, noisy, noisy_weights, integrals, rows, grams):
-    """The window equations ``[A | b]`` and their noise covariances (the NumPy path's
-    ``_rows_and_grams``), window after window.
+    """The window equations ``[A | b]`` and their noise covariances (identify's kernels and
+    ``term_rows``), window after window.
 
     Parameters
     ----------
@@ -801,7 +798,7 @@ def _chebval(x, c):
 
 @_jit
 def step_integrals(t, starts, length, levels, times, steps, primitive, derivative, out):
-    """Exact window integrals of a piecewise-constant signal (the NumPy path's
+    """Exact window integrals of a piecewise-constant signal (identify's
     ``step_window_integrals`` with ``levels``), window after window.
 
     Parameters
@@ -838,7 +835,7 @@ def step_integrals(t, starts, length, levels, times, steps, primitive, derivativ
 @_jit
 def difference_squares(y, out):
     """Squared differences of orders 1 to 8 ending at each sample after the first 8 of
-    ``y`` (the NumPy path's repeated differences, the same operations)."""
+    ``y`` (identify's repeated differences, the same operations)."""
     v = np.empty(9)
     for i in range(out.shape[0]):
         for j in range(9):
@@ -852,7 +849,7 @@ def difference_squares(y, out):
 @_jit
 def noise_bounds(sums, central, out):
     """identify's bound on the output noise variance of each window, from its sums of
-    squared differences and their counts (as the NumPy path's ``_bounds``)."""
+    squared differences and their counts (the smallest ratio over the orders)."""
     for w in range(sums.shape[0]):
         bound = math.inf
         for k in range(sums.shape[2]):
