@@ -24,7 +24,7 @@ import tempfile
 import numpy as np
 
 import algid
-import algid.identification._tracker_kernels as tracker_kernels
+import algid.identification._tracker_jit as tracker_jit
 from benchmarks.synthetic_records import (
     CUBIC_EQUATION,
     FRICTION_EQUATION,
@@ -90,7 +90,7 @@ def _tracked(reports):
 def tracker_entries(emps, directory):
     """The tracker's entries, on the loops of this process (compiled or Python)."""
     out = {}
-    compiled = tracker_kernels.USE_NUMBA
+    compiled = tracker_jit.USE_NUMBA
     for half_life in (None, 2.0):
         tracker = algid.Tracker(*EMPS, window=0.03, half_life=half_life)
         reports = [tracker.update({n: x[s:s + 1000] for n, x in emps.items()})
@@ -139,7 +139,7 @@ def main(argv=None):
         else:
             out = {**estimator_entries(), **identify_entries(emps),
                    **tracker_entries(emps, directory)}
-            if tracker_kernels.USE_NUMBA:
+            if tracker_jit.USE_NUMBA:
                 out.update(_python_tracker_entries(directory))
     with open(argv[0], "w") as f:
         json.dump(out, f, indent=1, sort_keys=True)

@@ -16,6 +16,10 @@ Sections (all in one run, so that the speed ratios share the machine's state):
 - ``emps``: final estimates against the published ones, the time from which ``M`` stays
   within 5 %, the same outputs bit for bit in chunks of 1, 7 and 1000 (first 3000
   samples), the difference with identify at the same window.
+- ``python_loops``: the tracker's loops run as Python (``ALGID_TRACKER_PYTHON=1``, in a
+  process of its own: the choice is made at import) against compiled, on the first 3000
+  EMPS samples in chunks of 1000, every window end reported (processor time, smallest of
+  ``RUNS``; the first use of the kernels not counted).
 - ``changes``: the friction loop whose mass rises 25 % and the cubic spring whose ``K``
   drops 10 % (half-life 1 s): estimates before and 4 s after, alarms, detection delay, and
   the tracking error (RMS relative error from 3 s on, excluding the 2 s after the change)
@@ -26,7 +30,10 @@ Sections (all in one run, so that the speed ratios share the machine's state):
 from __future__ import annotations
 
 import json
+import os
 import pathlib
+import subprocess
+import sys
 import time
 
 import numpy as np
@@ -76,12 +83,12 @@ def _best_of(runs, measure, label=None):
 def first_compile():
     """Seconds of the first use of the tracker's kernels in this process: numba's
     compilation (or loading from its cache) and the CUSUM threshold; not in the ratios."""
-    from algid.identification import _tracker_kernels
+    from algid.identification import _tracker_jit
 
     record = {k: v[:200] for k, v in _emps_record().items()}
     start = time.perf_counter()
     _stream(Tracker(EMPS_EQUATION, list(EMPS_PUBLISHED), window=EMPS_WINDOW), record, 200)
-    return {"seconds": time.perf_counter() - start, "numba": _tracker_kernels.USE_NUMBA}
+    return {"seconds": time.perf_counter() - start, "numba": _tracker_jit.USE_NUMBA}
 
 
 def speed_and_emps(runs=RUNS):
@@ -230,11 +237,40 @@ def changes():
     return results
 
 
+def _head_seconds(samples=3000):
+    """Processor seconds of the tracker on the first EMPS samples in chunks of 1000 (the
+    smallest of ``RUNS``), after a first use of its kernels."""
+    record = {k: v[:samples] for k, v in _emps_record().items()}
+    names = list(EMPS_PUBLISHED)
+    _stream(Tracker(EMPS_EQUATION, names, window=EMPS_WINDOW), record, 1000)
+    _best_of(RUNS, lambda: _stream(Tracker(EMPS_EQUATION, names, window=EMPS_WINDOW),
+                                   record, 1000), "head")
+    return CPU_SECONDS["head"]
+
+
+def python_loops(samples=3000):
+    """Section ``python_loops``: compiled here, as Python in a child process."""
+    from algid.identification import _tracker_jit
+
+    compiled = _head_seconds(samples) if _tracker_jit.USE_NUMBA else None
+    env = {**os.environ, "ALGID_TRACKER_PYTHON": "1"}
+    child = subprocess.run([sys.executable, "-m", "benchmarks.tracking", "--head-seconds",
+                            str(samples)], env=env, check=True, capture_output=True, text=True)
+    python = float(child.stdout.split()[-1])
+    return {"samples": samples, "compiled_s": compiled, "python_s": python,
+            "python_us_per_sample": python / samples * 1e6,
+            "ratio_python_to_compiled": None if compiled is None else python / compiled}
+
+
 def main():
+    if sys.argv[1:2] == ["--head-seconds"]:
+        print(_head_seconds(int(sys.argv[2])))
+        return
     compile_once = first_compile()
     speed, emps_result = speed_and_emps()
     speed["first_compile"] = compile_once
-    results = {"speed": speed, "emps": emps_result, "changes": changes()}
+    results = {"speed": speed, "emps": emps_result, "python_loops": python_loops(),
+               "changes": changes()}
     OUT.write_text(json.dumps(results, indent=1, allow_nan=False) + "\n")
     print(json.dumps(results, indent=1))
 

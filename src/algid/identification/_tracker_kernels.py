@@ -17,36 +17,25 @@ stream is cut into chunks:
 
 The loops use scalars, fixed-size arrays and ``math`` only, so that they compile (numba
 today, C99 later) and run unchanged as Python.  :func:`kernels` gives the compiled ones
-when :data:`USE_NUMBA`, else the Python functions: the same operations in the same
-order, about 15 to 60 times slower.  numba is not used when it is not installed, or when
-the environment variable ``ALGID_TRACKER_PYTHON=1`` is set before the import.
+when numba is used (:mod:`algid.identification._tracker_jit`), else the Python
+functions: the same operations in the same order, the same results bit for bit, tens to
+hundreds of times slower (360 times on the EMPS record with every window end reported:
+``python -m benchmarks.tracking``, section ``python_loops``).
 """
 
 from __future__ import annotations
 
-import importlib.util
 import math
-import os
+import sys
 from collections.abc import Callable
 from functools import cache
 from typing import NamedTuple
 
 import numpy as np
 
-__all__ = ["USE_NUMBA", "Kernels", "window_sums", "window_scores", "jit", "kernels"]
+from algid.identification._tracker_jit import USE_NUMBA, declined, jit
 
-
-def _numba_available():
-    """Whether numba is installed (found, not imported: importing it takes a third of a
-    second, paid at the first compiled call instead) and not declined."""
-    if os.environ.get("ALGID_TRACKER_PYTHON", "") not in ("", "0"):
-        return False
-    return importlib.util.find_spec("numba") is not None
-
-
-#: Whether :func:`kernels` gives the loops compiled by numba (fixed at import: the loops
-#: of :mod:`algid.identification._tracker_solve` are compiled as it is imported).
-USE_NUMBA = _numba_available()
+__all__ = ["Kernels", "window_sums", "window_scores", "kernels"]
 
 
 class Kernels(NamedTuple):
@@ -232,30 +221,9 @@ def window_scores(rows, ends, decays, half_life, bars, lag_weights, U, ring_rows
         out_trace[w] = trace
 
 
-def jit(function):
-    """``function`` compiled by numba (cached on disk) when :data:`USE_NUMBA`, else itself.
-
-    Helpers called by compiled loops must be compiled too: decorate every loop of the
-    tracker with this.
-    """
-    if not USE_NUMBA:
-        return function
-    return _numba_jit()(function)
-
-
-@cache
-def _numba_jit():
-    import numba
-
-    from algid._compile_notice import watch
-
-    watch()   # a line on stderr while numba compiles these for more than a second
-    return numba.njit(cache=True, nogil=True)
-
-
 @cache
 def kernels():
-    """The tracker's per-window loops, compiled when :data:`USE_NUMBA`.
+    """The tracker's per-window loops, compiled when numba is used.
 
     Returns
     -------
@@ -265,6 +233,10 @@ def kernels():
     """
     from algid.identification import _tracker_solve as solve
 
+    if not USE_NUMBA and not declined():
+        print("algid: numba is not installed, so the Tracker's loops run as Python, tens to "
+              "hundreds of times slower than compiled (pip install 'algid[fast]' compiles "
+              "them)", file=sys.stderr, flush=True)
     return Kernels(jit(window_sums), jit(window_scores), solve.window_rows,
                    solve.step_integrals, solve.difference_squares, solve.noise_bounds,
                    solve.solve_windows, solve.window_stderr)

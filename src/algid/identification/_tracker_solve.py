@@ -1,5 +1,5 @@
 """The per-window solves of :class:`algid.Tracker`: loops compiled by numba when
-installed, run as Python otherwise (:func:`algid.identification._tracker_kernels.jit`).
+installed, run as Python otherwise (:func:`algid.identification._tracker_jit.jit`).
 
 On a stream a window end arrives every few samples; here identify's mathematics runs
 window after window over systems of ``p + 1 <= 13`` columns, in scalars and fixed-size
@@ -30,7 +30,7 @@ import math
 
 import numpy as np
 
-from algid.identification._tracker_kernels import jit as _jit
+from algid.identification._tracker_jit import jit as _jit
 from algid.identification._window_basis import DETERMINED_LEAK, ROUNDOFF_SEPARABILITY
 from algid.identification._window_covariance import INDEFINITE_RTOL
 
