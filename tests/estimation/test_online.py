@@ -521,3 +521,13 @@ def test_anchor_plan_does_not_depend_on_how_the_run_is_cut(half):
     assert pieces == whole
     with pytest.raises(ValueError, match="half"):
         anchor_plan(0, 10, 0)
+
+
+def test_gap_in_the_first_chunk_named_where_it_is(engine):
+    """The first chunk's step is its mean step, which a gap moves: the sample named is
+    the gap's, against the chunk's usual step, not the first sample."""
+    t, f, x = _record(duration=0.05)
+    gapped = t.copy()
+    gapped[30:] += 20 * H
+    _one_line_error("not uniformly sampled at stream sample 30: step 0.02",
+                    OnlineEstimator(engine=engine).update, gapped, f, x)

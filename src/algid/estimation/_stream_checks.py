@@ -198,6 +198,7 @@ def check_chunk(t, f, x, *, n, t_last, dt, scan=None):
         i = int(bad[0])
         raise InputDataError(f"time 't' is not increasing at stream sample {first + i + 1}: "
                              f"{_fmt(full[i + 1])} after {_fmt(full[i])}")
+    taken_here = dt is None
     if dt is None and steps.size:
         dt = _first_step(t, t_last)
     if dt is not None and steps.size:
@@ -206,6 +207,10 @@ def check_chunk(t, f, x, *, n, t_last, dt, scan=None):
         tolerance = step_tolerance(max(abs(full[0]), abs(full[-1])), dt)
         if deviation[i] > tolerance and _beyond_rounding(full, dt, deviation[i]):
             off = deviation > tolerance
+            median = float(np.median(steps))
+            if taken_here and (np.abs(steps - median) > tolerance).any():
+                # a gap moved the mean step: name the step off the median
+                dt, off = median, np.abs(steps - median) > tolerance
             if off.all() and np.ptp(steps) <= tolerance:  # uniform, at another step
                 raise InputDataError(
                     f"time 't' steps by {_fmt(steps[0])} from stream sample {first + 1} "
