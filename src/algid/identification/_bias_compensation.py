@@ -1,8 +1,11 @@
 """Least squares with the bias that white output noise causes removed (Koopmans'
-estimator), for the window equations of :func:`algid.identify` and
-:class:`algid.Tracker`: one estimator, :func:`koopmans_stack`, whose generalised
-eigenproblem identify solves with LAPACK's ``sygvd`` and the Tracker with a batched
-Cholesky reduction (the two agree to round-off, not bit for bit)."""
+estimator), for the window equations of :func:`algid.identify` and its systems.
+
+:class:`algid.Tracker` solves the same estimator window after window in its loops
+(``_tracker_solve._koopmans``: the same equilibration, eligibility, top eigenpair and
+correction of the bound, its generalised eigenproblem by a Cholesky reduction and
+Jacobi rotations where this module calls LAPACK's ``sygvd``); the two agree to
+round-off, which the Tracker's tests check against identify."""
 
 from __future__ import annotations
 
@@ -118,15 +121,15 @@ def koopmans(normal, noise, bound=np.inf):
     capped : bool
         Whether the variance is the cap ``bound``.
     """
-    theta_bar, variance, capped = koopmans_stack(
-        normal[None], noise[None], np.array([bound], dtype=float), pencil=_pencil_lapack)
+    theta_bar, variance, capped = koopmans_stack(normal[None], noise[None],
+                                                 np.array([bound], dtype=float))
     if np.isnan(variance[0]):
         return None, None, False
     return theta_bar[0], variance[0], bool(capped[0])
 
 
-def koopmans_stack(normal, noise, bound, pencil=None):
-    """Koopmans' estimator on a stack of problems (one batched call per step).
+def koopmans_stack(normal, noise, bound):
+    """Koopmans' estimator on a stack of problems.
 
     Per problem: the top eigenpair ``(mu, v)`` of the pencil ``(noise, normal)``, both
     equilibrated by the square roots of ``diag(normal)``, gives ``theta_bar = -v /
@@ -141,11 +144,6 @@ def koopmans_stack(normal, noise, bound, pencil=None):
         As in :func:`koopmans`, per problem.
     bound : numpy.ndarray, shape (k,)
         Upper bounds on the output noise variance.
-    pencil : callable, optional
-        The eigensolver of the equilibrated pencils: by default a batched reduction by
-        the Cholesky factor of the equilibrated ``normal`` (as LAPACK's ``sygv`` does;
-        its results equal LAPACK's to round-off), the one the Tracker uses; identify's
-        :func:`koopmans` passes LAPACK's own, one problem at a time.
 
     Returns
     -------
@@ -173,7 +171,7 @@ def koopmans_stack(normal, noise, bound, pencil=None):
     diagonal = np.sqrt(np.einsum("kii->ki", normal))
     diagonal[diagonal == 0] = 1.0
     eligible = np.any(noise != 0, axis=(1, 2)) & (bound > 0)
-    top, v, ok = (pencil or _pencil_batched)(normal, noise, diagonal, eligible)
+    top, v, ok = _pencil_lapack(normal, noise, diagonal, eligible)
     eligible &= ok
     if not np.any(eligible):
         return theta_bar, variance, capped
@@ -210,30 +208,13 @@ def koopmans_stack(normal, noise, bound, pencil=None):
     return theta_bar, variance, capped
 
 
-def _pencil_batched(normal, noise, diagonal, eligible):
-    """Top eigenpairs of the equilibrated pencils ``(noise, normal)`` of a stack, by the
-    Cholesky factor ``L`` of the equilibrated ``normal`` (batched ``inv(L) noise
-    inv(L)^T``, its eigenvectors mapped back by ``inv(L)^T``).
+def _pencil_lapack(normal, noise, diagonal, eligible):
+    """Top eigenpairs of the equilibrated pencils ``(noise, normal)`` of a stack, by
+    LAPACK's ``sygvd`` one problem at a time.
 
     Returns the top eigenvalues, their eigenvectors in the unscaled columns and which
     problems were solved (``normal`` positive definite), for :func:`koopmans_stack`.
     """
-    k, q1, _ = normal.shape
-    scale = diagonal[:, :, None] * diagonal[:, None, :]
-    scaled = np.where(eligible[:, None, None], normal / scale, np.eye(q1))
-    lower, ok = _cholesky_stack(scaled)
-    ok &= eligible
-    if not np.any(ok):
-        return np.full(k, np.nan), np.full((k, q1), np.nan), ok
-    inverse = np.linalg.inv(lower)
-    reduced = inverse @ (noise / scale) @ np.swapaxes(inverse, 1, 2)
-    mu, vectors = np.linalg.eigh(reduced)
-    v = (np.swapaxes(inverse, 1, 2) @ vectors[:, :, -1:])[:, :, 0] / diagonal
-    return mu[:, -1], v, ok
-
-
-def _pencil_lapack(normal, noise, diagonal, eligible):
-    """:func:`_pencil_batched` by LAPACK's ``sygvd``, one problem at a time."""
     from scipy.linalg import eigh
 
     k, q1, _ = normal.shape
@@ -247,22 +228,6 @@ def _pencil_lapack(normal, noise, diagonal, eligible):
             continue
         top[i], v[i], ok[i] = mu[-1], vectors[:, -1] / d, True
     return top, v, ok
-
-
-def _cholesky_stack(matrices):
-    """Lower Cholesky factors of a stack, and which matrices are positive definite."""
-    try:
-        return np.linalg.cholesky(matrices), np.ones(len(matrices), bool)
-    except np.linalg.LinAlgError:
-        lower = np.empty_like(matrices)
-        ok = np.ones(len(matrices), bool)
-        for i, matrix in enumerate(matrices):
-            try:
-                lower[i] = np.linalg.cholesky(matrix)
-            except np.linalg.LinAlgError:
-                lower[i] = np.eye(len(matrix))
-                ok[i] = False
-        return lower, ok
 
 
 def solve_equilibrated(H, g):

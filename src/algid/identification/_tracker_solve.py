@@ -231,12 +231,12 @@ def _koopmans(normal, noise, bound, theta_bar):
     """The bias-compensated solution ``(theta, -1)`` of one window (``theta_bar``) and
     the noise variance of the correction (NaN: none).
 
-    Mirrors the shared NumPy estimator, ``koopmans_stack`` of
-    :mod:`algid.identification._bias_compensation` (its default, Cholesky-reduced
-    pencil): the same equilibration, eligibility, choice of the top eigenpair and
-    correction of the bound, step for step.  Its Cholesky factor, Jacobi eigenvalues and
-    LU inverse are written out here, so its results agree with NumPy's LAPACK ones to
-    round-off, not bit for bit; a change to the estimator is made in both.
+    identify's estimator, ``koopmans_stack`` of
+    :mod:`algid.identification._bias_compensation`, in loops: the same equilibration,
+    eligibility, choice of the top eigenpair and correction of the bound.  The pencil
+    is reduced by the Cholesky factor of the equilibrated normal matrix and solved by
+    Jacobi rotations (LAPACK's ``sygvd`` there), so the two agree to round-off, not bit
+    for bit; a change to the estimator is made in both.
     """
     q = normal.shape[0]
     p = q - 1

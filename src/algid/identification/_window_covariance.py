@@ -27,7 +27,7 @@ import numpy as np
 from algid.identification._window_kernels import term_kernel, window_sample_weights
 
 __all__ = ["noise_meat", "hac_meat", "sandwich", "upper_envelope", "positive_definite",
-           "INDEFINITE_RTOL", "sandwich_stack"]
+           "INDEFINITE_RTOL"]
 
 #: A middle of the sandwich whose smallest eigenvalue is below this fraction of its
 #: largest counts as indefinite.
@@ -256,37 +256,3 @@ def sandwich(bread, hac, noise=None, agreement=4.0, floor=0.0, middle=False):
         clipped = bread @ ((vectors * np.abs(values)) @ vectors.T) @ bread.T
     covariance = (clipped + clipped.T) / 2 + floor ** 2 * np.eye(len(clipped))
     return (covariance, used) if middle else covariance
-
-
-def sandwich_stack(bread, hac, rtol=INDEFINITE_RTOL):
-    """:func:`sandwich` without a noise model, on a stack (one batched call per step).
-
-    The HAC middle's negative eigenvalues are clipped to zero, or reflected where the
-    sum is not positive definite (its eigenvalues, as :func:`positive_definite` judges
-    them).
-
-    Parameters
-    ----------
-    bread : numpy.ndarray, shape (k, p, p)
-        ``J^-1`` per problem.
-    hac : numpy.ndarray, shape (k, p, p)
-        Symmetric middles.
-    rtol : float
-        Relative floor of :func:`positive_definite`.
-
-    Returns
-    -------
-    numpy.ndarray, shape (k, p, p)
-
-    Examples
-    --------
-    >>> import numpy as np
-    >>> sandwich_stack(np.eye(2)[None], np.diag([4.0, -1.0])[None]).tolist()
-    [[[4.0, 0.0], [0.0, 1.0]]]
-    """
-    values, vectors = np.linalg.eigh(hac)
-    definite = (values[:, -1] > 0) & (values[:, 0] > rtol * values[:, -1])
-    kept = np.where(definite[:, None], np.maximum(values, 0.0), np.abs(values))
-    middle = (vectors * kept[:, None, :]) @ np.swapaxes(vectors, 1, 2)
-    clipped = bread @ middle @ np.swapaxes(bread, 1, 2)
-    return (clipped + np.swapaxes(clipped, 1, 2)) / 2
