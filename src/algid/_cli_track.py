@@ -290,7 +290,8 @@ def _live(args, model):
     # every window end comes out (the stream's end is not known before it comes);
     # _Reports picks those to print
     tracker = _tracker(args, model, time, None)
-    from algid.identification._tracker import STEP_SAMPLES, TrackerSetupError
+    from algid.identification._tracker import STEP_SAMPLES
+    from algid.identification._tracker_state import TrackerSetupError
 
     first_stamps = []
     if not args.json:

@@ -306,13 +306,15 @@ def build_parser() -> argparse.ArgumentParser:
     der.add_argument("--model", default="msd", metavar="NAME", help="model (default: msd)")
     der.add_argument("--format", choices=("text", "latex", "markdown"), default="text",
                      help="output format (default: text)")
-    der.add_argument("--equation", default=None, metavar="TEXT",
+    der.add_argument("--equation", action="append", default=None, metavar="TEXT",
                      help="your own model instead of --model, e.g. \"y'' + a*y' + b*y = u\" "
-                          "(derivatives with primes)")
+                          "(derivatives with primes); several times for a system of "
+                          "equations that share parameters")
     der.add_argument("--parameters", default=None, metavar="NAMES",
                      help="unknowns of --equation, e.g. \"a b\"")
-    der.add_argument("--signals", nargs=2, default=("f", "x"), metavar=("INPUT", "OUTPUT"),
-                     help="names of the input and output in --equation (default: f x)")
+    der.add_argument("--signals", nargs=2, default=None, metavar=("INPUT", "OUTPUT"),
+                     help="names of the input and output of one --equation (default: f x; "
+                          "a system's outputs come from its equations)")
     der.set_defaults(handler=_cmd_derive)
 
     gen = commands.add_parser(
@@ -331,8 +333,9 @@ def build_parser() -> argparse.ArgumentParser:
                      default=DEFAULT_QUADRATURE_POINTS, metavar="Q",
                      help="points of the quadrature rule, 2-9 (default: "
                           f"{DEFAULT_QUADRATURE_POINTS})")
-    gen.add_argument("--equation", default=None, metavar="TEXT",
-                     help="your own model instead of MODEL, as for `algid derive`")
+    gen.add_argument("--equation", action="append", default=None, metavar="TEXT",
+                     help="your own model instead of MODEL, as for `algid derive` (one "
+                          "equation)")
     gen.add_argument("--parameters", default=None, metavar="NAMES",
                      help="unknowns of --equation, e.g. \"a b\"")
     gen.add_argument("--signals", nargs=2, default=("f", "x"), metavar=("INPUT", "OUTPUT"),
@@ -653,9 +656,18 @@ def _cmd_derive(args) -> int:
     if args.equation is not None or args.parameters is not None:
         if args.equation is None or args.parameters is None:
             raise ModelError("--equation and --parameters go together")
-        model = symbolic.LinearODEModel.from_equation(
-            args.equation, parameters=args.parameters, input=args.signals[0],
-            output=args.signals[1], name="custom")
+        if len(args.equation) > 1:
+            if args.signals is not None:
+                raise ModelError("--signals names the input and output of one equation; "
+                                 "a system's outputs come from its equations")
+            from algid.models import parse_system
+
+            model = parse_system(args.equation, args.parameters)
+        else:
+            signals = args.signals or ("f", "x")
+            model = symbolic.LinearODEModel.from_equation(
+                args.equation[0], parameters=args.parameters, input=signals[0],
+                output=signals[1], name="custom")
     text = symbolic.derivation_report(model, args.format)
     print(str(text).rstrip("\n"))
     return 0
@@ -670,8 +682,11 @@ def _cmd_codegen(args) -> int:
             raise ModelError("--equation and --parameters go together")
         if args.model is not None:
             raise ModelError(f"give either MODEL ({args.model!r}) or --equation, not both")
+        if len(args.equation) > 1:
+            raise ModelError(f"codegen writes the estimator of one equation; --equation was "
+                             f"given {len(args.equation)} times")
         model = symbolic.LinearODEModel.from_equation(
-            args.equation, parameters=args.parameters, input=args.signals[0],
+            args.equation[0], parameters=args.parameters, input=args.signals[0],
             output=args.signals[1], name=args.name or "custom")
     elif args.model is None:
         raise ModelError("give a MODEL (msd, msd_mass) or --equation and --parameters")

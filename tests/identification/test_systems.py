@@ -272,9 +272,51 @@ def test_tracker_follows_two_masses_within_three_standard_errors():
         assert out.stderr[-1, i] < 0.05 * true, p
 
 
+def _motor_change_record(duration, change_at=None, factor=1.25, seed=100, rate=500.0):
+    """The motor driven by a multisine, ``K`` times ``factor`` from ``change_at`` (the
+    state carried over), 40 dB on both outputs."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(int(duration * rate)) / rate
+    u = _multisine(t, rng.uniform(0.2, 8.0, 8), seed)
+    k = len(t) if change_at is None else int(change_at * rate)
+    y = simulate_system(MOTOR, MOTOR_TRUE, t[:k + 1], {"u": u[:k + 1]})
+    if change_at is not None:
+        rest = simulate_system(MOTOR, dict(MOTOR_TRUE, K=MOTOR_TRUE["K"] * factor), t[k:],
+                               {"u": u[k:]}, initial_state=[y["i"][-1], y["w"][-1]])
+        y = {n: np.concatenate([y[n][:-1], rest[n]]) for n in y}
+    record = {"t": t, "u": u}
+    for n, v in y.items():
+        record[n] = v[:len(t)] + 0.01 * np.std(v) * rng.standard_normal(len(t))
+    return record
+
+
+def _alarms(record, **options):
+    tracker = algid.Tracker(MOTOR, list(MOTOR_TRUE), time="t", window=0.2, **options)
+    alarms = []
+    for start in range(0, len(record["t"]), 500):
+        alarms += tracker.update({k: v[start:start + 500] for k, v in record.items()}
+                                 ).alarms.tolist()
+    return alarms, tracker
+
+
+def test_tracker_of_a_system_raises_an_alarm_when_a_shared_parameter_changes():
+    """K (shared by both equations) up 25 % at 15 s: one alarm within 1.5 s, none
+    before; on the same stream without the change, none (design: 1e-3 per second)."""
+    alarms, tracker = _alarms(_motor_change_record(25.0, change_at=15.0), half_life=2.0)
+    assert len(alarms) >= 1 and 15.0 < alarms[0] < 16.5, alarms
+    steady, _ = _alarms(_motor_change_record(25.0), half_life=2.0)
+    assert steady == []
+
+
+def test_tracker_of_a_system_tunes_its_alarms_to_the_rate():
+    record = _motor_change_record(3.0)
+    with pytest.raises(InputDataError, match="more than one alarm in two tests"):
+        _alarms(record, false_alarm_rate=1e3)
+    with pytest.raises(InputDataError, match="one alarm in"):
+        _alarms(record, false_alarm_rate=1e-16)
+
+
 def test_tracker_of_a_system_refuses_what_it_cannot_do():
-    with pytest.raises(InputDataError, match="raises no alarms"):
-        algid.Tracker(MOTOR, "L R K J b", rate=500, false_alarm_rate=0.1)
     with pytest.raises(ModelError, match="needs derivatives"):
         algid.Tracker(["L*i' + R*i + K*w = u", "J*w' + b*sign(w') = K*i"], "L R K J b",
                       rate=500)

@@ -14,6 +14,7 @@ import shutil
 import subprocess
 import sys
 import textwrap
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -245,8 +246,16 @@ def test_c_of_shared_minors_equals_python(tmp_path):
     """A six-parameter model (its Cramer rule from shared minors): the C estimator gives
     the numbers of the Python one wherever both give one (the same operations in the
     same order), in any chunking, and the parameters of the simulated system."""
+    import importlib.util
+
     import scipy.signal
-    from test_codegen_c import CEstimator, compile_library
+
+    # the C harness of tests/symbolic, by path: this file may be collected without it
+    path = Path(__file__).resolve().parents[1] / "symbolic" / "test_codegen_c.py"
+    spec = importlib.util.spec_from_file_location("test_codegen_c_harness", path)
+    harness = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(harness)
+    CEstimator, compile_library = harness.CEstimator, harness.compile_library
 
     from algid.symbolic._codegen_c import write_c_sources
 

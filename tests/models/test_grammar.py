@@ -1,5 +1,7 @@
 """The restricted grammar of model equations: what it reads and what it refuses."""
 
+import re
+
 import numpy as np
 import pytest
 
@@ -128,3 +130,19 @@ def test_printing_round_trips():
                            + " = u", [f"p{i}" for i in range(len(nonlinear))])
     assert [t.factor for t in again.terms if t.parameter is not None] == nonlinear
     assert Constant(2.5).__str__() == "2.5"
+
+
+@pytest.mark.parametrize("equation, fragment", [
+    (["y' + a*y = u", "x' = y"], "one text, got a list of 2: a system of equations goes to"),
+    (("y' + a*y = u",), "got a tuple of 1"),
+    (None, "got NoneType"),
+    (3.0, "got float"),
+    ("   ", "the equation is empty"),
+])
+def test_not_a_text_named_for_what_it_is(equation, fragment):
+    """compile_equation and parse_equation take one text; a list is a system."""
+    from algid.models import compile_equation
+
+    for call in (lambda: parse_equation(equation, "a"), lambda: compile_equation(equation, "a")):
+        with pytest.raises(ModelError, match=re.escape(fragment)):
+            call()

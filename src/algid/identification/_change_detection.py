@@ -33,8 +33,17 @@ from functools import lru_cache
 
 import numpy as np
 
-__all__ = ["VARIANCE_RATIO", "INCREMENT_CAP", "cusum_reference", "average_run_length",
-           "cusum_threshold"]
+from algid.identification._tracker_state import TrackerSetupError
+
+__all__ = ["VARIANCE_RATIO", "INCREMENT_CAP", "DEFAULT_FALSE_ALARM_RATE", "MAX_RUN_LENGTH",
+           "cusum_reference", "average_run_length", "cusum_threshold", "cusum_design"]
+
+#: Design false alarms per second of stream time.
+DEFAULT_FALSE_ALARM_RATE = 1e-3
+
+#: Longest average run between false alarms (tests) that the CUSUM threshold is tuned
+#: to: beyond about 1e13 its run-length recursion loses the precision to place it.
+MAX_RUN_LENGTH = 1e12
 
 #: Variance ratio of the innovations the CUSUM is tuned to detect.
 VARIANCE_RATIO = 4.0
@@ -129,3 +138,41 @@ def cusum_threshold(run_length, k):
         else:
             high = middle
     return high
+
+
+def cusum_design(false_alarm_rate, test_interval, tests=1):
+    """The drift and threshold of a CUSUM for a false-alarm rate per second.
+
+    Parameters
+    ----------
+    false_alarm_rate : float
+        Design false alarms per second of stream time, for all ``tests`` together.
+    test_interval : float
+        Seconds of stream between tests.
+    tests : int
+        CUSUMs run side by side (one per equation of a system): each is tuned to its
+        share of the rate.
+
+    Returns
+    -------
+    k, h : float
+        :func:`cusum_reference` and :func:`cusum_threshold`.
+
+    Raises
+    ------
+    TrackerSetupError
+        A rate of more than one alarm in two tests, or beyond :data:`MAX_RUN_LENGTH`.
+    """
+    k = cusum_reference()
+    rate = false_alarm_rate / tests
+    run_length = 1.0 / (rate * test_interval)
+    if run_length < 2.0:   # (the CUSUM's threshold is tuned from two tests up)
+        raise TrackerSetupError(f"false_alarm_rate {false_alarm_rate:g} per second is more "
+                                f"than one alarm in two tests (every {test_interval:.4g} s); "
+                                f"use at most {0.5 * tests / test_interval:.3g}")
+    if run_length > MAX_RUN_LENGTH:
+        raise TrackerSetupError(f"false_alarm_rate {false_alarm_rate:g} per second is one "
+                                f"alarm in {run_length:.3g} tests (every {test_interval:.4g} "
+                                f"s); the threshold is tuned up to {MAX_RUN_LENGTH:.0e}: use "
+                                f"at least {tests / (MAX_RUN_LENGTH * test_interval):.3g}")
+    return k, cusum_threshold(run_length, k)

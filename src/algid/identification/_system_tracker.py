@@ -22,6 +22,11 @@ exponential forgetting (``half_life``; None keeps every window).
   weights) at the current estimate: the estimating equations are linear in it, so their
   components' products are what accumulates (bounded: ``(k p (p + 1))**2`` numbers for
   ``p`` parameters and ``k - 1`` noisy outputs).
+- **Alarms**: one CUSUM per equation (:mod:`algid.identification._change_detection`),
+  on the innovations of windows that share no sample: a window's rows at the estimate
+  made before its first sample, divided by their predicted standard deviation (the
+  equation's residual scatter so far, plus the estimate's uncertainty along the rows).
+  Each CUSUM is tuned to its share of ``false_alarm_rate``; an alarm restarts them all.
 
 The state is the last window's samples and sums of fixed size.  Nonlinear factors that
 need derivatives of the signals (``sign(q')``) are not tracked in systems.
@@ -31,6 +36,7 @@ from __future__ import annotations
 
 import math
 from collections import deque
+from typing import NamedTuple
 
 import numpy as np
 
@@ -45,6 +51,11 @@ from algid._record_input import (
 )
 from algid.errors import InputDataError, ModelError
 from algid.identification._arguments import check_seconds
+from algid.identification._change_detection import (
+    DEFAULT_FALSE_ALARM_RATE,
+    INCREMENT_CAP,
+    cusum_design,
+)
 from algid.identification._records import GAP_FACTOR, Segment
 from algid.identification._system_identify import WEAK_RELATIVE_ERROR, solve_normal
 from algid.identification._tracker_state import TrackUpdate
@@ -67,6 +78,16 @@ WARMUP_DOUBLINGS = 3
 
 
 
+class _Solved(NamedTuple):
+    """The estimate at one window end."""
+
+    theta: np.ndarray
+    stderr: np.ndarray
+    error: np.ndarray
+    theta_bar: np.ndarray     # (theta, -1)
+    covariance: np.ndarray
+
+
 class SystemTracker:
     """The streaming form of :func:`algid.identify` on a system of equations.
 
@@ -75,8 +96,8 @@ class SystemTracker:
     Parameters
     ----------
     system : algid.models.SystemModel
-    rate, time, window, half_life, method, warmup, every
-        As for :class:`algid.Tracker`.
+    rate, time, window, half_life, method, warmup, false_alarm_rate, every
+        As for :class:`algid.Tracker` (the false-alarm rate is the whole system's).
 
     Examples
     --------
@@ -93,7 +114,8 @@ class SystemTracker:
     """
 
     def __init__(self, system, *, rate=None, time=None, window=None, half_life=None,
-                 method="bc", warmup=DEFAULT_WARMUP, every=None):
+                 method="bc", warmup=DEFAULT_WARMUP,
+                 false_alarm_rate=DEFAULT_FALSE_ALARM_RATE, every=None):
         for model in system.equations:
             if model.needs_derivatives:
                 raise ModelError(f"the equation {model.equation} needs derivatives inside a "
@@ -101,7 +123,7 @@ class SystemTracker:
         if method not in ("bc", "ls"):
             raise InputDataError(f"method must be 'bc' or 'ls' for a tracker, got {method!r}")
         check_seconds(window_or_none=window, half_life_or_none=half_life, warmup=warmup,
-                      every_or_none=every)
+                      false_alarm_rate=false_alarm_rate, every_or_none=every)
         self.system = system
         self.parameters = tuple(system.parameters)
         self.models = [m for m in system.equations if m.parameters]
@@ -110,6 +132,7 @@ class SystemTracker:
         self.method = method
         self.half_life = half_life
         self.every = every
+        self.false_alarm_rate = float(false_alarm_rate)
         self._warmup = self._first_warmup = float(warmup)
         self._window = window
         self._signals = list(system.signals)
@@ -127,6 +150,11 @@ class SystemTracker:
         self._recent = deque()
         self._differences = {y: np.zeros((len(DIFFERENCE_ORDERS), 2)) for y in self._noisy}
         self._tail = {y: np.empty(0) for y in self._noisy}
+        self._weight_sum = 0.0      # the windows, forgotten as the sums are
+        self._run_windows = 0       # windows since the current run began (the tests')
+        self._cusum = np.zeros(len(self.models))
+        self._previous_test = None  # (theta_bar, covariance, residual variance per equation)
+        self._alarms = []
 
     # ------------------------------------------------------------------ public
     @property
@@ -153,6 +181,7 @@ class SystemTracker:
         t, columns = self._read(chunk)
         self._accumulate_noise(columns)
         self._out = []
+        self._alarms = []
         self._last = last
         self._buffer_t = np.concatenate([self._buffer_t, t])
         for name in self._signals:
@@ -162,12 +191,13 @@ class SystemTracker:
         if self.length is not None:
             self._windows()
         p = len(self.parameters)
+        alarms = np.array(self._alarms, dtype=float)
         if not self._out:
             return TrackUpdate(self.parameters, np.empty(0), np.empty((0, p)),
-                               np.empty((0, p)), np.empty((0, p)), np.empty(0))
+                               np.empty((0, p)), np.empty((0, p)), alarms)
         t_out, values, stderr, error = (np.array(x, dtype=float) for x in zip(*self._out))
         return TrackUpdate(self.parameters, t_out, values.reshape(-1, p),
-                           stderr.reshape(-1, p), error.reshape(-1, p), np.empty(0))
+                           stderr.reshape(-1, p), error.reshape(-1, p), alarms)
 
     # ------------------------------------------------------------------ input
     def _read(self, chunk):
@@ -250,6 +280,8 @@ class SystemTracker:
         self.overlap = int(math.ceil(length / self.stride))
         self.decay = 1.0 if self.half_life is None else \
             2.0 ** (-self.stride * step / self.half_life)
+        self._k_cusum, self._h_cusum = cusum_design(
+            self.false_alarm_rate, self.overlap * self.stride * step, tests=len(self.models))
 
     # ------------------------------------------------------------------ windows
     def _windows(self):
@@ -271,6 +303,7 @@ class SystemTracker:
             self._drop(slice(cut if finite[cut] else cut + 1, None))
             self._next_start = 0
             self._recent.clear()   # windows across the break are not neighbours
+            self._run_windows = 0
 
     def _drop(self, keep):
         self._buffer_t = self._buffer_t[keep]
@@ -288,13 +321,18 @@ class SystemTracker:
         segment = Segment(0, np.arange(len(seg_t)), seg_t, values, self.step)
         blocks = {a: self._rows(segment, a) for a in MULTIPLICITIES}
         ends = seg_t[self.length - 1::self.stride][:count]
+        top = max(MULTIPLICITIES)
         for w in range(count):
             self._add(blocks, w)
+            tested = self._run_windows % self.overlap == 0
+            self._run_windows += 1
             if self._weights is None:
                 continue
-            theta, stderr, error = self._solve()
+            solved = self._solve()
+            if tested:
+                self._test(ends[w], [phi[w] for phi, _ in blocks[top]], solved)
             if self._report(ends[w], w == count - 1):
-                self._out.append((ends[w], theta, stderr, error))
+                self._out.append((ends[w], solved.theta, solved.stderr, solved.error))
         self._next_start = start + count * self.stride
 
     def _report(self, end, final):
@@ -356,6 +394,28 @@ class SystemTracker:
     def _bounds(self):
         return {y: noise_bound_from_sums(sums) for y, sums in self._differences.items()}
 
+    def _test(self, end, rows, solved):
+        """The CUSUM step of a window that shares no sample with the last tested one:
+        each equation's row at the estimate of that window."""
+        P = len(self.parameters)
+        if self._previous_test is not None:
+            theta_bar, covariance, variances = self._previous_test
+            for e, phi in enumerate(rows):
+                innovation = float(phi @ theta_bar)
+                variance = variances[e] + float(phi[:P] @ covariance @ phi[:P])
+                if not variance > 0:
+                    continue
+                increment = min(innovation ** 2 / variance, INCREMENT_CAP)
+                self._cusum[e] = max(0.0, self._cusum[e] + increment - self._k_cusum)
+                if self._cusum[e] > self._h_cusum:
+                    self._cusum[:] = 0.0
+                    self._alarms.append(float(end))
+                    break
+        top = max(MULTIPLICITIES)
+        variances = [float(solved.theta_bar @ sums["normal"] @ solved.theta_bar)
+                     / self._weight_sum for sums in self._sums[top]]
+        self._previous_test = (solved.theta_bar, solved.covariance, variances)
+
     def _add(self, blocks, w):
         P = len(self.parameters)
         if self._sums is None:
@@ -371,6 +431,7 @@ class SystemTracker:
                 for y, g in grams.items():
                     sums["noise"][y] *= self.decay
                     sums["noise"][y] += g[w]
+        self._weight_sum = self.decay * self._weight_sum + 1.0
         top = max(MULTIPLICITIES)
         if self._weights is None:
             # weights from the first windows: each equation's residual rms at a first
@@ -457,8 +518,9 @@ class SystemTracker:
         bread = np.linalg.pinv(jacobian / d[:, None] / d[None, :]) / d[:, None] / d[None, :]
         values, vectors = np.linalg.eigh(self._meat(theta_bar, variance))
         meat = (vectors * np.abs(values)) @ vectors.T
-        stderr = np.sqrt(np.maximum(np.diag(bread @ meat @ bread.T), 0.0))
+        covariance = bread @ meat @ bread.T
+        stderr = np.sqrt(np.maximum(np.diag(covariance), 0.0))
         others = [self._koopmans(a, self._weights)[0][:P] for a in MULTIPLICITIES if a != top]
         error = np.max([np.abs(o - theta_bar[:P]) for o in others], axis=0) if others \
             else np.full(P, np.nan)
-        return theta_bar[:P], stderr, error
+        return _Solved(theta_bar[:P], stderr, error, theta_bar, covariance)

@@ -47,7 +47,11 @@ from algid._record_input import (
 )
 from algid.errors import AlgidError, InputDataError
 from algid.identification._arguments import check_arguments, check_model_columns, check_seconds
-from algid.identification._change_detection import INCREMENT_CAP, cusum_reference, cusum_threshold
+from algid.identification._change_detection import (
+    DEFAULT_FALSE_ALARM_RATE,
+    INCREMENT_CAP,
+    cusum_design,
+)
 from algid.identification._methods import TRACKER_METHODS
 from algid.identification._records import GAP_FACTOR, UNIFORM_TOLERANCE
 from algid.identification._tracker_kernels import kernels
@@ -58,6 +62,7 @@ from algid.identification._tracker_state import (
     Segment,
     Sums,
     Tests,
+    TrackerSetupError,
     TrackerState,
     TrackUpdate,
     Warmup,
@@ -84,9 +89,6 @@ __all__ = ["Tracker", "TrackUpdate", "DEFAULT_WARMUP", "DEFAULT_FALSE_ALARM_RATE
 #: half the longest it allows).
 DEFAULT_WARMUP = 2.0
 
-#: Design false alarms per second of stream time.
-DEFAULT_FALSE_ALARM_RATE = 1e-3
-
 #: Steps of the (centred) differentiator of derivatives inside factors.
 DERIVATIVE_STEPS = 20
 
@@ -105,22 +107,12 @@ def _stride_and_overlap(length):
     return stride, -(-length // stride)
 
 
-#: Longest average run between false alarms (tests) that the CUSUM threshold is tuned
-#: to: beyond about 1e13 its run-length recursion loses the precision to place it.
-MAX_RUN_LENGTH = 1e12
-
-
 
 def _seconds(value):
     """An optional duration as a float (NumPy scalars too: the configuration is saved
     as JSON)."""
     return None if value is None else float(value)
 
-
-class TrackerSetupError(InputDataError):
-    """A refusal of the tracker's configuration once the stream shows its sampling step
-    (a window, half-life or false-alarm rate that cannot work at it): no later sample
-    can change it, unlike a refusal of the samples of one chunk."""
 
 
 class Tracker:
@@ -135,7 +127,8 @@ class Tracker:
         The model, as for :func:`algid.identify` (equation text, or a compiled model).
         A list of equations that share ``parameters`` makes a tracker of the system
         (:class:`~algid.identification._system_tracker.SystemTracker`: the joint window
-        equations, no alarms, no ``save``; see the user guide, "Systems of equations").
+        equations, one alarm test per equation, no ``save``; see the user guide,
+        "Systems of equations").
     parameters : sequence of str or str
         The unknown parameters (not needed for a Model or a compiled model).
     rate : float, optional
@@ -194,11 +187,9 @@ class Tracker:
         if output is not None:
             raise InputDataError("output: a system's tracker takes the output of each of "
                                  "its equations")
-        if false_alarm_rate != DEFAULT_FALSE_ALARM_RATE:
-            raise InputDataError("false_alarm_rate: a system's tracker raises no alarms")
         return SystemTracker(parse_system(equation, parameters), rate=rate, time=time,
                              window=window, half_life=half_life, method=method,
-                             warmup=warmup, every=every)
+                             warmup=warmup, false_alarm_rate=false_alarm_rate, every=every)
 
     def __init__(self, equation, parameters=None, *, rate=None, time=None, output=None,
                  window=None, half_life=None, method="bc", warmup=DEFAULT_WARMUP,
@@ -567,20 +558,8 @@ class Tracker:
         self.stride, self.overlap = _stride_and_overlap(length)
         self.lag_weights = _lag_weights(self.overlap)
         self.keep = length + self.lag + 2 * DERIVATIVE_STEPS
-        self.k_cusum = cusum_reference()
-        test_interval = self.overlap * self.stride * step
-        rate = self.config["false_alarm_rate"]
-        run_length = 1.0 / (rate * test_interval)
-        if run_length < 2.0:   # (the CUSUM's threshold is tuned from two tests up)
-            raise TrackerSetupError(f"false_alarm_rate {rate:g} per second is more than one "
-                                    f"alarm in two tests (every {test_interval:.4g} s); use "
-                                    f"at most {0.5 / test_interval:.3g}")
-        if run_length > MAX_RUN_LENGTH:
-            raise TrackerSetupError(f"false_alarm_rate {rate:g} per second is one alarm in "
-                                    f"{run_length:.3g} tests (every {test_interval:.4g} s); the "
-                                    f"threshold is tuned up to {MAX_RUN_LENGTH:.0e}: use at "
-                                    f"least {1.0 / (MAX_RUN_LENGTH * test_interval):.3g}")
-        self.h_cusum = cusum_threshold(run_length, self.k_cusum)
+        self.k_cusum, self.h_cusum = cusum_design(self.config["false_alarm_rate"],
+                                                  self.overlap * self.stride * step)
         self.needed = 1 + MIN_SPARE_WINDOWS
         p = len(self.parameters)
         index = {q: i for i, q in enumerate(self.parameters)}

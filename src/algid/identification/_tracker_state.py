@@ -20,8 +20,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-__all__ = ["TrackerState", "TrackUpdate", "Warmup", "Sums", "Tests", "Pending", "Segment",
-           "MAX_WINDOW_SAMPLES", "WARMUP_DOUBLINGS"]
+from algid.errors import InputDataError
+
+__all__ = ["TrackerState", "TrackUpdate", "TrackerSetupError", "Warmup", "Sums", "Tests",
+           "Pending", "Segment", "MAX_WINDOW_SAMPLES", "WARMUP_DOUBLINGS"]
 
 #: Longest window (samples) a tracker accepts: its state holds a few arrays of a
 #: window's samples.
@@ -34,6 +36,12 @@ WARMUP_DOUBLINGS = 3
 
 def _empty():
     return np.empty(0)
+
+
+class TrackerSetupError(InputDataError):
+    """A refusal of the tracker's configuration once the stream shows its sampling step
+    (a window, half-life or false-alarm rate that cannot work at it): no later sample
+    can change it, unlike a refusal of the samples of one chunk."""
 
 
 @dataclass

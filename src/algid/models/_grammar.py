@@ -568,10 +568,18 @@ def check_text(text):
     Raises
     ------
     ModelError
-        Empty, too long, a character outside the grammar (``#``, quotes, brackets,
+        Not a text (a list: a system, named as such), empty, too long, a character
+        outside the grammar (``#``, quotes, brackets,
         non-ASCII), or parentheses nested beyond ``LIMITS["nesting"]``.
     """
-    if not isinstance(text, str) or not text.strip():
+    if isinstance(text, (list, tuple)):
+        raise ModelError(f"an equation is one text, got a {type(text).__name__} of "
+                         f"{len(text)}: a system of equations goes to algid.identify, "
+                         f"algid.Tracker or algid.symbolic.derive (algid.models.parse_system)")
+    if not isinstance(text, str):
+        raise ModelError(f"an equation is a text such as \"y' + a*y = u\", got "
+                         f"{type(text).__name__}")
+    if not text.strip():
         raise ModelError("the equation is empty")
     if len(text) > LIMITS["length"]:
         raise ModelError(f"equation {_shown(' '.join(text[:200].split()))!r}: "

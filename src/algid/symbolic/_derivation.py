@@ -27,7 +27,10 @@ from dataclasses import dataclass
 import sympy as sp
 
 from algid.errors import ModelError
+from algid.models._system import SystemModel
+from algid.symbolic._channels import ChannelModel
 from algid.symbolic._model import LAPLACE, TIME, LinearODEModel
+from algid.symbolic._system_derivation import stack_system
 
 __all__ = ["IteratedIntegral", "Kernel", "Derivation", "derive", "evaluate_kernel",
            "EXPANDED_CRAMER_MAX"]
@@ -352,16 +355,20 @@ def derive(model, *, extra_equations: int = 0) -> Derivation:
 
     Parameters
     ----------
-    model : LinearODEModel or ChannelModel
+    model : LinearODEModel, ChannelModel or algid.models.SystemModel
         Any model that lists its terms as ``(coefficient, channel, derivative)`` with
-        :meth:`~LinearODEModel.channel_terms` and its channels as ``channels``.
+        :meth:`~LinearODEModel.channel_terms` and its channels as ``channels``; or a
+        system of equations (:func:`algid.models.parse_system`), each equation derived
+        on its own and their linear systems stacked in the system's unknowns.
     extra_equations : int, optional
         Equations beyond the number of unknowns (each one more integration), for a
-        least-squares solution.  ``0`` gives a square system.
+        least-squares solution.  ``0`` gives a square system (per equation, for a
+        system).
 
     Returns
     -------
-    Derivation
+    Derivation or SystemDerivation
+        A :class:`~algid.symbolic.SystemDerivation` for a system.
 
     Examples
     --------
@@ -374,6 +381,9 @@ def derive(model, *, extra_equations: int = 0) -> Derivation:
     """
     if extra_equations < 0:
         raise ValueError("extra_equations must be >= 0")
+    if isinstance(model, SystemModel):
+        return stack_system(model, [derive(ChannelModel(m), extra_equations=extra_equations)
+                                    if m.parameters else None for m in model.equations])
     ics = _initial_condition_symbols(model)
     laplace = sp.Add(*(coeff * _laplace_of_derivative(channel, derivative, ics)
                        for coeff, channel, derivative in model.channel_terms()))

@@ -13,11 +13,14 @@ from dataclasses import dataclass
 import sympy as sp
 
 from algid.errors import ModelError
+from algid.models._system import SystemModel
 from algid.symbolic._builtin_models import builtin_model
+from algid.symbolic._channels import ChannelModel
 from algid.symbolic._derivation import EXPANDED_CRAMER_MAX, Derivation, derive
-from algid.symbolic._model import LinearODEModel
+from algid.symbolic._model import TIME, LinearODEModel
+from algid.symbolic._system_derivation import SystemDerivation
 
-__all__ = ["Step", "derivation_steps", "derivation_report", "FORMATS"]
+__all__ = ["Step", "derivation_steps", "system_steps", "derivation_report", "FORMATS"]
 
 #: Output formats of :func:`derivation_report`.
 FORMATS = ("text", "latex", "markdown")
@@ -67,6 +70,21 @@ def _text(expr, d: Derivation) -> str:
     return sp.sstr(expr.xreplace(subs) if hasattr(expr, "xreplace") else expr)
 
 
+def _channel_model_step(model, params):
+    """The "Model" step of an equation in several signals (a ChannelModel)."""
+    lhs = sp.Add(*(coefficient * (sp.Function(channel)(TIME).diff(TIME, derivative)
+                                  if derivative else sp.Function(channel)(TIME))
+                   for coefficient, channel, derivative in model.channel_terms()))
+    measured = ", ".join(model.model.signals)
+    text = (f"An equation linear in its unknown parameters {params}, written with every term "
+            f"on the left; the signals {measured} are measured")
+    factors = model.factor_texts()
+    if factors:
+        text += " (" + ", ".join(f"{channel} stands for {factor}"
+                                 for channel, factor in factors.items()) + ")"
+    return Step("Model", text + ".", ((lhs, sp.Integer(0)),))
+
+
 def derivation_steps(d: Derivation) -> list:
     """The derivation as a list of steps.
 
@@ -83,11 +101,21 @@ def derivation_steps(d: Derivation) -> list:
     model = d.model
     X, _ = d.transforms
     params = ", ".join(str(p) for p in model.parameters)
-    ode = model.ode()
-    steps = [Step("Model",
-                  f"A linear model with unknown parameters {params}; the input {model.input} "
-                  f"and the output {model.output} are measured.",
-                  ((ode.lhs, ode.rhs),)),
+    if hasattr(model, "ode"):
+        ode = model.ode()
+        first = Step("Model",
+                     f"A linear model with unknown parameters {params}; the input "
+                     f"{model.input} and the output {model.output} are measured.",
+                     ((ode.lhs, ode.rhs),))
+        table = (f"Operator table: d^k/ds^k {X} maps to (-t)^k {model.output}(t), and s^-k "
+                 "to the k-fold integral from 0 to t (written int^(k)); no inverse Laplace "
+                 "transform is needed.")
+    else:
+        first = _channel_model_step(model, params)
+        table = ("Operator table: d^k/ds^k of a signal's transform Z(s) maps to (-t)^k z(t), "
+                 "and s^-k to the k-fold integral from 0 to t (written int^(k)); no "
+                 "inverse Laplace transform is needed.")
+    steps = [first,
              Step("Laplace transform",
                   "Transform with the initial conditions kept as unknown symbols "
                   f"({', '.join(_text(c, d) for c in d.initial_conditions)}).",
@@ -107,9 +135,6 @@ def derivation_steps(d: Derivation) -> list:
                       "Positive powers of s are derivatives in time; multiplying by "
                       f"s^-{d.s_power} leaves only integrations.",
                       ((d.multiplied, sp.Integer(0)),)))
-    table = (f"Operator table: d^k/ds^k {X} maps to (-t)^k {model.output}(t), and s^-k to the "
-             "k-fold integral from 0 to t (written int^(k)); no inverse Laplace transform "
-             "is needed.")
     steps.append(Step("Back to the time domain", table, ((d.time_equations[0], sp.Integer(0)),)))
     if len(d.time_equations) > 1:
         steps.append(Step("More equations",
@@ -127,7 +152,13 @@ def derivation_steps(d: Derivation) -> list:
     steps.append(Step("Linear system P theta = Q",
                       "Each equation is linear in the unknowns; P and Q are filtered signals "
                       "computed on-line from the measurements.", tuple(eqs) + entries))
-    if d.P.shape[0] == d.P.shape[1] and d.P.shape[0] > EXPANDED_CRAMER_MAX:
+    if all(q == 0 for q in d.Q):
+        steps.append(Step("No known term",
+                          "Every term has an unknown parameter, so Q = 0: P theta = 0 fixes "
+                          "only the ratios of the parameters (theta = 0 solves it).  In a "
+                          "system, a parameter this equation shares with another one fixes "
+                          "the scale.", ()))
+    elif d.P.shape[0] == d.P.shape[1] and d.P.shape[0] > EXPANDED_CRAMER_MAX:
         # the expanded determinants would have n! products: named, not written out
         den = sp.Symbol("det(P)")
         nums = [sp.Symbol(f"det(P_{j + 1})") for j in range(d.P.shape[1])]
@@ -148,13 +179,16 @@ def derivation_steps(d: Derivation) -> list:
     return steps
 
 
-def _render_text(steps, d):
-    out = [f"Algebraic estimator of model {d.model.name!r}: {d.model.equation_text()}", ""]
-    for k, step in enumerate(steps, 1):
-        out += [f"{k}. {step.title}", f"   {step.text}"]
-        for lhs, rhs in step.equations:
-            out.append(f"     {_text(lhs, d)} = {_text(rhs, d)}")
-        out.append("")
+def _render_text(title, sections):
+    out = [title, ""]
+    for heading, prefix, steps, d in sections:
+        if heading:
+            out += [heading, ""]
+        for k, step in enumerate(steps, 1):
+            out += [f"{prefix}{k}. {step.title}", f"   {step.text}"]
+            for lhs, rhs in step.equations:
+                out.append(f"     {_text(lhs, d)} = {_text(rhs, d)}")
+            out.append("")
     return "\n".join(out)
 
 
@@ -167,37 +201,116 @@ def _escape(text):
             .replace("&", r"\&").replace("%", r"\%").replace("#", r"\#"))
 
 
-def _render_latex(steps, d):
+def _render_latex(title, sections):
     out = [r"\documentclass{article}", r"\usepackage{amsmath}", r"\allowdisplaybreaks",
-           r"\begin{document}",
-           rf"\section*{{Algebraic estimator of model \texttt{{{_escape(d.model.name)}}}}}"]
-    for step in steps:
-        out.append(rf"\subsection*{{{_escape(step.title)}}}")
-        out.append(_escape(step.text))
-        for lhs, rhs in step.equations:
-            out += [r"\begin{multline*}", _display_latex(lhs, rhs, d), r"\end{multline*}"]
+           r"\begin{document}", rf"\section*{{{title}}}"]
+    for heading, _, steps, d in sections:
+        if heading:
+            out.append(rf"\subsection*{{{_escape(heading)}}}")
+        for step in steps:
+            out.append(rf"\{'sub' if heading else ''}subsection*{{{_escape(step.title)}}}")
+            out.append(_escape(step.text))
+            for lhs, rhs in step.equations:
+                out += [r"\begin{multline*}", _display_latex(lhs, rhs, d), r"\end{multline*}"]
     out.append(r"\end{document}")
     return "\n".join(out) + "\n"
 
 
-def _render_markdown(steps, d):
-    out = [f"# Algebraic estimator of model `{d.model.name}`", ""]
-    for k, step in enumerate(steps, 1):
-        out += [f"## {k}. {step.title}", "", step.text, ""]
-        for lhs, rhs in step.equations:
-            out += ["$$", _display_latex(lhs, rhs, d), "$$", ""]
+def _render_markdown(title, sections):
+    out = [f"# {title}", ""]
+    for heading, prefix, steps, d in sections:
+        if heading:
+            out += [f"## {heading}", ""]
+        for k, step in enumerate(steps, 1):
+            out += [f"{'###' if heading else '##'} {prefix}{k}. {step.title}", "", step.text, ""]
+            for lhs, rhs in step.equations:
+                out += ["$$", _display_latex(lhs, rhs, d), "$$", ""]
     return "\n".join(out)
+
+
+def _titles(d, fmt):
+    """The report's title of one equation's derivation, per format."""
+    if fmt == "text":
+        return f"Algebraic estimator of model {d.model.name!r}: {d.model.equation_text()}"
+    if fmt == "latex":
+        return rf"Algebraic estimator of model \texttt{{{_escape(d.model.name)}}}"
+    return f"Algebraic estimator of model `{d.model.name}`"
+
+
+def system_steps(sd: SystemDerivation) -> list:
+    """The steps that join a system's equations: the stacked linear system and its
+    solution.
+
+    Parameters
+    ----------
+    sd : SystemDerivation
+
+    Returns
+    -------
+    list of Step
+    """
+    rows = []
+    for e, i in sd.rows:
+        model = sd.equations[e].model
+        lhs = sp.Add(*(sp.Symbol(f"p{e + 1}_{i}_{j}") * p
+                       for j, p in enumerate(model.parameters)))
+        rows.append((lhs, sp.Symbol(f"q{e + 1}_{i}")))
+    n, p = sd.P.shape
+    shared = [str(q) for q in sd.parameters
+              if sum(q in d.model.parameters for d in sd.equations) > 1]
+    text = (f"Every equation's rows (p<e>_<i>_<j>, q<e>_<i>: equation e's P and Q) in the "
+            f"system's unknowns {', '.join(map(str, sd.parameters))}: {n} equations in {p} "
+            f"unknowns")
+    if shared:
+        text += (f"; {', '.join(shared)} {'appear' if len(shared) > 1 else 'appears'} in "
+                 f"several equations, which ties them.")
+    else:
+        text += ": no parameter is shared, so each equation is solved on its own."
+    if sd.skipped:
+        text += (f"  Without unknowns, and left out: {'; '.join(sd.skipped)}.")
+    steps = [Step("Stacked linear system P theta = Q", text, tuple(rows))]
+    if n == p:
+        solve = ("As many equations as unknowns: Cramer's rule on the stacked P, as for one "
+                 "equation, wherever det P is not zero.")
+    else:
+        solve = (f"More equations ({n}) than unknowns ({p}): least squares, theta minimising "
+                 f"the weighted sum of squared residuals, (P^T W P) theta = P^T W Q.  "
+                 f"algid.identify stacks these rows over many windows, weights each equation "
+                 f"by the inverse rms of its residuals, and removes the bias of every "
+                 f"output's noise (Koopmans' estimator).")
+    if any(all(q == 0 for q in d.Q) for d in sd.equations):
+        solve += ("  An equation without a known term contributes only through the "
+                  "parameters it shares: they fix its scale.")
+    steps.append(Step("Solution", solve, ()))
+    return steps
+
+
+def _system_sections(sd: SystemDerivation, fmt):
+    count = len(sd.equations)
+    sections = [(f"Equation {e + 1} of {count}: {d.model.equation_text()}", f"{e + 1}.",
+                 derivation_steps(d), d) for e, d in enumerate(sd.equations)]
+    sections.append(("The system", "S.", system_steps(sd), sd.equations[0]))
+    equations = "; ".join(m.equation for m in sd.system.equations)
+    title = {"text": f"Algebraic estimator of the system {sd.system.name!r}: {equations}",
+             "latex": rf"Algebraic estimator of the system "
+                      rf"\texttt{{{_escape(sd.system.name)}}}",
+             "markdown": f"Algebraic estimator of the system `{sd.system.name}`"}[fmt]
+    return title, sections
 
 
 def display_equations(model, fmt="latex"):
     """Every display equation of the report as a LaTeX string (for checking rendering)."""
-    d = derive(_as_model(model))
-    return [_display_latex(lhs, rhs, d) for step in derivation_steps(d)
+    if isinstance(model, SystemModel):
+        _, sections = _system_sections(derive(model), "latex")
+    else:
+        d = derive(_as_model(model))
+        sections = [(None, "", derivation_steps(d), d)]
+    return [_display_latex(lhs, rhs, d) for _, _, steps, d in sections for step in steps
             for lhs, rhs in step.equations]
 
 
 def _as_model(model):
-    if isinstance(model, LinearODEModel):
+    if isinstance(model, (LinearODEModel, ChannelModel)):
         return model
     if isinstance(model, Derivation):
         return model.model
@@ -209,8 +322,10 @@ def derivation_report(model="msd", fmt="text") -> str:
 
     Parameters
     ----------
-    model : str, LinearODEModel or Derivation
-        A built-in model name (``"msd"``, ``"msd_mass"``), or a user's model.
+    model : str, LinearODEModel, ChannelModel, Derivation, SystemModel or SystemDerivation
+        A built-in model name (``"msd"``, ``"msd_mass"``), a user's model, or a system
+        of equations (:func:`algid.models.parse_system`): each equation's derivation,
+        then their stacked linear system.
     fmt : {"text", "latex", "markdown"}
         Plain text, a complete LaTeX document, or Markdown with ``$$`` maths.
 
@@ -228,7 +343,10 @@ def derivation_report(model="msd", fmt="text") -> str:
     """
     if fmt not in FORMATS:
         raise ModelError(f"unknown format {fmt!r} (known: {', '.join(FORMATS)})")
-    d = model if isinstance(model, Derivation) else derive(_as_model(model))
-    steps = derivation_steps(d)
     render = {"text": _render_text, "latex": _render_latex, "markdown": _render_markdown}[fmt]
-    return render(steps, d)
+    if isinstance(model, SystemModel):
+        model = derive(model)
+    if isinstance(model, SystemDerivation):
+        return render(*_system_sections(model, fmt))
+    d = model if isinstance(model, Derivation) else derive(_as_model(model))
+    return render(_titles(d, fmt), [(None, "", derivation_steps(d), d)])
