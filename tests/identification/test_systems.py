@@ -314,6 +314,21 @@ def test_tracker_of_a_system_tunes_its_alarms_to_the_rate():
         _alarms(record, false_alarm_rate=1e3)
     with pytest.raises(InputDataError, match="one alarm in"):
         _alarms(record, false_alarm_rate=1e-16)
+    # a refused configuration stays refused: every later chunk says so again
+    tracker = algid.Tracker(MOTOR, list(MOTOR_TRUE), time="t", window=0.2,
+                            false_alarm_rate=1e-16)
+    for start in (0, 500, 1000):
+        with pytest.raises(InputDataError, match="one alarm in"):
+            tracker.update({k: v[start:start + 500] for k, v in record.items()})
+
+
+def test_tracker_of_a_system_refuses_a_half_life_too_short_and_reports_every():
+    record = _motor_change_record(6.0)
+    with pytest.raises(InputDataError, match="half_life 1e-09 s is too short for the window"):
+        _alarms(record, half_life=1e-9)
+    tracker = algid.Tracker(MOTOR, list(MOTOR_TRUE), time="t", window=0.2, every=1.0)
+    out = tracker.update(record)
+    assert len(out) >= 3 and np.all(np.diff(np.floor(out.t)) == 1)   # one per second
 
 
 def test_tracker_of_a_system_refuses_what_it_cannot_do():

@@ -58,7 +58,7 @@ from algid.identification._change_detection import (
 )
 from algid.identification._records import GAP_FACTOR, Segment
 from algid.identification._system_identify import WEAK_RELATIVE_ERROR, solve_normal
-from algid.identification._tracker_state import TrackUpdate
+from algid.identification._tracker_state import TrackUpdate, check_half_life
 from algid.identification._window_problem import (
     DIFFERENCE_ORDERS,
     MULTIPLICITIES,
@@ -275,13 +275,15 @@ class SystemTracker:
             if more and (2 * length >= longest or weak):
                 self._warmup = 2 * span
                 return
-        self.step, self.length = step, length
-        self.stride = max(1, length // WINDOW_OVERLAP)
-        self.overlap = int(math.ceil(length / self.stride))
+        stride = max(1, length // WINDOW_OVERLAP)
+        overlap = int(math.ceil(length / stride))
+        # (refused before the tracker counts as configured: every later chunk is too)
+        check_half_life(self.half_life, length, step, stride, overlap, len(self.parameters))
+        self._k_cusum, self._h_cusum = cusum_design(
+            self.false_alarm_rate, overlap * stride * step, tests=len(self.models))
+        self.step, self.length, self.stride, self.overlap = step, length, stride, overlap
         self.decay = 1.0 if self.half_life is None else \
             2.0 ** (-self.stride * step / self.half_life)
-        self._k_cusum, self._h_cusum = cusum_design(
-            self.false_alarm_rate, self.overlap * self.stride * step, tests=len(self.models))
 
     # ------------------------------------------------------------------ windows
     def _windows(self):
@@ -338,8 +340,8 @@ class SystemTracker:
     def _report(self, end, final):
         if self.every is None or (final and self._last):
             return True
-        previous = getattr(self, "_last_report", -np.inf)
-        if math.floor(end / self.every) > math.floor(previous / self.every):
+        previous = getattr(self, "_last_report", None)
+        if previous is None or math.floor(end / self.every) > math.floor(previous / self.every):
             self._last_report = end
             return True
         return False

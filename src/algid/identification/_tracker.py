@@ -66,6 +66,7 @@ from algid.identification._tracker_state import (
     TrackerState,
     TrackUpdate,
     Warmup,
+    check_half_life,
 )
 from algid.identification._window_kernels import (
     TERM_KERNELS,
@@ -478,22 +479,9 @@ class Tracker:
     def _check_half_life(self, length, step):
         """Refuse a half-life under which even an endless stream never holds the
         effective windows an estimate needs (it would report NaN only)."""
-        half_life = self.config["half_life"]
-        if half_life is None:
-            return
         stride, overlap = _stride_and_overlap(length)
-        ratio = 2.0 ** (-stride * step / half_life)  # weight of a window over the next's
-        # (sum w)**2 / sum w**2 of the geometric weights of an endless stream
-        most = (1.0 + ratio) / (1.0 - ratio) / overlap if ratio < 1.0 else math.inf
-        needed = len(self.parameters) + MIN_SPARE_WINDOWS  # (as the solvers require)
-        if most < needed:
-            n = needed * overlap
-            shortest = stride * step * math.log(2.0) / math.log((n + 1) / (n - 1))
-            raise TrackerSetupError(f"half_life {half_life:g} s is too short for the window "
-                                    f"{(length - 1) * step:.4g} s: it leaves at most "
-                                    f"{most:.2g} effective windows where the "
-                                    f"{len(self.parameters)} parameters need {needed}; use at "
-                                    f"least {shortest:.4g} s")
+        check_half_life(self.config["half_life"], length, step, stride, overlap,
+                        len(self.parameters))
 
     def _longest_span(self):
         """The longest span (s) to which the warm-up is extended for a longer window

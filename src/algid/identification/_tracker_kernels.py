@@ -18,9 +18,10 @@ stream is cut into chunks:
 The loops use scalars, fixed-size arrays and ``math`` only, so that they compile (numba
 today, C99 later) and run unchanged as Python.  :func:`kernels` gives the compiled ones
 when numba is used (:mod:`algid.identification._tracker_jit`), else the Python
-functions: the same operations in the same order, the same results bit for bit, tens to
-hundreds of times slower (360 times on the EMPS record with every window end reported:
-``python -m benchmarks.tracking``, section ``python_loops``).
+functions: the same operations in the same order, the same results bit for bit (but for
+the forgetting factors ``2**x``, where numba's ``pow`` and the C library's can differ in
+the last bit), tens to hundreds of times slower (360 times on the EMPS record with every
+window end reported: ``python -m benchmarks.tracking``, section ``python_loops``).
 """
 
 from __future__ import annotations

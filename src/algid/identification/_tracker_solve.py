@@ -42,6 +42,21 @@ _SWEEPS = 60   # Jacobi sweeps (a few suffice at p <= 12)
 
 
 @_jit
+def _power(x, n):
+    """``x ** n`` for an integer ``n``, by repeated squaring as numba computes it, so that
+    the loops give the same bits compiled and as Python (whose ``**`` calls ``pow``)."""
+    result = 1.0
+    base = x
+    exponent = -n if n < 0 else n
+    while exponent != 0:
+        if exponent & 1:
+            result *= base
+        exponent >>= 1
+        base *= base
+    return 1.0 / result if n < 0 else result
+
+
+@_jit
 def _product(A, B, transpose_a, transpose_b):
     """``op(A) @ op(B)`` in plain loops (a fixed order of operations, no BLAS call)."""
     n = A.shape[1] if transpose_a else A.shape[0]
@@ -698,7 +713,7 @@ def window_stderr(R, top, W, bars, hac, trace, full, jacobian, mapping, kept, th
         sandwich = (clipped + clipped.T) / 2
         covariance = _product(_product(mapping[w], sandwich, False, False), mapping[w],
                               False, True)
-        independent = W[w, 0] ** 2 / W[w, 1] / overlap
+        independent = _power(W[w, 0], 2) / W[w, 1] / overlap
         factor = independent / max(independent - kept[w], 1.0)
         for i in range(p):
             if math.isnan(theta[w, i]):
@@ -756,7 +771,7 @@ def window_rows(fac, sen, starts, step, irregular, weights, derivatives, coeffic
                     total = 0.0
                     for j in range(length):
                         total += fac[i, first + j] * weights[x, i, j]
-                    integrals[x, i, w] = total / step[w] ** derivatives[i]
+                    integrals[x, i, w] = total / _power(step[w], derivatives[i])
                 value = coefficients[i] * integrals[x, i, w]
                 if columns[i] == p:
                     rows[x, w, p] -= value
@@ -772,7 +787,7 @@ def window_rows(fac, sen, starts, step, irregular, weights, derivatives, coeffic
                     for j in range(length):
                         total += sen[s1, first + j] * sen[s2, first + j] \
                             * (weights[x, i1, j] * weights[x, i2, j])
-                    value = total * (step[w] ** -(k1 + k2) * (noisy_weights[y]
+                    value = total * (_power(step[w], -(k1 + k2)) * (noisy_weights[y]
                                                              * noisy_weights[z]))
                     grams[x, w, c1, c2] += value
                     if y != z:
@@ -829,7 +844,7 @@ def step_integrals(t, starts, length, levels, times, steps, primitive, derivativ
             if t0 < times[j] < end:
                 u = (times[j] - t0) / span
                 total += steps[j] * (whole - _chebval(2.0 * u - 1.0, primitive))
-        out[w] = total / span ** derivative
+        out[w] = total / _power(span, derivative)
 
 
 @_jit
@@ -843,7 +858,7 @@ def difference_squares(y, out):
         for k in range(8):
             for j in range(8 - k):
                 v[j] = v[j + 1] - v[j]
-            out[i, k] = v[7 - k] ** 2
+            out[i, k] = _power(v[7 - k], 2)
 
 
 @_jit

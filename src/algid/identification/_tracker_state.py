@@ -21,9 +21,10 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from algid.errors import InputDataError
+from algid.identification._window_rule import MIN_SPARE_WINDOWS
 
 __all__ = ["TrackerState", "TrackUpdate", "TrackerSetupError", "Warmup", "Sums", "Tests",
-           "Pending", "Segment", "MAX_WINDOW_SAMPLES", "WARMUP_DOUBLINGS"]
+           "Pending", "Segment", "MAX_WINDOW_SAMPLES", "WARMUP_DOUBLINGS", "check_half_life"]
 
 #: Longest window (samples) a tracker accepts: its state holds a few arrays of a
 #: window's samples.
@@ -42,6 +43,42 @@ class TrackerSetupError(InputDataError):
     """A refusal of the tracker's configuration once the stream shows its sampling step
     (a window, half-life or false-alarm rate that cannot work at it): no later sample
     can change it, unlike a refusal of the samples of one chunk."""
+
+
+def check_half_life(half_life, length, step, stride, overlap, parameters):
+    """Refuse a half-life under which even an endless stream never holds the effective
+    windows an estimate of ``parameters`` parameters needs (it would report NaN, or a
+    system's tracker noise).
+
+    Parameters
+    ----------
+    half_life : float or None
+    length : int
+        Samples per window.
+    step : float
+        Sampling step (s).
+    stride, overlap : int
+        Samples between window starts, and windows that share a sample with one.
+    parameters : int
+
+    Raises
+    ------
+    TrackerSetupError
+    """
+    if half_life is None:
+        return
+    ratio = 2.0 ** (-stride * step / half_life)  # weight of a window over the next's
+    # (sum w)**2 / sum w**2 of the geometric weights of an endless stream
+    most = (1.0 + ratio) / (1.0 - ratio) / overlap if ratio < 1.0 else math.inf
+    needed = parameters + MIN_SPARE_WINDOWS  # (as the solvers require)
+    if most < needed:
+        n = needed * overlap
+        shortest = stride * step * math.log(2.0) / math.log((n + 1) / (n - 1))
+        raise TrackerSetupError(f"half_life {half_life:g} s is too short for the window "
+                                f"{(length - 1) * step:.4g} s: it leaves at most "
+                                f"{most:.2g} effective windows where the "
+                                f"{parameters} parameters need {needed}; use at "
+                                f"least {shortest:.4g} s")
 
 
 @dataclass
