@@ -61,6 +61,11 @@ def test_bad_input_one_line_exit_2(tmp_path, capsys):
         err = capsys.readouterr().err
         assert code == 2
         assert err.count("\n") == 1 and err.startswith("algid: error:")
+    # two equations: refused, not the last one tracked
+    code = main(["track", str(tmp_path / "lin.csv"), "--equation", EQUATION, "--equation",
+                 EQUATION, "--parameters", PARAMETERS])
+    err = capsys.readouterr().err
+    assert code == 2 and err.count("\n") == 1 and "--equation was given 2 times" in err
 
 
 @pytest.mark.parametrize("text, words", [("t,u,y\n", "standard input: no samples"),

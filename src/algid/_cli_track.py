@@ -45,7 +45,8 @@ def add_track_parser(commands, positive):
             "from standard input as they arrive (a header line first)."),
     )
     track.add_argument("file", metavar="FILE", help="data file, or - for standard input")
-    track.add_argument("--equation", required=True, metavar="EQ", help="the model equation")
+    track.add_argument("--equation", required=True, metavar="EQ", action="append",
+                       help="the model equation (one: a system is tracked from Python)")
     track.add_argument("--parameters", required=True, metavar="\"P1 P2 ...\"",
                        help="the unknown parameters, separated by spaces")
     track.add_argument("--time", default=None, metavar="COL",
@@ -138,7 +139,11 @@ def track_command(args) -> int:
     """
     from algid.models._grammar import parse_equation
 
-    model = parse_equation(args.equation, args.parameters, output=args.output)
+    if len(args.equation) > 1:
+        raise ModelError(f"algid track follows one equation; --equation was given "
+                         f"{len(args.equation)} times (a system is tracked from Python: "
+                         f"algid.Tracker([...]))")
+    model = parse_equation(args.equation[0], args.parameters, output=args.output)
     clash = [p for p in model.parameters if p in TRACK_JSON_KEYS]
     if clash:
         raise ModelError(f"parameter name {clash[0]!r} is reserved by the output "

@@ -313,8 +313,11 @@ def build_parser() -> argparse.ArgumentParser:
     der.add_argument("--parameters", default=None, metavar="NAMES",
                      help="unknowns of --equation, e.g. \"a b\"")
     der.add_argument("--signals", nargs=2, default=None, metavar=("INPUT", "OUTPUT"),
-                     help="names of the input and output of one --equation (default: f x; "
-                          "a system's outputs come from its equations)")
+                     help="names of the input and output of one --equation linear in them "
+                          "(default: f x, else every signal of the equation is measured)")
+    der.add_argument("--output", action="append", default=None, metavar="SIGNAL",
+                     help="the output of each --equation of a system, in order (default: "
+                          "the signal of highest derivative order)")
     der.set_defaults(handler=_cmd_derive)
 
     gen = commands.add_parser(
@@ -659,18 +662,35 @@ def _cmd_derive(args) -> int:
         if len(args.equation) > 1:
             if args.signals is not None:
                 raise ModelError("--signals names the input and output of one equation; "
-                                 "a system's outputs come from its equations")
+                                 "a system's outputs come from its equations (--output)")
             from algid.models import parse_system
 
-            model = parse_system(args.equation, args.parameters)
+            model = parse_system(args.equation, args.parameters, outputs=args.output)
         else:
-            signals = args.signals or ("f", "x")
-            model = symbolic.LinearODEModel.from_equation(
-                args.equation[0], parameters=args.parameters, input=signals[0],
-                output=signals[1], name="custom")
+            if args.output is not None:
+                raise ModelError("--output names the outputs of a system's equations; for "
+                                 "one equation give --signals INPUT OUTPUT")
+            model = _derived_equation(symbolic, args.equation[0], args.parameters,
+                                      args.signals)
     text = symbolic.derivation_report(model, args.format)
     print(str(text).rstrip("\n"))
     return 0
+
+
+def _derived_equation(symbolic, equation, parameters, signals):
+    """One equation for ``algid derive``: linear in ``signals`` (default f, x) as the
+    paper's model, else in every signal it reads (a parsed equation)."""
+    try:
+        input_, output = signals or ("f", "x")
+        return symbolic.LinearODEModel.from_equation(equation, parameters=parameters,
+                                                     input=input_, output=output,
+                                                     name="custom")
+    except ModelError:
+        if signals is not None:
+            raise
+    from algid.models import parse_equation
+
+    return parse_equation(equation, parameters)
 
 
 def _cmd_codegen(args) -> int:

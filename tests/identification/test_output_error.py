@@ -245,3 +245,18 @@ def test_given_values_refined_on_a_record_report_their_errors(linear_record):
         refined)
     for p, truth in TRUTH.items():
         assert abs(refined.values[p] - truth) < 4 * refined.stderr[p]
+
+
+def test_refined_residuals_far_above_the_noise_are_said():
+    """A model without the record's offset: its refined fit lowers the simulation error
+    but leaves residuals five times the output noise, along no direction the residual
+    test names; the right model's are at the noise."""
+    from benchmarks.synthetic_records import linear_offsets
+
+    record, _ = linear_offsets(0)
+    fit = algid.identify(record, "y'' + B*y' + K*y = G*u", "B K G")
+    assert fit.estimate == "refined"
+    assert any("times the white output noise" in w for w in fit.warnings), fit.warnings
+    right = algid.identify(record, "y'' + B*y' + K*y = G*u + d", "B K G d", refine=True)
+    assert right.estimate == "refined"
+    assert not any("white output noise" in w for w in right.warnings), right.warnings

@@ -1,6 +1,8 @@
 """identify on systems of equations that share parameters: two coupled masses with both
 positions measured, a DC motor with current and speed measured."""
 
+import re
+
 import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
@@ -343,6 +345,15 @@ def test_tracker_of_a_system_refuses_what_it_cannot_do():
 def test_fleets_take_one_equation():
     with pytest.raises(ModelError, match="identify_many takes one equation"):
         algid.identify_many({0: motor_record()}, MOTOR, "L R K J b")
+
+
+@pytest.mark.parametrize("equations, fragment", [
+    ("y' + a*y = u", "got one text (parse_equation reads one)"),
+    (None, "got NoneType"), (3, "got int"), (b"y' = u", "got bytes"),
+])
+def test_a_system_is_a_list(equations, fragment):
+    with pytest.raises(ModelError, match=re.escape(fragment)):
+        parse_system(equations, "a")
 
 
 def test_outputs_named_through_parse_system():

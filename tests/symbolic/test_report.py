@@ -58,4 +58,17 @@ def test_cli_derive_user_model(capsys):
 def test_cli_derive_bad_equation(capsys):
     code = main(["derive", "--equation", "y'' = u", "--parameters", "a"])
     err = capsys.readouterr().err
+    assert code == 2 and err.count("\n") == 1 and "parameter a does not appear" in err
+    code = main(["derive", "--equation", "y'' + a*y = u", "--parameters", "a",
+                 "--signals", "f", "x"])
+    err = capsys.readouterr().err
     assert code == 2 and err.count("\n") == 1 and "not the output" in err
+
+
+def test_cli_derive_equation_in_several_signals(capsys):
+    """Without --signals, an equation that is not linear in f and x is derived in every
+    signal it reads (nonlinear factors too)."""
+    code = main(["derive", "--equation", "y'' + a*y' + b*y**3 = u + c*w", "--parameters",
+                 "a b c", "--format", "markdown"])
+    out = capsys.readouterr().out
+    assert code == 0 and "the signals y, u, w are measured (z1 stands for y\\*\\*3)" in out

@@ -58,10 +58,14 @@ def test_stacked_system_exact_on_closed_form_signals():
 
 
 def test_equation_without_parameters_left_out():
-    d = derive(parse_system(["x1' + a*x1 = u", "x2' + x2 = x1"], "a"))
+    system = parse_system(["x2' + x2 = x1", "x1' + a*x1 = u"], "a")
+    d = derive(system)
     assert len(d.equations) == 1 and d.skipped == ("x2' + x2 = x1",) and d.P.shape == (1, 1)
-    assert "Without unknowns, and left out: x2' + x2 = x1" in derivation_report(
-        parse_system(["x1' + a*x1 = u", "x2' + x2 = x1"], "a"))
+    report = derivation_report(system)
+    assert "Without unknowns, and left out: x2' + x2 = x1" in report
+    # numbered as in the system, counted in the singular
+    assert "Equation 2 of 2: x1' + a*x1 = u" in report and "2.1. Model" in report
+    assert "a*p2_0_0 = q2_0" in report and "1 equation in 1 unknown" in report
 
 
 @pytest.mark.parametrize("fmt", ["text", "latex", "markdown"])
@@ -81,6 +85,32 @@ def test_system_display_equations_render_with_mathtext():
     assert len(equations) > 40
     for latex in equations:
         parser.parse(f"${latex}$")
+
+
+def test_markdown_and_latex_texts_are_not_markup():
+    markdown = derivation_report(parse_system(*TWO_MASSES), "markdown")
+    assert "## Equation 1 of 2: `m1*x1'' + c1*x1' + k1*x1 + k2*(x1 - x2) = u`" in markdown
+    assert "<" not in markdown.replace("$$", "")
+    latex = derivation_report(parse_system(*TWO_MASSES), "latex")
+    assert "t \\textgreater{} 0" in derivation_report("msd", "latex")
+    assert "<" not in latex and ">" not in latex
+
+
+@pytest.mark.parametrize("thing", [["y' + a*y = u"], None, 3])
+def test_not_a_model_is_one_line(thing):
+    from algid.errors import ModelError
+
+    for call in (derive, derivation_report):
+        with pytest.raises(ModelError, match="parse_system"):
+            call(thing)
+
+
+def test_cli_derive_system_with_outputs(capsys):
+    argv = ["derive", "--equation", "y' + a*y = u", "--equation", "z' + b*z = c*y'",
+            "--parameters", "a b c"]
+    assert main(argv) == 2 and "ambiguous" in capsys.readouterr().err
+    assert main(argv + ["--output", "y", "--output", "z"]) == 0
+    assert "Equation 2 of 2" in capsys.readouterr().out
 
 
 def test_cli_derive_system(capsys):

@@ -136,6 +136,10 @@ def parse_system(equations, parameters, *, outputs=None, name="custom") -> Syste
     """
     if isinstance(equations, SystemModel):
         return equations
+    if isinstance(equations, (str, bytes)) or not isinstance(equations, (list, tuple)):
+        raise ModelError(f"a system is a list of equations, got "
+                         f"{'one text' if isinstance(equations, str) else type(equations).__name__}"
+                         f"{' (parse_equation reads one)' if isinstance(equations, str) else ''}")
     equations = list(equations)
     if not equations:
         raise ModelError("a system needs at least one equation, got an empty list")

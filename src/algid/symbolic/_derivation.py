@@ -27,6 +27,7 @@ from dataclasses import dataclass
 import sympy as sp
 
 from algid.errors import ModelError
+from algid.models._model import Model
 from algid.models._system import SystemModel
 from algid.symbolic._channels import ChannelModel
 from algid.symbolic._model import LAPLACE, TIME, LinearODEModel
@@ -355,9 +356,10 @@ def derive(model, *, extra_equations: int = 0) -> Derivation:
 
     Parameters
     ----------
-    model : LinearODEModel, ChannelModel or algid.models.SystemModel
+    model : LinearODEModel, ChannelModel, algid.models.Model or algid.models.SystemModel
         Any model that lists its terms as ``(coefficient, channel, derivative)`` with
-        :meth:`~LinearODEModel.channel_terms` and its channels as ``channels``; or a
+        :meth:`~LinearODEModel.channel_terms` and its channels as ``channels`` (a parsed
+        equation, :func:`algid.models.parse_equation`, is taken as such); or a
         system of equations (:func:`algid.models.parse_system`), each equation derived
         on its own and their linear systems stacked in the system's unknowns.
     extra_equations : int, optional
@@ -384,6 +386,12 @@ def derive(model, *, extra_equations: int = 0) -> Derivation:
     if isinstance(model, SystemModel):
         return stack_system(model, [derive(ChannelModel(m), extra_equations=extra_equations)
                                     if m.parameters else None for m in model.equations])
+    if isinstance(model, Model):
+        model = ChannelModel(model)
+    if not hasattr(model, "channel_terms"):
+        raise ModelError(f"derive takes a model (LinearODEModel, algid.models.parse_equation) "
+                         f"or a system (algid.models.parse_system), got "
+                         f"{type(model).__name__}")
     ics = _initial_condition_symbols(model)
     laplace = sp.Add(*(coeff * _laplace_of_derivative(channel, derivative, ics)
                        for coeff, channel, derivative in model.channel_terms()))

@@ -13,6 +13,7 @@ from dataclasses import dataclass
 import sympy as sp
 
 from algid.errors import ModelError
+from algid.models._model import Model
 from algid.models._system import SystemModel
 from algid.symbolic._builtin_models import builtin_model
 from algid.symbolic._channels import ChannelModel
@@ -198,7 +199,8 @@ def _display_latex(lhs, rhs, d):
 
 def _escape(text):
     return (text.replace("\\", r"\textbackslash{}").replace("_", r"\_").replace("^", r"\^{}")
-            .replace("&", r"\&").replace("%", r"\%").replace("#", r"\#"))
+            .replace("&", r"\&").replace("%", r"\%").replace("#", r"\#")
+            .replace("<", r"\textless{}").replace(">", r"\textgreater{}"))
 
 
 def _render_latex(title, sections):
@@ -222,7 +224,8 @@ def _render_markdown(title, sections):
         if heading:
             out += [f"## {heading}", ""]
         for k, step in enumerate(steps, 1):
-            out += [f"{'###' if heading else '##'} {prefix}{k}. {step.title}", "", step.text, ""]
+            text = step.text.replace("*", r"\*")   # (y**3 in the text is no emphasis)
+            out += [f"{'###' if heading else '##'} {prefix}{k}. {step.title}", "", text, ""]
             for lhs, rhs in step.equations:
                 out += ["$$", _display_latex(lhs, rhs, d), "$$", ""]
     return "\n".join(out)
@@ -251,16 +254,16 @@ def system_steps(sd: SystemDerivation) -> list:
     """
     rows = []
     for e, i in sd.rows:
-        model = sd.equations[e].model
-        lhs = sp.Add(*(sp.Symbol(f"p{e + 1}_{i}_{j}") * p
+        model, number = sd.equations[e].model, sd.numbers[e]
+        lhs = sp.Add(*(sp.Symbol(f"p{number}_{i}_{j}") * p
                        for j, p in enumerate(model.parameters)))
-        rows.append((lhs, sp.Symbol(f"q{e + 1}_{i}")))
+        rows.append((lhs, sp.Symbol(f"q{number}_{i}")))
     n, p = sd.P.shape
     shared = [str(q) for q in sd.parameters
               if sum(q in d.model.parameters for d in sd.equations) > 1]
-    text = (f"Every equation's rows (p<e>_<i>_<j>, q<e>_<i>: equation e's P and Q) in the "
-            f"system's unknowns {', '.join(map(str, sd.parameters))}: {n} equations in {p} "
-            f"unknowns")
+    text = (f"Every equation's rows in the system's unknowns "
+            f"{', '.join(map(str, sd.parameters))} (pE_I_J and qE_I: the entries of "
+            f"equation E's P and Q): {_count(n, 'equation')} in {_count(p, 'unknown')}")
     if shared:
         text += (f"; {', '.join(shared)} {'appear' if len(shared) > 1 else 'appears'} in "
                  f"several equations, which ties them.")
@@ -272,6 +275,8 @@ def system_steps(sd: SystemDerivation) -> list:
     if n == p:
         solve = ("As many equations as unknowns: Cramer's rule on the stacked P, as for one "
                  "equation, wherever det P is not zero.")
+        if len(sd.equations) == 1:
+            solve = "One equation with unknowns: solved as on its own (above)."
     else:
         solve = (f"More equations ({n}) than unknowns ({p}): least squares, theta minimising "
                  f"the weighted sum of squared residuals, (P^T W P) theta = P^T W Q.  "
@@ -285,10 +290,16 @@ def system_steps(sd: SystemDerivation) -> list:
     return steps
 
 
+def _count(n, noun):
+    return f"{n} {noun}{'' if n == 1 else 's'}"
+
+
 def _system_sections(sd: SystemDerivation, fmt):
-    count = len(sd.equations)
-    sections = [(f"Equation {e + 1} of {count}: {d.model.equation_text()}", f"{e + 1}.",
-                 derivation_steps(d), d) for e, d in enumerate(sd.equations)]
+    count = len(sd.system.equations)
+    quote = (lambda text: f"`{text}`") if fmt == "markdown" else (lambda text: text)
+    sections = [(f"Equation {number} of {count}: {quote(d.model.equation_text())}",
+                 f"{number}.", derivation_steps(d), d)
+                for number, d in zip(sd.numbers, sd.equations)]
     sections.append(("The system", "S.", system_steps(sd), sd.equations[0]))
     equations = "; ".join(m.equation for m in sd.system.equations)
     title = {"text": f"Algebraic estimator of the system {sd.system.name!r}: {equations}",
@@ -312,8 +323,13 @@ def display_equations(model, fmt="latex"):
 def _as_model(model):
     if isinstance(model, (LinearODEModel, ChannelModel)):
         return model
+    if isinstance(model, Model):
+        return ChannelModel(model)
     if isinstance(model, Derivation):
         return model.model
+    if not isinstance(model, str):
+        raise ModelError(f"a report takes a built-in model's name, a model, a derivation or "
+                         f"a system (algid.models.parse_system), got {type(model).__name__}")
     return builtin_model(model)
 
 
@@ -322,8 +338,9 @@ def derivation_report(model="msd", fmt="text") -> str:
 
     Parameters
     ----------
-    model : str, LinearODEModel, ChannelModel, Derivation, SystemModel or SystemDerivation
-        A built-in model name (``"msd"``, ``"msd_mass"``), a user's model, or a system
+    model : str, LinearODEModel, Model, Derivation, SystemModel or SystemDerivation
+        A built-in model name (``"msd"``, ``"msd_mass"``), a user's model (also one
+        from :func:`algid.models.parse_equation`, in several signals), or a system
         of equations (:func:`algid.models.parse_system`): each equation's derivation,
         then their stacked linear system.
     fmt : {"text", "latex", "markdown"}

@@ -41,6 +41,8 @@ class SystemDerivation:
     rows : tuple of (int, int)
         For each row of ``P``: the equation (index in :attr:`equations`) and its row
         there.
+    numbers : tuple of int
+        For each of :attr:`equations`, its number in the system (from 1).
 
     Examples
     --------
@@ -59,6 +61,7 @@ class SystemDerivation:
     P: sp.Matrix
     Q: sp.Matrix
     rows: tuple
+    numbers: tuple
 
     @property
     def kernels(self) -> tuple:
@@ -87,8 +90,8 @@ def stack_system(system, derivations) -> SystemDerivation:
     SystemDerivation
     """
     parameters = tuple(sp.Symbol(p) for p in system.parameters)
-    kept, skipped, blocks, rows = [], [], [], []
-    for model, d in zip(system.equations, derivations):
+    kept, skipped, blocks, rows, numbers = [], [], [], [], []
+    for number, (model, d) in enumerate(zip(system.equations, derivations), 1):
         if d is None:
             skipped.append(model.equation)
             continue
@@ -99,7 +102,9 @@ def stack_system(system, derivations) -> SystemDerivation:
         rows += [(len(kept), i) for i in range(d.P.shape[0])]
         blocks.append((block, d.Q))
         kept.append(d)
+        numbers.append(number)
     return SystemDerivation(system=system, equations=tuple(kept), skipped=tuple(skipped),
                             parameters=parameters,
                             P=sp.Matrix.vstack(*(b for b, _ in blocks)),
-                            Q=sp.Matrix.vstack(*(q for _, q in blocks)), rows=tuple(rows))
+                            Q=sp.Matrix.vstack(*(q for _, q in blocks)), rows=tuple(rows),
+                            numbers=tuple(numbers))
