@@ -117,9 +117,11 @@ def check_seconds(**values):
         name = key.removesuffix("_or_none")
         if value is None and optional:
             continue
-        if isinstance(value, (bool, str)) or not isinstance(value, (int, float)) \
+        if isinstance(value, (bool, str, np.bool_)) \
+                or not isinstance(value, (int, float, np.integer, np.floating)) \
                 or not (math.isfinite(value) and value > 0):
-            raise InputDataError(f"{name} must be a positive number of seconds"
+            unit = "per second" if name.endswith("_rate") else "of seconds"
+            raise InputDataError(f"{name} must be a positive number {unit}"
                                  f"{' or None' if optional else ''}, got {value!r}")
 
 

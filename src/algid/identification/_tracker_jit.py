@@ -16,8 +16,8 @@ __all__ = ["USE_NUMBA", "declined", "numba_available", "jit"]
 
 
 def declined():
-    """Whether ``ALGID_TRACKER_PYTHON`` asks for the loops as Python."""
-    return os.environ.get("ALGID_TRACKER_PYTHON", "") not in ("", "0")
+    """Whether ``ALGID_TRACKER_PYTHON`` asks for the loops as Python (1, true or yes)."""
+    return os.environ.get("ALGID_TRACKER_PYTHON", "").strip().lower() in ("1", "true", "yes")
 
 
 def numba_available():
