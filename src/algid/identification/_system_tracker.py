@@ -49,7 +49,7 @@ from algid._record_input import (
     read_column,
     refuse_infinite,
 )
-from algid.errors import InputDataError, ModelError
+from algid.errors import AlgidError, InputDataError, ModelError
 from algid.identification._arguments import check_seconds
 from algid.identification._change_detection import (
     DEFAULT_FALSE_ALARM_RATE,
@@ -76,6 +76,10 @@ DEFAULT_WARMUP = 2.0
 #: Doublings of the warm-up span while identify refuses it.
 WARMUP_DOUBLINGS = 3
 
+
+
+def _seconds(value):
+    return None if value is None else float(value)
 
 
 class _Solved(NamedTuple):
@@ -161,6 +165,64 @@ class SystemTracker:
     def window(self):
         """The window length (s), or None before it is chosen."""
         return None if self.length is None else (self.length - 1) * self.step
+
+    @property
+    def config(self):
+        """The configuration, as :meth:`save` writes it (JSON types)."""
+        return {"equations": [m.equation for m in self.system.equations],
+                "parameters": list(self.parameters), "outputs": list(self.system.outputs),
+                "rate": self.rate, "time": self.time, "window": _seconds(self._window),
+                "half_life": _seconds(self.half_life), "method": self.method,
+                "warmup": self._first_warmup, "false_alarm_rate": self.false_alarm_rate,
+                "every": _seconds(self.every)}
+
+    def save(self, path):
+        """Write the whole state to a NumPy ``.npz`` file (as :meth:`algid.Tracker.save`:
+        arrays, a JSON header and a SHA-256 checksum of both).
+
+        Parameters
+        ----------
+        path : str or path-like
+        """
+        from algid.identification._system_tracker_file import FORMAT, flat_state
+        from algid.identification._tracker_file import write
+
+        write(path, self.config, flat_state(self), FORMAT)
+
+    @classmethod
+    def load(cls, path):
+        """A system's tracker continuing the stream saved by :meth:`save`.
+
+        Parameters
+        ----------
+        path : str or path-like
+
+        Returns
+        -------
+        SystemTracker
+
+        Raises
+        ------
+        InputDataError
+            A file that is not a saved system tracker, altered after it was saved, or
+            whose arrays do not fit its system and configuration (one line).
+        """
+        from algid.identification._system_tracker_file import CONFIG, FORMAT, restore
+        from algid.identification._tracker_file import read
+        from algid.models._system import parse_system
+
+        config, scalars, arrays = read(path, FORMAT, CONFIG)
+        try:
+            tracker = cls(parse_system(config["equations"], config["parameters"],
+                                       outputs=config["outputs"]),
+                          rate=config["rate"], time=config["time"], window=config["window"],
+                          half_life=config["half_life"], method=config["method"],
+                          warmup=config["warmup"], false_alarm_rate=config["false_alarm_rate"],
+                          every=config["every"])
+        except AlgidError as exc:
+            raise InputDataError(f"{path}: its configuration is refused: {exc}") from None
+        restore(path, tracker, scalars, arrays)
+        return tracker
 
     def update(self, chunk, *, last=False):
         """Stream the next samples (as :meth:`algid.Tracker.update`).
@@ -275,9 +337,13 @@ class SystemTracker:
             if more and (2 * length >= longest or weak):
                 self._warmup = 2 * span
                 return
+        self._set_window(length, step)
+
+    def _set_window(self, length, step):
+        """The window of ``length`` samples at ``step`` and the constants that follow
+        (refused before the tracker counts as configured: every later chunk is too)."""
         stride = max(1, length // WINDOW_OVERLAP)
         overlap = int(math.ceil(length / stride))
-        # (refused before the tracker counts as configured: every later chunk is too)
         check_half_life(self.half_life, length, step, stride, overlap, len(self.parameters))
         self._k_cusum, self._h_cusum = cusum_design(
             self.false_alarm_rate, overlap * stride * step, tests=len(self.models))

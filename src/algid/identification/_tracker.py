@@ -128,8 +128,8 @@ class Tracker:
         The model, as for :func:`algid.identify` (equation text, or a compiled model).
         A list of equations that share ``parameters`` makes a tracker of the system
         (:class:`~algid.identification._system_tracker.SystemTracker`: the joint window
-        equations, one alarm test per equation, no ``save``; see the user guide,
-        "Systems of equations").
+        equations, one alarm test per equation; see the user guide, "Systems of
+        equations").
     parameters : sequence of str or str
         The unknown parameters (not needed for a Model or a compiled model).
     rate : float, optional
@@ -325,7 +325,8 @@ class Tracker:
 
         Returns
         -------
-        Tracker
+        Tracker or SystemTracker
+            What was saved (a system's tracker from a system's file).
 
         Raises
         ------
@@ -334,9 +335,17 @@ class Tracker:
             or whose arrays do not fit its model and configuration (one line naming the
             file and the array).
         """
-        from algid.identification._tracker_file import check_state, read
+        from algid.identification._system_tracker_file import FORMAT as SYSTEM_FORMAT
+        from algid.identification._tracker_file import FormatError, check_state, read
 
-        config, scalars, arrays = read(path)
+        try:
+            config, scalars, arrays = read(path)
+        except FormatError as exc:   # a system's tracker: its own state
+            if exc.format != SYSTEM_FORMAT:
+                raise
+            from algid.identification._system_tracker import SystemTracker
+
+            return SystemTracker.load(path)
         try:
             tracker = cls(config["equation"], config["parameters"], rate=config["rate"],
                           time=config["time"], output=config["output"],

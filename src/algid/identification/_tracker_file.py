@@ -29,7 +29,7 @@ from algid.identification._tracker_state import (
     TrackerState,
 )
 
-__all__ = ["FORMAT", "write", "read", "check_state", "state_layout"]
+__all__ = ["FORMAT", "FormatError", "write", "read", "check_state", "state_layout"]
 
 #: The format of the file (3: the checksum and the checks on load).
 FORMAT = "algid.Tracker/3"
@@ -43,6 +43,14 @@ _CONFIG = {"equation": (str,), "parameters": (list,), "output": (str,),
 _HEADER = {"format", "config", "scalars", "floats"}
 
 
+class FormatError(InputDataError):
+    """A saved tracker of another format than the one asked for (:attr:`format`)."""
+
+    def __init__(self, message, format):
+        super().__init__(message)
+        self.format = format
+
+
 def _checksum(header_text, arrays):
     digest = hashlib.sha256(header_text.encode("utf-8"))
     for name in sorted(arrays):
@@ -52,7 +60,7 @@ def _checksum(header_text, arrays):
     return digest.hexdigest()
 
 
-def write(path, config, state):
+def write(path, config, state, fmt=FORMAT):
     """Write ``state`` (the tracker's, flat: :meth:`TrackerState.flat`) and ``config``
     to ``path``.
 
@@ -62,6 +70,8 @@ def write(path, config, state):
     config : dict
     state : dict
         String keys to arrays or scalars (floats are written as their ``repr``: exact).
+    fmt : str
+        The format written in the header (a system's tracker has its own).
     """
     arrays, scalars = {}, {}
     for key, value in state.items():
@@ -70,7 +80,7 @@ def write(path, config, state):
         else:
             value = value.item() if isinstance(value, np.generic) else value
             scalars[key] = float(value) if isinstance(value, float) else value
-    header = json.dumps({"format": FORMAT, "config": config, "scalars": {
+    header = json.dumps({"format": fmt, "config": config, "scalars": {
         k: (repr(v) if isinstance(v, float) else v) for k, v in scalars.items()},
         "floats": [k for k, v in scalars.items() if isinstance(v, float)]})
     checksum = _checksum(header, arrays)
@@ -99,12 +109,16 @@ def _members(path, archive):
     return out
 
 
-def read(path):
+def read(path, fmt=FORMAT, schema=None):
     """The configuration, scalars and arrays saved in ``path``, checksum verified.
 
     Parameters
     ----------
     path : str or path-like
+    fmt : str
+        The format expected.
+    schema : dict, optional
+        Configuration key -> the types its value may have (default: the Tracker's).
 
     Returns
     -------
@@ -136,7 +150,7 @@ def read(path):
             raise InputDataError(f"{path}: not a saved tracker (no {name})")
         texts[name] = str(value)
         if name == "header":   # (an older format has no checksum: named as such)
-            header = _header(path, texts["header"])
+            header = _header(path, texts["header"], fmt, _CONFIG if schema is None else schema)
     if any(not name.startswith("s/") for name in members):
         extra = next(name for name in members if not name.startswith("s/"))
         raise InputDataError(f"{path}: not a saved tracker (member {extra!r})")
@@ -148,7 +162,7 @@ def read(path):
     return header["config"], scalars, {name[2:]: value for name, value in members.items()}
 
 
-def _header(path, text):
+def _header(path, text, fmt, schema):
     """The parsed header, its structure and the types of its entries checked."""
     try:
         header = json.loads(text)
@@ -156,21 +170,21 @@ def _header(path, text):
         header = None
     if not isinstance(header, dict) or "format" not in header:
         raise InputDataError(f"{path}: not a saved tracker (its header is not one)")
-    if header["format"] != FORMAT:
-        raise InputDataError(f"{path}: a tracker saved in format {header['format']!r}; this "
-                            f"version reads {FORMAT!r} only")
+    if header["format"] != fmt:
+        raise FormatError(f"{path}: a tracker saved in format {header['format']!r}; this "
+                          f"version reads {fmt!r} here", header["format"])
     if set(header) != _HEADER:
         raise InputDataError(f"{path}: the header holds {sorted(header)}, not "
                             f"{sorted(_HEADER)}")
     config, scalars, floats = header["config"], header["scalars"], header["floats"]
-    if not isinstance(config, dict) or set(config) != set(_CONFIG):
+    if not isinstance(config, dict) or set(config) != set(schema):
         held = sorted(config) if isinstance(config, dict) else type(config).__name__
         raise InputDataError(f"{path}: the header's config holds {held}, not "
-                            f"{sorted(_CONFIG)}")
-    for key, kinds in _CONFIG.items():
+                            f"{sorted(schema)}")
+    for key, kinds in schema.items():
         value = config[key]
         if isinstance(value, bool) or not isinstance(value, kinds) or (
-                key == "parameters" and not all(isinstance(q, str) for q in value)):
+                isinstance(value, list) and not all(isinstance(q, str) for q in value)):
             raise InputDataError(f"{path}: config {key!r} is {value!r}")
     if not isinstance(scalars, dict) or not isinstance(floats, list) \
             or not all(isinstance(k, str) and k in scalars for k in floats):
