@@ -316,8 +316,8 @@ def build_parser() -> argparse.ArgumentParser:
                      help="names of the input and output of one --equation linear in them "
                           "(default: f x, else every signal of the equation is measured)")
     der.add_argument("--output", action="append", default=None, metavar="SIGNAL",
-                     help="the output of each --equation of a system, in order (default: "
-                          "the signal of highest derivative order)")
+                     help="the output of each --equation, in order (default: the signal "
+                          "of highest derivative order)")
     der.set_defaults(handler=_cmd_derive)
 
     gen = commands.add_parser(
@@ -666,10 +666,14 @@ def _cmd_derive(args) -> int:
             from algid.models import parse_system
 
             model = parse_system(args.equation, args.parameters, outputs=args.output)
+        elif args.output is not None:   # one equation, its output named
+            if len(args.output) > 1 or args.signals is not None:
+                raise ModelError("one equation takes one --output (or --signals INPUT "
+                                 "OUTPUT for an equation linear in them), not both")
+            from algid.models import parse_equation
+
+            model = parse_equation(args.equation[0], args.parameters, output=args.output[0])
         else:
-            if args.output is not None:
-                raise ModelError("--output names the outputs of a system's equations; for "
-                                 "one equation give --signals INPUT OUTPUT")
             model = _derived_equation(symbolic, args.equation[0], args.parameters,
                                       args.signals)
     text = symbolic.derivation_report(model, args.format)

@@ -459,3 +459,49 @@ def test_tracker_of_a_system_refuses_damaged_and_altered_files(tmp_path):
             algid.Tracker.load(write("forged.npz", forged))
     with zipfile.ZipFile(path) as archive:
         assert all(info.filename.endswith(".npy") for info in archive.infolist())
+
+
+def test_tracker_of_a_system_refuses_a_state_its_window_cannot_have(tmp_path):
+    """Hand-made files with a matching checksum: a window the kernels cannot have, a
+    step not the samples', weights that would overflow, flags of no state."""
+    import json
+
+    from algid.identification._tracker_file import _checksum
+
+    record = _motor_change_record(8.0)
+    tracker = algid.Tracker(MOTOR, list(MOTOR_TRUE), time="t", window=0.2,
+                            half_life=np.float32(2.0))
+    tracker.update({k: v[:2000] for k, v in record.items()})
+    path = tmp_path / "system.npz"
+    tracker.save(path)
+    with np.load(path) as saved:
+        members = {name: saved[name] for name in saved.files}
+
+    def forged(scalars=None, **arrays):
+        header = json.loads(str(members["header"]))
+        header["scalars"].update(scalars or {})
+        text = json.dumps(header)
+        state = {k: v for k, v in members.items() if k.startswith("s/")}
+        state.update({f"s/{k}": v for k, v in arrays.items()})
+        with open(tmp_path / "forged.npz", "wb") as f:
+            np.savez(f, header=np.array(text), checksum=np.array(_checksum(text, state)),
+                     **state)
+        return tmp_path / "forged.npz"
+
+    for scalars, arrays, fragment in (
+            ({"length": 0}, {}, "shorter than the kernels need"),
+            ({"length": 150}, {}, "not the configured window 0.2 s"),
+            ({"step": 0.5}, {}, "not the configured window"),
+            ({"next_start": 3}, {}, "scalar 'next_start' is 3"),
+            ({"has_products": False}, {}, "flags are not those of any state"),
+            ({"weight_sum": 0.0}, {}, "flags are not those of any state"),
+            ({"bogus": 1}, {}, "scalar 'bogus' is no part"),
+            ({}, {"weights": np.array([1e300, 1e300])}, "'weights' holds values")):
+        with pytest.raises(InputDataError, match=re.escape(fragment)):
+            algid.Tracker.load(forged(scalars, **arrays))
+    # a float32 half-life forgets as a Python float: loaded, the same bits
+    loaded = algid.Tracker.load(path)
+    rest = {k: v[2000:] for k, v in record.items()}
+    a, b = tracker.update(rest), loaded.update(rest)
+    assert len(a) > 100
+    assert np.array_equal(a.values, b.values) and np.array_equal(a.stderr, b.stderr)

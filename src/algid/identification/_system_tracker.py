@@ -58,7 +58,7 @@ from algid.identification._change_detection import (
 )
 from algid.identification._records import GAP_FACTOR, Segment
 from algid.identification._system_identify import WEAK_RELATIVE_ERROR, solve_normal
-from algid.identification._tracker_state import TrackUpdate, check_half_life
+from algid.identification._tracker_state import WARMUP_DOUBLINGS, TrackUpdate, check_half_life
 from algid.identification._window_problem import (
     DIFFERENCE_ORDERS,
     MULTIPLICITIES,
@@ -72,9 +72,6 @@ __all__ = ["SystemTracker"]
 
 #: Seconds of stream on which the window is chosen when none is given.
 DEFAULT_WARMUP = 2.0
-
-#: Doublings of the warm-up span while identify refuses it.
-WARMUP_DOUBLINGS = 3
 
 
 
@@ -134,11 +131,13 @@ class SystemTracker:
         self.rate = None if rate is None else check_rate(rate)
         self.time = time
         self.method = method
-        self.half_life = half_life
-        self.every = every
+        # (Python floats: a NumPy float32 would round the forgetting, and not the same
+        # way once saved and loaded)
+        self.half_life = _seconds(half_life)
+        self.every = _seconds(every)
         self.false_alarm_rate = float(false_alarm_rate)
         self._warmup = self._first_warmup = float(warmup)
-        self._window = window
+        self._window = _seconds(window)
         self._signals = list(system.signals)
         self._noisy = [y for y in system.outputs
                        if any(y in m.signals for m in self.models)]

@@ -16,8 +16,11 @@ from collections import deque
 
 import numpy as np
 
+from algid._record_input import RATE_TOLERANCE
 from algid.errors import InputDataError
+from algid.identification._tracker_state import MAX_WINDOW_SAMPLES, WARMUP_DOUBLINGS
 from algid.identification._window_problem import DIFFERENCE_ORDERS, MULTIPLICITIES
+from algid.identification._window_rule import min_length
 
 __all__ = ["FORMAT", "CONFIG", "flat_state", "restore"]
 
@@ -144,6 +147,23 @@ def _array(path, arrays, key, shape, finite=True, nan=False):
     return np.array(value)
 
 
+def _check_window(path, tracker, length, step, t):
+    """The saved window against the kernels, the configuration and the samples held."""
+    shortest = min_length(MULTIPLICITIES)
+    if length < shortest:
+        _fail(path, f"scalar 'length' is {length}, shorter than the kernels need ({shortest})")
+    if tracker._window is not None and length != int(round(tracker._window / step)) + 1:
+        _fail(path, f"scalar 'length' is {length}, not the configured window "
+                    f"{tracker._window:g} s at the step {step:g} s")
+    if tracker.rate is not None and abs(step * tracker.rate - 1.0) > RATE_TOLERANCE:
+        _fail(path, f"scalar 'step' is {step!r}, not the configured rate's")
+    if len(t) > 1:
+        held = float(np.median(np.diff(t)))
+        if abs(held - step) > RATE_TOLERANCE * step:
+            _fail(path, f"scalar 'step' is {step!r}, not the step of the samples held "
+                        f"({held:g} s)")
+
+
 def restore(path, tracker, scalars, arrays):
     """Check a saved state against ``tracker`` (made from the saved configuration) and
     set it.
@@ -162,6 +182,12 @@ def restore(path, tracker, scalars, arrays):
         One line naming the scalar or the array.
     """
     arrays = dict(arrays)
+    known = {"seen", "last_time", "configured", "warmup", "next_start", "weight_sum",
+             "run_windows", "last_report", "has_sums", "has_weights", "has_products",
+             "has_previous", "length", "step"}
+    extra = sorted(set(scalars) - known)
+    if extra:
+        _fail(path, f"scalar {extra[0]!r} is no part of a system tracker's state")
     P, k = len(tracker.parameters), len(tracker.models)
     t = _array(path, arrays, "buffer_t", (None,))
     n = len(t)
@@ -176,17 +202,22 @@ def restore(path, tracker, scalars, arrays):
     if n and last_time != t[-1]:
         _fail(path, f"scalar 'last_time' is {last_time!r}, not the last time held")
     warmup = _number(path, scalars, "warmup", "positive")
-    next_start = _count(path, scalars, "next_start", n)
+    if not tracker._first_warmup <= warmup <= tracker._first_warmup * 2 ** (WARMUP_DOUBLINGS + 1):
+        _fail(path, f"scalar 'warmup' is {warmup!r}, not a span the warm-up reaches")
+    next_start = _count(path, scalars, "next_start", 0)   # (0 after every chunk)
     weight_sum = _number(path, scalars, "weight_sum", "nonnegative")
     run_windows = _count(path, scalars, "run_windows")
     last_report = _number(path, scalars, "last_report", "time_or_nan")
+    if not math.isnan(last_report) and last_report > last_time:
+        _fail(path, f"scalar 'last_report' is {last_report!r}, after the last sample")
     configured = _flag(path, scalars, "configured")
     has_sums, has_weights = _flag(path, scalars, "has_sums"), _flag(path, scalars, "has_weights")
     has_products = _flag(path, scalars, "has_products")
     has_previous = _flag(path, scalars, "has_previous")
     if (has_sums or has_weights or has_products or has_previous) and not configured \
             or (has_weights or has_products or has_previous) and not has_sums \
-            or has_previous and not has_weights:
+            or has_previous and not has_weights or has_weights != has_products \
+            or has_sums != (weight_sum > 0) or not weight_sum <= seen:
         _fail(path, "its flags are not those of any state (sums, weights and tests before "
                     "the window)")
     cusum = _array(path, arrays, "cusum", (k,))
@@ -200,8 +231,9 @@ def restore(path, tracker, scalars, arrays):
             or any(np.any(d < 0) for d in differences.values()):
         _fail(path, "its noise sums are not a state's")
     if configured:
-        length = _count(path, scalars, "length", _MAX_COUNT)
+        length = _count(path, scalars, "length", MAX_WINDOW_SAMPLES)
         step = _number(path, scalars, "step", "positive")
+        _check_window(path, tracker, length, step, t)
         try:
             tracker._set_window(length, step)
         except InputDataError as exc:
@@ -224,8 +256,12 @@ def restore(path, tracker, scalars, arrays):
     weights = None
     if has_weights:
         weights = _array(path, arrays, "weights", (k,))
-        if np.any(weights <= 0):
-            _fail(path, "array 'weights' holds values that are not positive")
+        with np.errstate(over="ignore", under="ignore"):
+            unusable = np.any(weights <= 0) or not np.all(np.isfinite(weights ** 4)) \
+                or np.any(weights ** 2 < 1e-300)
+        if unusable:
+            _fail(path, "array 'weights' holds values that are not positive numbers of a "
+                        "usable size")
     products, recent = None, deque()
     if has_products:
         v = (1 + len(tracker._noisy)) * P * q1
@@ -238,8 +274,11 @@ def restore(path, tracker, scalars, arrays):
     previous = None
     if has_previous:
         theta_bar = _array(path, arrays, "previous_theta_bar", (q1,))
+        variances = _array(path, arrays, "previous_variances", (k,))
+        if np.any(variances < 0) or theta_bar[-1] != -1.0:
+            _fail(path, "its last test's estimate or variances are not a state's")
         previous = (theta_bar, _array(path, arrays, "previous_covariance", (P, P)),
-                    [float(v) for v in _array(path, arrays, "previous_variances", (k,))])
+                    [float(v) for v in variances])
     if arrays:
         _fail(path, f"array {sorted(arrays)[0]!r} is no part of a system tracker's state")
     tracker._buffer_t, tracker._buffer, tracker._seen = t, buffer, seen

@@ -340,9 +340,11 @@ class Tracker:
 
         try:
             config, scalars, arrays = read(path)
-        except FormatError as exc:   # a system's tracker: its own state
+        except FormatError as exc:
             if exc.format != SYSTEM_FORMAT:
                 raise
+            config = None
+        if config is None:   # a system's tracker: its own state
             from algid.identification._system_tracker import SystemTracker
 
             return SystemTracker.load(path)

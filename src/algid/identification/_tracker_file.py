@@ -17,6 +17,7 @@ from __future__ import annotations
 import hashlib
 import json
 import math
+import os
 import zipfile
 
 import numpy as np
@@ -49,6 +50,12 @@ class FormatError(InputDataError):
     def __init__(self, message, format):
         super().__init__(message)
         self.format = format
+
+
+def _check_path(path):
+    if not isinstance(path, (str, os.PathLike)):
+        raise InputDataError(f"a tracker's file is a path (str or path-like), got "
+                             f"{type(path).__name__}")
 
 
 def _checksum(header_text, arrays):
@@ -84,8 +91,13 @@ def write(path, config, state, fmt=FORMAT):
         k: (repr(v) if isinstance(v, float) else v) for k, v in scalars.items()},
         "floats": [k for k, v in scalars.items() if isinstance(v, float)]})
     checksum = _checksum(header, arrays)
-    with open(path, "wb") as f:
-        np.savez(f, header=np.array(header), checksum=np.array(checksum), **arrays)
+    _check_path(path)
+    try:
+        with open(path, "wb") as f:
+            np.savez(f, header=np.array(header), checksum=np.array(checksum), **arrays)
+    except OSError as exc:
+        raise InputDataError(f"{path}: cannot write the tracker's state "
+                             f"({exc.strerror or exc})") from None
 
 
 def _members(path, archive):
@@ -130,6 +142,7 @@ def read(path, fmt=FORMAT, schema=None):
     InputDataError
         A missing, truncated or altered file, or one that is not a saved tracker.
     """
+    _check_path(path)
     try:
         with zipfile.ZipFile(path) as archive:
             members = _members(path, archive)

@@ -392,6 +392,9 @@ def derive(model, *, extra_equations: int = 0) -> Derivation:
         raise ModelError(f"derive takes a model (LinearODEModel, algid.models.parse_equation) "
                          f"or a system (algid.models.parse_system), got "
                          f"{type(model).__name__}")
+    if any(str(p) == str(s) for p in model.parameters):
+        raise ModelError(f"parameter name {s} is the Laplace variable of the derivation: "
+                         f"rename it")
     ics = _initial_condition_symbols(model)
     laplace = sp.Add(*(coeff * _laplace_of_derivative(channel, derivative, ics)
                        for coeff, channel, derivative in model.channel_terms()))

@@ -224,7 +224,8 @@ def _render_markdown(title, sections):
         if heading:
             out += [f"## {heading}", ""]
         for k, step in enumerate(steps, 1):
-            text = step.text.replace("*", r"\*")   # (y**3 in the text is no emphasis)
+            # (y**3 and _x in the text are no emphasis)
+            text = step.text.replace("*", r"\*").replace("_", r"\_")
             out += [f"{'###' if heading else '##'} {prefix}{k}. {step.title}", "", text, ""]
             for lhs, rhs in step.equations:
                 out += ["$$", _display_latex(lhs, rhs, d), "$$", ""]
