@@ -505,3 +505,21 @@ def test_tracker_of_a_system_refuses_a_state_its_window_cannot_have(tmp_path):
     a, b = tracker.update(rest), loaded.update(rest)
     assert len(a) > 100
     assert np.array_equal(a.values, b.values) and np.array_equal(a.stderr, b.stderr)
+
+
+def test_no_output_error_fit_from_a_start_that_leaves_parameters_undetermined():
+    """A record on which the mechanical equation (no known term) falls to its trivial
+    solution at the window chosen: the algebraic estimate says K, J and b are poorly
+    determined, and no refinement turns that start into a confident wrong estimate
+    (it gave K = 9.7e-10 +- 1.7e-13, L +- 1.2e-22, and no warning)."""
+    t = np.arange(0, 6, 1e-3)
+    u = np.sin(2 * np.pi * 1.1 * t) + 0.7 * np.sign(np.sin(2 * np.pi * 0.37 * t)) \
+        + 0.3 * np.sin(2 * np.pi * 5.3 * t)
+    truth = {"L": 0.5, "R": 1.0, "K": 0.05, "J": 0.01, "b": 0.1}
+    y = simulate_system(MOTOR, truth, t, {"u": u})
+    rng = np.random.default_rng(0)
+    record = {"t": t, "u": 1e3 * u, **{k: 1e3 * (v + 1e-3 * np.std(v) * rng.standard_normal(
+        len(t))) for k, v in y.items()}}
+    fit = algid.identify(record, MOTOR, list(truth))
+    assert fit.estimate == "algebraic" and "poorly determined" in fit.refinement.reason
+    assert any(w.startswith("K is poorly determined") for w in fit.warnings)

@@ -44,6 +44,7 @@ from algid.identification._arguments import check_arguments, check_memory
 from algid.identification._bias_compensation import koopmans
 from algid.identification._methods import METHODS
 from algid.identification._records import check_factors, prepare_records
+from algid.identification._system_result import WEAK_RELATIVE_ERROR
 from algid.identification._window_basis import NAMED_WEIGHT, ROUNDOFF_SEPARABILITY
 from algid.identification._window_covariance import hac_meat, sandwich
 from algid.identification._window_problem import (
@@ -67,7 +68,7 @@ from algid.identification._window_rule import (
 )
 from algid.models._system import SystemModel, parse_system
 
-__all__ = ["identify_system", "solve_normal", "SYSTEM_METHODS", "WEAK_RELATIVE_ERROR"]
+__all__ = ["identify_system", "solve_normal", "SYSTEM_METHODS"]
 
 #: Methods offered for systems (instrumental variables need a simulation of every
 #: output: not for systems).
@@ -77,9 +78,6 @@ SYSTEM_METHODS = ("bc", "ls")
 #: estimate counts as a degenerate solve in the window rule.
 DEGENERATE_DISTANCE = 10.0
 
-#: A parameter whose standard error exceeds this fraction of its value is warned of as
-#: poorly determined.
-WEAK_RELATIVE_ERROR = 0.25
 
 
 class _Rows:

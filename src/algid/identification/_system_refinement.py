@@ -28,6 +28,7 @@ import numpy as np
 
 from algid.errors import ModelError
 from algid.identification._refinement import Refinement, sandwich_covariance
+from algid.identification._system_result import WEAK_RELATIVE_ERROR
 from algid.simulation._system import free_responses, simulate_space, state_space
 
 __all__ = ["refine_system", "SimulationResiduals", "central_jacobian"]
@@ -156,6 +157,17 @@ def refine_system(result, segments, refine):
         return replace(result, refinement=Refinement(False, reason))
     start = np.array([result.values[p] for p in system.parameters])
     se = np.sqrt(np.maximum(np.diag(result.covariance), 0.0))
+    weak = [p for p, v, s in zip(system.parameters, start, se)
+            if not s <= WEAK_RELATIVE_ERROR * abs(v)]
+    if weak and refine == "auto" and not result.hidden:
+        # (a start that leaves parameters undetermined, such as an equation without a
+        # known term fallen to its trivial solution, can end at a confident wrong one;
+        # with hidden signals the mapped coefficients are a rough start by design, and
+        # the fit on the full system is what determines the parameters)
+        return _not_refined(result, refine, f"the algebraic estimate leaves "
+                                            f"{', '.join(weak)} poorly determined: no fit "
+                                            f"is started from it (refine=True refines "
+                                            f"anyway)")
     scale = np.where(se > 0, se, np.maximum(np.abs(start), 1.0) * 1e-6)
     sigma = {y: 1.0 for y in observed}
     residuals = SimulationResiduals(system, segments, sigma, observed)

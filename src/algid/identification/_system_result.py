@@ -11,7 +11,11 @@ from algid.errors import InputDataError, ModelError
 from algid.identification._records import prepare_records
 from algid.identification._result import ResultRow, check_fit_samples
 
-__all__ = ["SystemResult", "SystemValidation"]
+__all__ = ["SystemResult", "SystemValidation", "WEAK_RELATIVE_ERROR"]
+
+#: A parameter whose standard error exceeds this fraction of its value is warned of as
+#: poorly determined (and no output-error fit is started from it automatically).
+WEAK_RELATIVE_ERROR = 0.25
 
 
 @dataclass

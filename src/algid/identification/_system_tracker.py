@@ -57,7 +57,8 @@ from algid.identification._change_detection import (
     cusum_design,
 )
 from algid.identification._records import GAP_FACTOR, Segment
-from algid.identification._system_identify import WEAK_RELATIVE_ERROR, solve_normal
+from algid.identification._system_identify import solve_normal
+from algid.identification._system_result import WEAK_RELATIVE_ERROR
 from algid.identification._tracker_state import WARMUP_DOUBLINGS, TrackUpdate, check_half_life
 from algid.identification._window_problem import (
     DIFFERENCE_ORDERS,
