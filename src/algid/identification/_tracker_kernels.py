@@ -232,12 +232,18 @@ def kernels():
         The functions of this module and of
         :mod:`algid.identification._tracker_solve`.
     """
-    from algid.identification import _tracker_solve as solve
+    from algid.identification._tracker_solve import (
+        difference_squares,
+        noise_bounds,
+        solve_windows,
+        step_integrals,
+        window_rows,
+        window_stderr,
+    )
 
     if not USE_NUMBA and not declined():
         print("algid: numba is not installed, so the Tracker's loops run as Python, tens to "
               "hundreds of times slower than compiled (pip install 'algid[fast]' compiles "
               "them)", file=sys.stderr, flush=True)
-    return Kernels(jit(window_sums), jit(window_scores), solve.window_rows,
-                   solve.step_integrals, solve.difference_squares, solve.noise_bounds,
-                   solve.solve_windows, solve.window_stderr)
+    return Kernels(jit(window_sums), jit(window_scores), window_rows, step_integrals,
+                   difference_squares, noise_bounds, solve_windows, window_stderr)
