@@ -59,7 +59,12 @@ from algid.identification._change_detection import (
 from algid.identification._records import GAP_FACTOR, Segment
 from algid.identification._system_identify import solve_normal
 from algid.identification._system_result import WEAK_RELATIVE_ERROR
-from algid.identification._tracker_state import WARMUP_DOUBLINGS, TrackUpdate, check_half_life
+from algid.identification._tracker_state import (
+    WARMUP_DOUBLINGS,
+    TrackUpdate,
+    as_seconds,
+    check_half_life,
+)
 from algid.identification._window_problem import (
     DIFFERENCE_ORDERS,
     MULTIPLICITIES,
@@ -75,9 +80,6 @@ __all__ = ["SystemTracker"]
 DEFAULT_WARMUP = 2.0
 
 
-
-def _seconds(value):
-    return None if value is None else float(value)
 
 
 class _Solved(NamedTuple):
@@ -134,11 +136,11 @@ class SystemTracker:
         self.method = method
         # (Python floats: a NumPy float32 would round the forgetting, and not the same
         # way once saved and loaded)
-        self.half_life = _seconds(half_life)
-        self.every = _seconds(every)
+        self.half_life = as_seconds(half_life)
+        self.every = as_seconds(every)
         self.false_alarm_rate = float(false_alarm_rate)
         self._warmup = self._first_warmup = float(warmup)
-        self._window = _seconds(window)
+        self._window = as_seconds(window)
         self._signals = list(system.signals)
         self._noisy = [y for y in system.outputs
                        if any(y in m.signals for m in self.models)]
@@ -171,10 +173,10 @@ class SystemTracker:
         """The configuration, as :meth:`save` writes it (JSON types)."""
         return {"equations": [m.equation for m in self.system.equations],
                 "parameters": list(self.parameters), "outputs": list(self.system.outputs),
-                "rate": self.rate, "time": self.time, "window": _seconds(self._window),
-                "half_life": _seconds(self.half_life), "method": self.method,
+                "rate": self.rate, "time": self.time, "window": self._window,
+                "half_life": self.half_life, "method": self.method,
                 "warmup": self._first_warmup, "false_alarm_rate": self.false_alarm_rate,
-                "every": _seconds(self.every)}
+                "every": self.every}
 
     def save(self, path):
         """Write the whole state to a NumPy ``.npz`` file (as :meth:`algid.Tracker.save`:

@@ -66,6 +66,7 @@ from algid.identification._tracker_state import (
     TrackerState,
     TrackUpdate,
     Warmup,
+    as_seconds,
     check_half_life,
 )
 from algid.identification._window_kernels import (
@@ -108,11 +109,6 @@ def _stride_and_overlap(length):
     return stride, -(-length // stride)
 
 
-
-def _seconds(value):
-    """An optional duration as a float (NumPy scalars too: the configuration is saved
-    as JSON)."""
-    return None if value is None else float(value)
 
 
 
@@ -213,10 +209,10 @@ class Tracker:
         self.multiplicities = check_multiplicities(model, (8, 12))
         self.config = {"equation": model.equation, "parameters": list(model.parameters),
                        "output": model.output, "rate": None if rate is None else
-                       check_rate(rate), "time": time, "window": _seconds(window),
-                       "half_life": _seconds(half_life), "method": method,
+                       check_rate(rate), "time": time, "window": as_seconds(window),
+                       "half_life": as_seconds(half_life), "method": method,
                        "warmup": float(warmup), "false_alarm_rate": float(false_alarm_rate),
-                       "every": _seconds(every)}
+                       "every": as_seconds(every)}
         if rate is None and time is None:
             self.config["time"] = None   # found in the first chunk (t or time)
         self.parameters = tuple(model.parameters)

@@ -24,7 +24,8 @@ from algid.errors import InputDataError
 from algid.identification._window_rule import MIN_SPARE_WINDOWS
 
 __all__ = ["TrackerState", "TrackUpdate", "TrackerSetupError", "Warmup", "Sums", "Tests",
-           "Pending", "Segment", "MAX_WINDOW_SAMPLES", "WARMUP_DOUBLINGS", "check_half_life"]
+           "Pending", "Segment", "MAX_WINDOW_SAMPLES", "WARMUP_DOUBLINGS", "check_half_life",
+           "as_seconds"]
 
 #: Longest window (samples) a tracker accepts: its state holds a few arrays of a
 #: window's samples.
@@ -43,6 +44,12 @@ class TrackerSetupError(InputDataError):
     """A refusal of the tracker's configuration once the stream shows its sampling step
     (a window, half-life or false-alarm rate that cannot work at it): no later sample
     can change it, unlike a refusal of the samples of one chunk."""
+
+
+def as_seconds(value):
+    """An optional duration as a Python float (NumPy scalars too: a configuration is
+    saved as JSON, and a float32 would round the forgetting)."""
+    return None if value is None else float(value)
 
 
 def check_half_life(half_life, length, step, stride, overlap, parameters):
