@@ -531,3 +531,11 @@ def test_gap_in_the_first_chunk_named_where_it_is(engine):
     gapped[30:] += 20 * H
     _one_line_error("not uniformly sampled at stream sample 30: step 0.02",
                     OnlineEstimator(engine=engine).update, gapped, f, x)
+
+
+def test_gap_in_a_first_chunk_of_three_samples(engine):
+    """Of two steps, the gap is the larger: named against the smaller (their median
+    would be their mean)."""
+    t = np.array([0.0, H, 12 * H])
+    _one_line_error("not uniformly sampled at stream sample 2",
+                    OnlineEstimator(engine=engine).update, t, np.ones(3), np.ones(3))

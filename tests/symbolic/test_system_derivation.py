@@ -133,3 +133,10 @@ def test_cli_system_refusals(capsys, argv, message):
     code = main(argv)
     err = capsys.readouterr().err
     assert code == 2 and err.count("\n") == 1 and message in err
+
+
+def test_initial_conditions_of_signals_with_underscores_are_named_right():
+    from algid.models import parse_equation
+
+    report = derivation_report(parse_equation("x_d'' + a*x_d' = u", "a"))
+    assert "unknown symbols (x_d(0), x_d'(0))" in report

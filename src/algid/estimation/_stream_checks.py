@@ -207,7 +207,8 @@ def check_chunk(t, f, x, *, n, t_last, dt, scan=None):
         tolerance = step_tolerance(max(abs(full[0]), abs(full[-1])), dt)
         if deviation[i] > tolerance and _beyond_rounding(full, dt, deviation[i]):
             off = deviation > tolerance
-            median = float(np.median(steps))
+            # (of two steps, the smaller: their median would be their mean)
+            median = float(np.median(steps)) if steps.size > 2 else float(np.min(steps))
             if taken_here and (np.abs(steps - median) > tolerance).any():
                 # a gap moved the mean step: name the step off the median
                 dt, off = median, np.abs(steps - median) > tolerance

@@ -48,12 +48,12 @@ class Step:
 
 
 def _ic_names(d: Derivation):
-    names = {}
-    for sym in d.initial_conditions:
-        base, _, rest = sym.name[:-1].partition("_")  # x0 -> x, x_d0 -> x, d
-        order = rest.count("d") if rest else 0
-        names[sym] = (base, order)
-    return names
+    """Each initial condition's signal and derivative order, from the names the
+    derivation gives them (``x0``, ``x_d0``, ``x_dd0``), matched against its channels
+    (a signal may have ``_`` in its name)."""
+    spelled = {f"{channel}{'_' + 'd' * k if k else ''}0": (channel, k)
+               for channel in d.model.channels for k in range(d.model.order + 1)}
+    return {sym: spelled[sym.name] for sym in d.initial_conditions}
 
 
 def _latex(expr, d: Derivation) -> str:
