@@ -161,6 +161,9 @@ class SystemTracker:
         self._cusum = np.zeros(len(self.models))
         self._previous_test = None  # (theta_bar, covariance, residual variance per equation)
         self._alarms = []
+        self._last_report = None    # the last window end reported under ``every``
+        self._products = None       # the HAC middle's products, once weights are set
+        self._first = []            # the warm-up's windows, until then
 
     # ------------------------------------------------------------------ public
     @property
@@ -408,7 +411,7 @@ class SystemTracker:
     def _report(self, end, final):
         if self.every is None or (final and self._last):
             return True
-        previous = getattr(self, "_last_report", None)
+        previous = self._last_report
         if previous is None or math.floor(end / self.every) > math.floor(previous / self.every):
             self._last_report = end
             return True
@@ -492,8 +495,6 @@ class SystemTracker:
             self._sums = {a: [{"normal": np.zeros((P + 1, P + 1)),
                                "noise": {y: np.zeros((P + 1, P + 1)) for y in grams}}
                               for _, grams in blocks[a]] for a in MULTIPLICITIES}
-            self._products = None
-            self._first = []
         for a in MULTIPLICITIES:
             for sums, (phi, grams) in zip(self._sums[a], blocks[a]):
                 sums["normal"] *= self.decay

@@ -60,11 +60,11 @@ def flat_state(tracker):
              "configured": configured, "warmup": float(tracker._warmup),
              "next_start": int(tracker._next_start), "weight_sum": float(tracker._weight_sum),
              "run_windows": int(tracker._run_windows),
-             "last_report": math.nan if getattr(tracker, "_last_report", None) is None
+             "last_report": math.nan if tracker._last_report is None
              else float(tracker._last_report),
              "has_sums": tracker._sums is not None,
              "has_weights": tracker._weights is not None,
-             "has_products": getattr(tracker, "_products", None) is not None,
+             "has_products": tracker._products is not None,
              "has_previous": tracker._previous_test is not None,
              "buffer_t": tracker._buffer_t, "cusum": tracker._cusum}
     if configured:
@@ -290,7 +290,5 @@ def restore(path, tracker, scalars, arrays):
     # (Python floats, as the tracker holds them: NumPy's squares round otherwise)
     tracker._sums = sums
     tracker._weights = None if weights is None else [float(w) for w in weights]
-    if has_sums:
-        tracker._products = products
-        tracker._first = first
+    tracker._products, tracker._first = products, first
     tracker._recent, tracker._previous_test = recent, previous
