@@ -166,14 +166,14 @@ def _lengths(tmp_path):
     t, f, x = signals()
     path = tmp_path / "data.mat"
     scipy.io.savemat(path, {"t": t, "f": f, "x": x[:-1]})
-    return path, ["different lengths", "'x' has 199"]
+    return path, ["different lengths", "x: 199"]
 
 
 def _not_increasing(tmp_path):
     t, f, x = signals()
     t[50] = t[49]
     return write_csv(tmp_path / "data.csv", {"t": t, "f": f, "x": x}), [
-        "not strictly increasing at row 50"]
+        "does not increase at row 50"]
 
 
 def _too_few(tmp_path):

@@ -36,7 +36,10 @@ from algid.errors import InputDataError
 __all__ = ["TIME_COLUMNS", "RATE_TOLERANCE", "STEP_RANGE", "is_record", "is_timeresponse",
            "timeresponse_pair",
            "as_record", "read_column", "refuse_unusable", "record_columns", "check_rate",
-           "check_rate_agrees", "refuse_nonfinite", "refuse_infinite", "column_list",
+           "check_rate_agrees", "refuse_nonfinite", "refuse_infinite", "refuse_missing",
+           "refuse_unequal_lengths", "refuse_too_few", "refuse_not_increasing", "read_chunk",
+           "first_nonfinite",
+           "column_list",
            "first_non_number"]
 
 #: Column names taken as the time axis when neither ``time`` nor ``rate`` is given.
@@ -277,13 +280,28 @@ def refuse_unusable(values, what, *, dates=False):
                              f"part or its modulus)")
     if kind == "b":
         raise InputDataError(f"{what} holds booleans, not measurements (convert with "
-                             f".astype(float))")
+                             f".astype(float) if 0 and 1 are meant)")
     if kind in "mM" and not dates:
         raise InputDataError(f"{what} holds dates or durations, not measurements")
 
 
-def read_column(values, what, *, time=False):
+def _describe_scalar(values):
+    """What a 0-d value is, for a message that expected samples."""
+    if values is None:
+        return "None"
+    if isinstance(values, (str, bytes)):
+        return f"a {type(values).__name__} ({values!r:.40})"
+    if isinstance(values, numbers.Number) or getattr(values, "ndim", None) == 0:
+        return f"one number ({values!r:.40})"
+    return f"a {type(values).__name__}"
+
+
+def read_column(values, what, *, time=False, every_sample=False, one_number=False):
     """One column as 1-D float samples, or a one-line refusal.
+
+    The one reading of a signal: the paper's form (:func:`algid._signal_checks.as_signal`,
+    ``what`` is ``"signal 'f'"``), a record's column (``"record 0: column 'u'"``) and a
+    chunk's (``"column 'u'"``) are refused in the same words.
 
     Parameters
     ----------
@@ -295,6 +313,11 @@ def read_column(values, what, *, time=False):
         A time column: dates and durations are accepted and become seconds from the
         first sample (the difference taken first, in the column's own integer unit, so
         that no precision is lost to the size of the epoch).
+    every_sample : bool, optional
+        The estimator needs every sample (:func:`algid.estimate`): a masked sample is
+        refused rather than taken as missing.
+    one_number : bool, optional
+        A single number is one sample (a chunk of a stream); otherwise it is refused.
 
     Returns
     -------
@@ -303,24 +326,35 @@ def read_column(values, what, *, time=False):
     Raises
     ------
     InputDataError
-        Not numeric, 2-D, complex, boolean, dates (for a signal), or numbers beyond
-        floating point.
+        Not numeric, not one array of samples (2-D, a single number, None, text),
+        complex, boolean, dates (for a signal), numbers beyond floating point, or (with
+        ``every_sample``) masked samples.
     """
     if isinstance(values, np.ma.MaskedArray):  # masked samples are missing, as NaN are
+        masked = np.flatnonzero(np.ma.getmaskarray(values))
+        if every_sample and masked.size:
+            raise InputDataError(
+                f"{what} has a masked sample at row {int(masked[0])} ({masked.size} "
+                f"masked): the estimator needs every sample (fill or cut them)")
         try:
             values = np.ma.filled(values.astype(float), np.nan)
         except (TypeError, ValueError):
             raise InputDataError(f"{what} is not numeric") from None
+    given = values
     try:
         values = np.asarray(values)
     except (TypeError, ValueError):
-        raise InputDataError(f"{what} is not numeric") from None
+        raise InputDataError(f"{what} is not a 1-D array of numbers (ragged or "
+                             f"unconvertible)") from None
+    if values.ndim == 0 and not (one_number and values.dtype.kind in "iuf"):
+        raise InputDataError(f"{what} is {_describe_scalar(given)}: give one 1-D array "
+                             f"of samples per signal")
     refuse_unusable(values, what, dates=time)
-    if values.dtype.kind in "USO":   # as the paper's form refuses them (as_signal)
+    if values.dtype.kind in "USO":   # numbers stored as text are text
         if values.dtype.kind == "O" and any(isinstance(v, (bool, np.bool_))
                                             for v in values.reshape(-1).tolist()):
             raise InputDataError(f"{what} holds booleans, not measurements (convert with "
-                                 f".astype(float))")
+                                 f".astype(float) if 0 and 1 are meant)")
         bad = first_non_number(values.reshape(-1))
         if bad is not None:
             raise InputDataError(f"{what} is not numeric: row {bad[0]} holds {bad[1]!r}")
@@ -337,7 +371,7 @@ def read_column(values, what, *, time=False):
                              f"(beyond 1.8e308)") from None
 
 
-def _column(record, name, index, label):
+def _column(record, name, index, label, every_sample=False):
     if name not in record:
         available = column_list(record)
         hint = (f"; if {name!r} is an unknown, add it to the parameters"
@@ -345,7 +379,7 @@ def _column(record, name, index, label):
         raise InputDataError(f"record {index}: no column {name!r} for the {label} "
                              f"(columns: {available}){hint}")
     return read_column(record[name], f"record {index}: column {name!r}",
-                       time=label == "time")
+                       time=label == "time", every_sample=every_sample)
 
 
 def check_rate(rate, what="rate"):
@@ -424,14 +458,12 @@ def _time_axis(record, index, n, time, rate):
     if len(t) != n:
         raise InputDataError(f"record {index}: time column {time!r} has {len(t)} samples, "
                              f"the signals {n}")
-    if not np.all(np.isfinite(t)):
-        row = int(np.flatnonzero(~np.isfinite(t))[0])
-        raise InputDataError(f"record {index}: time column {time!r} is not finite at row {row}")
+    first = first_nonfinite(t)
+    if first is not None:
+        raise InputDataError(f"record {index}: time column {time!r} has {first[1]} at row "
+                             f"{first[0]}")
+    refuse_not_increasing(t, f"record {index}: time column {time!r}")
     steps = np.diff(t)
-    if np.any(steps <= 0):
-        row = int(np.flatnonzero(steps <= 0)[0]) + 1
-        raise InputDataError(f"record {index}: time column {time!r} does not increase at "
-                             f"row {row}")
     if rate is not None:
         check_rate_agrees(rate, t, time, f"record {index}")
     if len(steps):
@@ -445,7 +477,7 @@ def _time_axis(record, index, n, time, rate):
 
 
 def record_columns(record, signals, *, time=None, rate=None, first_sample=0, index=0,
-                   min_samples=0):
+                   min_samples=0, every_sample=False):
     """The time axis and the named signals of one record, checked as :func:`algid.identify`
     checks them (no gaps are cut: the estimator needs the record whole).
 
@@ -467,6 +499,8 @@ def record_columns(record, signals, *, time=None, rate=None, first_sample=0, ind
         The record's place among several (named in the messages).
     min_samples : int, optional
         Fewer samples are refused (before the time axis is read).
+    every_sample : bool, optional
+        Masked samples are refused rather than missing (:func:`read_column`).
 
     Returns
     -------
@@ -480,18 +514,37 @@ def record_columns(record, signals, *, time=None, rate=None, first_sample=0, ind
         A missing or non-numeric column, signals of different lengths, a bad time axis.
     """
     record = as_record(record, f"record {index}")
-    columns = {name: _column(record, name, index, "signal") for name in signals}
-    lengths = {len(v) for v in columns.values()}
-    if len(lengths) > 1:
-        raise InputDataError(f"record {index}: signals have different lengths "
-                             f"({', '.join(f'{k}: {len(v)}' for k, v in columns.items())})")
-    n = lengths.pop() if lengths else 0
-    if n < min_samples:
-        raise InputDataError(f"record {index}: fewer than {min_samples} samples")
+    columns = {name: _column(record, name, index, "signal", every_sample)
+               for name in signals}
+    refuse_unequal_lengths(columns, f"record {index}")
+    n = len(next(iter(columns.values()))) if columns else 0
+    refuse_too_few(n, min_samples, f"record {index}")
     t, _ = _time_axis(record, index, n, time, rate)
     if first_sample and time is None and not any(c in record for c in TIME_COLUMNS):
         t = (first_sample + np.arange(n)) / check_rate(rate)
     return t, columns
+
+
+def first_nonfinite(values):
+    """The first non-finite sample.
+
+    Parameters
+    ----------
+    values : numpy.ndarray
+        Float samples.
+
+    Returns
+    -------
+    tuple or None
+        Its row and its text (``"NaN"``, ``"inf"``, ``"-inf"``); None if every sample
+        is finite.
+    """
+    bad = np.flatnonzero(~np.isfinite(values))
+    if not bad.size:
+        return None
+    row = int(bad[0])
+    value = values[row]
+    return row, "NaN" if np.isnan(value) else "inf" if value > 0 else "-inf"
 
 
 def refuse_infinite(values, what, where=""):
@@ -511,15 +564,39 @@ def refuse_infinite(values, what, where=""):
     InputDataError
         Naming the value and its row.
     """
-    infinite = np.flatnonzero(np.isinf(values))
-    if infinite.size:
-        raise InputDataError(f"{what} is {values[infinite[0]]} at row {infinite[0]}{where}; "
-                             f"a missing sample is NaN")
+    first = first_nonfinite(np.where(np.isnan(values), 0.0, values))
+    if first is not None:
+        raise InputDataError(f"{what} has {first[1]} at row {first[0]}{where}; a missing "
+                             f"sample is NaN")
+
+
+def refuse_missing(values, what, where=""):
+    """Refuse a NaN or infinite sample where every sample is needed (the estimator of
+    :func:`algid.estimate` and :class:`algid.OnlineEstimator`; :func:`algid.identify`
+    takes NaN as a gap).
+
+    Parameters
+    ----------
+    values : numpy.ndarray
+        A column's float samples.
+    what : str
+        Names the column (``"signal 'f'"``).
+    where : str, optional
+        Follows the row in the message (``" of the chunk starting at stream sample 10"``).
+
+    Raises
+    ------
+    InputDataError
+        Naming the value and its row.
+    """
+    first = first_nonfinite(values)
+    if first is not None:
+        raise InputDataError(f"{what} has {first[1]} at row {first[0]}{where}; the "
+                             f"estimator needs every sample (identify takes NaN as a gap)")
 
 
 def refuse_nonfinite(columns, what):
-    """Refuse a NaN or infinite sample where every sample is needed (the estimator of
-    :func:`algid.estimate`; :func:`algid.identify` takes NaN as a gap).
+    """:func:`refuse_missing` for every column of a record or chunk.
 
     Parameters
     ----------
@@ -534,10 +611,152 @@ def refuse_nonfinite(columns, what):
         Naming the column, the value and its row.
     """
     for name, values in columns.items():
-        bad = np.flatnonzero(~np.isfinite(values))
-        if bad.size:
-            row = int(bad[0])
-            value = "NaN" if np.isnan(values[row]) else "inf" if values[row] > 0 else "-inf"
-            raise InputDataError(f"{what}: column {name!r} has {value} at row {row}; "
-                                 f"the estimator needs every sample (identify takes NaN as "
-                                 f"a gap)")
+        refuse_missing(values, f"{what}: column {name!r}")
+
+
+def refuse_unequal_lengths(columns, what=""):
+    """Refuse signals of different lengths.
+
+    Parameters
+    ----------
+    columns : dict
+        Name -> samples.
+    what : str, optional
+        Names the record or chunk at the head of the message (``"record 0"``).
+
+    Raises
+    ------
+    InputDataError
+        Naming every signal's length.
+    """
+    if len({len(v) for v in columns.values()}) > 1:
+        head = f"{what}: signals" if what else "signals"
+        raise InputDataError(f"{head} have different lengths ("
+                             + ", ".join(f"{k}: {len(v)}" for k, v in columns.items()) + ")")
+
+
+def refuse_too_few(n, needed, what=""):
+    """Refuse fewer than ``needed`` samples.
+
+    Parameters
+    ----------
+    n, needed : int
+        Samples given, samples needed.
+    what : str, optional
+        Names the record at the head of the message (``"record 0"``).
+
+    Raises
+    ------
+    InputDataError
+    """
+    if n < needed:
+        count = "no samples" if n == 0 else "only 1 sample" if n == 1 else f"only {n} samples"
+        head = f"{what}: {count}" if what else count
+        raise InputDataError(f"{head}: at least {needed} are needed")
+
+
+def refuse_not_increasing(t, what, *, previous=None, first=0, unit="row"):
+    """Refuse times that do not strictly increase.
+
+    Parameters
+    ----------
+    t : numpy.ndarray
+        The times (finite).
+    what : str
+        Names the time axis (``"time 't'"``, ``"record 0: time column 't'"``).
+    previous : float, optional
+        The time before ``t[0]`` (a stream's last sample).
+    first : int, optional
+        The number of ``t[0]`` in the message (a stream's count of samples before it).
+    unit : str, optional
+        What the number counts (``"row"``, ``"stream sample"``).
+
+    Raises
+    ------
+    InputDataError
+        Naming the first sample that does not follow its predecessor, and both times.
+    """
+    full = t if previous is None else np.concatenate(([previous], t))
+    bad = np.flatnonzero(~(np.diff(full) > 0))
+    if bad.size:
+        i = int(bad[0])
+        number = first + i + (1 if previous is None else 0)
+        raise InputDataError(f"{what} does not increase at {unit} {number}: "
+                             f"{full[i + 1]:.10g} after {full[i]:.10g}")
+
+
+def read_chunk(chunk, signals, *, time, rate, seen, last_time):
+    """The times and signals of a tracker's next chunk (:class:`algid.Tracker`).
+
+    Parameters
+    ----------
+    chunk : record
+        Any record type of this module.
+    signals : sequence of str
+        The signals to read.
+    time : str or None
+        The time column; None with a ``rate`` (times from the count of samples), or to
+        find ``t`` or ``time`` in the chunk.
+    rate : float or None
+        The sampling rate (Hz), if given.
+    seen : int
+        Samples of the stream before this chunk.
+    last_time : float
+        Time of the stream's last sample (``-inf`` at the start).
+
+    Returns
+    -------
+    t : numpy.ndarray
+        The chunk's times.
+    columns : dict
+        Signal name -> samples (NaN: missing).
+    time : str or None
+        The time column read (found in the chunk when ``time`` and ``rate`` were None).
+
+    Raises
+    ------
+    InputDataError
+        Not a record, a missing column, a column refused by :func:`read_column`, an
+        infinite sample, columns of different lengths, times that are not finite or do
+        not increase from the stream's last, a time column that contradicts ``rate``.
+    """
+    if not is_record(chunk):
+        raise InputDataError("a chunk must be a record: a mapping of column name -> samples, "
+                             "a pandas DataFrame, an xarray Dataset or a TimeResponseData")
+    chunk = as_record(chunk, "the chunk")
+    if time is None and rate is None:
+        time = next((c for c in TIME_COLUMNS if c in chunk), None)
+        if time is None:
+            raise InputDataError(f"no time column ({' or '.join(TIME_COLUMNS)}) in the "
+                                 f"stream; give time= (a column name) or rate= (Hz)")
+    columns = {}
+    for name in list(signals) + ([time] if time is not None else []):
+        if name not in chunk:
+            raise InputDataError(f"no column {name!r} in the chunk (columns: "
+                                 f"{column_list(chunk)})")
+        values = read_column(chunk[name], f"column {name!r} of the chunk", one_number=True)
+        if name == time:
+            first = first_nonfinite(values)
+            if first is not None:
+                raise InputDataError(f"time column {time!r} of the chunk has {first[1]} at "
+                                     f"row {first[0]}")
+        else:
+            refuse_infinite(values, f"column {name!r} of the chunk")
+        columns[name] = values
+    refuse_unequal_lengths(columns, "the chunk")
+    n = len(next(iter(columns.values()))) if columns else 0
+    if time is None:
+        t = (seen + np.arange(n)) / rate
+        given = next((c for c in TIME_COLUMNS if c in chunk), None)
+        if given is not None and n > 1:  # a time column beside rate= must agree (as
+            stamps = np.asarray(chunk[given])  # identify's), if it holds numbers
+            if stamps.dtype.kind in "iuf":
+                check_rate_agrees(rate, stamps.astype(float).reshape(-1), given, "the chunk")
+        return t, columns, time
+    t = columns.pop(time)
+    if not (n == 1 and t[0] > last_time):   # (one sample of a live stream: checked)
+        refuse_not_increasing(t, f"time column {time!r}", previous=last_time, first=seen,
+                              unit="stream sample")
+        if rate is not None and n > 1:   # (as identify's)
+            check_rate_agrees(rate, t, time, "the chunk")
+    return t, columns, time

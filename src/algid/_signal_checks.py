@@ -14,7 +14,14 @@ import numbers
 
 import numpy as np
 
-from algid._record_input import first_non_number
+from algid._record_input import (
+    first_nonfinite,
+    read_column,
+    refuse_missing,
+    refuse_not_increasing,
+    refuse_too_few,
+    refuse_unequal_lengths,
+)
 from algid.errors import InputDataError
 
 __all__ = ["integer_value", "as_signal", "check_experiment", "positive_number", "step_tolerance",
@@ -94,8 +101,11 @@ def _fmt(value) -> str:
     return f"{float(value):.10g}"
 
 
-def as_signal(values, *, name) -> np.ndarray:
+def as_signal(values, *, name, time=False, of="") -> np.ndarray:
     """Convert a sampled signal to a 1-D float64 array, refusing unusable data.
+
+    The record layer's reading of a column (:func:`algid._record_input.read_column`),
+    with its words, for a signal that needs every sample.
 
     Parameters
     ----------
@@ -103,6 +113,11 @@ def as_signal(values, *, name) -> np.ndarray:
         The samples of the signal.
     name : str
         Name of the signal used in error messages (e.g. a column name).
+    time : bool, optional
+        The signal is the time axis (named ``time 't'`` in the messages).
+    of : str, optional
+        Where the signal is, after its name in the messages (``"the chunk starting at
+        stream sample 10"``).
 
     Returns
     -------
@@ -112,58 +127,24 @@ def as_signal(values, *, name) -> np.ndarray:
     Raises
     ------
     InputDataError
-        If the values are not a 1-D array, are empty, are not real numbers (booleans
-        are refused: a boolean is not a measurement), have masked samples (a
-        :class:`numpy.ma.MaskedArray`), or contain NaN or infinite values.  The message
-        names the signal and the first bad row (0-based), e.g. ``signal 'x' has NaN at
-        row 17``.
+        If the values are not one array of numbers (2-D, a single number, text), are
+        empty, are complex or booleans (a boolean is not a measurement), have masked
+        samples (a :class:`numpy.ma.MaskedArray`), or contain NaN or infinite values.
+        The message names the signal and the first bad row (0-based), e.g.
+        ``signal 'x' has NaN at row 17; ...``.
     """
-    if isinstance(values, np.ma.MaskedArray):
-        masked = np.flatnonzero(np.ma.getmaskarray(values))
-        if masked.size:
-            raise InputDataError(
-                f"signal {name!r} has a masked sample at row {int(masked[0])} "
-                f"({masked.size} masked): the estimator needs every sample (fill or cut them)")
-        values = np.ma.getdata(values)
-    try:
-        arr = np.asarray(values)
-    except (ValueError, TypeError):
-        raise InputDataError(
-            f"signal {name!r} is not a 1-D array of numbers (ragged or unconvertible input)"
-        ) from None
-    if arr.ndim != 1:
-        what = (f"a {type(values).__name__} ({values!r:.40})" if isinstance(values, (str, bytes))
-                else "None" if values is None
-                else "a scalar" if arr.ndim == 0 else f"shape {arr.shape}")
-        raise InputDataError(f"signal {name!r} must be 1-D, got {what}")
+    what = (f"time {name!r}" if time else f"signal {name!r}") + (f" of {of}" if of else "")
+    if type(values) is np.ndarray and values.dtype == np.float64 and values.ndim == 1:
+        arr = values   # (the paper's arrays are not copied)
+    else:
+        arr = read_column(values, what, every_sample=True)
     if arr.size == 0:
-        raise InputDataError(f"signal {name!r} is empty")
-    kind = arr.dtype.kind
-    if kind == "b" or (kind == "O" and any(isinstance(v, (bool, np.bool_))
-                                           for v in arr.tolist())):
-        raise InputDataError(f"signal {name!r} holds booleans, not measurements (convert "
-                             f"with .astype(float) if 0 and 1 are meant)")
-    if kind == "c":
-        bad = np.flatnonzero(arr.imag != 0)
-        row = int(bad[0]) if bad.size else 0
-        value = complex(arr[row])
-        raise InputDataError(
-            f"signal {name!r} is complex, expected real numbers (row {row}: {value})"
-        )
-    if kind not in "iuf":
-        if kind in "US" and not isinstance(values, np.ndarray):
-            arr = np.asarray(values, dtype=object)  # keep the types of the items
-        bad = first_non_number(arr)
-        if bad is not None:
-            row, item = bad
-            raise InputDataError(f"signal {name!r} is not numeric: row {row} holds {item!r}")
-    arr = arr.astype(np.float64, copy=False)
-    finite = np.isfinite(arr)
-    if not finite.all():
-        row = int(np.argmin(finite))
-        value = arr[row]
-        what = "NaN" if np.isnan(value) else ("inf" if value > 0 else "-inf")
-        raise InputDataError(f"signal {name!r} has {what} at row {row}")
+        raise InputDataError(f"{what} is empty")
+    if time:
+        first = first_nonfinite(arr)
+        if first is not None:
+            raise InputDataError(f"{what} has {first[1]} at row {first[0]}")
+    refuse_missing(arr, what)
     return arr
 
 
@@ -202,29 +183,14 @@ def check_experiment(t, f, x, *, names=("t", "f", "x"), min_samples=16):
     """
     t_name, f_name, x_name = names
     given = getattr(t, "dtype", None)  # (float32 times round to uneven steps)
-    t = as_signal(t, name=t_name)
+    t = as_signal(t, name=t_name, time=True)
     f = as_signal(f, name=f_name)
     x = as_signal(x, name=x_name)
-
-    lengths = {t_name: t.size, f_name: f.size, x_name: x.size}
-    if len(set(lengths.values())) > 1:
-        detail = ", ".join(f"{key!r} has {n}" for key, n in lengths.items())
-        raise InputDataError(f"signals have different lengths: {detail}")
-
+    refuse_unequal_lengths({t_name: t, f_name: f, x_name: x})
     n = t.size
-    needed = max(int(min_samples), 2)
-    if n < needed:
-        noun = "sample" if n == 1 else "samples"
-        raise InputDataError(f"only {n} {noun}: at least {needed} are needed")
-
+    refuse_too_few(n, max(int(min_samples), 2))
+    refuse_not_increasing(t, f"time {t_name!r}")
     dt = np.diff(t)
-    bad = np.flatnonzero(~(dt > 0))
-    if bad.size:
-        i = int(bad[0])
-        raise InputDataError(
-            f"time {t_name!r} is not strictly increasing at row {i + 1}: "
-            f"{t_name}[{i + 1}] = {_fmt(t[i + 1])} <= {t_name}[{i}] = {_fmt(t[i])}"
-        )
 
     h = float((t[-1] - t[0]) / (n - 1))
     deviation = float(np.max(np.abs(dt - h)))
@@ -240,7 +206,7 @@ def check_experiment(t, f, x, *, names=("t", "f", "x"), min_samples=16):
                  "the estimator needs uniform sampling (resample first)")
         raise InputDataError(
             f"time {t_name!r} is not uniformly sampled: step {_fmt(dt[i])} at row {i + 1} "
-            f"({t_name}[{i + 1}] - {t_name}[{i}]) where {_fmt(typical)} is expected; {cause}"
+            f"where {_fmt(typical)} is expected; {cause}"
         )
 
     if not f.any() and not x.any():

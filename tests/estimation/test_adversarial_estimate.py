@@ -227,7 +227,7 @@ def test_arguments_of_the_wrong_type_give_one_line(sine, call):
 
 
 def test_a_string_signal_is_named_as_such(sine):
-    with pytest.raises(InputDataError, match=r"signal 't' must be 1-D, got a str \('abc'\)"):
+    with pytest.raises(InputDataError, match=r"time 't' is a str \('abc'\): give one 1-D array"):
         algid.estimate("abc", sine.f, sine.x)
 
 

@@ -397,28 +397,28 @@ def test_bad_chunks_are_refused_and_leave_the_state_unchanged(engine):
     est.update(t[:50], f[:50], x[:50])
     bad_f = f[50:60].copy()
     bad_f[3] = np.nan
-    msg = _one_line_error("signal 'f' has NaN at row 3", est.update, t[50:60], bad_f, x[50:60])
-    assert "stream sample 50" in msg
-    _one_line_error("must be 1-D", est.update, t[50:60], f[50:60], x[50:60, None])
+    _one_line_error("signal 'f' of the chunk starting at stream sample 50 has NaN at row 3",
+                    est.update, t[50:60], bad_f, x[50:60])
+    _one_line_error("has shape", est.update, t[50:60], f[50:60], np.c_[x[50:60], x[50:60]])
     _one_line_error("different lengths", est.update, t[50:60], f[50:59], x[50:60])
     _one_line_error("not numeric", est.update, t[50:60], ["a"] * 10, x[50:60])
     jitter = t[50:60].copy()
     jitter[4] += 0.1 * H
-    _one_line_error("not uniformly sampled at stream sample 54", est.update,
+    _one_line_error("not uniformly sampled: step 0.0010765625 at stream sample 54", est.update,
                     jitter, f[50:60], x[50:60])
-    _one_line_error("not uniformly sampled at stream sample 50", est.update,
+    _one_line_error("not uniformly sampled: step 0.001953125 at stream sample 50", est.update,
                     t[51:61], f[51:61], x[51:61])  # a sample is missing
-    _one_line_error("not increasing at stream sample 50", est.update,
+    _one_line_error("does not increase at stream sample 50", est.update,
                     t[40:50], f[40:50], x[40:50])  # time going backwards
-    _one_line_error("not increasing at stream sample 50", est.update, t[49], f[49], x[49])
+    _one_line_error("does not increase at stream sample 50", est.update, t[49], f[49], x[49])
     _one_line_error("has inf at row 0", est.update, t[50], np.inf, x[50])
     # single samples as floats and as one-element arrays
-    _one_line_error("signal 'x' has NaN at row 0", est.update, float(t[50]), float(f[50]),
+    _one_line_error("signal 'x' of the chunk starting at stream sample 50 has NaN at row 0", est.update, float(t[50]), float(f[50]),
                     math.nan)
-    _one_line_error("signal 't' has inf at row 0", est.update, math.inf, 0.0, 0.0)
-    _one_line_error("not uniformly sampled at stream sample 50", est.update,
+    _one_line_error("time 't' of the chunk starting at stream sample 50 has inf at row 0", est.update, math.inf, 0.0, 0.0)
+    _one_line_error("not uniformly sampled: step 0.001953125 at stream sample 50", est.update,
                     float(t[51]), float(f[51]), float(x[51]))
-    _one_line_error("not increasing at stream sample 50", est.update,
+    _one_line_error("does not increase at stream sample 50", est.update,
                     t[49:50], f[49:50], x[49:50])
     _one_line_error("signal 'f' has -inf at row 0", est.update,
                     t[50:51], np.array([-np.inf]), x[50:51])
@@ -436,10 +436,10 @@ def test_given_step_is_enforced(engine):
     step = float(t[1] - t[0])
     irregular = t.copy()
     irregular[20:] += step / 2
-    _one_line_error("not uniformly sampled at stream sample 20",
+    _one_line_error("not uniformly sampled: step 0.00146484375 at stream sample 20",
                     OnlineEstimator(dt=step, engine=engine).update, irregular, f, x)
     est.update(t[0], f[0], x[0])
-    _one_line_error("not uniformly sampled at stream sample 1", est.update, t[1], f[1], x[1])
+    _one_line_error("not uniformly sampled: step 0.0009765625 at stream sample 1 where 0.002", est.update, t[1], f[1], x[1])
     assert est.n_seen == 1
 
 
@@ -529,7 +529,7 @@ def test_gap_in_the_first_chunk_named_where_it_is(engine):
     t, f, x = _record(duration=0.05)
     gapped = t.copy()
     gapped[30:] += 20 * H
-    _one_line_error("not uniformly sampled at stream sample 30: step 0.02",
+    _one_line_error("not uniformly sampled: step 0.02.* at stream sample 30",
                     OnlineEstimator(engine=engine).update, gapped, f, x)
 
 
@@ -537,5 +537,5 @@ def test_gap_in_a_first_chunk_of_three_samples(engine):
     """Of two steps, the gap is the larger: named against the smaller (their median
     would be their mean)."""
     t = np.array([0.0, H, 12 * H])
-    _one_line_error("not uniformly sampled at stream sample 2",
+    _one_line_error("not uniformly sampled: step 0.011 at stream sample 2",
                     OnlineEstimator(engine=engine).update, t, np.ones(3), np.ones(3))

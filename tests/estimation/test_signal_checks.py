@@ -44,16 +44,17 @@ def test_as_signal_non_finite_names_signal_and_row(bad, what):
     values[20] = bad
     with pytest.raises(InputDataError) as info:
         as_signal(values, name="x")
-    assert str(info.value) == f"signal 'x' has {what} at row 17"
+    assert str(info.value) == (f"signal 'x' has {what} at row 17; the estimator needs every "
+                               f"sample (identify takes NaN as a gap)")
 
 
 def test_as_signal_not_1d():
-    with pytest.raises(InputDataError, match=r"signal 'f' must be 1-D, got shape \(3, 2\)"):
+    with pytest.raises(InputDataError, match=r"signal 'f' has shape \(3, 2\): give one 1-D array"):
         as_signal(np.zeros((3, 2)), name="f")
 
 
 def test_as_signal_scalar():
-    with pytest.raises(InputDataError, match="signal 'f' must be 1-D, got a scalar"):
+    with pytest.raises(InputDataError, match=r"signal 'f' is one number \(1.0\): give one 1-D array"):
         as_signal(1.0, name="f")
 
 
@@ -85,7 +86,7 @@ def test_as_signal_ragged():
 
 
 def test_as_signal_complex():
-    with pytest.raises(InputDataError, match="signal 'x' is complex.*row 1"):
+    with pytest.raises(InputDataError, match="signal 'x' is complex; give real measurements"):
         as_signal(np.array([1.0, 1j, 2.0]), name="x")
 
 
@@ -128,7 +129,7 @@ def test_check_experiment_lengths_differ():
         check_experiment(t, f, x[:-3])
     message = str(info.value)
     assert "different lengths" in message
-    assert "'x' has 97" in message and "'t' has 100" in message
+    assert "x: 97" in message and "t: 100" in message
 
 
 def test_check_experiment_too_few_samples():
@@ -150,14 +151,13 @@ def test_check_experiment_time_not_increasing():
     with pytest.raises(InputDataError) as info:
         check_experiment(t, f, x)
     message = str(info.value)
-    assert "time 't' is not strictly increasing at row 41" in message
-    assert "t[41] = 0.04 <= t[40] = 0.04" in message
+    assert message == "time 't' does not increase at row 41: 0.04 after 0.04"
 
 
 def test_check_experiment_time_decreasing():
     t, f, x = experiment()
     t = t[::-1].copy()
-    with pytest.raises(InputDataError, match="not strictly increasing at row 1"):
+    with pytest.raises(InputDataError, match="does not increase at row 1"):
         check_experiment(t, f, x)
 
 
@@ -168,7 +168,7 @@ def test_check_experiment_non_uniform_sampling():
         check_experiment(t, f, x)
     message = str(info.value)
     assert message.startswith("time 't' is not uniformly sampled: step 0.0015 at row 60 "
-                              "(t[60] - t[59]) where 0.001 is expected")
+                              "where 0.001 is expected")
     assert message.endswith("the estimator needs uniform sampling (resample first)")
 
 

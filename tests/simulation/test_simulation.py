@@ -517,9 +517,9 @@ def test_result_is_read_only_and_plots_through_python_control():
         ({"rate": -5.0}, "rate"),
         ({"duration": 1e-4, "rate": 1000.0}, "duration"),
         ({"timepts": [0.0]}, "timepts"),
-        ({"timepts": [0.0, 0.1, 0.1, 0.3]}, "timepts[2]"),
-        ({"timepts": [0.0, 0.2, 0.1]}, "timepts[2]"),
-        ({"timepts": [0.0, np.nan, 0.1]}, "timepts[1]"),
+        ({"timepts": [0.0, 0.1, 0.1, 0.3]}, "timepts does not increase at row 2"),
+        ({"timepts": [0.0, 0.2, 0.1]}, "timepts does not increase at row 2"),
+        ({"timepts": [0.0, np.nan, 0.1]}, "timepts has NaN at row 1"),
         ({"timepts": np.zeros((2, 3))}, "timepts"),
         ({"noise_std": -1e-3}, "noise_std"),
         ({"noise_std": np.nan}, "noise_std"),
@@ -575,7 +575,7 @@ def test_bad_array(values):
 def test_nan_sample_is_located():
     values = np.ones(101)
     values[17] = np.nan
-    with pytest.raises(InputDataError, match=r"inputs\[17\]"):
+    with pytest.raises(InputDataError, match="inputs has NaN at row 17"):
         simulate(values, duration=1.0, rate=100.0)
 
 

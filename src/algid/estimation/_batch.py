@@ -236,7 +236,8 @@ def estimate(t, f=None, x=None, *, model=None, filter_order=DEFAULT_FILTER_ORDER
                                  f"model={model!r}; give it once")
         module = estimator_module(DEFAULT_MODEL if f is None and model is None else
                                   model if f is None else f, x, output=output)
-        t, columns = record_columns(t, measured_signals(module), time=time, rate=rate)
+        t, columns = record_columns(t, measured_signals(module), time=time, rate=rate,
+                                    min_samples=2, every_sample=True)
         refuse_nonfinite(columns, "record 0")
         model, f, x = module, None, None
         if takes_pair(module):

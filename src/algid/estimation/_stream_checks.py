@@ -23,6 +23,7 @@ from functools import cache
 
 import numpy as np
 
+from algid._record_input import refuse_not_increasing, refuse_unequal_lengths
 from algid._scaling import AMPLITUDE_BITS, check_amplitude_range
 from algid._signal_checks import UNIFORM_RTOL, as_signal, rounding_quantum, step_tolerance
 from algid.errors import InputDataError
@@ -43,25 +44,33 @@ def _check_sample(t, f, x, n, t_last, dt):
     t, f, x = float(t), float(f), float(x)
     if not (math.isfinite(t) and math.isfinite(f) and math.isfinite(x)):
         for name, v in zip(("t", "f", "x"), (t, f, x)):
-            if not math.isfinite(v):
-                what = "NaN" if v != v else ("inf" if v > 0 else "-inf")
-                raise InputDataError(f"signal {name!r} has {what} at row 0 "
-                                     f"in the chunk starting at stream sample {n}")
+            as_signal(np.array([v]), name=name, time=name == "t", of=_chunk(n))
     if t_last is not None:
         step = t - t_last
         if not step > 0:
-            raise InputDataError(f"time 't' is not increasing at stream sample {n}: "
-                                 f"{_fmt(t)} after {_fmt(t_last)}")
+            refuse_not_increasing(np.array([t]), "time 't'", previous=t_last, first=n,
+                                  unit="stream sample")
         if dt is None:
             dt = step
         elif abs(step - dt) > UNIFORM_RTOL * dt and \
                 abs(step - dt) > step_tolerance(max(abs(t), abs(t_last)), dt) and \
                 _beyond_rounding(np.array([t_last, t]), dt, abs(step - dt)):
             # (the tolerance is at least UNIFORM_RTOL * dt: the common case needs no more)
-            raise InputDataError(f"time 't' is not uniformly sampled at stream sample {n}: "
-                                 f"step {_fmt(step)} where {_fmt(dt)} is expected")
+            _refuse_step(step, n, dt)
     samples = np.array((t, f, x))  # one allocation; the three rows are views of it
     return samples[0:1], samples[1:2], samples[2:3], dt
+
+
+def _chunk(n):
+    """Names the chunk in the messages."""
+    return f"the chunk starting at stream sample {n}"
+
+
+def _refuse_step(step, n, dt):
+    """The refusal of a step that is not the stream's (:func:`check_experiment`'s words)."""
+    raise InputDataError(f"time 't' is not uniformly sampled: step {_fmt(step)} at stream "
+                         f"sample {n} where {_fmt(dt)} is expected; the estimator needs "
+                         f"uniform sampling (resample first)")
 
 
 def _beyond_rounding(times, dt, deviation):
@@ -167,37 +176,16 @@ def check_chunk(t, f, x, *, n, t_last, dt, scan=None):
     if all(isinstance(v, np.ndarray) and not isinstance(v, np.ma.MaskedArray)
            and v.shape == (1,) and v.dtype.kind in "fiu" for v in (t, f, x)):
         return _check_sample(t[0], f[0], x[0], n, t_last, dt)
-    where = f"in the chunk starting at stream sample {n}"
-    arrays = []
-    for name, values in (("t", t), ("f", f), ("x", x)):
-        try:  # a masked array keeps its mask, for as_signal to refuse masked samples
-            arr = values if isinstance(values, np.ma.MaskedArray) else np.asarray(values)
-        except (TypeError, ValueError):
-            raise InputDataError(f"signal {name!r} is not a 1-D array of numbers "
-                                 f"{where}") from None
-        if arr.ndim == 0:
-            arr = arr.reshape(1)
-        if arr.ndim == 1 and arr.size == 0:
-            arrays.append(np.empty(0))
-            continue
-        try:
-            arrays.append(as_signal(arr, name=name))
-        except InputDataError as exc:
-            raise InputDataError(f"{exc} {where}") from None
-    t, f, x = arrays
-    if not t.size == f.size == x.size:
-        raise InputDataError(f"signals have different lengths {where}: 't' has {t.size}, "
-                             f"'f' has {f.size}, 'x' has {x.size}")
+    t, f, x = (_chunk_signal(values, name, n) for name, values in
+               (("t", t), ("f", f), ("x", x)))
+    refuse_unequal_lengths({"t": t, "f": f, "x": x},
+                           _chunk(n))
     if t.size == 0:
         return t, f, x, dt
+    refuse_not_increasing(t, "time 't'", previous=t_last, first=n, unit="stream sample")
     full = t if t_last is None else np.concatenate(([t_last], t))
     first = n - (full.size - t.size)  # stream index of full[0]
     steps = np.diff(full)
-    bad = np.flatnonzero(~(steps > 0))
-    if bad.size:
-        i = int(bad[0])
-        raise InputDataError(f"time 't' is not increasing at stream sample {first + i + 1}: "
-                             f"{_fmt(full[i + 1])} after {_fmt(full[i])}")
     taken_here = dt is None
     if dt is None and steps.size:
         dt = _first_step(t, t_last)
@@ -217,11 +205,25 @@ def check_chunk(t, f, x, *, n, t_last, dt, scan=None):
                     f"time 't' steps by {_fmt(steps[0])} from stream sample {first + 1} "
                     f"where {_fmt(dt)} is expected (a rate of {_fmt(1 / steps[0])} Hz, "
                     f"not {_fmt(1 / dt)})")
-            i = int(np.argmax(off))  # the first step off
-            raise InputDataError(
-                f"time 't' is not uniformly sampled at stream sample {first + i + 1}: "
-                f"step {_fmt(steps[i])} where {_fmt(dt)} is expected")
+            i = int(np.argmax(np.abs(steps - dt)))  # the step farthest off
+            _refuse_step(steps[i], first + i + 1, dt)
     return t, f, x, dt
+
+
+def _chunk_signal(values, name, n):
+    """One signal of a chunk as float64 samples (a single number is one sample, an empty
+    array no sample), refused in :func:`~algid._signal_checks.as_signal`'s words."""
+    if not isinstance(values, np.ma.MaskedArray):  # (as_signal refuses masked samples)
+        try:
+            values = np.asarray(values)
+        except (TypeError, ValueError):
+            pass   # as_signal names it
+        else:
+            if values.ndim == 1 and values.size == 0:
+                return np.empty(0)
+            if values.ndim == 0:
+                values = values.reshape(1)
+    return as_signal(values, name=name, time=name == "t", of=_chunk(n))
 
 
 def check_signals_call(name, f, x, signals, *, takes_pair, names, missing):
@@ -293,7 +295,6 @@ def check_signals_chunk(t, signals, names, *, n, t_last, dt, scan=None):
     # the time axis (given as its own companions), then every signal
     t, _, _, dt = check_chunk(t, t, t, n=n, t_last=t_last, dt=dt, scan=scan)
     checked = {}
-    where = f"in the chunk starting at stream sample {n}"
     for name in names:
         values = signals[name]
         if (type(values) is np.ndarray and values.dtype == _FLOAT64 and values.ndim == 1
@@ -302,22 +303,9 @@ def check_signals_chunk(t, signals, names, *, n, t_last, dt, scan=None):
                      else np.isfinite(values).all())):
             checked[name] = values  # the common case, checked quickly
             continue
-        try:
-            if not np.ma.isMaskedArray(values):  # as_signal reports masked samples
-                values = np.asarray(values)
-        except (TypeError, ValueError):
-            raise InputDataError(f"signal {name!r} is not a 1-D array of numbers "
-                                 f"{where}") from None
-        if values.ndim == 0:
-            values = values.reshape(1)
-        try:
-            values = (np.empty(0) if values.ndim == 1 and values.size == 0
-                      else as_signal(values, name=str(name)))
-        except InputDataError as exc:
-            raise InputDataError(f"{exc} {where}") from None
-        if values.size != t.size:
-            raise InputDataError(f"signal {name!r} has {values.size} samples where 't' "
-                                 f"has {t.size} {where}")
+        values = _chunk_signal(values, str(name), n)
+        refuse_unequal_lengths({"t": t, str(name): values},
+                               _chunk(n))
         checked[name] = values
     return t, checked, dt
 

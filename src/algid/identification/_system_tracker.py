@@ -40,15 +40,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from algid._record_input import (
-    TIME_COLUMNS,
-    as_record,
-    check_rate,
-    column_list,
-    is_record,
-    read_column,
-    refuse_infinite,
-)
+from algid._record_input import check_rate, read_chunk
 from algid.errors import AlgidError, InputDataError, ModelError
 from algid.identification._arguments import check_seconds
 from algid.identification._change_detection import (
@@ -268,38 +260,11 @@ class SystemTracker:
 
     # ------------------------------------------------------------------ input
     def _read(self, chunk):
-        if not is_record(chunk):
-            raise InputDataError("a chunk must be a record: a mapping of column name -> "
-                                 "samples, a pandas DataFrame, an xarray Dataset or a "
-                                 "TimeResponseData")
-        chunk = as_record(chunk, "the chunk")
-        time = self.time
-        if time is None and self.rate is None:
-            time = next((c for c in TIME_COLUMNS if c in chunk), None)
-            if time is None:
-                raise InputDataError(f"no time column ({' or '.join(TIME_COLUMNS)}) in the "
-                                     f"stream; give time= (a column name) or rate= (Hz)")
-            self.time = time
-        columns, n = {}, None
-        for name in self._signals + ([time] if time is not None else []):
-            if name not in chunk:
-                raise InputDataError(f"no column {name!r} in the chunk (columns: "
-                                     f"{column_list(chunk)})")
-            values = read_column(chunk[name], f"column {name!r}")
-            refuse_infinite(values, f"column {name!r}", " of the chunk")
-            if n is not None and len(values) != n:
-                raise InputDataError("the columns of the chunk have different lengths")
-            columns[name], n = values, len(values)
-        if time is None:
-            t = (self._seen + np.arange(n)) / self.rate
-        else:
-            t = columns.pop(time)
-            if n and (not np.all(np.isfinite(t)) or np.any(np.diff(t) <= 0)
-                      or t[0] <= self._last_time):
-                raise InputDataError(f"the times of column {time!r} must be finite and "
-                                     f"increase")
-        self._seen += n
-        if n:
+        t, columns, self.time = read_chunk(chunk, self._signals, time=self.time,
+                                           rate=self.rate, seen=self._seen,
+                                           last_time=self._last_time)
+        self._seen += len(t)
+        if len(t):
             self._last_time = float(t[-1])
         return t, columns
 

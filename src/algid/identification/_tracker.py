@@ -35,16 +35,7 @@ import types
 import numpy as np
 from numpy.polynomial import chebyshev
 
-from algid._record_input import (
-    TIME_COLUMNS,
-    as_record,
-    check_rate,
-    check_rate_agrees,
-    column_list,
-    is_record,
-    read_column,
-    refuse_infinite,
-)
+from algid._record_input import check_rate, read_chunk
 from algid.errors import AlgidError, InputDataError
 from algid.identification._arguments import check_arguments, check_model_columns, check_seconds
 from algid.identification._change_detection import (
@@ -358,61 +349,14 @@ class Tracker:
 
     # ------------------------------------------------------------------ input
     def _read(self, chunk):
-        if not is_record(chunk):
-            raise InputDataError("a chunk must be a record: a mapping of column name -> "
-                                 "samples, a pandas DataFrame, an xarray Dataset or a "
-                                 "TimeResponseData")
-        chunk = as_record(chunk, "the chunk")
-        time = self.config["time"]
-        if time is None and self.config["rate"] is None:
-            time = next((c for c in TIME_COLUMNS if c in chunk), None)
-            if time is None:
-                raise InputDataError(f"no time column ({' or '.join(TIME_COLUMNS)}) in the "
-                                     f"stream; give time= (a column name) or rate= (Hz)")
-            self.config["time"] = time
-        columns = {}
-        n = None
-        same = True
-        for name in self._signals + ([time] if time is not None else []):
-            if name not in chunk:
-                raise InputDataError(f"no column {name!r} in the chunk (columns: "
-                                     f"{column_list(chunk)})")
-            values = read_column(chunk[name], f"column {name!r}")  # (stream times: numbers)
-            refuse_infinite(values, f"column {name!r}", " of the chunk")
-            columns[name] = values
-            same = same and (n is None or len(values) == n)
-            n = len(values)
-        if not same:
-            raise InputDataError("the columns of the chunk have different lengths (" + ", ".join(
-                f"{k}: {len(v)}" for k, v in columns.items()) + ")")
-        if time is None:
-            t = (self.state.seen + np.arange(n)) / self.config["rate"]
-            given = next((c for c in TIME_COLUMNS if c in chunk), None)
-            if given is not None and n > 1:  # a time column beside rate= must agree (as
-                stamps = np.asarray(chunk[given])  # identify's), if it holds numbers
-                if stamps.dtype.kind in "iuf":
-                    check_rate_agrees(self.config["rate"], stamps.astype(float).reshape(-1),
-                                      given, "the chunk")
-        else:
-            t = columns.pop(time)
-            # one sample (a live stream): the checks below, on a scalar
-            if not (n == 1 and math.isfinite(t[0]) and t[0] > self.state.last_time):
-                self._check_times(time, t)
-                if self.config["rate"] is not None and n > 1:   # (as identify's)
-                    check_rate_agrees(self.config["rate"], t, time, "the chunk")
-        self.state.seen += n
-        if n:
+        t, columns, time = read_chunk(chunk, self._signals, time=self.config["time"],
+                                      rate=self.config["rate"], seen=self.state.seen,
+                                      last_time=self.state.last_time)
+        self.config["time"] = time
+        self.state.seen += len(t)
+        if len(t):
             self.state.last_time = float(t[-1])
         return t, columns
-
-    def _check_times(self, time, t):
-        if not np.all(np.isfinite(t)):
-            raise InputDataError(f"time column {time!r} is not finite in the chunk")
-        previous = np.concatenate([[self.state.last_time], t])
-        if np.any(np.diff(previous) <= 0):
-            row = int(np.flatnonzero(np.diff(previous) <= 0)[0])
-            raise InputDataError(f"time column {time!r} does not increase at t = "
-                                 f"{t[row]:.9g} (row {self.state.seen + row} of the stream)")
 
     # ------------------------------------------------------------------ configuration
     def _configure(self, last=False):

@@ -10,6 +10,7 @@ from typing import Any
 import numpy as np
 
 from algid._memory import check_fits
+from algid._record_input import first_nonfinite, read_column, refuse_not_increasing, refuse_too_few
 from algid.errors import InputDataError
 
 __all__ = ["SIMULATION_BYTES_PER_SAMPLE", "format_value", "real_number", "check_parameters",
@@ -147,26 +148,13 @@ def time_grid(timepts: Any, duration: Any, rate: Any) -> np.ndarray:
             )
         return np.arange(n, dtype=np.float64) / rate_
 
-    try:
-        t = np.array(timepts, dtype=np.float64)
-    except (TypeError, ValueError):
-        raise InputDataError("timepts must be a 1-D array of real numbers") from None
-    if t.ndim != 1:
-        raise InputDataError(f"timepts must be 1-D, got shape {t.shape}")
-    if t.size < 2:
-        raise InputDataError(f"timepts has {t.size} sample(s); at least 2 samples are needed")
+    t = read_column(timepts, "timepts")
+    refuse_too_few(t.size, 2, "timepts")
     check_fits(t.size, SIMULATION_BYTES_PER_SAMPLE, what="timepts")
-    bad = np.flatnonzero(~np.isfinite(t))
-    if bad.size:
-        i = int(bad[0])
-        raise InputDataError(f"timepts[{i}] is {float(t[i])!r}; time points must be finite")
-    bad = np.flatnonzero(np.diff(t) <= 0.0)
-    if bad.size:
-        i = int(bad[0]) + 1
-        raise InputDataError(
-            f"timepts must be strictly increasing, but timepts[{i}] = {float(t[i])!r} <= "
-            f"timepts[{i - 1}] = {float(t[i - 1])!r}"
-        )
+    first = first_nonfinite(t)
+    if first is not None:
+        raise InputDataError(f"timepts has {first[1]} at row {first[0]}")
+    refuse_not_increasing(t, "timepts")
     return t
 
 
@@ -268,22 +256,18 @@ def array_samples(values: Any, t: np.ndarray) -> np.ndarray:
     InputDataError
         If the samples are not numbers, not one per time point, or not finite.
     """
-    try:
-        f = np.array(values, dtype=np.float64)
-    except (TypeError, ValueError):
-        raise InputDataError(
-            f"inputs must be 'step', 'sine', a callable or an array of numbers, got "
-            f"{format_value(values)}"
-        ) from None
+    if isinstance(values, (str, bytes)) or not hasattr(values, "__len__"):
+        raise InputDataError(f"inputs must be 'step', 'sine', a callable or an array of "
+                             f"numbers, got {format_value(values)}")
+    f = read_column(values, "inputs")
     if f.shape != t.shape:
         raise InputDataError(
-            f"inputs has shape {f.shape} but the time grid has {t.size} points; give one "
-            "force sample per time point"
-        )
-    bad = np.flatnonzero(~np.isfinite(f))
-    if bad.size:
-        i = int(bad[0])
-        raise InputDataError(f"inputs[{i}] is {float(f[i])!r}; force samples must be finite")
+            f"inputs has shape {np.shape(values)} but the time grid has {t.size} points; "
+            f"give one force sample per time point")
+    first = first_nonfinite(f)
+    if first is not None:
+        raise InputDataError(f"inputs has {first[1]} at row {first[0]}: force samples must "
+                             f"be finite")
     return f
 
 
