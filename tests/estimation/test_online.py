@@ -420,7 +420,7 @@ def test_bad_chunks_are_refused_and_leave_the_state_unchanged(engine):
                     float(t[51]), float(f[51]), float(x[51]))
     _one_line_error("does not increase at stream sample 50", est.update,
                     t[49:50], f[49:50], x[49:50])
-    _one_line_error("signal 'f' has -inf at row 0", est.update,
+    _one_line_error("signal 'f' of the chunk starting at stream sample 50 has -inf at row 0", est.update,
                     t[50:51], np.array([-np.inf]), x[50:51])
     assert est.n_seen == 50
     rest = est.update(t[50:], f[50:], x[50:])
