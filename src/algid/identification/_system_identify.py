@@ -42,6 +42,7 @@ from algid.errors import InputDataError, ModelError
 from algid.identification._adequacy import SHIFT_LIMIT, misfit_limit
 from algid.identification._arguments import check_arguments, check_memory
 from algid.identification._bias_compensation import koopmans
+from algid.identification._homogeneous import divisions, row_map, to_physical
 from algid.identification._methods import METHODS
 from algid.identification._records import check_factors, prepare_records
 from algid.identification._system_result import WEAK_RELATIVE_ERROR
@@ -84,9 +85,11 @@ class _Rows:
     """The stacked window equations of every equation at one length and multiplicity, in
     the parameters of the system scaled by powers of two (``phi = theta * 2**g``)."""
 
-    def __init__(self, problems, system, noisy, bounds, length, multiplicity):
+    def __init__(self, problems, system, noisy, bounds, length, multiplicity, maps=None):
         P = len(system.parameters)
+        maps = maps or {}
         self.blocks, self.grams = [], []
+        self.raw_blocks = []    # (before any equation is divided by its pivot)
         shifts = []
         for problem in problems:
             columns, known, _ = problem.exponents()
@@ -121,6 +124,12 @@ class _Rows:
                 local = problem.noise_grams(length, multiplicity, signal)
                 local = local * full[None, :, None] * full[None, None, :]
                 total[np.ix_(np.arange(len(b)), index, index)] += bounds[signal] * local
+            self.raw_blocks.append(phi)
+            M = maps.get(i)
+            if M is not None:   # in the ratios to its pivot (module _homogeneous)
+                phi = phi @ M.T
+                total = np.einsum("ij,wjk,lk->wil", M, total, M)
+            self.blocks[-1] = phi
             self.grams.append(total)
 
     def residuals(self, theta_bar):
@@ -193,13 +202,16 @@ def _solve(problems, system, noisy, bounds, length, multiplicities, method):
     top = max(multiplicities)
     stride = max(1, length // WINDOW_OVERLAP)
     separate, weights, fit = {}, None, None
+    P = len(system.parameters)
+    divided = divisions([p.model for p in problems], system.parameters)
+    maps = {d.equation: row_map(P + 1, d) for d in divided}
     for a in sorted(multiplicities, reverse=True):
-        rows = _Rows(problems, system, noisy, bounds, length, a)
+        rows = _Rows(problems, system, noisy, bounds, length, a, maps)
         if weights is None:
             weights = _weights(rows, method)
         theta_bar, scores, jacobian, variance, residuals = _solve_rows(rows, weights, method)
-        P = len(theta_bar) - 1
-        theta = np.ldexp(theta_bar[:P], -rows.g)
+        scaled = to_physical(theta_bar[:P], divided)[0]
+        theta = np.ldexp(scaled, -rows.g)
         separate[a] = theta
         if a != top:
             continue
@@ -207,10 +219,14 @@ def _solve(problems, system, noisy, bounds, length, multiplicities, method):
         d[d == 0] = 1.0
         bread = np.linalg.pinv(jacobian / d[:, None] / d[None, :]) / d[:, None] / d[None, :]
         meat = hac_meat(scores, rows.ids, int(np.ceil(length / stride)))
-        covariance = sandwich(bread, meat)
+        covariance = to_physical(theta_bar[:P], divided, sandwich(bread, meat))[1]
         scale = np.ldexp(1.0, -rows.g)
         covariance = covariance * scale[:, None] * scale[None, :]
-        stacked = np.vstack([w * phi for w, phi in zip(weights, rows.blocks)])
+        # (a divided equation's weight, on its rows before division: over its pivot)
+        raw = list(weights)
+        for d in divided:
+            raw[d.equation] = weights[d.equation] / max(abs(theta_bar[d.pivot]), 1e-300)
+        stacked = np.vstack([w * phi for w, phi in zip(raw, rows.raw_blocks)])
         null = _null_direction(stacked[:, :P])
         misfits = []
         for g, r in zip(rows.grams, residuals):

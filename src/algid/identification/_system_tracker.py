@@ -48,6 +48,7 @@ from algid.identification._change_detection import (
     INCREMENT_CAP,
     cusum_design,
 )
+from algid.identification._homogeneous import divisions, row_map, to_physical
 from algid.identification._records import GAP_FACTOR, Segment
 from algid.identification._system_identify import solve_normal
 from algid.identification._system_result import WEAK_RELATIVE_ERROR
@@ -80,8 +81,8 @@ class _Solved(NamedTuple):
     theta: np.ndarray
     stderr: np.ndarray
     error: np.ndarray
-    theta_bar: np.ndarray     # (theta, -1)
-    covariance: np.ndarray
+    theta_bar: np.ndarray     # (theta, -1), with the ratios of divided equations
+    covariance: np.ndarray    # of theta_bar[:-1]
 
 
 class SystemTracker:
@@ -123,6 +124,10 @@ class SystemTracker:
         self.system = system
         self.parameters = tuple(system.parameters)
         self.models = [m for m in system.equations if m.parameters]
+        # equations without a known term, in the ratios of their parameters to a pivot
+        self._divisions = divisions(self.models, self.parameters)
+        self._row_maps = {d.equation: row_map(len(self.parameters) + 1, d)
+                          for d in self._divisions}
         self.rate = None if rate is None else check_rate(rate)
         self.time = time
         self.method = method
@@ -387,7 +392,7 @@ class SystemTracker:
         per noisy output the noise covariances per unit variance."""
         P = len(self.parameters)
         out = []
-        for model in self.models:
+        for e, model in enumerate(self.models):
             problem = WindowProblem(model, [segment], self.step)
             A, b, _ = problem.rows(self.length, a)
             columns, known, _ = problem.exponents()
@@ -409,6 +414,10 @@ class SystemTracker:
                 full = np.zeros((len(b), P + 1, P + 1))
                 full[np.ix_(np.arange(len(b)), index, index)] = g
                 grams[y] = full * (scale[None, :, None] * scale[None, None, :]) * unit ** 2
+            M = self._row_maps.get(e)
+            if M is not None:   # divided by its pivot (module _homogeneous)
+                phi = phi @ M.T
+                grams = {y: np.einsum("ij,wjk,lk->wil", M, g, M) for y, g in grams.items()}
             out.append((phi, grams))
         return out
 
@@ -555,8 +564,11 @@ class SystemTracker:
         values, vectors = np.linalg.eigh(self._meat(theta_bar, variance))
         meat = (vectors * np.abs(values)) @ vectors.T
         covariance = bread @ meat @ bread.T
-        stderr = np.sqrt(np.maximum(np.diag(covariance), 0.0))
-        others = [self._koopmans(a, self._weights)[0][:P] for a in MULTIPLICITIES if a != top]
-        error = np.max([np.abs(o - theta_bar[:P]) for o in others], axis=0) if others \
+        # (the rows of divided equations hold ratios: the physical values, and theirs)
+        theta, physical = to_physical(theta_bar[:P], self._divisions, covariance)
+        stderr = np.sqrt(np.maximum(np.diag(physical), 0.0))
+        others = [to_physical(self._koopmans(a, self._weights)[0][:P], self._divisions)[0]
+                  for a in MULTIPLICITIES if a != top]
+        error = np.max([np.abs(o - theta) for o in others], axis=0) if others \
             else np.full(P, np.nan)
-        return _Solved(theta_bar[:P], stderr, error, theta_bar, covariance)
+        return _Solved(theta, stderr, error, theta_bar, covariance)

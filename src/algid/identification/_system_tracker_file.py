@@ -25,7 +25,7 @@ from algid.identification._window_rule import min_length
 __all__ = ["FORMAT", "CONFIG", "flat_state", "restore"]
 
 #: The format of the file.
-FORMAT = "algid.SystemTracker/1"
+FORMAT = "algid.SystemTracker/2"   # (2: divided equations hold their ratios)
 
 _NUMBER = (type(None), int, float)
 
