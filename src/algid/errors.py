@@ -37,7 +37,7 @@ class InputDataError(AlgidError):
     >>> estimate(np.arange(3.0), np.ones(3), np.ones(2))
     Traceback (most recent call last):
     ...
-    algid.errors.InputDataError: signals have different lengths: 't' has 3, 'f' has 3, 'x' has 2
+    algid.errors.InputDataError: signals have different lengths (t: 3, f: 3, x: 2)
     """
 
 

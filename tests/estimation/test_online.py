@@ -413,15 +413,16 @@ def test_bad_chunks_are_refused_and_leave_the_state_unchanged(engine):
     _one_line_error("does not increase at stream sample 50", est.update, t[49], f[49], x[49])
     _one_line_error("has inf at row 0", est.update, t[50], np.inf, x[50])
     # single samples as floats and as one-element arrays
-    _one_line_error("signal 'x' of the chunk starting at stream sample 50 has NaN at row 0", est.update, float(t[50]), float(f[50]),
-                    math.nan)
-    _one_line_error("time 't' of the chunk starting at stream sample 50 has inf at row 0", est.update, math.inf, 0.0, 0.0)
+    chunk = "of the chunk starting at stream sample 50"
+    _one_line_error(f"signal 'x' {chunk} has NaN at row 0", est.update, float(t[50]),
+                    float(f[50]), math.nan)
+    _one_line_error(f"time 't' {chunk} has inf at row 0", est.update, math.inf, 0.0, 0.0)
     _one_line_error("not uniformly sampled: step 0.001953125 at stream sample 50", est.update,
                     float(t[51]), float(f[51]), float(x[51]))
     _one_line_error("does not increase at stream sample 50", est.update,
                     t[49:50], f[49:50], x[49:50])
-    _one_line_error("signal 'f' of the chunk starting at stream sample 50 has -inf at row 0", est.update,
-                    t[50:51], np.array([-np.inf]), x[50:51])
+    _one_line_error("signal 'f' of the chunk starting at stream sample 50 has -inf at row 0",
+                    est.update, t[50:51], np.array([-np.inf]), x[50:51])
     assert est.n_seen == 50
     rest = est.update(t[50:], f[50:], x[50:])
     np.testing.assert_allclose(rest.B, estimate(t, f, x).B[50:], rtol=RTOL_BATCH, atol=0)
@@ -439,7 +440,8 @@ def test_given_step_is_enforced(engine):
     _one_line_error("not uniformly sampled: step 0.00146484375 at stream sample 20",
                     OnlineEstimator(dt=step, engine=engine).update, irregular, f, x)
     est.update(t[0], f[0], x[0])
-    _one_line_error("not uniformly sampled: step 0.0009765625 at stream sample 1 where 0.002", est.update, t[1], f[1], x[1])
+    _one_line_error("not uniformly sampled: step 0.0009765625 at stream sample 1 where 0.002",
+                    est.update, t[1], f[1], x[1])
     assert est.n_seen == 1
 
 

@@ -260,9 +260,10 @@ def test_mismatched_usage_is_refused(cubic, friction):
         est.update(t, signals={"y": signals["y"], "u": signals["u"][:3]})
     bad = signals["u"].copy()
     bad[7] = np.nan
-    with pytest.raises(InputDataError, match="'u' of the chunk starting at stream sample 0 has NaN at row 7"):
+    chunk = "of the chunk starting at stream sample 0"
+    with pytest.raises(InputDataError, match=f"'u' {chunk} has NaN at row 7"):
         est.update(t, signals={"y": signals["y"], "u": bad})
-    with pytest.raises(InputDataError, match="signal 'y' of the chunk starting at stream sample 0 has shape"):
+    with pytest.raises(InputDataError, match=f"signal 'y' {chunk} has shape"):
         est.update(t, signals={"y": np.ones((2, t.size)), "u": signals["u"]})
     assert est.n_seen == 0  # nothing was taken: the stream still starts here
     got = _stream(est, t, signals, [9])

@@ -54,7 +54,8 @@ def test_as_signal_not_1d():
 
 
 def test_as_signal_scalar():
-    with pytest.raises(InputDataError, match=r"signal 'f' is one number \(1.0\): give one 1-D array"):
+    with pytest.raises(InputDataError,
+                       match=r"signal 'f' is one number \(1.0\): give one 1-D array"):
         as_signal(1.0, name="f")
 
 

@@ -445,7 +445,8 @@ def test_a_two_dimensional_column_is_refused(noisy, shape):
 def test_an_infinite_sample_is_refused_where_nan_is_a_gap(noisy):
     record = {name: np.array(values, dtype=float) for name, values in noisy[0].items()}
     record["y"][700] = -np.inf
-    with pytest.raises(InputDataError, match="column 'y' has -inf at row 700; a missing sample is NaN"):
+    with pytest.raises(InputDataError,
+                       match="column 'y' has -inf at row 700; a missing sample is NaN"):
         algid.identify(record, *LINEAR_EQUATION)
     record["y"][700] = np.nan  # a missing sample: a gap
     assert algid.identify(record, *LINEAR_EQUATION).n_samples < len(record["y"])

@@ -166,7 +166,8 @@ def test_estimates_nan_until_determined():
     ({"window": WINDOW, "false_alarm_rate": 1e-30}, {"y": [1.0, 2.0], "u": [1.0, 2.0]},
      "false_alarm_rate 1e-30 per second is one alarm in"),
     # inf is no missing sample (it was dropped as NaN is)
-    ({}, {"y": [1.0, float("inf")], "u": [1.0, 2.0]}, "column 'y' of the chunk has inf at row 1; a missing sample is NaN"),
+    ({}, {"y": [1.0, float("inf")], "u": [1.0, 2.0]},
+     "column 'y' of the chunk has inf at row 1; a missing sample is NaN"),
     ({"window": 0.0}, None, "window must be a positive number"),
     ({"window": -1.0}, None, "window must be a positive number"),
     # refused before the arrays of 8e7 samples are made (a MemoryError or the OOM killer)
