@@ -560,3 +560,31 @@ def test_no_output_error_fit_from_a_start_that_leaves_parameters_undetermined():
     fit = algid.identify(record, MOTOR, list(truth))
     assert fit.estimate == "algebraic" and "poorly determined" in fit.refinement.reason
     assert any(w.startswith("K is poorly determined") for w in fit.warnings)
+
+
+def test_a_system_is_identified_alike_in_any_units():
+    """Every signal times 1e-150 (or 1e150) leaves the motor's parameters as they are:
+    the equation without a known term took a power of two of its own and gave
+    J = -1.4e63 at 1e-150, and refused 1e100 as "degenerate"."""
+    record = _motor_change_record(8.0, seed=100)
+    reference = algid.identify(record, MOTOR, list(MOTOR_TRUE), window=0.2, refine=False)
+    for scale in (2.0**-500, 2.0**500):   # (powers of two: the same numbers, bit for bit)
+        scaled = {k: v if k == "t" else v * scale for k, v in record.items()}
+        fit = algid.identify(scaled, MOTOR, list(MOTOR_TRUE), window=0.2, refine=False)
+        assert fit.values == reference.values and fit.stderr == reference.stderr, scale
+    scaled = {k: v if k == "t" else v * 1e-150 for k, v in record.items()}
+    fit = algid.identify(scaled, MOTOR, list(MOTOR_TRUE), window=0.2, refine=False)
+    for p, value in reference.values.items():
+        assert fit.values[p] == pytest.approx(value, rel=1e-9), p
+
+
+def test_a_system_tracker_out_of_range_says_so_in_one_line():
+    """Signals of 1e-100: the tracker's sums leave floating point (a LinAlgError
+    traceback before); one line names the magnitude and what to do."""
+    record = _motor_change_record(3.0, seed=100)
+    tiny = {k: v if k == "t" else v * 1e-100 for k, v in record.items()}
+    tracker = algid.Tracker(MOTOR, list(MOTOR_TRUE), time="t", window=0.2)
+    with pytest.raises(InputDataError, match="express them in other units") as info:
+        with np.errstate(all="ignore"):
+            tracker.update(tiny)
+    assert "\n" not in str(info.value)

@@ -69,7 +69,7 @@ from algid.identification._window_rule import (
 )
 from algid.models._system import SystemModel, parse_system
 
-__all__ = ["identify_system", "solve_normal", "SYSTEM_METHODS"]
+__all__ = ["identify_system", "solve_normal", "column_units", "SYSTEM_METHODS"]
 
 #: Methods offered for systems (instrumental variables need a simulation of every
 #: output: not for systems).
@@ -90,15 +90,8 @@ class _Rows:
         maps = maps or {}
         self.blocks, self.grams = [], []
         self.raw_blocks = []    # (before any equation is divided by its pivot)
-        shifts = []
-        for problem in problems:
-            columns, known, _ = problem.exponents()
-            shifts.append(columns - known)
-        self.g = np.full(P, -np.inf)
-        for i, s in enumerate(shifts):
-            for local, p in enumerate(_columns(system, problems[i])):
-                self.g[p] = max(self.g[p], s[local])
-        self.g = self.g.astype(int)
+        self.g, knowns = column_units(problems, system.parameters)
+        shifts = [problem.exponents()[0] - known for problem, known in zip(problems, knowns)]
         self.ids = None
         for i, problem in enumerate(problems):
             A, b, ids = problem.rows(length, multiplicity)
@@ -134,6 +127,43 @@ class _Rows:
 
     def residuals(self, theta_bar):
         return [phi @ theta_bar for phi in self.blocks]
+
+
+def column_units(problems, parameters):
+    """The powers of two in which the stacked rows are solved.
+
+    Every equation's residual is in the power of two of its known term, and every
+    parameter in the largest of the powers that put its column there (``phi = theta *
+    2**g``).  An equation without a known term takes the power that puts a parameter it
+    shares with an equation that has one at that parameter's power (its own largest
+    column would leave its rows 2**-500 apart from the others' on signals of 1e-150).
+
+    Parameters
+    ----------
+    problems : sequence of WindowProblem
+        One per equation with parameters.
+    parameters : sequence of str
+        The system's parameters.
+
+    Returns
+    -------
+    g : numpy.ndarray
+        Per parameter (int).
+    knowns : list of int
+        Per equation, the power of two of its residual.
+    """
+    g = np.full(len(parameters), -np.inf)
+    knowns = [0] * len(problems)
+    for i in sorted(range(len(problems)), key=lambda i: not problems[i].model.known_terms):
+        columns, known, _ = problems[i].exponents()
+        where = [parameters.index(p) for p in problems[i].model.parameters]
+        if not problems[i].model.known_terms:
+            shared = [c - g[p] for c, p in zip(columns, where) if np.isfinite(g[p])]
+            known = int(max(shared) if shared else max(columns))
+        knowns[i] = known
+        for c, p in zip(columns, where):
+            g[p] = max(g[p], c - known)
+    return g.astype(int), knowns
 
 
 def _solve_rows(rows, weights, method):

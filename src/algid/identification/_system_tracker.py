@@ -250,10 +250,17 @@ class SystemTracker:
         self._buffer_t = np.concatenate([self._buffer_t, t])
         for name in self._signals:
             self._buffer[name] = np.concatenate([self._buffer[name], columns[name]])
-        if self.length is None:
-            self._configure(last)
-        if self.length is not None:
-            self._windows()
+        try:
+            if self.length is None:
+                self._configure(last)
+            if self.length is not None:
+                self._windows()
+        except (np.linalg.LinAlgError, OverflowError, FloatingPointError) as exc:
+            largest = max((float(np.nanmax(np.abs(v))) for v in self._buffer.values()
+                           if np.isfinite(v).any()), default=0.0)
+            raise InputDataError(
+                f"the system tracker's sums left the range of floating point ({exc}) on "
+                f"signals of magnitude {largest:.3g}: express them in other units") from None
         p = len(self.parameters)
         alarms = np.array(self._alarms, dtype=float)
         if not self._out:
