@@ -204,7 +204,8 @@ def test_dates_with_a_time_zone_are_read_as_utc(record, reference):
 def test_text_is_refused_everywhere_as_the_paper_s_form_refuses_it(record):
     """identify and the tracker took numbers stored as text; estimate(t, f, x) did not."""
     text = dict(record, y=record["y"].astype(str))
-    message = r"column 'y'( of the chunk)? is not numeric: row 0 holds '"
+    message = (r"column 'y'( of the chunk starting at stream sample 0)? holds numbers "
+               r"stored as text \(row 0: '")
     with pytest.raises(algid.InputDataError, match=message):
         algid.identify(text, *LINEAR_EQUATION)
     with pytest.raises(algid.InputDataError, match=message):
@@ -212,7 +213,7 @@ def test_text_is_refused_everywhere_as_the_paper_s_form_refuses_it(record):
     mixed = dict(record, y=np.array([*record["y"][:5], "n/a", *record["y"][6:]], dtype=object))
     with pytest.raises(algid.InputDataError, match=r"is not numeric: row 5 holds 'n/a'"):
         algid.identify(mixed, *LINEAR_EQUATION)
-    with pytest.raises(algid.InputDataError, match=r"signal 'x' is not numeric: row 0"):
+    with pytest.raises(algid.InputDataError, match=r"signal 'x' holds numbers stored as text"):
         algid.estimate(record["t"], record["u"], record["y"].astype(str))
 
 

@@ -38,6 +38,7 @@ __all__ = ["TIME_COLUMNS", "RATE_TOLERANCE", "STEP_RANGE", "is_record", "is_time
            "as_record", "read_column", "refuse_unusable", "record_columns", "check_rate",
            "check_rate_agrees", "refuse_nonfinite", "refuse_infinite", "refuse_missing",
            "refuse_unequal_lengths", "refuse_too_few", "refuse_not_increasing", "read_chunk",
+           "refuse_stream_dates",
            "first_nonfinite",
            "column_list",
            "first_non_number"]
@@ -335,7 +336,7 @@ def read_column(values, what, *, time=False, every_sample=False, one_number=Fals
         if every_sample and masked.size:
             raise InputDataError(
                 f"{what} has a masked sample at row {int(masked[0])} ({masked.size} "
-                f"masked): the estimator needs every sample (fill or cut them)")
+                f"masked): every sample is needed here (fill or cut them)")
         try:
             values = np.ma.filled(values.astype(float), np.nan)
         except (TypeError, ValueError):
@@ -346,7 +347,10 @@ def read_column(values, what, *, time=False, every_sample=False, one_number=Fals
     except (TypeError, ValueError):
         raise InputDataError(f"{what} is not a 1-D array of numbers (ragged or "
                              f"unconvertible)") from None
-    if values.ndim == 0 and not (one_number and values.dtype.kind in "iuf"):
+    if values.ndim == 0 and values.dtype.kind in "bcmM":
+        refuse_unusable(values, what, dates=time)   # (a boolean, complex, date is that)
+    if values.ndim == 0 and not (one_number and (values.dtype.kind in "iuf" or isinstance(
+            given, numbers.Real) and not isinstance(given, (bool, np.bool_)))):
         raise InputDataError(f"{what} is {_describe_scalar(given)}: give one 1-D array "
                              f"of samples per signal")
     refuse_unusable(values, what, dates=time)
@@ -357,7 +361,13 @@ def read_column(values, what, *, time=False, every_sample=False, one_number=Fals
                                  f".astype(float) if 0 and 1 are meant)")
         bad = first_non_number(values.reshape(-1))
         if bad is not None:
-            raise InputDataError(f"{what} is not numeric: row {bad[0]} holds {bad[1]!r}")
+            try:
+                float(bad[1])
+            except (TypeError, ValueError):
+                raise InputDataError(f"{what} is not numeric: row {bad[0]} holds "
+                                     f"{bad[1]!r}") from None
+            raise InputDataError(f"{what} holds numbers stored as text (row {bad[0]}: "
+                                 f"{bad[1]!r}): convert them (.astype(float))")
     if values.dtype.kind in "mM":
         values = values.reshape(-1)
         return (values - values[0]) / np.timedelta64(1, "s") if len(values) else \
@@ -371,15 +381,37 @@ def read_column(values, what, *, time=False, every_sample=False, one_number=Fals
                              f"(beyond 1.8e308)") from None
 
 
-def _column(record, name, index, label, every_sample=False):
+def refuse_stream_dates(values, what):
+    """Refuse dates or durations as a stream's times: each chunk would become seconds from
+    its own first sample.
+
+    Parameters
+    ----------
+    values : object
+        The time column as given.
+    what : str
+        Names it (``"time column 't' of the chunk starting at stream sample 0"``).
+
+    Raises
+    ------
+    InputDataError
+    """
+    if getattr(np.asarray(values), "dtype", np.dtype(float)).kind in "mM":
+        raise InputDataError(f"{what} holds dates or durations: a stream's times are "
+                             f"numbers of seconds (e.g. (index - start) / "
+                             f"pd.Timedelta('1s'), the same start for every chunk)")
+
+
+def _column(record, name, where, label, every_sample=False, one_number=False):
     if name not in record:
         available = column_list(record)
         hint = (f"; if {name!r} is an unknown, add it to the parameters"
                 if label == "signal" else "")
-        raise InputDataError(f"record {index}: no column {name!r} for the {label} "
+        raise InputDataError(f"{where}: no column {name!r} for the {label} "
                              f"(columns: {available}){hint}")
-    return read_column(record[name], f"record {index}: column {name!r}",
-                       time=label == "time", every_sample=every_sample)
+    return read_column(record[name], f"{where}: column {name!r}",
+                       time=label == "time", every_sample=every_sample,
+                       one_number=one_number)
 
 
 def check_rate(rate, what="rate"):
@@ -444,40 +476,41 @@ def check_rate_agrees(rate, t, name, where):
             f"{1.0 / step:.6g} Hz); give the time column or a rate that agrees with it")
 
 
-def _time_axis(record, index, n, time, rate):
+def _time_axis(record, where, n, time, rate, one_number=False):
     if rate is not None:
         rate = check_rate(rate)
     if time is None:
         time = next((c for c in TIME_COLUMNS if c in record), None)
         if time is None and rate is None:
-            raise InputDataError(f"record {index}: no time column ({' or '.join(TIME_COLUMNS)}); "
+            raise InputDataError(f"{where}: no time column ({' or '.join(TIME_COLUMNS)}); "
                                  f"give time= (a column name) or rate= (Hz)")
     if time is None:
         return np.arange(n) / rate, None
-    t = _column(record, time, index, "time")
+    t = _column(record, time, where, "time", one_number=one_number)
     if len(t) != n:
-        raise InputDataError(f"record {index}: time column {time!r} has {len(t)} samples, "
+        raise InputDataError(f"{where}: time column {time!r} has {len(t)} samples, "
                              f"the signals {n}")
     first = first_nonfinite(t)
     if first is not None:
-        raise InputDataError(f"record {index}: time column {time!r} has {first[1]} at row "
+        raise InputDataError(f"{where}: time column {time!r} has {first[1]} at row "
                              f"{first[0]}")
-    refuse_not_increasing(t, f"record {index}: time column {time!r}")
+    refuse_not_increasing(t, f"{where}: time column {time!r}")
     steps = np.diff(t)
     if rate is not None:
-        check_rate_agrees(rate, t, time, f"record {index}")
+        check_rate_agrees(rate, t, time, where)
     if len(steps):
         median, low, high = float(np.median(steps)), *STEP_RANGE
         if not low <= median <= high:
             raise InputDataError(
-                f"record {index}: time column {time!r} has a step of {median:.3g}, outside "
+                f"{where}: time column {time!r} has a step of {median:.3g}, outside "
                 f"{low:g} .. {high:g} s: the window integrals would overflow or "
                 f"underflow; express the time in other units")
     return t, time
 
 
 def record_columns(record, signals, *, time=None, rate=None, first_sample=0, index=0,
-                   min_samples=0, every_sample=False):
+                   min_samples=0, every_sample=False, what=None, one_number=False,
+                   stream=False):
     """The time axis and the named signals of one record, checked as :func:`algid.identify`
     checks them (no gaps are cut: the estimator needs the record whole).
 
@@ -501,6 +534,13 @@ def record_columns(record, signals, *, time=None, rate=None, first_sample=0, ind
         Fewer samples are refused (before the time axis is read).
     every_sample : bool, optional
         Masked samples are refused rather than missing (:func:`read_column`).
+    what : str, optional
+        Names the record in messages (default ``"record {index}"``; a stream's chunk).
+    one_number : bool, optional
+        A single number is one sample (a chunk of a stream).
+    stream : bool, optional
+        The record is a stream's chunk: dates or durations as times are refused
+        (:func:`refuse_stream_dates`).
 
     Returns
     -------
@@ -513,13 +553,18 @@ def record_columns(record, signals, *, time=None, rate=None, first_sample=0, ind
     InputDataError
         A missing or non-numeric column, signals of different lengths, a bad time axis.
     """
-    record = as_record(record, f"record {index}")
-    columns = {name: _column(record, name, index, "signal", every_sample)
+    where = what or f"record {index}"
+    record = as_record(record, where)
+    columns = {name: _column(record, name, where, "signal", every_sample, one_number)
                for name in signals}
-    refuse_unequal_lengths(columns, f"record {index}")
+    refuse_unequal_lengths(columns, where)
     n = len(next(iter(columns.values()))) if columns else 0
-    refuse_too_few(n, min_samples, f"record {index}")
-    t, _ = _time_axis(record, index, n, time, rate)
+    refuse_too_few(n, min_samples, where)
+    if stream:
+        name = time or next((c for c in TIME_COLUMNS if c in record), None)
+        if name is not None and name in record:
+            refuse_stream_dates(record[name], f"{where}: time column {name!r}")
+    t, _ = _time_axis(record, where, n, time, rate, one_number)
     if first_sample and time is None and not any(c in record for c in TIME_COLUMNS):
         t = (first_sample + np.arange(n)) / check_rate(rate)
     return t, columns
@@ -729,21 +774,24 @@ def read_chunk(chunk, signals, *, time, rate, seen, last_time):
         if time is None:
             raise InputDataError(f"no time column ({' or '.join(TIME_COLUMNS)}) in the "
                                  f"stream; give time= (a column name) or rate= (Hz)")
+    where = f"the chunk starting at stream sample {seen}"
     columns = {}
     for name in list(signals) + ([time] if time is not None else []):
         if name not in chunk:
             raise InputDataError(f"no column {name!r} in the chunk (columns: "
                                  f"{column_list(chunk)})")
-        values = read_column(chunk[name], f"column {name!r} of the chunk", one_number=True)
+        if name == time:
+            refuse_stream_dates(chunk[name], f"time column {name!r} of {where}")
+        values = read_column(chunk[name], f"column {name!r} of {where}", one_number=True)
         if name == time:
             first = first_nonfinite(values)
             if first is not None:
-                raise InputDataError(f"time column {time!r} of the chunk has {first[1]} at "
+                raise InputDataError(f"time column {time!r} of {where} has {first[1]} at "
                                      f"row {first[0]}")
         else:
-            refuse_infinite(values, f"column {name!r} of the chunk")
+            refuse_infinite(values, f"column {name!r} of {where}")
         columns[name] = values
-    refuse_unequal_lengths(columns, "the chunk")
+    refuse_unequal_lengths(columns, where)
     n = len(next(iter(columns.values()))) if columns else 0
     if time is None:
         t = (seen + np.arange(n)) / rate

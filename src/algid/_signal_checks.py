@@ -137,7 +137,7 @@ def as_signal(values, *, name, time=False, of="") -> np.ndarray:
     if type(values) is np.ndarray and values.dtype == np.float64 and values.ndim == 1:
         arr = values   # (the paper's arrays are not copied)
     else:
-        arr = read_column(values, what, every_sample=True)
+        arr = read_column(values, what, every_sample=True, time=time)
     if arr.size == 0:
         raise InputDataError(f"{what} is empty")
     if time:

@@ -49,7 +49,7 @@ def _signal_scan():
     return scan
 
 
-def check_experiment_compiled(t, f, x, *, min_samples=16):
+def check_experiment_compiled(t, f, x, *, min_samples=16, names=("t", "f", "x")):
     """:func:`algid._signal_checks.check_experiment` in two compiled passes over the data.
 
     Same arguments, result and errors: for float64 1-D contiguous arrays of equal
@@ -64,6 +64,8 @@ def check_experiment_compiled(t, f, x, *, min_samples=16):
         Time, input and output.
     min_samples : int, optional
         Smallest number of samples accepted.
+    names : tuple of str, optional
+        Names of ``t``, ``f`` and ``x`` in the messages.
 
     Returns
     -------
@@ -80,4 +82,4 @@ def check_experiment_compiled(t, f, x, *, min_samples=16):
             tolerance = step_tolerance(max(abs(t[0]), abs(t[-1])), dt)
             if _signal_scan()(t, f, x, dt, tolerance):
                 return t, f, x, dt
-    return check_experiment(t, f, x, min_samples=min_samples)
+    return check_experiment(t, f, x, names=names, min_samples=min_samples)

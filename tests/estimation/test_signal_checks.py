@@ -72,7 +72,7 @@ def test_as_signal_non_numeric_names_row():
 def test_as_signal_text_array_names_first_non_number():
     with pytest.raises(InputDataError, match="row 1 holds 'x1'"):
         as_signal(np.array(["1.5", "x1", "2"]), name="x")
-    with pytest.raises(InputDataError, match="row 0 holds '1.5'"):
+    with pytest.raises(InputDataError, match=r"holds numbers stored as text \(row 0: '1.5'\)"):
         as_signal(np.array(["1.5", "2"]), name="x")
 
 

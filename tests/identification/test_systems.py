@@ -588,3 +588,20 @@ def test_a_system_tracker_out_of_range_says_so_in_one_line():
         with np.errstate(all="ignore"):
             tracker.update(tiny)
     assert "\n" not in str(info.value)
+
+
+def test_a_system_tracker_of_an_older_format_is_named_so(tmp_path, monkeypatch):
+    """A saved system tracker of format /1 (its sums not yet in ratios) was refused as
+    "this version reads 'algid.Tracker/3'", the single tracker's format."""
+    from algid.identification import _system_tracker_file
+
+    record = _motor_change_record(2.0, seed=100)
+    tracker = algid.Tracker(MOTOR, list(MOTOR_TRUE), time="t", window=0.2)
+    tracker.update(record)
+    monkeypatch.setattr(_system_tracker_file, "FORMAT", "algid.SystemTracker/1")
+    tracker.save(tmp_path / "old.npz")
+    monkeypatch.undo()
+    with pytest.raises(InputDataError, match="format 'algid.SystemTracker/1'; this version "
+                                             "reads 'algid.Tracker/3' .one equation. and "
+                                             "'algid.SystemTracker/2' .a system."):
+        algid.Tracker.load(tmp_path / "old.npz")

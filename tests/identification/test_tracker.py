@@ -158,7 +158,8 @@ def test_estimates_nan_until_determined():
     ({}, {"y": [1.0, 2.0], "u": [1.0]}, "different lengths"),
     ({"time": "t"}, {"y": [1.0, 2.0], "u": [1.0, 2.0], "t": [0.0, 0.0]}, "does not increase"),
     ({}, {"y": [[1.0, 2.0], [3.0, 4.0]], "u": [1.0, 2.0, 3.0, 4.0]}, "has shape \\(2, 2\\)"),
-    ({}, {"y": [1.0, 2.0], "u": [True, False]}, "column 'u' of the chunk holds booleans"),
+    ({}, {"y": [1.0, 2.0], "u": [True, False]},
+     "column 'u' of the chunk starting at stream sample 0 holds booleans"),
     # a time column beside rate= that contradicts it (it was ignored: wrong estimates)
     ({"rate": 40.0}, {"y": [1.0, 2.0, 3.0], "u": [1.0, 2.0, 3.0], "t": [0.0, 0.0125, 0.025]},
      "rate 40 Hz contradicts time column 't'"),
@@ -167,7 +168,8 @@ def test_estimates_nan_until_determined():
      "false_alarm_rate 1e-30 per second is one alarm in"),
     # inf is no missing sample (it was dropped as NaN is)
     ({}, {"y": [1.0, float("inf")], "u": [1.0, 2.0]},
-     "column 'y' of the chunk has inf at row 1; a missing sample is NaN"),
+     "column 'y' of the chunk starting at stream sample 0 has inf at row 1; a missing "
+     "sample is NaN"),
     ({"window": 0.0}, None, "window must be a positive number"),
     ({"window": -1.0}, None, "window must be a positive number"),
     # refused before the arrays of 8e7 samples are made (a MemoryError or the OOM killer)

@@ -12,10 +12,13 @@ import numpy as np
 import algid.estimation._backends as backends
 import algid.estimation._core as core
 from algid._record_input import (
+    TIME_COLUMNS,
+    as_record,
     is_record,
     is_timeresponse,
     record_columns,
     refuse_nonfinite,
+    refuse_unequal_lengths,
     timeresponse_pair,
 )
 from algid._scaling import amplitude_scale, check_amplitude_range, scalable
@@ -226,6 +229,7 @@ def estimate(t, f=None, x=None, *, model=None, filter_order=DEFAULT_FILTER_ORDER
     """
     # a TimeResponseData alone is the paper's form (its input and output); with a model,
     # a record of its labelled signals
+    time_name, signal_names = "t", ("t", "f", "x")   # (in messages)
     if is_record(t) and not (is_timeresponse(t) and f is None and x is None):
         if is_timeresponse(t) and any(_samples_given(v) for v in (f, x)):
             raise InputDataError("give either a TimeResponseData or the arrays t, f, x, not both")
@@ -236,9 +240,15 @@ def estimate(t, f=None, x=None, *, model=None, filter_order=DEFAULT_FILTER_ORDER
                                  f"model={model!r}; give it once")
         module = estimator_module(DEFAULT_MODEL if f is None and model is None else
                                   model if f is None else f, x, output=output)
-        t, columns = record_columns(t, measured_signals(module), time=time, rate=rate,
-                                    min_samples=2, every_sample=True)
+        record = t
+        t, columns = record_columns(record, measured_signals(module), time=time, rate=rate,
+                                    min_samples=core.shortest_record(
+                                        quadrature_points_option(quadrature_points)),
+                                    every_sample=True)
         refuse_nonfinite(columns, "record 0")
+        time_name = time or next((c for c in TIME_COLUMNS if c in as_record(record)), "t")
+        if takes_pair(module):
+            signal_names = (time_name, module.INPUT, module.OUTPUT)
         model, f, x = module, None, None
         if takes_pair(module):
             f, x = columns[module.INPUT], columns[module.OUTPUT]
@@ -250,7 +260,8 @@ def estimate(t, f=None, x=None, *, model=None, filter_order=DEFAULT_FILTER_ORDER
     if model is None:
         model = DEFAULT_MODEL
     if signals is not None:
-        return _estimate_signals(t, signals, model=model, filter_order=filter_order,
+        return _estimate_signals(t, signals, time_name=time_name, model=model,
+                                 filter_order=filter_order,
                                  quadrature_points=quadrature_points, engine=engine,
                                  given=(f, x, mass, lowpass), differentiator=differentiator,
                                  derivative_window=derivative_window,
@@ -279,9 +290,10 @@ def estimate(t, f=None, x=None, *, model=None, filter_order=DEFAULT_FILTER_ORDER
     backend = backends.choose_engine(engine, n, lowpass_filter)
     if backend == "numba":
         from algid._signal_checks_numba import check_experiment_compiled
-        t, f, x, dt = check_experiment_compiled(t, f, x, min_samples=min_samples)
+        t, f, x, dt = check_experiment_compiled(t, f, x, min_samples=min_samples,
+                                                names=signal_names)
     else:
-        t, f, x, dt = check_experiment(t, f, x, min_samples=min_samples)
+        t, f, x, dt = check_experiment(t, f, x, min_samples=min_samples, names=signal_names)
     state = core.new_state(module, points=points, filter_order=filter_order, dt=dt,
                            divisors=channel_divisors(module, mass))
     signals = _rescaled(module, {module.INPUT: f, module.OUTPUT: x},
@@ -413,7 +425,7 @@ def _check_channels_finite(module, channels, start, signals):
                                  f"of its function, or an overflow")
 
 
-def _estimate_signals(t, signals, *, model, filter_order, quadrature_points,
+def _estimate_signals(t, signals, *, time_name, model, filter_order, quadrature_points,
                       engine, given, differentiator, derivative_window,
                       derivative_extra_orders, with_error, late_origin):
     """:func:`estimate` for a model of several signals or nonlinear factors (``signals=``)."""
@@ -430,13 +442,10 @@ def _estimate_signals(t, signals, *, model, filter_order, quadrature_points,
     _check_late_origin(late_origin, with_error, None)
     # the time axis once (passed as its own companions: t is never identically zero,
     # so only the checks of the time axis can fail), then every signal
-    t_checked, _, _, dt = check_experiment(t, t, t, names=("t", "t", "t"),
+    t_checked, _, _, dt = check_experiment(t, t, t, names=(time_name,) * 3,
                                            min_samples=core.shortest_record(points))
     checked = {name: as_signal(samples, name=str(name)) for name, samples in signals.items()}
-    for name, values in checked.items():
-        if values.size != t_checked.size:
-            raise InputDataError(f"signal {name!r} has {values.size} samples where 't' has "
-                                 f"{t_checked.size}")
+    refuse_unequal_lengths({time_name: t_checked, **{str(k): v for k, v in checked.items()}})
     if not any(values.any() for values in checked.values()):
         raise InputDataError("no excitation: every signal is identically zero")
     span = t_checked[-1] - t_checked[0]

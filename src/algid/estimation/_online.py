@@ -429,7 +429,9 @@ class OnlineEstimator:
             rate = None if self._given_dt is None else 1.0 / self._given_dt
             t, columns = record_columns(t, measured_signals(self._module),
                                         time=self._time_column, rate=rate,
-                                        first_sample=self.n_seen, every_sample=True)
+                                        first_sample=self.n_seen, every_sample=True,
+                                        what=f"the chunk starting at stream sample "
+                                             f"{self.n_seen}", one_number=True, stream=True)
             refuse_nonfinite(columns, f"the chunk starting at stream sample {self.n_seen}")
             if self._takes_pair:
                 f, x = columns[self._module.INPUT], columns[self._module.OUTPUT]

@@ -172,7 +172,10 @@ def check_chunk(t, f, x, *, n, t_last, dt, scan=None):
             return checked
     if all(isinstance(v, numbers.Real) and not isinstance(v, (bool, np.bool_))
            for v in (t, f, x)):
-        return _check_sample(t, f, x, n, t_last, dt)
+        try:
+            return _check_sample(t, f, x, n, t_last, dt)
+        except OverflowError:   # (an integer beyond floating point: named below)
+            pass
     if all(isinstance(v, np.ndarray) and not isinstance(v, np.ma.MaskedArray)
            and v.shape == (1,) and v.dtype.kind in "fiu" for v in (t, f, x)):
         return _check_sample(t[0], f[0], x[0], n, t_last, dt)

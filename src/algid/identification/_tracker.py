@@ -323,13 +323,15 @@ class Tracker:
             file and the array).
         """
         from algid.identification._system_tracker_file import FORMAT as SYSTEM_FORMAT
-        from algid.identification._tracker_file import FormatError, check_state, read
+        from algid.identification._tracker_file import FORMAT, FormatError, check_state, read
 
         try:
             config, scalars, arrays = read(path)
         except FormatError as exc:
             if exc.format != SYSTEM_FORMAT:
-                raise
+                raise FormatError(f"{path}: a tracker saved in format {exc.format!r}; this "
+                                  f"version reads {FORMAT!r} (one equation) and "
+                                  f"{SYSTEM_FORMAT!r} (a system)", exc.format) from None
             config = None
         if config is None:   # a system's tracker: its own state
             from algid.identification._system_tracker import SystemTracker

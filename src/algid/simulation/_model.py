@@ -37,8 +37,16 @@ import numbers
 import numpy as np
 
 from algid._memory import check_fits
+from algid._record_input import (
+    first_nonfinite,
+    read_column,
+    refuse_not_increasing,
+    refuse_too_few,
+    refuse_unequal_lengths,
+)
 from algid.errors import InputDataError, ModelError
 from algid.models._expression import Call, Constant, Power, Product, Signal, Sum, Time
+from algid.models._model import Model
 from algid.signals._differentiation import algebraic_derivative
 from algid.simulation._interpolation import Interpolant
 from algid.simulation._switching import integrate_switched
@@ -138,11 +146,35 @@ def as_floats(values, what):
 
 
 def check_time_and_inputs(time, inputs, names):
-    t = as_floats(time, "time")
-    if t.ndim != 1 or len(t) < 4:
-        raise InputDataError("time must be a 1-D array of at least 4 sample times")
-    if not np.all(np.isfinite(t)) or np.any(np.diff(t) <= 0):
-        raise InputDataError("time must be finite and strictly increasing")
+    """The sample times and the named inputs of a simulation, read as the record layer
+    reads every signal (:func:`algid._record_input.read_column`: masked samples,
+    booleans, complex numbers and text refused in the same words).
+
+    Parameters
+    ----------
+    time : array_like
+        At least 4 finite, strictly increasing times (durations: seconds from the first).
+    inputs : mapping
+        Input name -> samples at ``time``.
+    names : sequence of str
+        The inputs needed.
+
+    Returns
+    -------
+    t : numpy.ndarray
+    columns : dict
+        Name -> float samples.
+
+    Raises
+    ------
+    InputDataError
+    """
+    t = read_column(time, "time", time=True, every_sample=True)
+    refuse_too_few(len(t), 4, "time")
+    first = first_nonfinite(t)
+    if first is not None:
+        raise InputDataError(f"time has {first[1]} at row {first[0]}")
+    refuse_not_increasing(t, "time")
     if not hasattr(inputs, "items"):
         raise InputDataError(f"inputs must be a mapping of signal name -> samples, got "
                              f"{type(inputs).__name__}")
@@ -150,11 +182,13 @@ def check_time_and_inputs(time, inputs, names):
     for name in names:
         if name not in inputs:
             raise InputDataError(f"no samples for the input {name!r}")
-        values = as_floats(inputs[name], f"input {name!r}")
-        if values.shape != t.shape:
-            raise InputDataError(f"input {name!r} has shape {values.shape}, time has {t.shape}")
-        if not np.all(np.isfinite(values)):
-            raise InputDataError(f"input {name!r} has NaN or infinite samples")
+        what = f"input {name!r}"
+        values = read_column(inputs[name], what, every_sample=True)
+        refuse_unequal_lengths({"time": t, name: values})
+        first = first_nonfinite(values)
+        if first is not None:
+            raise InputDataError(f"{what} has {first[1]} at row {first[0]}: a simulation "
+                                 f"needs every input sample")
         columns[name] = values
     return t, columns
 
@@ -301,6 +335,9 @@ class _OutputEquation:
 
 
 def _prepare(model, parameters, time, inputs, output, interpolation):
+    if not isinstance(model, Model):
+        raise ModelError(f"model must be a Model (algid.models.parse_equation(equation, "
+                         f"parameters)), got {type(model).__name__}")
     if interpolation not in ("bandlimited", "cubic"):
         raise InputDataError(f"interpolation must be 'bandlimited' or 'cubic', "
                              f"got {interpolation!r}")
