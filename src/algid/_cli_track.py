@@ -239,6 +239,14 @@ def _line(model, t, values, stderr):
     return f"{t:10.4f}" + "".join(f"  {v:>13.6g}  {s:>10.2g}" for v, s in zip(values, stderr))
 
 
+def _number(field, column):
+    """A field of a live row as a float, or the refusal that names it as file mode does."""
+    try:
+        return float(field)
+    except ValueError:
+        raise InputDataError(f"column {column!r}: {field.strip()!r} is not a number") from None
+
+
 def _rate_agrees(rate, stamps, name):
     """Refuse --rate beside a time column of standard input that contradicts it."""
     from algid._record_input import check_rate_agrees
@@ -315,7 +323,7 @@ def _live(args, model):
         try:
             if len(fields) != len(columns):
                 raise InputDataError(f"{len(fields)} fields, the header has {len(columns)}")
-            values = [float(fields[i]) for i in where]
+            values = [_number(fields[i], columns[i]) for i in where]
             if check is not None and len(first_stamps) <= STEP_SAMPLES:
                 first_stamps.append(float(fields[columns.index(check)]))
                 if len(first_stamps) > STEP_SAMPLES:
