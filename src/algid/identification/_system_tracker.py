@@ -57,6 +57,7 @@ from algid.identification._tracker_state import (
     TrackUpdate,
     as_seconds,
     check_half_life,
+    window_samples,
 )
 from algid.identification._window_problem import (
     DIFFERENCE_ORDERS,
@@ -65,7 +66,7 @@ from algid.identification._window_problem import (
     WindowProblem,
     noise_bound_from_sums,
 )
-from algid.identification._window_rule import MIN_SPARE_WINDOWS, min_length
+from algid.identification._window_rule import MIN_SPARE_WINDOWS
 
 __all__ = ["SystemTracker"]
 
@@ -292,10 +293,7 @@ class SystemTracker:
         step = float(np.median(np.diff(t)))
         length = None
         if self._window is not None:
-            length = int(round(self._window / step)) + 1
-            if length < min_length(MULTIPLICITIES):
-                raise InputDataError(f"window {self._window:g} s is shorter than the "
-                                     f"kernels need ({min_length(MULTIPLICITIES)} samples)")
+            length = window_samples(self._window, step, MULTIPLICITIES)
         else:
             from algid.identification._system_identify import identify_system
 

@@ -47,7 +47,6 @@ from algid.identification._methods import TRACKER_METHODS
 from algid.identification._records import GAP_FACTOR, UNIFORM_TOLERANCE
 from algid.identification._tracker_kernels import kernels
 from algid.identification._tracker_state import (
-    MAX_WINDOW_SAMPLES,
     WARMUP_DOUBLINGS,
     Pending,
     Segment,
@@ -59,13 +58,14 @@ from algid.identification._tracker_state import (
     Warmup,
     as_seconds,
     check_half_life,
+    window_samples,
 )
 from algid.identification._window_kernels import (
     TERM_KERNELS,
     window_sample_weights,
 )
 from algid.identification._window_problem import WINDOW_OVERLAP, factor_sensitivity
-from algid.identification._window_rule import MIN_SPARE_WINDOWS, check_multiplicities, min_length
+from algid.identification._window_rule import MIN_SPARE_WINDOWS, check_multiplicities
 from algid.models._argument import estimator_module
 from algid.models._compiled import model_of
 from algid.models._expression import Call, Signal
@@ -407,17 +407,7 @@ class Tracker:
                     raise TrackerSetupError(
                         f"no window could be chosen on the first {span:g} s of the stream "
                         f"(identify refuses them); give window=")
-        samples = window / step + 1
-        if samples > MAX_WINDOW_SAMPLES:  # (before any array of that length is made)
-            raise TrackerSetupError(f"window {window:g} s ({samples:.3g} samples) is longer "
-                                    f"than a tracker keeps ({MAX_WINDOW_SAMPLES} samples, "
-                                    f"{(MAX_WINDOW_SAMPLES - 1) * step:.4g} s at this rate)")
-        length = int(round(window / step)) + 1
-        shortest = min_length(self.multiplicities)
-        if length < shortest:
-            raise TrackerSetupError(f"window {window:g} s ({length} samples) is shorter than the "
-                                    f"kernels of multiplicity {max(self.multiplicities)} need; "
-                                    f"use at least {(shortest - 1) * step:.4g} s")
+        length = window_samples(window, step, self.multiplicities)
         self._check_half_life(length, step)
         self._derive(length, step)   # (its refusals leave the state as it was)
         state = self.state

@@ -21,10 +21,11 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from algid.errors import InputDataError
-from algid.identification._window_rule import MIN_SPARE_WINDOWS
+from algid.identification._window_rule import MIN_SPARE_WINDOWS, min_length
 
 __all__ = ["TrackerState", "TrackUpdate", "TrackerSetupError", "Warmup", "Sums", "Tests",
            "Pending", "Segment", "MAX_WINDOW_SAMPLES", "WARMUP_DOUBLINGS", "check_half_life",
+           "window_samples",
            "as_seconds"]
 
 #: Longest window (samples) a tracker accepts: its state holds a few arrays of a
@@ -50,6 +51,40 @@ def as_seconds(value):
     """An optional duration as a Python float (NumPy scalars too: a configuration is
     saved as JSON, and a float32 would round the forgetting)."""
     return None if value is None else float(value)
+
+
+def window_samples(window, step, multiplicities):
+    """The samples of a tracker's window of ``window`` seconds at ``step``, or the
+    refusal of a window longer than a tracker keeps or shorter than the kernels need
+    (both trackers' words).
+
+    Parameters
+    ----------
+    window, step : float
+        Seconds.
+    multiplicities : tuple of int
+        The kernels' multiplicities.
+
+    Returns
+    -------
+    int
+
+    Raises
+    ------
+    TrackerSetupError
+    """
+    samples = window / step + 1
+    if samples > MAX_WINDOW_SAMPLES:  # (before any array of that length is made)
+        raise TrackerSetupError(f"window {window:g} s ({samples:.3g} samples) is longer "
+                                f"than a tracker keeps ({MAX_WINDOW_SAMPLES} samples, "
+                                f"{(MAX_WINDOW_SAMPLES - 1) * step:.4g} s at this rate)")
+    length = int(round(window / step)) + 1
+    shortest = min_length(multiplicities)
+    if length < shortest:
+        raise TrackerSetupError(f"window {window:g} s ({length} samples) is shorter than the "
+                                f"kernels of multiplicity {max(multiplicities)} need; "
+                                f"use at least {(shortest - 1) * step:.4g} s")
+    return length
 
 
 def check_half_life(half_life, length, step, stride, overlap, parameters):
