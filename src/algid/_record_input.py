@@ -592,8 +592,15 @@ def first_nonfinite(values):
     return row, "NaN" if np.isnan(value) else "inf" if value > 0 else "-inf"
 
 
-def refuse_infinite(values, what, where=""):
-    """Refuse an infinite sample (no measurement: an overflow?); NaN marks a missing one.
+def _refuse_first(values, what, why):
+    first = first_nonfinite(values)
+    if first is not None:
+        raise InputDataError(f"{what} has {first[1]} at row {first[0]}; {why}")
+
+
+def refuse_infinite(values, what):
+    """Refuse an infinite sample (no measurement: an overflow?) where NaN marks a missing
+    one (:func:`algid.identify`, the tracker).
 
     Parameters
     ----------
@@ -601,43 +608,30 @@ def refuse_infinite(values, what, where=""):
         A column's float samples.
     what : str
         Names the column (``"record 0: column 'u'"``).
-    where : str, optional
-        Follows the row in the message (``" of the chunk"``).
 
     Raises
     ------
     InputDataError
         Naming the value and its row.
     """
-    first = first_nonfinite(np.where(np.isnan(values), 0.0, values))
-    if first is not None:
-        raise InputDataError(f"{what} has {first[1]} at row {first[0]}{where}; a missing "
-                             f"sample is NaN")
+    _refuse_first(np.where(np.isnan(values), 0.0, values), what, "a missing sample is NaN")
 
 
-def refuse_missing(values, what, where=""):
-    """Refuse a NaN or infinite sample where every sample is needed (the estimator of
-    :func:`algid.estimate` and :class:`algid.OnlineEstimator`; :func:`algid.identify`
-    takes NaN as a gap).
+def refuse_missing(values, what):
+    """:func:`refuse_infinite` where NaN is refused too: the estimator of
+    :func:`algid.estimate` and :class:`algid.OnlineEstimator` needs every sample.
 
     Parameters
     ----------
     values : numpy.ndarray
-        A column's float samples.
     what : str
-        Names the column (``"signal 'f'"``).
-    where : str, optional
-        Follows the row in the message (``" of the chunk starting at stream sample 10"``).
 
     Raises
     ------
     InputDataError
-        Naming the value and its row.
     """
-    first = first_nonfinite(values)
-    if first is not None:
-        raise InputDataError(f"{what} has {first[1]} at row {first[0]}{where}; the "
-                             f"estimator needs every sample (identify takes NaN as a gap)")
+    _refuse_first(values, what, "the estimator needs every sample (identify takes NaN as "
+                                "a gap)")
 
 
 def refuse_nonfinite(columns, what):
