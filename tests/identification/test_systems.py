@@ -5,6 +5,7 @@ import re
 
 import numpy as np
 import pytest
+from benchmarks.systems_tracking import MOTOR, MOTOR_TRUE, motor_change_record
 from scipy.integrate import solve_ivp
 from scipy.interpolate import CubicSpline
 
@@ -16,8 +17,6 @@ from algid.simulation import simulate_system
 TWO_MASS = ["m1*x1'' + c1*x1' + k1*x1 + k2*(x1 - x2) = u",
             "m2*x2'' + c2*x2' + k2*(x2 - x1) = 0"]
 TWO_MASS_TRUE = {"m1": 1.0, "c1": 0.5, "k1": 20.0, "k2": 15.0, "m2": 0.8, "c2": 0.3}
-MOTOR = ["L*i' + R*i + K*w = u", "J*w' + b*w = K*i"]
-MOTOR_TRUE = {"L": 0.5, "R": 2.0, "K": 0.8, "J": 0.2, "b": 0.1}
 
 
 def _multisine(t, freqs, seed):
@@ -274,24 +273,6 @@ def test_tracker_follows_two_masses_within_three_standard_errors():
         assert out.stderr[-1, i] < 0.05 * true, p
 
 
-def _motor_change_record(duration, change_at=None, factor=1.25, seed=100, rate=500.0):
-    """The motor driven by a multisine, ``K`` times ``factor`` from ``change_at`` (the
-    state carried over), 40 dB on both outputs."""
-    rng = np.random.default_rng(seed)
-    t = np.arange(int(duration * rate)) / rate
-    u = _multisine(t, rng.uniform(0.2, 8.0, 8), seed)
-    k = len(t) if change_at is None else int(change_at * rate)
-    y = simulate_system(MOTOR, MOTOR_TRUE, t[:k + 1], {"u": u[:k + 1]})
-    if change_at is not None:
-        rest = simulate_system(MOTOR, dict(MOTOR_TRUE, K=MOTOR_TRUE["K"] * factor), t[k:],
-                               {"u": u[k:]}, initial_state=[y["i"][-1], y["w"][-1]])
-        y = {n: np.concatenate([y[n][:-1], rest[n]]) for n in y}
-    record = {"t": t, "u": u}
-    for n, v in y.items():
-        record[n] = v[:len(t)] + 0.01 * np.std(v) * rng.standard_normal(len(t))
-    return record
-
-
 def _alarms(record, **options):
     tracker = algid.Tracker(MOTOR, list(MOTOR_TRUE), time="t", window=0.2, **options)
     alarms = []
@@ -304,9 +285,9 @@ def _alarms(record, **options):
 def test_tracker_of_a_system_raises_an_alarm_when_a_shared_parameter_changes():
     """K (shared by both equations) up 25 % at 15 s: one alarm within 1.5 s, none
     before; on the same stream without the change, none (design: 1e-3 per second)."""
-    alarms, tracker = _alarms(_motor_change_record(25.0, change_at=15.0), half_life=2.0)
+    alarms, tracker = _alarms(motor_change_record(25.0, change_at=15.0), half_life=2.0)
     assert len(alarms) >= 1 and 15.0 < alarms[0] < 16.5, alarms
-    steady, _ = _alarms(_motor_change_record(25.0), half_life=2.0)
+    steady, _ = _alarms(motor_change_record(25.0), half_life=2.0)
     assert steady == []
 
 
@@ -314,7 +295,7 @@ def test_tracker_of_a_system_follows_a_change_without_falling_to_zeros():
     """On this stream the mechanical equation (no known term) fell to its trivial
     solution after K rose by a quarter: K = 0.022 +- 0.004 one second after the change
     (truth 1.0), 0.25 ten seconds later, and no alarm.  Divided by K, it follows."""
-    record = _motor_change_record(25.0, change_at=15.0, seed=101)
+    record = motor_change_record(25.0, change_at=15.0, seed=101)
     tracker = algid.Tracker(MOTOR, list(MOTOR_TRUE), time="t", window=0.2, half_life=2.0)
     alarms, t, K = [], [], []
     for start in range(0, len(record["t"]), 500):
@@ -329,7 +310,7 @@ def test_tracker_of_a_system_follows_a_change_without_falling_to_zeros():
 
 
 def test_tracker_of_a_system_tunes_its_alarms_to_the_rate():
-    record = _motor_change_record(3.0)
+    record = motor_change_record(3.0)
     with pytest.raises(InputDataError, match="more than one alarm in two tests"):
         _alarms(record, false_alarm_rate=1e3)
     with pytest.raises(InputDataError, match="one alarm in"):
@@ -343,7 +324,7 @@ def test_tracker_of_a_system_tunes_its_alarms_to_the_rate():
 
 
 def test_tracker_of_a_system_refuses_a_half_life_too_short_and_reports_every():
-    record = _motor_change_record(6.0)
+    record = motor_change_record(6.0)
     with pytest.raises(InputDataError, match="half_life 1e-09 s is too short for the window"):
         _alarms(record, half_life=1e-9)
     tracker = algid.Tracker(MOTOR, list(MOTOR_TRUE), time="t", window=0.2, every=1.0)
@@ -416,7 +397,7 @@ def test_tracker_of_a_system_saved_and_loaded_continues_bit_for_bit(tmp_path, op
     """Saved before its window is chosen, while its equations' weights are still being
     set, and after: loaded (by algid.Tracker.load), the rest of the stream gives what
     the tracker that was never saved gives."""
-    record = _motor_change_record(12.0, change_at=6.0)
+    record = motor_change_record(12.0, change_at=6.0)
     n = len(record["t"])
     reference = algid.Tracker(MOTOR, list(MOTOR_TRUE), time="t", **options)
     for cut in (300, 1200, 3000):
@@ -439,7 +420,7 @@ def test_tracker_of_a_system_refuses_damaged_and_altered_files(tmp_path):
 
     from algid.identification._tracker_file import _checksum
 
-    record = _motor_change_record(6.0)
+    record = motor_change_record(6.0)
     tracker = algid.Tracker(MOTOR, list(MOTOR_TRUE), time="t", window=0.2)
     tracker.update(record)
     path = tmp_path / "system.npz"
@@ -486,7 +467,7 @@ def test_tracker_of_a_system_refuses_a_state_its_window_cannot_have(tmp_path):
 
     from algid.identification._tracker_file import _checksum
 
-    record = _motor_change_record(8.0)
+    record = motor_change_record(8.0)
     tracker = algid.Tracker(MOTOR, list(MOTOR_TRUE), time="t", window=0.2,
                             half_life=np.float32(2.0))
     tracker.update({k: v[:2000] for k, v in record.items()})
@@ -566,7 +547,7 @@ def test_a_system_is_identified_alike_in_any_units():
     """Every signal times 1e-150 (or 1e150) leaves the motor's parameters as they are:
     the equation without a known term took a power of two of its own and gave
     J = -1.4e63 at 1e-150, and refused 1e100 as "degenerate"."""
-    record = _motor_change_record(8.0, seed=100)
+    record = motor_change_record(8.0, seed=100)
     reference = algid.identify(record, MOTOR, list(MOTOR_TRUE), window=0.2, refine=False)
     for scale in (2.0**-500, 2.0**500):   # (powers of two: the same numbers, bit for bit)
         scaled = {k: v if k == "t" else v * scale for k, v in record.items()}
@@ -581,7 +562,7 @@ def test_a_system_is_identified_alike_in_any_units():
 def test_a_system_tracker_out_of_range_says_so_in_one_line():
     """Signals of 1e-100: the tracker's sums leave floating point (a LinAlgError
     traceback before); one line names the magnitude and what to do."""
-    record = _motor_change_record(3.0, seed=100)
+    record = motor_change_record(3.0, seed=100)
     tiny = {k: v if k == "t" else v * 1e-100 for k, v in record.items()}
     tracker = algid.Tracker(MOTOR, list(MOTOR_TRUE), time="t", window=0.2)
     with pytest.raises(InputDataError, match="express them in other units") as info:
@@ -595,7 +576,7 @@ def test_a_system_tracker_of_an_older_format_is_named_so(tmp_path, monkeypatch):
     "this version reads 'algid.Tracker/3'", the single tracker's format."""
     from algid.identification import _system_tracker_file
 
-    record = _motor_change_record(2.0, seed=100)
+    record = motor_change_record(2.0, seed=100)
     tracker = algid.Tracker(MOTOR, list(MOTOR_TRUE), time="t", window=0.2)
     tracker.update(record)
     monkeypatch.setattr(_system_tracker_file, "FORMAT", "algid.SystemTracker/1")
