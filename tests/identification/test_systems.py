@@ -5,7 +5,7 @@ import re
 
 import numpy as np
 import pytest
-from benchmarks.systems_tracking import MOTOR, MOTOR_TRUE, motor_change_record
+from benchmarks.systems_tracking import MOTOR, MOTOR_TRUE, motor_change_record, track
 from scipy.integrate import solve_ivp
 from scipy.interpolate import CubicSpline
 
@@ -295,15 +295,8 @@ def test_tracker_of_a_system_follows_a_change_without_falling_to_zeros():
     """On this stream the mechanical equation (no known term) fell to its trivial
     solution after K rose by a quarter: K = 0.022 +- 0.004 one second after the change
     (truth 1.0), 0.25 ten seconds later, and no alarm.  Divided by K, it follows."""
-    record = motor_change_record(25.0, change_at=15.0, seed=101)
-    tracker = algid.Tracker(MOTOR, list(MOTOR_TRUE), time="t", window=0.2, half_life=2.0)
-    alarms, t, K = [], [], []
-    for start in range(0, len(record["t"]), 500):
-        out = tracker.update({k: v[start:start + 500] for k, v in record.items()})
-        alarms += out.alarms.tolist()
-        t += out.t.tolist()
-        K += out.values[:, 2].tolist()
-    t, K = np.array(t), np.array(K)
+    alarms, t, values = track(motor_change_record(25.0, change_at=15.0, seed=101))
+    K = values[:, 2]
     assert len(alarms) >= 1 and 15.0 < alarms[0] < 16.5, alarms
     assert np.all((K[t > 15.0] > 0.75) & (K[t > 15.0] < 1.1))
     assert abs(K[-1] - 1.0) < 0.03
