@@ -39,7 +39,7 @@ __all__ = ["TIME_COLUMNS", "RATE_TOLERANCE", "STEP_RANGE", "is_record", "is_time
            "check_rate_agrees", "refuse_nonfinite", "refuse_infinite", "refuse_missing",
            "refuse_unequal_lengths", "refuse_too_few", "refuse_not_increasing", "read_chunk",
            "refuse_stream_dates",
-           "first_nonfinite",
+           "refuse_nonfinite_sample",
            "column_list",
            "first_non_number"]
 
@@ -476,7 +476,7 @@ def check_rate_agrees(rate, t, name, where):
             f"{1.0 / step:.6g} Hz); give the time column or a rate that agrees with it")
 
 
-def _time_axis(record, where, n, time, rate, one_number=False):
+def _time_axis(record, where, n, time, rate, one_number=False, stream=False):
     if rate is not None:
         rate = check_rate(rate)
     if time is None:
@@ -486,14 +486,13 @@ def _time_axis(record, where, n, time, rate, one_number=False):
                                  f"give time= (a column name) or rate= (Hz)")
     if time is None:
         return np.arange(n) / rate, None
+    if stream and time in record:
+        refuse_stream_dates(record[time], f"{where}: time column {time!r}")
     t = _column(record, time, where, "time", one_number=one_number)
     if len(t) != n:
         raise InputDataError(f"{where}: time column {time!r} has {len(t)} samples, "
                              f"the signals {n}")
-    first = first_nonfinite(t)
-    if first is not None:
-        raise InputDataError(f"{where}: time column {time!r} has {first[1]} at row "
-                             f"{first[0]}")
+    refuse_nonfinite_sample(t, f"{where}: time column {time!r}")
     refuse_not_increasing(t, f"{where}: time column {time!r}")
     steps = np.diff(t)
     if rate is not None:
@@ -560,42 +559,35 @@ def record_columns(record, signals, *, time=None, rate=None, first_sample=0, ind
     refuse_unequal_lengths(columns, where)
     n = len(next(iter(columns.values()))) if columns else 0
     refuse_too_few(n, min_samples, where)
-    if stream:
-        name = time or next((c for c in TIME_COLUMNS if c in record), None)
-        if name is not None and name in record:
-            refuse_stream_dates(record[name], f"{where}: time column {name!r}")
-    t, _ = _time_axis(record, where, n, time, rate, one_number)
+    t, _ = _time_axis(record, where, n, time, rate, one_number, stream)
     if first_sample and time is None and not any(c in record for c in TIME_COLUMNS):
         t = (first_sample + np.arange(n)) / check_rate(rate)
     return t, columns
 
 
-def first_nonfinite(values):
-    """The first non-finite sample.
+def refuse_nonfinite_sample(values, what, why=None):
+    """Refuse the first NaN or infinite sample.
 
     Parameters
     ----------
     values : numpy.ndarray
         Float samples.
+    what : str
+        Names them (``"time 't'"``, ``"input 'u'"``).
+    why : str, optional
+        Follows the value and its row in the message.
 
-    Returns
-    -------
-    tuple or None
-        Its row and its text (``"NaN"``, ``"inf"``, ``"-inf"``); None if every sample
-        is finite.
+    Raises
+    ------
+    InputDataError
+        ``"{what} has NaN at row 17; {why}"`` (``inf``, ``-inf``).
     """
     bad = np.flatnonzero(~np.isfinite(values))
-    if not bad.size:
-        return None
-    row = int(bad[0])
-    value = values[row]
-    return row, "NaN" if np.isnan(value) else "inf" if value > 0 else "-inf"
-
-
-def _refuse_first(values, what, why):
-    first = first_nonfinite(values)
-    if first is not None:
-        raise InputDataError(f"{what} has {first[1]} at row {first[0]}; {why}")
+    if bad.size:
+        row = int(bad[0])
+        value = values[row]
+        text = "NaN" if np.isnan(value) else "inf" if value > 0 else "-inf"
+        raise InputDataError(f"{what} has {text} at row {row}" + (f"; {why}" if why else ""))
 
 
 def refuse_infinite(values, what):
@@ -614,7 +606,8 @@ def refuse_infinite(values, what):
     InputDataError
         Naming the value and its row.
     """
-    _refuse_first(np.where(np.isnan(values), 0.0, values), what, "a missing sample is NaN")
+    refuse_nonfinite_sample(np.where(np.isnan(values), 0.0, values), what,
+                            "a missing sample is NaN")
 
 
 def refuse_missing(values, what):
@@ -630,8 +623,8 @@ def refuse_missing(values, what):
     ------
     InputDataError
     """
-    _refuse_first(values, what, "the estimator needs every sample (identify takes NaN as "
-                                "a gap)")
+    refuse_nonfinite_sample(values, what, "the estimator needs every sample (identify takes "
+                                          "NaN as a gap)")
 
 
 def refuse_nonfinite(columns, what):
@@ -778,10 +771,7 @@ def read_chunk(chunk, signals, *, time, rate, seen, last_time):
             refuse_stream_dates(chunk[name], f"time column {name!r} of {where}")
         values = read_column(chunk[name], f"column {name!r} of {where}", one_number=True)
         if name == time:
-            first = first_nonfinite(values)
-            if first is not None:
-                raise InputDataError(f"time column {time!r} of {where} has {first[1]} at "
-                                     f"row {first[0]}")
+            refuse_nonfinite_sample(values, f"time column {time!r} of {where}")
         else:
             refuse_infinite(values, f"column {name!r} of {where}")
         columns[name] = values

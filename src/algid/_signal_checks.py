@@ -15,9 +15,9 @@ import numbers
 import numpy as np
 
 from algid._record_input import (
-    first_nonfinite,
     read_column,
     refuse_missing,
+    refuse_nonfinite_sample,
     refuse_not_increasing,
     refuse_too_few,
     refuse_unequal_lengths,
@@ -141,9 +141,7 @@ def as_signal(values, *, name, time=False, of="") -> np.ndarray:
     if arr.size == 0:
         raise InputDataError(f"{what} is empty")
     if time:
-        first = first_nonfinite(arr)
-        if first is not None:
-            raise InputDataError(f"{what} has {first[1]} at row {first[0]}")
+        refuse_nonfinite_sample(arr, what)
     refuse_missing(arr, what)
     return arr
 

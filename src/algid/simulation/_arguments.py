@@ -10,7 +10,12 @@ from typing import Any
 import numpy as np
 
 from algid._memory import check_fits
-from algid._record_input import first_nonfinite, read_column, refuse_not_increasing, refuse_too_few
+from algid._record_input import (
+    read_column,
+    refuse_nonfinite_sample,
+    refuse_not_increasing,
+    refuse_too_few,
+)
 from algid.errors import InputDataError
 
 __all__ = ["SIMULATION_BYTES_PER_SAMPLE", "format_value", "real_number", "check_parameters",
@@ -151,9 +156,7 @@ def time_grid(timepts: Any, duration: Any, rate: Any) -> np.ndarray:
     t = read_column(timepts, "timepts")
     refuse_too_few(t.size, 2, "timepts")
     check_fits(t.size, SIMULATION_BYTES_PER_SAMPLE, what="timepts")
-    first = first_nonfinite(t)
-    if first is not None:
-        raise InputDataError(f"timepts has {first[1]} at row {first[0]}")
+    refuse_nonfinite_sample(t, "timepts")
     refuse_not_increasing(t, "timepts")
     return t
 
@@ -264,10 +267,7 @@ def array_samples(values: Any, t: np.ndarray) -> np.ndarray:
         raise InputDataError(
             f"inputs has shape {np.shape(values)} but the time grid has {t.size} points; "
             f"give one force sample per time point")
-    first = first_nonfinite(f)
-    if first is not None:
-        raise InputDataError(f"inputs has {first[1]} at row {first[0]}: force samples must "
-                             f"be finite")
+    refuse_nonfinite_sample(f, "inputs", "force samples must be finite")
     return f
 
 

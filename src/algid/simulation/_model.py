@@ -38,8 +38,8 @@ import numpy as np
 
 from algid._memory import check_fits
 from algid._record_input import (
-    first_nonfinite,
     read_column,
+    refuse_nonfinite_sample,
     refuse_not_increasing,
     refuse_too_few,
     refuse_unequal_lengths,
@@ -171,9 +171,7 @@ def check_time_and_inputs(time, inputs, names):
     """
     t = read_column(time, "time", time=True, every_sample=True)
     refuse_too_few(len(t), 4, "time")
-    first = first_nonfinite(t)
-    if first is not None:
-        raise InputDataError(f"time has {first[1]} at row {first[0]}")
+    refuse_nonfinite_sample(t, "time")
     refuse_not_increasing(t, "time")
     if not hasattr(inputs, "items"):
         raise InputDataError(f"inputs must be a mapping of signal name -> samples, got "
@@ -185,10 +183,7 @@ def check_time_and_inputs(time, inputs, names):
         what = f"input {name!r}"
         values = read_column(inputs[name], what, every_sample=True)
         refuse_unequal_lengths({"time": t, name: values})
-        first = first_nonfinite(values)
-        if first is not None:
-            raise InputDataError(f"{what} has {first[1]} at row {first[0]}: a simulation "
-                                 f"needs every input sample")
+        refuse_nonfinite_sample(values, what, "a simulation needs every input sample")
         columns[name] = values
     return t, columns
 
