@@ -405,6 +405,7 @@ def test_noise_meat_counts_the_noise_of_the_refined_crossings():
     from algid.identification import _identify as identification
     from algid.identification._window_covariance import noise_meat
     from algid.identification._window_kernels import term_kernel, window_sample_weights
+    from algid.identification._window_problem import window_stride
 
     captured = {}
     solve = identification._solve
@@ -421,7 +422,7 @@ def test_noise_meat_counts_the_noise_of_the_refined_crossings():
     finally:
         identification._solve = solve
     problem, length = captured["problem"], captured["length"]
-    a, stride = 12, max(1, length // identification.WINDOW_OVERLAP)
+    a, stride = 12, window_stride(length)
     A, _, _ = problem.rows(length, a)
     theta_bar = np.append(captured["theta"], -1.0)
     index = {p: i for i, p in enumerate(problem.parameters)}

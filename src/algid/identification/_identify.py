@@ -65,16 +65,15 @@ from algid.identification._window_basis import (
 from algid.identification._window_covariance import hac_meat, sandwich
 from algid.identification._window_problem import (
     MULTIPLICITIES,
-    WINDOW_OVERLAP,
     WindowProblem,
     add_derivatives,
     derivative_estimate,
+    window_stride,
 )
 from algid.identification._window_rule import (
     WindowFit,
     check_multiplicities,
     choose_window,
-    grid_lengths,
     min_length,
     window_advice,
     window_criterion,
@@ -187,7 +186,7 @@ def _solve(problem, length, multiplicities, instruments=None, method="ls"):
     bread = np.linalg.pinv(solution.jacobian)
     theta_s = basis.theta(phi)
     theta_bar = np.append(theta_s, -1.0)   # in the units of the rows (noise_meat)
-    stride = max(1, length // WINDOW_OVERLAP)
+    stride = window_stride(length)
     noise = None
     if variance is None and not capped:  # least squares: misfit per unit noise variance
         weight = float(np.einsum("i,wij,j->", np.append(phi, -1.0), solution.grams,
@@ -343,20 +342,10 @@ def _identify_streamed(source, model, *, time, rate, window, method, multiplicit
 
 def _excerpt_window(problem, multiplicities, method, separations):
     """The window rule on :data:`EXCERPTS` excerpts of a record read in chunks, the
-    standard errors scaled to the record's samples (the whole record when it has at
-    most :data:`EXCERPT_SAMPLES`)."""
+    standard errors scaled to the record's samples (their ``share`` of it; the whole
+    record when it has at most :data:`EXCERPT_SAMPLES`)."""
     excerpt = problem.excerpts(EXCERPT_SAMPLES, EXCERPTS, min_length(multiplicities))
-    excerpt.prefetch([(n, a) for n in grid_lengths(excerpt, multiplicities)
-                      for a in multiplicities])   # the grid's rows in one pass
-    n_samples, total = excerpt.scan.n_samples, problem.scan.n_samples
-    share = n_samples / total
-
-    def solve(sub, length, multiplicities, instruments=None, method="ls"):
-        fit = _solve(sub, length, multiplicities, instruments, method=method)
-        fit.covariance = fit.covariance * share   # as on the whole record
-        return fit
-
-    return choose_window(excerpt, multiplicities, solve, method=method,
+    return choose_window(excerpt, multiplicities, _solve, method=method,
                          separations=separations)
 
 
@@ -549,7 +538,7 @@ def _result(problem, fit, length, *, method, multiplicities, scores, separations
 
     model = problem.model
     adequacy = model_adequacy(problem, length, fit, _solve, method, min_length(multiplicities),
-                              max(1, length // WINDOW_OVERLAP))
+                              window_stride(length))
     # where the misfit is output noise, a combination no better determined than the
     # noise or the misfit is free; where it is more, the model's error may be the cause
     noise_like = adequacy.misfit <= adequacy.misfit_limit

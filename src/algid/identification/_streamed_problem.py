@@ -40,29 +40,29 @@ import numpy as np
 
 from algid._record_input import TIME_COLUMNS, record_columns, refuse_infinite
 from algid.errors import InputDataError
-from algid.identification._record_source import ArraySource
 from algid.identification._records import (
     GAP_FACTOR,
     UNIFORM_TOLERANCE,
     Segment,
     check_factors,
+    prepare_records,
 )
 from algid.identification._window_basis import exponent
 from algid.identification._window_kernels import (
     block_window_integrals,
     block_window_sums,
-    window_noise_products,
     window_sample_weights,
 )
 from algid.identification._window_problem import (
     DIFFERENCE_ORDERS,
-    WINDOW_OVERLAP,
     ProblemCache,
     WindowProblem,
     factor_sensitivity,
     is_sign_factor,
     noise_bound_from_sums,
+    spread_ranges,
     term_rows,
+    window_stride,
 )
 from algid.models._expression import Signal
 
@@ -450,16 +450,12 @@ class StreamedProblem(WindowProblem):
         #: the kernel multiplicities whose rows one pass makes together
         self.multiplicities = ()
         self._grams = {}
-        output = Signal(model.output)
-        #: whether every term reads the output as itself (its noise then enters every
-        #: window alike: one noise covariance for all, no pass for the sandwich's middle)
-        self.constant_noise = all(term.factor == output for term in model.terms
-                                  if model.output in term.factor.signals())
 
     def excerpts(self, samples, count, min_length):
         """The problem on ``count`` excerpts of the record, ``samples`` in all, spread
         over it (the whole record when it is no longer), each within a run, read in one
-        pass and held in memory as one record (a NaN row between two).
+        pass and held in memory: a problem in memory, its :attr:`share` that of the
+        excerpts' samples in the record's.
 
         Parameters
         ----------
@@ -470,25 +466,12 @@ class StreamedProblem(WindowProblem):
 
         Returns
         -------
-        StreamedProblem
+        WindowProblem
         """
         scan = self.scan
-        total = scan.n_samples
-        ranges = [(run.start, run.stop) for run in scan.runs]
-        if total > samples:
-            ranges, size = [], samples // count
-            ends = np.cumsum([len(run) for run in scan.runs])
-            for k in range(count):
-                at = int((k + 0.5) * total / count)
-                i = int(np.searchsorted(ends, at, side="right"))
-                run = scan.runs[i]
-                start = max(run.start, min(run.start + at - (ends[i] - len(run)) - size // 2,
-                                           run.stop - size))
-                if ranges:   # disjoint, in order
-                    start = max(start, ranges[-1][1])
-                stop = min(run.stop, start + size)
-                if stop - start >= min_length:
-                    ranges.append((start, stop))
+        ranges = [(scan.runs[i].start + start, scan.runs[i].start + stop)
+                  for i, start, stop in spread_ranges([len(run) for run in scan.runs],
+                                                      samples, count, min_length)]
         pieces = self.source.read(self.columns, ranges, self.chunk)
         parts = {"t": [], **{name: [] for name in scan.signals}}
         for i, (piece, (start, _)) in enumerate(zip(pieces, ranges)):
@@ -502,12 +485,10 @@ class StreamedProblem(WindowProblem):
             for name in scan.signals:
                 parts[name].append(columns[name])
         record = {name: np.concatenate(p) for name, p in parts.items()}
-        source = ArraySource(record)
-        chunk = max(source.n_rows, 1)
-        excerpt_scan = scan_record(source, self.model, time="t", chunk=chunk,
-                                   min_length=min_length)
-        excerpt = StreamedProblem(self.model, source, excerpt_scan, time="t", chunk=chunk)
-        excerpt.multiplicities = self.multiplicities
+        segments, step, n_samples = prepare_records(record, self.model.signals, time="t",
+                                                    min_length=min_length)
+        excerpt = WindowProblem(self.model, segments, step)
+        excerpt.share = n_samples / scan.n_samples
         return excerpt
 
     def factor_exponent(self, factor, which="measured"):
@@ -538,12 +519,6 @@ class StreamedProblem(WindowProblem):
             raise InputDataError(f"no segment holds a window of {length} samples")
         return A, b, ids
 
-    def windows(self, length):
-        """Windows of ``length`` samples per run."""
-        stride = max(1, length // WINDOW_OVERLAP)
-        return [(len(run) - length) // stride + 1 if len(run) >= length else 0
-                for run in self.segments]
-
     def prefetch(self, keys):
         """Make the rows of every ``(length, multiplicity)`` of ``keys`` in one pass.
 
@@ -558,91 +533,34 @@ class StreamedProblem(WindowProblem):
         rows = _RowPass(self.model, self.segments, keys, self.exponents()[2],
                         {f: self.factor_exponent(f) for f in self.scan.largest},
                         self.scan.signals, self.time_column, self.rate,
-                        None if self.constant_noise else self.noise_paths())
+                        None if self.uniform_noise else self.noise_paths())
         rows.clock = [self.scan.origin]
         for key, (A, b, ids, grams) in self.source.reduce(rows, self.columns,
                                                           self.chunk).finish().items():
             self._rows[key] = (A, b, ids)
             self._grams[key] = grams
 
-    def noise_paths(self):
-        """The terms that read the output: ``(column, weight, derivative, factor,
-        shift)`` each, ``shift`` the power of two of its sensitivity (as in memory)."""
-        p = len(self.parameters)
-        index = {q: i for i, q in enumerate(self.parameters)}
-        paths = []
-        for term in self.model.terms:
-            if self.model.output not in term.factor.signals():
-                continue
-            weight = term.coefficient * self.term_scale(term)
-            shift = self.output_exponent - self.factor_exponent(term.factor)
-            if term.parameter is None:
-                paths.append((p, -weight, term.derivative, term.factor, shift))
-            else:
-                paths.append((index[term.parameter], weight, term.derivative, term.factor,
-                              shift))
-        return paths
-
     def noise_grams(self, length, multiplicity, signal=None):
         """Per-window noise covariance of ``[A | b]`` (with every term reading the
-        output as itself, the same on every window of a run: a read-only broadcast;
-        else made with the rows)."""
-        if not self.constant_noise:
-            self.rows(length, multiplicity)
-            return self._grams[(length, multiplicity)].copy()   # (the solve overwrites it)
-        p = len(self.parameters)
-        paths = self.noise_paths()
-        counts = self.windows(length)
-        blocks, made = [], {}
-        for run, count in zip(self.segments, counts):
-            if count == 0:
-                continue
-            if run.step in made:
-                blocks.append((made[run.step], count))
-                continue
-            gram = np.zeros((p + 1, p + 1))
-            for i, (c1, w1, k1, _, _) in enumerate(paths):
-                for j, (c2, w2, k2, _, _) in enumerate(paths[i:], start=i):
-                    v = w1 * w2 * window_noise_products(
-                        np.ones(length), None, run.step, length, (multiplicity, k1),
-                        (multiplicity, k2))[0]
-                    gram[c1, c2] += v
-                    if j != i:
-                        gram[c2, c1] += v
-            made[run.step] = gram
-            blocks.append((gram, count))
-        if len(made) == 1:
-            return np.broadcast_to(blocks[0][0], (sum(counts), p + 1, p + 1))
-        return np.concatenate([np.broadcast_to(g, (c, p + 1, p + 1)) for g, c in blocks])
+        output as itself, the same on every window of a run: a read-only broadcast,
+        :meth:`uniform_noise_grams`; else made with the rows)."""
+        if self.uniform_noise:
+            return self.uniform_noise_grams(length, multiplicity)
+        self.rows(length, multiplicity)
+        return self._grams[(length, multiplicity)].copy()   # (the solve overwrites it)
 
     def noise_meat(self, length, multiplicity, theta_bar, scores, stride):
         """The covariance of :func:`algid.identification._window_covariance.noise_meat`:
         its sample weights the same in every window of a run where every term reads the
-        output as itself, else a pass over the record (:class:`_MeatPass`)."""
-        if not self.constant_noise:
-            meat = _MeatPass(self.segments, self.windows(length), length, multiplicity,
-                             theta_bar, scores, stride, self.noise_paths(), self.model,
-                             self.scan.signals, self.time_column, self.rate)
-            meat.clock = [self.scan.origin]
-            return self.source.reduce(meat, self.columns, self.chunk).finish()
-        paths = self.noise_paths()
-        meat = np.zeros((scores.shape[1], scores.shape[1]))
-        first = 0
-        for run, n_win in zip(self.segments, self.windows(length)):
-            if n_win == 0:
-                continue
-            g = scores[first:first + n_win]
-            first += n_win
-            weights = np.zeros(length)
-            for column, weight, derivative, _, _ in paths:   # (noise_meat's factors)
-                weights += weight * theta_bar[column] * window_sample_weights(
-                    None, run.step, length, multiplicity, derivative)
-            for lag in range(min(n_win, -(-length // stride))):
-                shift = lag * stride
-                c = float(weights[shift:] @ weights[:length - shift])
-                cross = c * (g[:n_win - lag].T @ g[lag:])
-                meat += cross if lag == 0 else cross + cross.T
-        return meat
+        output as itself (:meth:`uniform_noise_meat`), else a pass over the record
+        (:class:`_MeatPass`)."""
+        if self.uniform_noise:
+            return self.uniform_noise_meat(length, multiplicity, theta_bar, scores, stride)
+        meat = _MeatPass(self.segments, self.windows(length), length, multiplicity,
+                         theta_bar, scores, stride, self.noise_paths(), self.model,
+                         self.scan.signals, self.time_column, self.rate)
+        meat.clock = [self.scan.origin]
+        return self.source.reduce(meat, self.columns, self.chunk).finish()
 
 
 class _RunPass:
@@ -713,7 +631,7 @@ class _RowPass(_RunPass):
         buffer's samples before the next window of every key are dropped."""
         buffer, origin, done = self.buffer, self.origin, self.done
         for length, multiplicity in done:
-            stride = max(1, length // WINDOW_OVERLAP)
+            stride = window_stride(length)
             total = (len(run) - length) // stride + 1 if len(run) >= length else 0
             ready = min(total, (end - length) // stride + 1 if end >= length else 0)
             w = done[(length, multiplicity)]
@@ -733,7 +651,7 @@ class _RowPass(_RunPass):
                 gram_blocks.append(self._grams(run, lo, hi, length, multiplicity, stride,
                                                ready - w))
             done[(length, multiplicity)] = ready
-        keep = min(min(done[k] * max(1, k[0] // WINDOW_OVERLAP) for k in done), end)
+        keep = min(min(done[k] * window_stride(k[0]) for k in done), end)
         if keep > origin:
             for f in buffer:
                 buffer[f] = buffer[f][keep - origin:]

@@ -50,10 +50,10 @@ from algid.identification._window_basis import NAMED_WEIGHT, ROUNDOFF_SEPARABILI
 from algid.identification._window_covariance import hac_meat, sandwich
 from algid.identification._window_problem import (
     MULTIPLICITIES,
-    WINDOW_OVERLAP,
     WindowProblem,
     add_derivatives,
     derivative_estimate,
+    window_stride,
 )
 from algid.identification._window_rule import (
     HAC_WINDOWS,
@@ -230,7 +230,7 @@ class _SystemFit(WindowFit):
 
 def _solve(problems, system, noisy, bounds, length, multiplicities, method):
     top = max(multiplicities)
-    stride = max(1, length // WINDOW_OVERLAP)
+    stride = window_stride(length)
     separate, weights, fit = {}, None, None
     P = len(system.parameters)
     divided = divisions([p.model for p in problems], system.parameters)
@@ -429,7 +429,7 @@ def identify_system(data, equations, parameters=None, *, time=None, rate=None,
                              f"an equation without a known term solved by zeros): the "
                              f"records do not excite the system, or the window is too short")
     warnings = []
-    stride = max(1, length // WINDOW_OVERLAP)
+    stride = window_stride(length)
     shift = None
     for model, misfit in zip([p.model for p in problems], fit.misfits):
         limit = misfit_limit(fit.n_windows, length, len(system.parameters), stride)

@@ -62,9 +62,9 @@ from algid.identification._tracker_state import (
 from algid.identification._window_problem import (
     DIFFERENCE_ORDERS,
     MULTIPLICITIES,
-    WINDOW_OVERLAP,
     WindowProblem,
     noise_bound_from_sums,
+    window_stride,
 )
 from algid.identification._window_rule import MIN_SPARE_WINDOWS
 
@@ -322,7 +322,7 @@ class SystemTracker:
     def _set_window(self, length, step):
         """The window of ``length`` samples at ``step`` and the constants that follow
         (refused before the tracker counts as configured: every later chunk is too)."""
-        stride = max(1, length // WINDOW_OVERLAP)
+        stride = window_stride(length)
         overlap = int(math.ceil(length / stride))
         check_half_life(self.half_life, length, step, stride, overlap, len(self.parameters))
         self._k_cusum, self._h_cusum = cusum_design(

@@ -64,7 +64,7 @@ from algid.identification._window_kernels import (
     TERM_KERNELS,
     window_sample_weights,
 )
-from algid.identification._window_problem import WINDOW_OVERLAP, factor_sensitivity
+from algid.identification._window_problem import factor_sensitivity, window_stride
 from algid.identification._window_rule import MIN_SPARE_WINDOWS, check_multiplicities
 from algid.models._argument import estimator_module
 from algid.models._compiled import model_of
@@ -96,7 +96,7 @@ def _lag_weights(overlap):
 
 def _stride_and_overlap(length):
     """Samples between window starts, and windows that share a sample with one."""
-    stride = max(1, length // WINDOW_OVERLAP)
+    stride = window_stride(length)
     return stride, -(-length // stride)
 
 

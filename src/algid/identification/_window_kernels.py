@@ -134,31 +134,35 @@ def block_window_sums(z, weights, stride=1):
     z : array_like
         Samples (starting at a window's start).
     weights : numpy.ndarray
-        The weight of every sample of a window.
+        The weight of every sample of a window, or one row of them per kernel (the
+        samples are then blocked once for all).
     stride : int
         Samples between the starts of consecutive windows.
 
     Returns
     -------
     numpy.ndarray
+        One sum per window (a row per kernel for 2-D ``weights``).
     """
     z = np.asarray(z, dtype=float)
     g = np.asarray(weights, dtype=float)
-    length = len(g)
+    kernels = g.reshape(-1, g.shape[-1])
+    m, length = kernels.shape
     count = (len(z) - length) // stride + 1 if len(z) >= length else 0
     if count == 0:
-        return np.zeros(0)
+        return np.zeros(g.shape[:-1] + (0,))
     blocks = -(-length // stride)
-    kernel = np.zeros(blocks * stride)
-    kernel[:length] = g
+    kernel = np.zeros((m, blocks * stride))
+    kernel[:, :length] = kernels
     padded = np.zeros((count + blocks - 1) * stride)
     used = min(len(z), len(padded))
     padded[:used] = z[:used]
-    products = padded.reshape(-1, stride) @ kernel.reshape(blocks, stride).T
-    out = products[:count, 0].copy()
+    products = (padded.reshape(-1, stride) @ kernel.reshape(m * blocks, stride).T) \
+        .reshape(-1, m, blocks)
+    out = products[:count, :, 0].copy()
     for j in range(1, blocks):
-        out += products[j:j + count, j]
-    return out
+        out += products[j:j + count, :, j]
+    return out.T.reshape(g.shape[:-1] + (count,))
 
 
 def window_integrals(z, t, length, multiplicity, derivative, stride=1):
@@ -207,11 +211,7 @@ def window_sample_weights(t, step, length, multiplicity, derivative, stride=1):
         ``(windows, length)``.
     """
     if step is not None:
-        span = (length - 1) * step
-        weights = np.full(length, step)
-        weights[[0, -1]] = step / 2
-        return weights * _unit_kernel(multiplicity, derivative, length) \
-            / span ** (derivative + 1)
+        return _uniform_weights(float(step), int(length), int(multiplicity), int(derivative))
     t = np.asarray(t, dtype=float)
     tw = np.lib.stride_tricks.sliding_window_view(t, length)[::stride]
     span = tw[:, -1] - tw[:, 0]
@@ -222,6 +222,19 @@ def window_sample_weights(t, step, length, multiplicity, derivative, stride=1):
     u = (tw - tw[:, :1]) / span[:, None]
     return weights * term_kernel(multiplicity, derivative, u) \
         / span[:, None] ** (derivative + 1)
+
+
+@lru_cache(maxsize=256)
+def _uniform_weights(step, length, multiplicity, derivative):
+    """:func:`window_sample_weights` on a uniform grid (read-only; cached: every segment
+    and solve of a window length asks for the same)."""
+    span = (length - 1) * step
+    weights = np.full(length, step)
+    weights[[0, -1]] = step / 2
+    weights = weights * _unit_kernel(multiplicity, derivative, length) \
+        / span ** (derivative + 1)
+    weights.flags.writeable = False
+    return weights
 
 
 @lru_cache(maxsize=64)

@@ -13,6 +13,7 @@ parameters (:mod:`algid.identification._system_identify`).
 
 from __future__ import annotations
 
+import copy
 from dataclasses import dataclass, field
 from math import comb
 from typing import NamedTuple
@@ -25,6 +26,7 @@ from algid.identification._sign_crossings import crossing_motion, sign_factor
 from algid.identification._window_basis import exponent
 from algid.identification._window_covariance import noise_meat
 from algid.identification._window_kernels import (
+    block_window_sums,
     step_window_integrals,
     uniform_window_integrals,
     window_integrals,
@@ -37,13 +39,83 @@ from algid.signals._differentiation import algebraic_derivative
 __all__ = ["WindowProblem", "ProblemCache", "FactorSamples", "term_rows", "is_sign_factor",
            "factor_sensitivity", "difference_noise_bound", "noise_bound_from_sums",
            "DIFFERENCE_ORDERS", "add_derivatives",
-           "derivative_estimate", "MULTIPLICITIES", "WINDOW_OVERLAP"]
+           "derivative_estimate", "MULTIPLICITIES", "WINDOW_OVERLAP", "window_stride",
+           "spread_ranges", "RULE_WINDOWS", "RULE_EXCERPTS"]
 
 #: Kernel multiplicities stacked in every estimate (their difference drives the window rule).
 MULTIPLICITIES = (8, 12)
 
 #: Windows overlap: a window starts every ``length // WINDOW_OVERLAP`` samples.
 WINDOW_OVERLAP = 8
+
+
+#: The window rule solves a candidate length on at most about this many windows
+#: (:meth:`WindowProblem.for_window_rule`): the short windows of long records are
+#: otherwise the bulk of its cost (at 10**5 samples, lengths under 120 samples took
+#: 70 % of it), though the standard errors they give, scaled to the whole record, are
+#: those of every window.
+RULE_WINDOWS = 2048
+
+#: Excerpts of the records a candidate length is solved on, when it is solved on some.
+RULE_EXCERPTS = 8
+
+
+def spread_ranges(sizes, samples, count, min_length=1):
+    """``count`` ranges of about ``samples`` samples in all, spread evenly over segments
+    of ``sizes`` samples, each within one segment.
+
+    Parameters
+    ----------
+    sizes : sequence of int
+        Samples per segment.
+    samples, count : int
+        Samples in all, and ranges.
+    min_length : int
+        Ranges shorter than this (at the end of a segment) are dropped.
+
+    Returns
+    -------
+    list of tuple of int
+        ``(segment, start, stop)``, in order and disjoint (every segment whole when
+        they hold no more than ``samples``).
+    """
+    total = int(sum(sizes))
+    if total <= samples:
+        return [(i, 0, int(n)) for i, n in enumerate(sizes)]
+    ranges, size = [], samples // count
+    ends = np.cumsum(sizes)
+    for k in range(count):
+        at = int((k + 0.5) * total / count)
+        i = int(np.searchsorted(ends, at, side="right"))
+        start = max(0, min(at - int(ends[i] - sizes[i]) - size // 2, int(sizes[i]) - size))
+        if ranges and ranges[-1][0] == i:   # disjoint, in order
+            start = max(start, ranges[-1][2])
+        stop = min(int(sizes[i]), start + size)
+        if stop - start >= min_length:
+            ranges.append((i, start, stop))
+    return ranges
+
+
+def _piece(segment, start, stop):
+    """Samples ``start:stop`` of a segment, as a segment."""
+    return Segment(segment.record, segment.rows[start:stop], segment.t[start:stop],
+                   {name: v[start:stop] for name, v in segment.values.items()},
+                   segment.step)
+
+
+def window_stride(length):
+    """Samples between the starts of consecutive windows of ``length`` samples
+    (:data:`WINDOW_OVERLAP` windows hold each sample).
+
+    Parameters
+    ----------
+    length : int
+
+    Returns
+    -------
+    int
+    """
+    return max(1, length // WINDOW_OVERLAP)
 
 #: Orders of the samples' differences that bound the variance of white noise on them.
 DIFFERENCE_ORDERS = range(1, 9)
@@ -120,6 +192,167 @@ class WindowProblem:
         # of the fit, derivative of the time with respect to those samples)
         self.crossings = {}
         self.steps = {}  # (sign factor, which, segment) -> (first value, its steps' times, sizes)
+        #: whether the rows are direct sums and the noise's covariance, where it is the
+        #: same in every window, made once per segment (:meth:`for_window_rule`)
+        self.direct_sums = False
+        #: the share of the records' windows these segments hold (:meth:`for_window_rule`;
+        #: the excerpts of a record read in chunks)
+        self.share = 1.0
+
+    def for_window_rule(self, length, every_window=False):
+        """This problem for the window rule's candidate of ``length`` samples.
+
+        The same equations summed another way, cheaper: the rows summed directly over
+        the windows (a few multiplications per sample and term where an FFT of the
+        record takes 20 times as long); where every term reads the output as itself on
+        uniform segments, the noise's covariance from one window's weights; and where
+        the records hold more than :data:`RULE_WINDOWS` windows of that length, those
+        of :data:`RULE_EXCERPTS` excerpts spread over them, :attr:`share` of the whole
+        (a covariance on them, times ``share``, is one on every window).  A fit's own
+        numbers come from the problem itself.  Excerpts need the samples of each
+        factor on its own: a model with ``sign`` factors (whose crossings are placed
+        on the whole record) takes every window.
+
+        Parameters
+        ----------
+        length : int
+        every_window : bool
+            Never excerpts.
+
+        Returns
+        -------
+        WindowProblem
+        """
+        counts, view = self.windows(length), None
+        if not every_window and sum(counts) > RULE_WINDOWS and not any(is_sign_factor(term.factor)
+                                                  for term in self.model.terms):
+            stride = window_stride(length)
+            samples = RULE_WINDOWS * stride + RULE_EXCERPTS * (length - stride)
+            pieces = [_piece(self.user_segments[i], start, stop)
+                      for i, start, stop in spread_ranges(
+                          [len(seg) for seg in self.segments], samples, RULE_EXCERPTS,
+                          length)]
+            view = WindowProblem(self.model, pieces, self.step) if pieces else None
+        if view is not None and sum(view.windows(length)):
+            view.cache.noise_bound = self.noise_bound()   # (the records')
+            view.cache.excited = True   # (checked on the records by the fit)
+            view.share = self.share * sum(view.windows(length)) / sum(counts)
+        else:
+            view = copy.copy(self)
+        view.direct_sums = True
+        return view
+
+    @property
+    def uniform_noise(self):
+        """Whether output noise enters every window of a segment alike: every term that
+        reads the output reads it as itself, on uniformly sampled segments."""
+        output = Signal(self.model.output)
+        return all(seg.step is not None for seg in self.segments) \
+            and all(term.factor == output for term in self.model.terms
+                    if self.model.output in term.factor.signals())
+
+    def windows(self, length):
+        """Windows of ``length`` samples per segment.
+
+        Parameters
+        ----------
+        length : int
+
+        Returns
+        -------
+        list of int
+        """
+        stride = window_stride(length)
+        return [(len(seg) - length) // stride + 1 if len(seg) >= length else 0
+                for seg in self.segments]
+
+    def noise_paths(self):
+        """The terms that read the output: ``(column, weight, derivative, factor,
+        shift)`` each, ``shift`` the power of two of its sensitivity."""
+        p = len(self.parameters)
+        index = {q: i for i, q in enumerate(self.parameters)}
+        paths = []
+        for term in self.model.terms:
+            if self.model.output not in term.factor.signals():
+                continue
+            weight = term.coefficient * self.term_scale(term)
+            shift = self.output_exponent - self.factor_exponent(term.factor)
+            if term.parameter is None:
+                paths.append((p, -weight, term.derivative, term.factor, shift))
+            else:
+                paths.append((index[term.parameter], weight, term.derivative, term.factor,
+                              shift))
+        return paths
+
+    def uniform_noise_grams(self, length, multiplicity):
+        """:meth:`noise_grams` where output noise enters every window of a segment
+        alike (:attr:`uniform_noise`): one matrix per sampling step, broadcast
+        (read-only) to the windows.
+
+        Parameters
+        ----------
+        length, multiplicity : int
+
+        Returns
+        -------
+        numpy.ndarray, shape (windows, p + 1, p + 1)
+        """
+        p = len(self.parameters)
+        paths = self.noise_paths()
+        counts = self.windows(length)
+        blocks, made = [], {}
+        for seg, count in zip(self.segments, counts):
+            if count == 0:
+                continue
+            if seg.step in made:
+                blocks.append((made[seg.step], count))
+                continue
+            gram = np.zeros((p + 1, p + 1))
+            for i, (c1, w1, k1, _, _) in enumerate(paths):
+                for j, (c2, w2, k2, _, _) in enumerate(paths[i:], start=i):
+                    v = w1 * w2 * float(np.sum(
+                        window_sample_weights(None, seg.step, length, multiplicity, k1)
+                        * window_sample_weights(None, seg.step, length, multiplicity, k2)))
+                    gram[c1, c2] += v
+                    if j != i:
+                        gram[c2, c1] += v
+            made[seg.step] = gram
+            blocks.append((gram, count))
+        if len(made) == 1:
+            return np.broadcast_to(blocks[0][0], (sum(counts), p + 1, p + 1))
+        return np.concatenate([np.broadcast_to(g, (c, p + 1, p + 1)) for g, c in blocks])
+
+    def uniform_noise_meat(self, length, multiplicity, theta_bar, scores, stride):
+        """:meth:`noise_meat` where output noise enters every window of a segment alike
+        (:attr:`uniform_noise`): the sample weights of one window, a number per lag.
+
+        Parameters
+        ----------
+        length, multiplicity, theta_bar, scores, stride
+            As in :meth:`noise_meat`.
+
+        Returns
+        -------
+        numpy.ndarray, shape (k, k)
+        """
+        paths = self.noise_paths()
+        meat = np.zeros((scores.shape[1], scores.shape[1]))
+        first = 0
+        for seg, n_win in zip(self.segments, self.windows(length)):
+            if n_win == 0:
+                continue
+            g = scores[first:first + n_win]
+            first += n_win
+            weights = np.zeros(length)
+            for column, weight, derivative, _, _ in paths:   # (noise_meat's factors)
+                weights += weight * theta_bar[column] * window_sample_weights(
+                    None, seg.step, length, multiplicity, derivative)
+            for lag in range(min(n_win, -(-length // stride))):
+                shift = lag * stride
+                c = float(weights[shift:] @ weights[:length - shift])
+                cross = c * (g[:n_win - lag].T @ g[lag:])
+                meat += cross if lag == 0 else cross + cross.T
+        return meat
 
     @property
     def exact_columns(self):
@@ -210,7 +443,7 @@ class WindowProblem:
     def rows(self, length, multiplicity, which="measured"):
         """Regressors ``A``, known side ``b`` and window ids for one multiplicity (each
         column in its power of two, :meth:`exponents`)."""
-        stride = max(1, length // WINDOW_OVERLAP)
+        stride = window_stride(length)
         shifts = self.exponents(which)[2]
         blocks_a, blocks_b, ids = [], [], []
         for s, seg in enumerate(self.segments):
@@ -218,10 +451,13 @@ class WindowProblem:
                 continue
             n_win = (len(seg) - length) // stride + 1
             integrals = []
-            for term in self.model.terms:
+            direct = self._direct_integrals(s, length, multiplicity, which)
+            for i, term in enumerate(self.model.terms):
                 z = self.factor_samples(term.factor, which)[s]
                 steps = self.steps.get((term.factor, which, s))
-                if steps is not None:
+                if i in direct:
+                    w = direct[i]
+                elif steps is not None:
                     w = step_window_integrals(seg.t, *steps, length, multiplicity,
                                               term.derivative, stride)
                 elif seg.step is not None:
@@ -238,6 +474,25 @@ class WindowProblem:
         if not blocks_a:
             raise InputDataError(f"no segment holds a window of {length} samples")
         return np.vstack(blocks_a), np.concatenate(blocks_b), np.concatenate(ids)
+
+    def _direct_integrals(self, s, length, multiplicity, which):
+        """Term index -> window integrals on segment ``s`` summed directly, the terms of
+        one factor at once (:attr:`direct_sums` on a uniform segment; else none)."""
+        seg = self.segments[s]
+        if not self.direct_sums or seg.step is None:
+            return {}
+        by_factor = {}
+        for i, term in enumerate(self.model.terms):
+            if (term.factor, which, s) not in self.steps:
+                by_factor.setdefault(term.factor, []).append(i)
+        integrals = {}
+        for factor, terms in by_factor.items():
+            kernels = [window_sample_weights(None, seg.step, length, multiplicity,
+                                             self.model.terms[i].derivative) for i in terms]
+            sums = block_window_sums(self.factor_samples(factor, which)[s],
+                                     np.array(kernels), window_stride(length))
+            integrals.update(zip(terms, sums))
+        return integrals
 
     def to_rows(self, theta, which="measured"):
         """The solution of :meth:`rows` that parameter values make."""
@@ -320,7 +575,9 @@ class WindowProblem:
         covariance of two columns is a window sum of the product of sensitivities
         against the product of the two term kernels' weights.
         """
-        stride = max(1, length // WINDOW_OVERLAP)
+        if self.direct_sums and signal is None and self.uniform_noise:
+            return self.uniform_noise_grams(length, multiplicity)
+        stride = window_stride(length)
         p = len(self.parameters)
         index = {q: i for i, q in enumerate(self.parameters)}
         noisy = []   # (column, coefficient, derivative, factor)
@@ -371,6 +628,8 @@ class WindowProblem:
         -------
         numpy.ndarray, shape (k, k)
         """
+        if self.direct_sums and self.uniform_noise:
+            return self.uniform_noise_meat(length, multiplicity, theta_bar, scores, stride)
         return noise_meat(self, length, multiplicity, theta_bar, scores, stride)
 
 
