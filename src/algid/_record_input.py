@@ -38,7 +38,7 @@ __all__ = ["TIME_COLUMNS", "RATE_TOLERANCE", "STEP_RANGE", "is_record", "is_time
            "as_record", "read_column", "refuse_unusable", "record_columns", "check_rate",
            "check_rate_agrees", "refuse_nonfinite", "refuse_infinite", "refuse_missing",
            "refuse_unequal_lengths", "refuse_too_few", "refuse_not_increasing", "read_chunk",
-           "refuse_stream_dates",
+           "refuse_stream_dates", "GAP_FACTOR",
            "refuse_nonfinite_sample",
            "column_list",
            "first_non_number"]
@@ -49,6 +49,9 @@ TIME_COLUMNS = ("t", "time")
 #: A rate and a time column agree when the rate's step is within this fraction of the
 #: column's median step.
 RATE_TOLERANCE = 1e-3
+
+#: A step longer than this many median steps is a gap (missing rows).
+GAP_FACTOR = 1.5
 
 #: Sampling steps (s) accepted: the window integrals divide by powers of the window's
 #: span up to the 2(k+1)-th (noise weights of a k-th derivative), which leave the
@@ -717,7 +720,7 @@ def refuse_not_increasing(t, what, *, previous=None, first=0, unit="row"):
                              f"{full[i + 1]:.10g} after {full[i]:.10g}")
 
 
-def read_chunk(chunk, signals, *, time, rate, seen, last_time):
+def read_chunk(chunk, signals, *, time, rate, seen, last_time, last_stamp=math.nan):
     """The times and signals of a tracker's next chunk (:class:`algid.Tracker`).
 
     Parameters
@@ -735,6 +738,9 @@ def read_chunk(chunk, signals, *, time, rate, seen, last_time):
         Samples of the stream before this chunk.
     last_time : float
         Time of the stream's last sample (``-inf`` at the start).
+    last_stamp : float
+        With ``rate`` and no ``time``: the last value of the stream's time column, which
+        the times from the count of samples must agree with (NaN: none yet).
 
     Returns
     -------
@@ -744,6 +750,8 @@ def read_chunk(chunk, signals, *, time, rate, seen, last_time):
         Signal name -> samples (NaN: missing).
     time : str or None
         The time column read (found in the chunk when ``time`` and ``rate`` were None).
+    last_stamp : float
+        ``last_stamp`` after this chunk.
 
     Raises
     ------
@@ -780,15 +788,38 @@ def read_chunk(chunk, signals, *, time, rate, seen, last_time):
     if time is None:
         t = (seen + np.arange(n)) / rate
         given = next((c for c in TIME_COLUMNS if c in chunk), None)
-        if given is not None and n > 1:  # a time column beside rate= must agree (as
-            stamps = np.asarray(chunk[given])  # identify's), if it holds numbers
-            if stamps.dtype.kind in "iuf":
-                check_rate_agrees(rate, stamps.astype(float).reshape(-1), given, "the chunk")
-        return t, columns, time
+        stamps = np.asarray(chunk[given]) if given is not None and n else None
+        if stamps is not None and stamps.dtype.kind in "iuf":
+            # a time column beside rate= must agree (as identify's), if it holds
+            # numbers: within the chunk, and from the stream's last stamp on (a stream
+            # of one-row chunks has no step of its own)
+            stamps = stamps.astype(float).reshape(-1)
+            check_rate_agrees(rate, stamps, given, "the chunk")
+            _check_stamp_continues(rate, last_stamp, stamps[0], given, seen)
+            last_stamp = float(stamps[-1])
+        return t, columns, time, last_stamp
     t = columns.pop(time)
     if not (n == 1 and t[0] > last_time):   # (one sample of a live stream: checked)
         refuse_not_increasing(t, f"time column {time!r}", previous=last_time, first=seen,
                               unit="stream sample")
         if rate is not None and n > 1:   # (as identify's)
             check_rate_agrees(rate, t, time, "the chunk")
-    return t, columns, time
+    if rate is not None and n:   # no closer than the rate allows (a gap may be longer)
+        _check_stamp_continues(rate, last_time, t[0], time, seen, gaps=True)
+    return t, columns, time, last_stamp
+
+
+def _check_stamp_continues(rate, previous, stamp, name, seen, gaps=False):
+    """Refuse a stream sample ``seen`` stamped ``stamp`` where the one before it was
+    stamped ``previous`` (not finite: none), unless one ``1 / rate`` earlier within
+    :data:`RATE_TOLERANCE` (or, where a gap may fall, ``gaps``, a gap's
+    :data:`GAP_FACTOR` steps or more)."""
+    if not (math.isfinite(previous) and math.isfinite(stamp)):
+        return
+    steps = (stamp - previous) * rate
+    if abs(steps - 1.0) <= RATE_TOLERANCE or (gaps and steps > GAP_FACTOR):
+        return
+    raise InputDataError(
+        f"rate {rate:g} Hz contradicts time column {name!r}: stream sample {seen} is "
+        f"stamped {stamp - previous:.6g} s after the one before, where the rate's step is "
+        f"{1.0 / rate:.6g} s; give the time column or a rate that agrees with it")

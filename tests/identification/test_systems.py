@@ -408,6 +408,25 @@ def test_tracker_of_a_system_saved_and_loaded_continues_bit_for_bit(tmp_path, op
     assert len(expected["alarms"]) >= 1
 
 
+def test_a_system_tracker_checks_one_row_chunks_stamps_against_the_rate(tmp_path):
+    """rate= beside a time column, one row at a time: the stamps of a 500 Hz record
+    beside rate=250 were ignored; the last stamp is saved with the state."""
+    record = motor_change_record(0.1)
+    rows = [{k: v[i:i + 1] for k, v in record.items()} for i in range(20)]
+    wrong = algid.Tracker(MOTOR, list(MOTOR_TRUE), rate=250.0, window=0.2)
+    wrong.update(rows[0])
+    with pytest.raises(algid.InputDataError, match="stream sample 1 is stamped 0.002 s"):
+        wrong.update(rows[1])
+    tracker = algid.Tracker(MOTOR, list(MOTOR_TRUE), rate=500.0, window=0.2)
+    for row in rows[:5]:
+        tracker.update(row)
+    tracker.save(tmp_path / "system.npz")
+    loaded = algid.Tracker.load(tmp_path / "system.npz")
+    with pytest.raises(algid.InputDataError, match="stream sample 5 is stamped 0.006 s"):
+        loaded.update(rows[7])
+    loaded.update(rows[5])
+
+
 def test_tracker_of_a_system_refuses_damaged_and_altered_files(tmp_path):
     import zipfile
 

@@ -44,6 +44,30 @@ def test_a_rate_beside_a_named_time_column_must_agree_with_it():
     assert len(out) > 0
 
 
+@pytest.mark.parametrize(("time", "rate"), [(None, 160), ("t", 100)])
+def test_one_row_chunks_stamped_against_the_rate_are_refused(tmp_path, time, rate):
+    """A stream of one-row chunks has no step of its own: stamps at 80 Hz beside
+    rate=160 were taken as 160 Hz (every estimate off by a factor) without a word.  With
+    time= the column's times are used, and a step of two or more is a gap; 1.25 steps
+    is neither."""
+    record, _ = linear_offsets(0, n=40)
+    rows = [{k: v[i:i + 1] for k, v in record.items()} for i in range(40)]
+    tracker = algid.Tracker(*LINEAR_EQUATION, window=0.1875, time=time, rate=rate)
+    tracker.update(rows[0])
+    with pytest.raises(algid.InputDataError, match=rf"rate {rate} Hz contradicts time column "
+                       r"'t': stream sample 1 is stamped 0\.0125 s after the one before"):
+        tracker.update(rows[1])
+    agreeing = algid.Tracker(*LINEAR_EQUATION, window=0.1875, time=time, rate=80)
+    for row in rows[:10]:
+        agreeing.update(row)
+    if time is None:   # the last stamp is the stream's state: saved, and checked on
+        agreeing.save(tmp_path / "state.npz")
+        loaded = algid.Tracker.load(tmp_path / "state.npz")
+        with pytest.raises(algid.InputDataError, match="stream sample 10 is stamped"):
+            loaded.update(rows[12])   # (two rows missing: the count's times are wrong)
+        loaded.update(rows[10])
+
+
 def test_last_reports_the_stream_s_last_window_end():
     record, _ = linear_offsets(0, n=800)
     every = algid.Tracker(*LINEAR_EQUATION, window=0.1875, every=1.0)

@@ -14,14 +14,17 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from algid._record_input import as_record, is_record, record_columns, refuse_infinite
+from algid._record_input import (
+    GAP_FACTOR,
+    as_record,
+    is_record,
+    record_columns,
+    refuse_infinite,
+)
 from algid.errors import InputDataError
 
 __all__ = ["Segment", "prepare_records", "estimate_derivative", "check_factors",
            "white_noise_floor", "GAP_FACTOR", "NOISE_ORDERS"]
-
-#: A step longer than this many median steps is a gap (missing rows).
-GAP_FACTOR = 1.5
 
 #: A segment counts as uniformly sampled when no sample time is further than this
 #: fraction of a step from the uniform grid (times stored in single precision, as in

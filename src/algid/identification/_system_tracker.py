@@ -146,6 +146,7 @@ class SystemTracker:
         self._buffer = {n: np.empty(0) for n in self._signals}
         self._seen = 0
         self._last_time = -np.inf
+        self._last_stamp = np.nan   # the time column's beside rate= (read_chunk)
         self.length = None          # samples per window
         self.step = None
         self._next_start = 0        # buffer index of the next window's first sample
@@ -273,9 +274,9 @@ class SystemTracker:
 
     # ------------------------------------------------------------------ input
     def _read(self, chunk):
-        t, columns, self.time = read_chunk(chunk, self._signals, time=self.time,
-                                           rate=self.rate, seen=self._seen,
-                                           last_time=self._last_time)
+        t, columns, self.time, self._last_stamp = read_chunk(
+            chunk, self._signals, time=self.time, rate=self.rate, seen=self._seen,
+            last_time=self._last_time, last_stamp=self._last_stamp)
         self._seen += len(t)
         if len(t):
             self._last_time = float(t[-1])

@@ -57,6 +57,7 @@ def flat_state(tracker):
     """
     configured = tracker.length is not None
     state = {"seen": int(tracker._seen), "last_time": float(tracker._last_time),
+             "last_stamp": float(tracker._last_stamp),
              "configured": configured, "warmup": float(tracker._warmup),
              "next_start": int(tracker._next_start), "weight_sum": float(tracker._weight_sum),
              "run_windows": int(tracker._run_windows),
@@ -182,7 +183,7 @@ def restore(path, tracker, scalars, arrays):
         One line naming the scalar or the array.
     """
     arrays = dict(arrays)
-    known = {"seen", "last_time", "configured", "warmup", "next_start", "weight_sum",
+    known = {"seen", "last_time", "last_stamp", "configured", "warmup", "next_start", "weight_sum",
              "run_windows", "last_report", "has_sums", "has_weights", "has_products",
              "has_previous", "length", "step"}
     extra = sorted(set(scalars) - known)
@@ -201,6 +202,8 @@ def restore(path, tracker, scalars, arrays):
     last_time = _number(path, scalars, "last_time", "time")
     if n and last_time != t[-1]:
         _fail(path, f"scalar 'last_time' is {last_time!r}, not the last time held")
+    last_stamp = _number(path, scalars, "last_stamp", "time_or_nan") \
+        if "last_stamp" in scalars else math.nan   # (files of earlier versions: none)
     warmup = _number(path, scalars, "warmup", "positive")
     if not tracker._first_warmup <= warmup <= tracker._first_warmup * 2 ** (WARMUP_DOUBLINGS + 1):
         _fail(path, f"scalar 'warmup' is {warmup!r}, not a span the warm-up reaches")
@@ -283,6 +286,7 @@ def restore(path, tracker, scalars, arrays):
         _fail(path, f"array {sorted(arrays)[0]!r} is no part of a system tracker's state")
     tracker._buffer_t, tracker._buffer, tracker._seen = t, buffer, seen
     tracker._last_time, tracker._warmup, tracker._next_start = last_time, warmup, next_start
+    tracker._last_stamp = last_stamp
     tracker._weight_sum, tracker._run_windows = weight_sum, run_windows
     if not math.isnan(last_report):
         tracker._last_report = last_report

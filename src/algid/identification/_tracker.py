@@ -351,9 +351,10 @@ class Tracker:
 
     # ------------------------------------------------------------------ input
     def _read(self, chunk):
-        t, columns, time = read_chunk(chunk, self._signals, time=self.config["time"],
-                                      rate=self.config["rate"], seen=self.state.seen,
-                                      last_time=self.state.last_time)
+        t, columns, time, self.state.last_stamp = read_chunk(
+            chunk, self._signals, time=self.config["time"], rate=self.config["rate"],
+            seen=self.state.seen, last_time=self.state.last_time,
+            last_stamp=self.state.last_stamp)
         self.config["time"] = time
         self.state.seen += len(t)
         if len(t):

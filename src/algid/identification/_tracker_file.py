@@ -218,8 +218,9 @@ def _header(path, text, fmt, schema):
 #: Scalars of every state: the rule each value must follow.
 SCALARS = {"seen": "count", "last_time": "time", "configured": "bool", "alarms": "count"}
 
-#: Scalars present in some states only (tries of the window's choice).
-OPTIONAL = {"warm_tries": "tries"}
+#: Scalars present in some states only (tries of the window's choice; the last value of
+#: a time column beside ``rate=``).
+OPTIONAL = {"warm_tries": "tries", "last_stamp": "finite"}
 
 #: Largest counter accepted (a sample count far beyond any stream, within int64).
 _MAX_COUNT = 2**62
@@ -243,6 +244,7 @@ def _scalar_ok(rule, value):
     return {"positive": math.isfinite(value) and value > 0,
             "nonnegative": math.isfinite(value) and value >= 0,
             "time": value == -math.inf or math.isfinite(value),
+            "finite": math.isfinite(value),
             "time_or_nan": not math.isinf(value)}[rule]
 
 

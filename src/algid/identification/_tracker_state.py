@@ -270,6 +270,8 @@ class TrackerState:
         Samples received.
     last_time : float
         Time of the last sample received.
+    last_stamp : float
+        With ``rate=`` and a time column beside it, the column's last value (NaN: none).
     alarms : int
         Alarms raised.
     warmup : Warmup or None
@@ -289,6 +291,7 @@ class TrackerState:
 
     seen: int = 0
     last_time: float = -math.inf
+    last_stamp: float = math.nan
     alarms: int = 0
     warmup: Warmup | None = field(default_factory=Warmup)
     step: float | None = None
@@ -326,6 +329,8 @@ class TrackerState:
         """
         out = {"seen": self.seen, "last_time": self.last_time,
                "configured": self.configured, "alarms": self.alarms}
+        if not math.isnan(self.last_stamp):
+            out["last_stamp"] = self.last_stamp
         if not self.configured:
             warm = self.warmup
             if warm.tries:
@@ -373,7 +378,8 @@ class TrackerState:
         -------
         TrackerState
         """
-        state = cls(seen=flat["seen"], last_time=flat["last_time"], alarms=flat["alarms"])
+        state = cls(seen=flat["seen"], last_time=flat["last_time"], alarms=flat["alarms"],
+                    last_stamp=flat.get("last_stamp", math.nan))
         if not flat["configured"]:
             state.warmup = Warmup(flat["warm_t"], {n: flat[f"warm:{n}"] for n in signals},
                                   flat.get("warm_tries", 0))
