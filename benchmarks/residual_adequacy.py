@@ -9,8 +9,12 @@ multisine (12 lines, 0.1-5 Hz), 30 s at 1 kHz, 30 dB output SNR (white, or AR(1)
 pole 0.9 for ``right_ar1``), from a nonzero state; the wrong models fitted to it (or to
 a variant of it: a cubic spring, a derivative input, the output 3 samples late, a slow
 drift); and the friction loop of :mod:`benchmarks.synthetic_records` fitted without its
-Coulomb term.  Right nonlinear models (Duffing, friction) are not refined (the
-algebraic estimate and its adequacy test, ``python -m benchmarks.adequacy``).
+Coulomb term.  Nonlinear models fitted: a Duffing oscillator (the linear plant with
+``+ 0.5 y**3``) right, without its offset and 3 samples late, and the friction loop
+right and without its offset (their residual test simulates the model with each
+candidate term, :func:`algid.identification._residual_tests.nonlinear_residual_test`);
+where a nonlinear model is not refined (``refine="auto"``), its algebraic adequacy test
+speaks.
 """
 
 from __future__ import annotations
@@ -22,10 +26,12 @@ import numpy as np
 
 import algid
 from algid.models import parse_equation
-from benchmarks.synthetic_records import friction_loop
+from benchmarks.synthetic_records import FRICTION_EQUATION, friction_loop
 
 LINEAR = ("y'' + B*y' + K*y = G*u + d", "B K G d")
 TRUTH = {"B": 0.6, "K": 40.0, "G": 40.0, "d": 0.5}
+DUFFING = ("y'' + B*y' + K*y + K3*y**3 = G*u + d", "B K K3 G d")
+DUFFING_TRUTH = dict(TRUTH, K3=0.5)
 RATE, DURATION = 1000.0, 30.0
 
 #: class -> (truth equation, its values, the model fitted, options, the cause's words)
@@ -43,6 +49,15 @@ CASES = {
                          "gain"),
     "missing Coulomb": (None, None, ("M*q'' + Fv*q' + off = F", "M Fv off"), {},
                         "Coulomb"),
+    "right Duffing": (DUFFING, DUFFING_TRUTH, DUFFING, {}, None),
+    "Duffing, missing offset": (DUFFING, DUFFING_TRUTH,
+                                ("y'' + B*y' + K*y + K3*y**3 = G*u", "B K K3 G"), {},
+                                "offset"),
+    "Duffing, output 3 samples late": (DUFFING, DUFFING_TRUTH, DUFFING, {"shift": 3},
+                                       "delay"),
+    "right friction": (None, None, FRICTION_EQUATION, {}, None),
+    "friction, missing offset": (None, None, ("M*q'' + Fv*q' + Fc*sign(q') = F",
+                                              "M Fv Fc"), {}, "offset"),
 }
 
 

@@ -102,6 +102,29 @@ def test_duffing_is_refined_below_the_algebraic_errors():
                   < np.array(list(result.stderr.values())))
 
 
+def test_a_refined_nonlinear_model_s_residuals_name_what_it_lacks():
+    """A nonlinear refined fit had no residual test of its own: the Duffing model
+    without the record's offset (0.5, 10 s of a multisine at 30 dB) was refined and
+    reported without a word.  The model simulated with each candidate term gives that
+    term's direction; the right model's residuals follow none."""
+    from benchmarks.window_rule_study import DUFFING, SNR_DB, simulate
+
+    t, u, y = simulate(dict(DUFFING, truth=dict(DUFFING["truth"], d=0.5)), duration=10.0)
+    noise = np.std(y) * 10 ** (-SNR_DB / 20)
+    record = {"t": t, "u": u, "y": y + noise * np.random.default_rng(0).standard_normal(
+        len(t))}
+    right = algid.identify(record, DUFFING["equation"], DUFFING["parameters"])
+    assert right.estimate == "refined" and right.refinement.residual_test.adequate
+    assert right.warnings == []
+    wrong = algid.identify(record, "y'' + B*y' + K*y + K3*y**3 = G*u", "B K K3 G")
+    assert wrong.estimate == "refined", wrong.refinement.reason
+    test = wrong.refinement.residual_test
+    assert not test.adequate and wrong.warnings[0].startswith(
+        "the simulation residuals keep a constant part: an offset missing?")
+    assert test.scores["offset"] > 4 * test.limit
+    assert "cubic" not in test.scores   # (the model's own term: its direction is fitted)
+
+
 def test_friction_loop_refined_without_the_crossing_bias():
     """The algebraic friction estimate on a noisy position is biased by where sign(q')
     crosses (measured on this record: Fv 6.7 and Fc 7 standard errors off); the

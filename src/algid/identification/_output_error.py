@@ -14,8 +14,10 @@ For a model linear in its signals the simulation is
 :mod:`algid.identification._linear_simulation` (exact for inputs interpolated as
 band-limited signals); a nonlinear one (Duffing, friction) is fitted by
 :mod:`algid.identification._output_error_nonlinear` on the fast simulator, with the
-same covariance; lacking a residual test of its own, it is not reported where it is
-much less precise than the algebraic estimate (:data:`PRECISION_MARGIN`).
+same covariance and a residual test whose directions come from the model simulated
+with each candidate term; it is not reported where it is much less precise than the
+algebraic estimate (:data:`PRECISION_MARGIN`: its residuals are then mostly the model's
+error, which no candidate need name).
 
 The initial state of each segment (each record, and each run between gaps) is a
 nuisance parameter: the output is linear in it, so it is solved for by least squares
@@ -555,8 +557,8 @@ def refine_result(result, segments, step, refine, data_warnings=(), unavailable=
                f"{info.numerical_error[worst]:.2g} with another interpolation, over its "
                f"standard error (refine=True refines anyway)")
     if why is None and refine == "auto" and nonlinear:
-        # without a residual test of its own, a nonlinear fit must not be the less
-        # precise: efficient under the noise, its errors are at most the algebraic ones
+        # a nonlinear fit must not be the less precise: efficient under the noise,
+        # its errors are at most the algebraic ones
         # (about equal for an offset, which both take from the mean) unless its
         # residuals are mostly the model's error (a simulation that drifts from the
         # records), as on a noise-free record or a simplified model of a machine
@@ -578,13 +580,10 @@ def refine_result(result, segments, step, refine, data_warnings=(), unavailable=
                        warnings=result.warnings + notes)
     info.reason = (f"output error {info.rms_after:.3g} rms (algebraic "
                    f"{info.rms_before:.3g}){started}")
-    if info.residual_test is None:   # (nonlinear: the algebraic adequacy test stands)
-        warnings = list(result.warnings)
-    else:
-        # (a named model error first: it says what to change; what the records
-        # determine follows)
-        warnings = info.residual_test.warnings() \
-            + [w for w in result.warnings if w in data_warnings]
+    # (a named model error first: it says what to change; what the records determine
+    # follows)
+    warnings = info.residual_test.warnings() \
+        + [w for w in result.warnings if w in data_warnings]
     misfit = residual_noise_warning(info.rms_after, segments, model.output)
     if misfit is not None and all(w in data_warnings for w in warnings):
         warnings.append(misfit)   # no cause named, but the residuals are no noise

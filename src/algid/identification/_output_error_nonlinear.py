@@ -24,6 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from algid.identification._refinement import Refinement, sandwich_covariance
+from algid.identification._residual_tests import nonlinear_residual_test
 
 __all__ = ["NonlinearData", "prepare_nonlinear", "refine_nonlinear"]
 
@@ -52,6 +53,10 @@ class NonlinearData:
         Per segment, the first guess of the initial state.
     start_scale : list of numpy.ndarray
         Per segment, its uncertainty (the scale of its steps).
+    segments : list of Segment
+        The segments simulated.
+    interpolation : str
+        The inputs between samples.
     """
 
     model: object
@@ -59,6 +64,8 @@ class NonlinearData:
     outputs: list
     start: list
     start_scale: list
+    segments: list
+    interpolation: str
 
     @property
     def order(self):
@@ -111,7 +118,8 @@ def prepare_nonlinear(model, segments, interpolation="bandlimited"):
         x0, error = _initial_guess(t, y, simulations[-1].order)
         start.append(x0)
         scale.append(error)
-    return NonlinearData(model, simulations, outputs, start, scale)
+    return NonlinearData(model, simulations, outputs, start, scale, list(segments),
+                         interpolation)
 
 
 def _residual(data, theta, states):
@@ -224,6 +232,9 @@ def refine_nonlinear(data, theta, scale, other=None):
     Jp, bounds = _projected(J, data, p)
     dof = len(r) - len(z)
     covariance, ar = sandwich_covariance(Jp, r, bounds, dof)
+    n = data.order
+    free = [J[a:b, p + s * n:p + (s + 1) * n] for s, (a, b) in enumerate(bounds)]
+    test = nonlinear_residual_test(data, theta_hat, states, r, free, Jp, bounds, ar, dof)
     covariance = covariance * np.outer(scale, scale)
     numerical = np.full(p, np.nan)
     if other is not None:
@@ -236,4 +247,4 @@ def refine_nonlinear(data, theta, scale, other=None):
         applied=True, reason="", converged=bool(fit.success), evaluations=count[0],
         rms_before=rms_before, rms_after=float(np.sqrt(np.mean(r ** 2))),
         noise_ar=tuple(float(a) for a in ar), initial_states=[np.array(x) for x in states],
-        residual_test=None, numerical_error=numerical)
+        residual_test=test, numerical_error=numerical)

@@ -30,7 +30,8 @@ import numpy as np
 
 from algid.identification._linear_simulation import LinearSimulation, output_polynomials
 
-__all__ = ["ResidualTest", "residual_test", "CHI2_LIMIT", "CANDIDATES"]
+__all__ = ["ResidualTest", "residual_test", "nonlinear_residual_test", "score_directions",
+           "candidate_terms", "CHI2_LIMIT", "CANDIDATES", "DIRECTION_CHANGE"]
 
 #: The score beyond which a direction is a model error: chi-square(1) exceeded with
 #: probability 1e-4 (about 1e-3 over the candidates of a model with one input).
@@ -50,6 +51,11 @@ SPANNED = 1e-8
 #: A candidate whose part of the residuals is below this fraction of the output's rms
 #: is not reported, however significant (the interpolation error of a noise-free record).
 NEGLIGIBLE = 1e-3
+
+#: A nonlinear model's direction for a candidate term is a central difference in the
+#: term's coefficient that changes the simulated output by about this fraction of its
+#: rms (:func:`nonlinear_residual_test`).
+DIRECTION_CHANGE = 1e-6
 
 #: The candidate causes, in the order they are reported at equal scores.
 CANDIDATES = ("offset", "drift", "delay", "gain", "derivative", "cubic", "square",
@@ -120,43 +126,65 @@ def _fine(values, upsampling):
     return np.interp(np.arange(coarse[-1] + 1), coarse, values)
 
 
+def candidate_terms(output, inputs):
+    """The candidate model errors: name -> (the term a model would add, in its
+    signals, or None for the output's shift in time; the message that names it).
+
+    Parameters
+    ----------
+    output : str
+    inputs : sequence of str
+
+    Returns
+    -------
+    dict
+    """
+    out = {"offset": ("1", "keep a constant part: an offset missing? (add a constant "
+                           "term, e.g. '+ d')"),
+           "drift": ("t", "grow with time: a drift? (add a term in t, e.g. '+ d1*t')")}
+    for name in inputs:
+        out[f"gain:{name}"] = (name, f"follow {name}: a wrong or missing gain of {name}? "
+                                     f"(give its coefficient a parameter)")
+        out[f"derivative:{name}"] = (f"{name}'", f"follow {name}': a term in {name}' "
+                                                 f"missing?")
+    out["cubic"] = (f"{output}**3", f"follow {output}**3: a cubic term missing? (e.g. "
+                                    f"'+ K3*{output}**3')")
+    out["square"] = (f"{output}**2", f"follow {output}**2: a quadratic term missing?")
+    out["coulomb"] = (f"sign({output}')", f"follow sign({output}'): Coulomb friction "
+                                          f"missing? (e.g. '+ Fc*sign({output}')')")
+    out["delay"] = (None, "follow the model's output shifted in time: a delay between the "
+                          "input and the output?")
+    return out
+
+
 def _directions(data, den, simulated):
     """Candidate name -> (its message, its direction per segment)."""
     model, step, L = data.model, data.step, data.upsampling
-    output = model.output
     inputs = [c for c in data.channels if not c.startswith("__")]
     fine_step = step / L
-    out = {}
-
-    def term(name, message, per_segment_z):
-        out[name] = (message, [_response(den, z, step, L) for z in per_segment_z])
-
     lengths = [(len(y) - 1) * L + 1 for y in data.outputs]
-    term("offset", "keep a constant part: an offset missing? (add a constant term, "
-         "e.g. '+ d')", [np.ones(n) for n in lengths])
-    term("drift", "grow with time: a drift? (add a term in t, e.g. '+ d1*t')",
-         [np.linspace(0.0, (len(y) - 1) * step, (len(y) - 1) * L + 1)
-          for y in data.outputs])
+    velocity = [np.gradient(y, step) for y in simulated]
+    forcing = {"offset": [np.ones(n) for n in lengths],
+               "drift": [np.linspace(0.0, (len(y) - 1) * step, (len(y) - 1) * L + 1)
+                         for y in data.outputs],
+               "cubic": [_fine(y ** 3, L) for y in simulated],
+               "square": [_fine(y ** 2, L) for y in simulated],
+               "coulomb": [_fine(np.sign(v), L) for v in velocity]}
     for name in inputs:
         row = data.channels.index(name)
-        term(f"gain:{name}", f"follow {name}: a wrong or missing gain of {name}? (give its "
-             f"coefficient a parameter)", [u[row] for u in data.inputs])
-        term(f"derivative:{name}", f"follow {name}': a term in {name}' missing?",
-             [np.gradient(u[row], fine_step) for u in data.inputs])
-    velocity = [np.gradient(y, step) for y in simulated]
-    term("cubic", f"follow {output}**3: a cubic term missing? (e.g. '+ K3*{output}**3')",
-         [_fine(y ** 3, L) for y in simulated])
-    term("square", f"follow {output}**2: a quadratic term missing?",
-         [_fine(y ** 2, L) for y in simulated])
-    term("coulomb", f"follow sign({output}'): Coulomb friction missing? (e.g. "
-         f"'+ Fc*sign({output}')')", [_fine(np.sign(v), L) for v in velocity])
-    out["delay"] = ("follow the model's output shifted in time: a delay between the "
-                    "input and the output?", [-v for v in velocity])
+        forcing[f"gain:{name}"] = [u[row] for u in data.inputs]
+        forcing[f"derivative:{name}"] = [np.gradient(u[row], fine_step) for u in data.inputs]
+    out = {}
+    for name, (_, message) in candidate_terms(model.output, inputs).items():
+        if name == "delay":
+            out[name] = (message, [-v for v in velocity])
+        else:
+            out[name] = (message, [_response(den, z, step, L) for z in forcing[name]])
     return out
 
 
 def residual_test(data, theta, residual, free, J, bounds, ar, dof):
-    """The scores of :class:`ResidualTest` for a refined fit.
+    """The scores of :class:`ResidualTest` for a refined fit of a linear model.
 
     Parameters
     ----------
@@ -180,18 +208,142 @@ def residual_test(data, theta, residual, free, J, bounds, ar, dof):
     -------
     ResidualTest
     """
-    from scipy.signal import lfilter
-
     den, _ = output_polynomials(data.model, dict(zip(data.model.parameters, theta)))
     simulated = [data.outputs[i] - residual[a:b] for i, (a, b) in enumerate(bounds)]
+    with np.errstate(all="ignore"):
+        directions = _directions(data, den, simulated)
+    test, projected = score_directions(directions, data.outputs, residual, free, J, bounds,
+                                       ar, dof, data.step)
+    if "delay" in test.coefficients:
+        # where the output's shift and an input's derivative are the same direction
+        # (a constant numerator), one cause is named: a delay where the shift is small
+        # next to the fastest mode (what a shift can mean), else the derivative
+        tau = test.coefficients["delay"]
+        poles = np.roots([den.get(k, 0.0) for k in range(max(den), -1, -1)])
+        fastest = np.max(np.abs(poles)) if poles.size else np.inf
+        small = abs(tau) <= DELAY_FRACTION * 2 * np.pi / fastest
+        for name in [k for k in projected if k.startswith("derivative:")]:
+            if abs(projected[name] @ projected["delay"]) > SAME_DIRECTION:
+                hidden, named = (name, "delay") if small else ("delay", name)
+                test.aliases[hidden] = named
+    return test
+
+
+def nonlinear_residual_test(data, theta, states, residual, free, J, bounds, ar, dof):
+    """The scores of :class:`ResidualTest` for a refined fit of a nonlinear model.
+
+    A candidate term's direction is the model's own response to it along the fitted
+    trajectory: the derivative of the simulated output in the coefficient of the term
+    added to the equation's known side (central differences of the simulation, at the
+    fitted parameters and initial states); the output's shift is ``-yhat'``.
+
+    Parameters
+    ----------
+    data : algid.identification._output_error_nonlinear.NonlinearData
+    theta : numpy.ndarray
+        The refined parameters.
+    states : list of numpy.ndarray
+        Per segment, the fitted initial state.
+    residual, free, J, bounds, ar, dof
+        As in :func:`residual_test` (``free``: per segment, the initial states'
+        columns of the Jacobian).
+
+    Returns
+    -------
+    ResidualTest
+    """
+    model = data.model
+    simulated = [y - residual[a:b] for y, (a, b) in zip(data.outputs, bounds)]
+    step = data.simulations[0].step
+    directions = {}
+    with np.errstate(all="ignore"):
+        for name, (term, message) in candidate_terms(model.output, model.inputs).items():
+            if term is None:
+                directions[name] = (message, [-np.gradient(y, step) for y in simulated])
+                continue
+            simulations = _with_term(data, term)
+            if simulations is not None:
+                pieces = _term_direction(simulations, theta, states, simulated)
+                if pieces is not None:
+                    directions[name] = (message, pieces)
+    return score_directions(directions, data.outputs, residual, free, J, bounds, ar, dof,
+                            step)[0]
+
+
+def _with_term(data, term):
+    """The records' simulations of the model with ``+ c*(term)`` on its known side (the
+    coefficient last among the parameters), or None where it cannot be simulated."""
+    from algid.errors import AlgidError
+    from algid.models._grammar import parse_equation
+    from algid.simulation._fast_simulation import FastSimulation
+
+    model = data.model
+    coefficient = "c"
+    while coefficient in model.parameters or coefficient in model.signals:
+        coefficient += "_"
+    left, _, right = model.equation.partition("=")
+    try:
+        extended = parse_equation(f"{left}= {right} + {coefficient}*({term})",
+                                  (*model.parameters, coefficient), output=model.output)
+        return [FastSimulation(extended, seg.t, {n: seg.values[n] for n in model.inputs},
+                               data.interpolation) for seg in data.segments]
+    except AlgidError:
+        return None
+
+
+def _term_direction(simulations, theta, states, simulated):
+    """Per segment, the derivative of the simulated output in the added term's
+    coefficient (central differences changing the output by about
+    :data:`DIRECTION_CHANGE` of its rms), or None where the term does not move it."""
+    base = np.concatenate(simulated)
+    target = DIRECTION_CHANGE * float(np.sqrt(np.mean(base ** 2)))
+    h = 1.0
+    for _ in range(6):
+        up, down = ([sim.run(np.append(theta, c), x0) for sim, x0 in zip(simulations, states)]
+                    for c in (h, -h))
+        size = float(np.sqrt(np.mean((np.concatenate(up) - base) ** 2)))
+        if not np.isfinite(size):   # (diverged: a smaller coefficient)
+            h *= 1e-3
+            continue
+        if size == 0.0:
+            return None
+        if 0.1 * target <= size <= 10.0 * target:
+            break
+        h *= target / size
+    else:
+        return None
+    return [(a - b) / (2 * h) for a, b in zip(up, down)]
+
+
+def score_directions(directions, outputs, residual, free, J, bounds, ar, dof, step):
+    """The :class:`ResidualTest` of the residuals against candidate directions.
+
+    Parameters
+    ----------
+    directions : dict
+        Candidate name -> (its message, its direction per segment).
+    outputs : list of numpy.ndarray
+        Per segment, the measured output.
+    residual, free, J, bounds, ar, dof
+        As in :func:`residual_test`.
+    step : float
+        Sampling step (s): the delay's message counts samples.
+
+    Returns
+    -------
+    test : ResidualTest
+    projected : dict
+        Candidate -> its direction with the fitted ones projected out, unit norm.
+    """
+    from scipy.signal import lfilter
+
     # the innovation variance of the residuals' AR model
     innovation = np.concatenate([lfilter(ar, [1.0], residual[a:b]) for a, b in bounds])
     s2 = float(innovation @ innovation) / max(dof, 1)
     test = ResidualTest()
     projected = {}
-    output_rms = float(np.sqrt(np.mean(np.concatenate(data.outputs) ** 2)))
+    output_rms = float(np.sqrt(np.mean(np.concatenate(outputs) ** 2)))
     with np.errstate(all="ignore"):
-        directions = _directions(data, den, simulated)
         for name, (message, pieces) in directions.items():
             d = np.concatenate(pieces)
             size = float(d @ d)
@@ -220,16 +372,6 @@ def residual_test(data, theta, residual, free, J, bounds, ar, dof):
         tau = test.coefficients["delay"]
         shift = "delayed" if tau > 0 else "advanced"
         test.messages["delay"] = (f"follow the model's output {shift} by about "
-                                  f"{abs(tau) / data.step:.2g} samples: a delay between "
+                                  f"{abs(tau) / step:.2g} samples: a delay between "
                                   f"the input and the output?")
-        # where the output's shift and an input's derivative are the same direction
-        # (a constant numerator), one cause is named: a delay where the shift is small
-        # next to the fastest mode (what a shift can mean), else the derivative
-        poles = np.roots([den.get(k, 0.0) for k in range(max(den), -1, -1)])
-        fastest = np.max(np.abs(poles)) if poles.size else np.inf
-        small = abs(tau) <= DELAY_FRACTION * 2 * np.pi / fastest
-        for name in [k for k in projected if k.startswith("derivative:")]:
-            if abs(projected[name] @ projected["delay"]) > SAME_DIRECTION:
-                hidden, named = (name, "delay") if small else ("delay", name)
-                test.aliases[hidden] = named
-    return test
+    return test, projected
