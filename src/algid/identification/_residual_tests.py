@@ -255,52 +255,80 @@ def nonlinear_residual_test(data, theta, states, residual, free, J, bounds, ar, 
     model = data.model
     simulated = [y - residual[a:b] for y, (a, b) in zip(data.outputs, bounds)]
     step = data.simulations[0].step
-    directions = {}
+    candidates = candidate_terms(model.output, model.inputs)
+    terms = {name: term for name, (term, _) in candidates.items() if term is not None}
+    simulations, added = _with_terms(data, terms)
+    directions = {"delay": (candidates["delay"][1],
+                            [-np.gradient(y, step) for y in simulated])}
     with np.errstate(all="ignore"):
-        for name, (term, message) in candidate_terms(model.output, model.inputs).items():
-            if term is None:
-                directions[name] = (message, [-np.gradient(y, step) for y in simulated])
-                continue
-            simulations = _with_term(data, term)
-            if simulations is not None:
-                pieces = _term_direction(simulations, theta, states, simulated)
-                if pieces is not None:
-                    directions[name] = (message, pieces)
+        for k, name in enumerate(added):
+            pieces = _term_direction(simulations, theta, states, simulated, k, len(added))
+            if pieces is not None:
+                directions[name] = (candidates[name][1], pieces)
     return score_directions(directions, data.outputs, residual, free, J, bounds, ar, dof,
                             step)[0]
 
 
-def _with_term(data, term):
-    """The records' simulations of the model with ``+ c*(term)`` on its known side (the
-    coefficient last among the parameters), or None where it cannot be simulated."""
+def _with_terms(data, terms):
+    """The records' simulations of the model with ``+ c_k*(term_k)`` added to its known
+    side for every candidate term that can be (the coefficients last among the
+    parameters, in order), and the names of the terms added.  One simulation for all:
+    its set-up (the inputs on the fine grid) costs as much as a dozen runs."""
     from algid.errors import AlgidError
     from algid.models._grammar import parse_equation
     from algid.simulation._fast_simulation import FastSimulation
 
     model = data.model
-    coefficient = "c"
-    while coefficient in model.parameters or coefficient in model.signals:
-        coefficient += "_"
     left, _, right = model.equation.partition("=")
+    taken = set(model.parameters) | set(model.signals)
+    names = [f"c{k}" for k in range(len(terms) + len(taken))]
+    names = [n for n in names if n not in taken][:len(terms)]
+
+    def extended(chosen):
+        added = " ".join(f"+ {c}*({terms[name]})" for c, name in zip(names, chosen))
+        return parse_equation(f"{left}= {right} {added}",
+                              (*model.parameters, *names[:len(chosen)]),
+                              output=model.output)
+
+    chosen = list(terms)
     try:
-        extended = parse_equation(f"{left}= {right} + {coefficient}*({term})",
-                                  (*model.parameters, coefficient), output=model.output)
-        return [FastSimulation(extended, seg.t, {n: seg.values[n] for n in model.inputs},
-                               data.interpolation) for seg in data.segments]
+        equation = extended(chosen)
+    except AlgidError:   # (a term the model's grammar refuses beside the others)
+        chosen = [name for name in terms if _parses(extended, name)]
+        equation = extended(chosen)
+    try:
+        return [FastSimulation(equation, seg.t, {n: seg.values[n] for n in model.inputs},
+                               data.interpolation) for seg in data.segments], chosen
     except AlgidError:
-        return None
+        return [], []
 
 
-def _term_direction(simulations, theta, states, simulated):
-    """Per segment, the derivative of the simulated output in the added term's
+def _parses(extended, name):
+    from algid.errors import AlgidError
+
+    try:
+        extended([name])
+    except AlgidError:
+        return False
+    return True
+
+
+def _term_direction(simulations, theta, states, simulated, k, count):
+    """Per segment, the derivative of the simulated output in the ``k``-th added term's
     coefficient (central differences changing the output by about
     :data:`DIRECTION_CHANGE` of its rms), or None where the term does not move it."""
     base = np.concatenate(simulated)
     target = DIRECTION_CHANGE * float(np.sqrt(np.mean(base ** 2)))
+
+    def run(c):
+        extra = np.zeros(count)
+        extra[k] = c
+        return [sim.run(np.concatenate([theta, extra]), x0)
+                for sim, x0 in zip(simulations, states)]
+
     h = 1.0
     for _ in range(6):
-        up, down = ([sim.run(np.append(theta, c), x0) for sim, x0 in zip(simulations, states)]
-                    for c in (h, -h))
+        up = run(h)
         size = float(np.sqrt(np.mean((np.concatenate(up) - base) ** 2)))
         if not np.isfinite(size):   # (diverged: a smaller coefficient)
             h *= 1e-3
@@ -308,11 +336,9 @@ def _term_direction(simulations, theta, states, simulated):
         if size == 0.0:
             return None
         if 0.1 * target <= size <= 10.0 * target:
-            break
+            return [(a - b) / (2 * h) for a, b in zip(up, run(-h))]
         h *= target / size
-    else:
-        return None
-    return [(a - b) / (2 * h) for a, b in zip(up, down)]
+    return None
 
 
 def score_directions(directions, outputs, residual, free, J, bounds, ar, dof, step):
