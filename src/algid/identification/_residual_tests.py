@@ -290,27 +290,20 @@ def _with_terms(data, terms):
                               (*model.parameters, *names[:len(chosen)]),
                               output=model.output)
 
-    chosen = list(terms)
-    try:
-        equation = extended(chosen)
-    except AlgidError:   # (a term the model's grammar refuses beside the others)
-        chosen = [name for name in terms if _parses(extended, name)]
-        equation = extended(chosen)
+    chosen, equation = [], None
+    for name in terms:   # (a term the grammar refuses, or one past its parameters: left out)
+        try:
+            equation = extended([*chosen, name])
+        except AlgidError:
+            continue
+        chosen.append(name)
+    if equation is None:
+        return [], []
     try:
         return [FastSimulation(equation, seg.t, {n: seg.values[n] for n in model.inputs},
                                data.interpolation) for seg in data.segments], chosen
     except AlgidError:
         return [], []
-
-
-def _parses(extended, name):
-    from algid.errors import AlgidError
-
-    try:
-        extended([name])
-    except AlgidError:
-        return False
-    return True
 
 
 def _term_direction(simulations, theta, states, simulated, k, count):
