@@ -29,6 +29,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from algid.identification._linear_simulation import LinearSimulation, output_polynomials
+from algid.models._expression import Signal
 
 __all__ = ["ResidualTest", "residual_test", "nonlinear_residual_test", "score_directions",
            "candidate_terms", "CHI2_LIMIT", "CANDIDATES", "DIRECTION_CHANGE"]
@@ -214,19 +215,26 @@ def residual_test(data, theta, residual, free, J, bounds, ar, dof):
         directions = _directions(data, den, simulated)
     test, projected = score_directions(directions, data.outputs, residual, free, J, bounds,
                                        ar, dof, data.step)
-    if "delay" in test.coefficients:
-        # where the output's shift and an input's derivative are the same direction
-        # (a constant numerator), one cause is named: a delay where the shift is small
-        # next to the fastest mode (what a shift can mean), else the derivative
-        tau = test.coefficients["delay"]
-        poles = np.roots([den.get(k, 0.0) for k in range(max(den), -1, -1)])
-        fastest = np.max(np.abs(poles)) if poles.size else np.inf
-        small = abs(tau) <= DELAY_FRACTION * 2 * np.pi / fastest
-        for name in [k for k in projected if k.startswith("derivative:")]:
-            if abs(projected[name] @ projected["delay"]) > SAME_DIRECTION:
-                hidden, named = (name, "delay") if small else ("delay", name)
-                test.aliases[hidden] = named
+    _one_of_delay_and_derivative(test, projected, den)
     return test
+
+
+def _one_of_delay_and_derivative(test, projected, den):
+    """Where the output's shift and an input's derivative are the same direction (a
+    constant numerator), name one cause: a delay where the shift is small next to the
+    fastest mode of ``A(D)`` (``den``: derivative order -> coefficient), what a shift
+    can mean, else the derivative."""
+    if "delay" not in test.coefficients:
+        return
+    tau = test.coefficients["delay"]
+    poles = np.roots([den.get(k, 0.0) for k in range(max(den), -1, -1)]) if den \
+        else np.zeros(0)
+    fastest = np.max(np.abs(poles)) if poles.size else np.inf
+    small = abs(tau) <= DELAY_FRACTION * 2 * np.pi / fastest
+    for name in [k for k in projected if k.startswith("derivative:")]:
+        if abs(projected[name] @ projected["delay"]) > SAME_DIRECTION:
+            hidden, named = (name, "delay") if small else ("delay", name)
+            test.aliases[hidden] = named
 
 
 def nonlinear_residual_test(data, theta, states, residual, free, J, bounds, ar, dof):
@@ -265,8 +273,22 @@ def nonlinear_residual_test(data, theta, states, residual, free, J, bounds, ar, 
             pieces = _term_direction(simulations, theta, states, simulated, k, len(added))
             if pieces is not None:
                 directions[name] = (candidates[name][1], pieces)
-    return score_directions(directions, data.outputs, residual, free, J, bounds, ar, dof,
-                            step)[0]
+    test, projected = score_directions(directions, data.outputs, residual, free, J, bounds,
+                                       ar, dof, step)
+    _one_of_delay_and_derivative(test, projected, _linear_part(model, theta))
+    return test
+
+
+def _linear_part(model, theta):
+    """The terms of a model in its output alone, at ``theta``: derivative order ->
+    coefficient (the modes of its linear part)."""
+    values = dict(zip(model.parameters, theta))
+    den = {}
+    for term in model.terms:
+        if isinstance(term.factor, Signal) and term.factor.name == model.output:
+            value = 1.0 if term.parameter is None else float(values[term.parameter])
+            den[term.derivative] = den.get(term.derivative, 0.0) + term.coefficient * value
+    return den
 
 
 def _with_terms(data, terms):
