@@ -156,6 +156,10 @@ BYTES_PER_TERM = 64
 #: See :data:`BYTES_PER_SAMPLE`.
 BYTES_PER_GRAM_ENTRY = 8
 
+#: Peak bytes per sample of the fast simulator's spline of an input's derivative while
+#: it is made (16 points per sample; measured 2.3 kB on the friction loop).
+DERIVATIVE_SPLINE_BYTES = 2400
+
 
 def identify_bytes(model):
     """Peak memory of :func:`algid.identify` per sample of the records [bytes].
@@ -206,14 +210,19 @@ def _nonlinear_refinement_bytes(model):
     """Per sample, the fast simulator's points (8 per sample) of the forcing terms and
     the inputs the state terms read, for two interpolations; an interpolating spline
     at 16 points per sample while they are made; the Jacobians in the parameters and
-    the initial state (the fit's and the polishing's)."""
+    the initial state (the fit's and the polishing's).  Then the residual test's
+    simulation with the candidate terms: the forcing terms again, a constant, time, and
+    each input and its derivative, whose spline while it is made takes
+    :data:`DERIVATIVE_SPLINE_BYTES`."""
     output = model.output
     known = sum(1 for t in model.terms if output not in t.factor.signals())
     inputs = len({pair for t in model.terms if output in t.factor.signals()
                   for pair in t.factor.derivatives() + tuple(
                       (name, 0) for name in t.factor.signals()) if pair[0] != output})
     columns = len(model.parameters) + model.order
-    return 2 * 64 * (known + inputs + 2) + 1600 + 48 * columns + 400
+    test = 64 * (known + inputs + 4 + 2 * len(model.inputs)) \
+        + (DERIVATIVE_SPLINE_BYTES if model.inputs else 0)
+    return 2 * 64 * (known + inputs + 2) + 1600 + 48 * columns + 400 + test
 
 
 def check_memory(data, model):
