@@ -125,6 +125,24 @@ def test_a_refined_nonlinear_model_s_residuals_name_what_it_lacks():
     assert "cubic" not in test.scores   # (the model's own term: its direction is fitted)
 
 
+def test_a_refined_nonlinear_model_s_late_output_is_named_a_delay():
+    """The output's shift and the input's derivative are one direction here (a constant
+    numerator); a shift of 3 samples, small next to the mode, is named a delay (it was
+    named "a term in u' missing?")."""
+    from benchmarks.window_rule_study import DUFFING, SNR_DB, simulate
+
+    t, u, y = simulate(DUFFING, duration=10.0)
+    y = np.concatenate([np.full(3, y[0]), y[:-3]])
+    noise = np.std(y) * 10 ** (-SNR_DB / 20)
+    record = {"t": t, "u": u, "y": y + noise * np.random.default_rng(0).standard_normal(
+        len(t))}
+    result = algid.identify(record, DUFFING["equation"], DUFFING["parameters"], refine=True)
+    assert result.estimate == "refined"
+    assert result.warnings[0].startswith("the simulation residuals follow the model's "
+                                         "output delayed by about 3 samples")
+    assert result.refinement.residual_test.aliases == {"derivative:u": "delay"}
+
+
 def test_friction_loop_refined_without_the_crossing_bias():
     """The algebraic friction estimate on a noisy position is biased by where sign(q')
     crosses (measured on this record: Fv 6.7 and Fc 7 standard errors off); the
