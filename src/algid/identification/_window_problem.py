@@ -210,9 +210,8 @@ class WindowProblem:
         the records hold more than :data:`RULE_WINDOWS` windows of that length, those
         of :data:`RULE_EXCERPTS` excerpts spread over them, :attr:`share` of the whole
         (a covariance on them, times ``share``, is one on every window).  A fit's own
-        numbers come from the problem itself.  Excerpts need the samples of each
-        factor on its own: a model with ``sign`` factors (whose crossings are placed
-        on the whole record) takes every window.
+        numbers come from the problem itself.  A model with ``sign`` factors, whose
+        crossings are placed on the whole record, is solved on every window.
 
         Parameters
         ----------
@@ -225,8 +224,9 @@ class WindowProblem:
         WindowProblem
         """
         counts, view = self.windows(length), None
-        if not every_window and sum(counts) > RULE_WINDOWS and not any(is_sign_factor(term.factor)
-                                                  for term in self.model.terms):
+        excerpts = not every_window and sum(counts) > RULE_WINDOWS \
+            and not any(is_sign_factor(term.factor) for term in self.model.terms)
+        if excerpts:
             stride = window_stride(length)
             samples = RULE_WINDOWS * stride + RULE_EXCERPTS * (length - stride)
             pieces = [_piece(self.user_segments[i], start, stop)
