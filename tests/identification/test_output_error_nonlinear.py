@@ -143,6 +143,23 @@ def test_a_refined_nonlinear_model_s_late_output_is_named_a_delay():
     assert result.refinement.residual_test.aliases == {"derivative:u": "delay"}
 
 
+def test_a_declined_nonlinear_fit_says_what_its_residuals_name():
+    """Duffing (K3 = 0.5, a multisine, 15 s at 30 dB) with its output 3 samples late: the
+    default declines the fit, its residuals being mostly the model's error, and reported
+    the algebraic estimate without a word (1 of 30 records warned).  The model's linear
+    part settles, so what the declined fit's residuals name is the model's lack."""
+    from benchmarks.residual_adequacy import CASES, clean_output, record
+
+    truth, values, model, options, _ = CASES["Duffing, output 3 samples late"]
+    full = record(clean_output(truth, values, options), 0)
+    result = algid.identify({k: v[:15000] for k, v in full.items()}, *model)
+    assert result.estimate == "algebraic", result.refinement.reason
+    assert "mostly the model's error" in result.refinement.reason
+    assert result.warnings[0].startswith("not refined, the model misses the records: the "
+                                         "simulation residuals follow the model's output "
+                                         "delayed by about 3 samples")
+
+
 def test_friction_loop_refined_without_the_crossing_bias():
     """The algebraic friction estimate on a noisy position is biased by where sign(q')
     crosses (measured on this record: Fv 6.7 and Fc 7 standard errors off); the
@@ -169,6 +186,9 @@ def test_noise_free_friction_keeps_the_more_precise_algebraic_estimate():
     result = algid.identify(record, *FRICTION)
     assert result.estimate == "algebraic"
     assert "less precise than the algebraic estimate" in result.refinement.reason
+    # a mass with friction integrates: its declined fit's residual test names nothing
+    # (a drift of the simulation, not a term the model lacks)
+    assert not any("misses the records" in w for w in result.warnings)
     forced = algid.identify(record, *FRICTION, refine=True)
     assert forced.estimate == "refined"
 

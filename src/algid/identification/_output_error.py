@@ -44,7 +44,7 @@ from algid.identification._linear_simulation import (
 )
 from algid.identification._records import UNIFORM_TOLERANCE, white_noise_floor
 from algid.identification._refinement import Refinement, sandwich_covariance
-from algid.identification._residual_tests import residual_test
+from algid.identification._residual_tests import residual_test, settles
 from algid.models._expression import Signal
 
 __all__ = ["OutputErrorData", "refinement_unavailable", "refine_linear",
@@ -556,6 +556,7 @@ def refine_result(result, segments, step, refine, data_warnings=(), unavailable=
                f"the noise's: {model.parameters[worst]} moves by "
                f"{info.numerical_error[worst]:.2g} with another interpolation, over its "
                f"standard error (refine=True refines anyway)")
+    misfit = False   # (the refused fit's residuals mostly the model's error)
     if why is None and refine == "auto" and nonlinear:
         # a nonlinear fit must not be the less precise: efficient under the noise,
         # its errors are at most the algebraic ones
@@ -565,7 +566,8 @@ def refine_result(result, segments, step, refine, data_warnings=(), unavailable=
         refined_se = np.sqrt(np.maximum(np.diag(covariance), 0.0))
         algebraic_se = np.sqrt(np.maximum(np.diag(result.covariance), 0.0))
         worse = refined_se > PRECISION_MARGIN * algebraic_se
-        if np.any(worse):
+        misfit = bool(np.any(worse))
+        if misfit:
             worst = int(np.argmax(np.where(worse, refined_se / np.maximum(
                 algebraic_se, 1e-300), 0.0)))
             why = (f"the output-error fit is much less precise than the algebraic estimate "
@@ -576,8 +578,17 @@ def refine_result(result, segments, step, refine, data_warnings=(), unavailable=
         info.applied, info.reason = False, why
         notes = [f"not refined: {why}; the algebraic estimate is reported"] \
             if refine is True else []
+        named = []
+        if misfit and settles(model, values):
+            # residuals mostly model error on a model that forgets its errors: what its
+            # test names is the model's lack, not drift (an integrating model, such as a
+            # mass with friction, drifts from a record under any small error, and there
+            # the named terms would be false leads), and the algebraic estimate is off
+            # by as much
+            named = [f"not refined, the model misses the records: {w}"
+                     for w in info.residual_test.warnings()]
         return replace(result, algebraic=algebraic, refinement=info,
-                       warnings=result.warnings + notes)
+                       warnings=named + result.warnings + notes)
     info.reason = (f"output error {info.rms_after:.3g} rms (algebraic "
                    f"{info.rms_before:.3g}){started}")
     # (a named model error first: it says what to change; what the records determine

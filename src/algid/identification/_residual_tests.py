@@ -32,7 +32,7 @@ from algid.identification._linear_simulation import LinearSimulation, output_pol
 from algid.models._expression import Signal
 
 __all__ = ["ResidualTest", "residual_test", "nonlinear_residual_test", "score_directions",
-           "candidate_terms", "CHI2_LIMIT", "CANDIDATES", "DIRECTION_CHANGE"]
+           "candidate_terms", "settles", "CHI2_LIMIT", "CANDIDATES", "DIRECTION_CHANGE"]
 
 #: The score beyond which a direction is a model error: chi-square(1) exceeded with
 #: probability 1e-4 (about 1e-3 over the candidates of a model with one input).
@@ -277,6 +277,31 @@ def nonlinear_residual_test(data, theta, states, residual, free, J, bounds, ar, 
                                        ar, dof, step)
     _one_of_delay_and_derivative(test, projected, _linear_part(model, theta))
     return test
+
+
+def settles(model, values):
+    """Whether the model's linear part in its output (its terms in the output alone) has
+    every root in the open left half-plane at ``values``: its simulation then forgets an
+    error, so that a misfit that persists is the model's, not drift.  A model without a
+    term in the output itself (a mass with friction) integrates: a small error of its
+    velocity drifts its simulated position away, whatever its equation lacks.
+
+    Parameters
+    ----------
+    model : algid.models._model.Model
+    values : mapping
+        Parameter name -> value.
+
+    Returns
+    -------
+    bool
+    """
+    den = _linear_part(model, [values[p] for p in model.parameters])
+    coefficients = [den.get(k, 0.0) for k in range(max(den, default=0), -1, -1)]
+    if len(coefficients) < 2 or coefficients[0] == 0.0:
+        return False
+    roots = np.roots(coefficients)
+    return bool(np.all(np.isfinite(roots)) and np.all(roots.real < 0))
 
 
 def _linear_part(model, theta):
