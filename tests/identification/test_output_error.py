@@ -247,16 +247,25 @@ def test_given_values_refined_on_a_record_report_their_errors(linear_record):
         assert abs(refined.values[p] - truth) < 4 * refined.stderr[p]
 
 
-def test_refined_residuals_far_above_the_noise_are_said():
-    """A model without the record's offset: its refined fit lowers the simulation error
-    but leaves residuals five times the output noise, along no direction the residual
-    test names; the right model's are at the noise."""
+def test_refined_residuals_far_above_the_noise_are_named_or_said():
+    """A model without the record's offset: its refined fit leaves residuals five times
+    the output noise.  Their AR model absorbed the constant part, and the test named
+    nothing (only the misfit was said); the correlation under the alternative (the
+    candidate's part removed) names the offset.  The misfit's own warning stays for
+    residuals far above the noise along no candidate."""
+    from algid.identification._output_error import residual_noise_warning
+    from algid.identification._records import prepare_records
     from benchmarks.synthetic_records import linear_offsets
 
     record, _ = linear_offsets(0)
     fit = algid.identify(record, "y'' + B*y' + K*y = G*u", "B K G")
     assert fit.estimate == "refined"
-    assert any("times the white output noise" in w for w in fit.warnings), fit.warnings
+    assert fit.warnings[0].startswith("the simulation residuals keep a constant part: an "
+                                      "offset missing?"), fit.warnings
     right = algid.identify(record, "y'' + B*y' + K*y = G*u + d", "B K G d", refine=True)
-    assert right.estimate == "refined"
-    assert not any("white output noise" in w for w in right.warnings), right.warnings
+    assert right.estimate == "refined" and right.warnings == [], right.warnings
+    segments, _, _ = prepare_records(record, ("u", "y"), time="t")
+    rms = right.refinement.rms_after
+    assert residual_noise_warning(rms, segments, "y") is None
+    said = residual_noise_warning(5 * rms, segments, "y")
+    assert said is not None and "times the white output noise" in said

@@ -24,8 +24,9 @@ def _multisine(t, freqs, seed):
     return np.sum(np.sin(2 * np.pi * np.asarray(freqs)[:, None] * t + phases[:, None]), axis=0)
 
 
-def two_mass_record(noise_db=None, seed=1, duration=12.0, rate=500.0):
-    """Positions of the coupled masses by DOP853 at 1e-11 (not algid's simulator)."""
+def two_mass_record(noise_db=None, seed=1, duration=12.0, rate=500.0, offset=0.0):
+    """Positions of the coupled masses by DOP853 at 1e-11 (not algid's simulator);
+    ``offset``: a constant force on the first mass."""
     p = TWO_MASS_TRUE
     t = np.arange(0, duration, 1 / rate)
     u = _multisine(t, [0.2, 0.45, 0.7, 0.95, 1.3, 1.7, 2.2, 3.0], 12345)
@@ -33,7 +34,8 @@ def two_mass_record(noise_db=None, seed=1, duration=12.0, rate=500.0):
 
     def rhs(time, x):
         x1, v1, x2, v2 = x
-        return [v1, (spline(time) - p["c1"] * v1 - p["k1"] * x1 - p["k2"] * (x1 - x2)) / p["m1"],
+        return [v1, (spline(time) + offset - p["c1"] * v1 - p["k1"] * x1
+                     - p["k2"] * (x1 - x2)) / p["m1"],
                 v2, (-p["c2"] * v2 - p["k2"] * (x2 - x1)) / p["m2"]]
 
     x = solve_ivp(rhs, (t[0], t[-1]), [0.01, 0.0, -0.02, 0.0], t_eval=t, method="DOP853",
@@ -85,6 +87,26 @@ def test_two_masses_both_measured(two_mass_fit):
     # the refinement is the more precise: it simulates both outputs
     assert all(result.stderr[p] < np.sqrt(result.algebraic["covariance"][i, i])
                for i, p in enumerate(TWO_MASS_TRUE))
+
+
+def test_a_refined_system_s_residuals_name_what_it_lacks_and_where():
+    """The refined fit of a system had no residual test: the two masses fitted to
+    records with a constant force on the first mass, or with x2 3 samples late, were
+    refined and reported without a word.  Each candidate term is added to one equation
+    and simulated through the coupled system; a shift is one output's."""
+    offset = algid.identify(two_mass_record(noise_db=40.0, offset=0.3), TWO_MASS,
+                            list(TWO_MASS_TRUE))
+    assert offset.estimate == "refined"
+    assert offset.warnings[0].startswith("the simulation residuals keep a constant part: "
+                                         "an offset missing?")
+    assert "in equation 1, m1*x1''" in offset.warnings[0]
+    assert not offset.refinement.residual_test.adequate
+    record = two_mass_record(noise_db=40.0)
+    record["x2"] = np.concatenate([np.full(3, record["x2"][0]), record["x2"][:-3]])
+    late = algid.identify(record, TWO_MASS, list(TWO_MASS_TRUE))
+    assert late.estimate == "refined"
+    assert late.warnings[0].startswith("the simulation residuals follow x2 simulated "
+                                       "delayed by about 3 samples")
 
 
 def test_joint_covariance_is_symmetric_positive_definite(two_mass_fit):

@@ -18,16 +18,30 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-__all__ = ["Refinement", "sandwich_covariance", "MAX_AR_ORDER"]
+__all__ = ["Refinement", "sandwich_covariance", "ar_fit", "ar_order_limit", "MAX_AR_ORDER"]
 
 #: Largest order of the autoregressive model of the residuals (the covariance's).
 MAX_AR_ORDER = 40
 
 
-def _ar_fit(residuals, max_order):
+def ar_fit(residuals, max_order):
     """Autoregressive model of residual runs by Yule–Walker (pooled autocovariances),
-    its order by BIC: the coefficients ``a`` (``a[0] = 1``) and the innovation
-    variance."""
+    its order by BIC.
+
+    Parameters
+    ----------
+    residuals : list of numpy.ndarray
+        The runs (each a segment of one output).
+    max_order : int
+        Largest order (:func:`ar_order_limit`).
+
+    Returns
+    -------
+    a : numpy.ndarray
+        The coefficients (``a[0] = 1``; ``[1.0]``: white).
+    innovation : float
+        The innovation variance.
+    """
     from scipy.linalg import solve_toeplitz
 
     n_total = sum(len(r) for r in residuals)
@@ -51,6 +65,22 @@ def _ar_fit(residuals, max_order):
         if bic < best[0]:
             best = (bic, np.concatenate([[1.0], -phi]), variance)
     return best[1], best[2]
+
+
+def ar_order_limit(bounds, max_order=MAX_AR_ORDER):
+    """The largest autoregressive order fitted to runs of these ``bounds`` (rows
+    ``(start, stop)``): a twentieth of the shortest, at most ``max_order``.
+
+    Parameters
+    ----------
+    bounds : list of (int, int)
+    max_order : int
+
+    Returns
+    -------
+    int
+    """
+    return int(min(max_order, max(0, min(b - a for a, b in bounds) // 20)))
 
 
 def sandwich_covariance(J, residuals, bounds, dof, max_order=MAX_AR_ORDER):
@@ -77,8 +107,7 @@ def sandwich_covariance(J, residuals, bounds, dof, max_order=MAX_AR_ORDER):
     from scipy.signal import lfilter
 
     runs = [residuals[a:b] for a, b in bounds]
-    order = int(min(max_order, max(0, min(b - a for a, b in bounds) // 20)))
-    ar, innovation = _ar_fit(runs, order)
+    ar, innovation = ar_fit(runs, ar_order_limit(bounds, max_order))
     total = float(residuals @ residuals)
     n = len(residuals)
     bread = np.linalg.pinv(J.T @ J)

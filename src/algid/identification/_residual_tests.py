@@ -29,10 +29,11 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from algid.identification._linear_simulation import LinearSimulation, output_polynomials
+from algid.identification._refinement import ar_fit, ar_order_limit
 from algid.models._expression import Signal
 
 __all__ = ["ResidualTest", "residual_test", "nonlinear_residual_test", "score_directions",
-           "candidate_terms", "settles", "CHI2_LIMIT", "CANDIDATES", "DIRECTION_CHANGE"]
+           "candidate_terms", "settles", "system_residual_test", "CHI2_LIMIT", "CANDIDATES", "DIRECTION_CHANGE"]
 
 #: The score beyond which a direction is a model error: chi-square(1) exceeded with
 #: probability 1e-4 (about 1e-3 over the candidates of a model with one input).
@@ -381,7 +382,18 @@ def _term_direction(simulations, theta, states, simulated, k, count):
     return None
 
 
-def score_directions(directions, outputs, residual, free, J, bounds, ar, dof, step):
+def _noise_model(residual, bounds, order, dof):
+    """The AR polynomial of residual runs and its innovation variance per degree of
+    freedom (as :func:`score_directions` uses them)."""
+    from scipy.signal import lfilter
+
+    a, _ = ar_fit([residual[lo:hi] for lo, hi in bounds], order)
+    innovation = np.concatenate([lfilter(a, [1.0], residual[lo:hi]) for lo, hi in bounds])
+    return a, float(innovation @ innovation) / max(dof, 1)
+
+
+def score_directions(directions, outputs, residual, free, J, bounds, ar, dof, step,
+                     free_bounds=None):
     """The :class:`ResidualTest` of the residuals against candidate directions.
 
     Parameters
@@ -394,6 +406,9 @@ def score_directions(directions, outputs, residual, free, J, bounds, ar, dof, st
         As in :func:`residual_test`.
     step : float
         Sampling step (s): the delay's message counts samples.
+    free_bounds : list of (int, int), optional
+        The rows of each of ``free`` (by default ``bounds``: a system's free responses
+        span all the outputs of a segment, its residuals' runs are one output each).
 
     Returns
     -------
@@ -406,6 +421,7 @@ def score_directions(directions, outputs, residual, free, J, bounds, ar, dof, st
     # the innovation variance of the residuals' AR model
     innovation = np.concatenate([lfilter(ar, [1.0], residual[a:b]) for a, b in bounds])
     s2 = float(innovation @ innovation) / max(dof, 1)
+    order = ar_order_limit(bounds)
     test = ResidualTest()
     projected = {}
     output_rms = float(np.sqrt(np.mean(np.concatenate(outputs) ** 2)))
@@ -413,20 +429,26 @@ def score_directions(directions, outputs, residual, free, J, bounds, ar, dof, st
         for name, (message, pieces) in directions.items():
             d = np.concatenate(pieces)
             size = float(d @ d)
-            for F, (a, b) in zip(free, bounds):   # the fitted directions projected out
+            for F, (a, b) in zip(free, free_bounds or bounds):   # (fitted: projected out)
                 if F.shape[1]:
                     d[a:b] -= F @ np.linalg.lstsq(F, d[a:b], rcond=None)[0]
             d -= J @ np.linalg.lstsq(J, d, rcond=None)[0]
             energy = float(d @ d)
             if not (np.isfinite(energy) and energy > SPANNED * size):
                 continue   # a term the model has (its direction is fitted)
-            whitened = np.concatenate([lfilter([1.0], ar, d[a:b][::-1])[::-1]
+            coefficient = float(d @ residual) / energy
+            a_d, s2_d = ar, s2
+            if len(ar) > 1:
+                # the residuals' correlation under the alternative (the term's part
+                # removed): a large misfit of the null model is coloured, and an AR model
+                # of it absorbs its own direction, hiding the term it lacks
+                a_d, s2_d = _noise_model(residual - coefficient * d, bounds, order, dof)
+            whitened = np.concatenate([lfilter([1.0], a_d, d[a:b][::-1])[::-1]
                                        for a, b in bounds])
-            variance = s2 * float(whitened @ whitened)
+            variance = s2_d * float(whitened @ whitened)
             score = float(d @ residual) ** 2 / variance if variance > 0 else 0.0
             if not np.isfinite(score):
                 continue
-            coefficient = float(d @ residual) / energy
             if abs(coefficient) * np.sqrt(energy / len(d)) < NEGLIGIBLE * output_rms:
                 test.negligible.add(name)   # too small to matter (a noise-free record's
                 # interpolation error is significant and negligible)
@@ -441,3 +463,130 @@ def score_directions(directions, outputs, residual, free, J, bounds, ar, dof, st
                                   f"{abs(tau) / step:.2g} samples: a delay between "
                                   f"the input and the output?")
     return test, projected
+
+
+def _forcing(kind, seg, signal):
+    """A candidate term's samples on a segment (:func:`system_residual_test`):
+    ``signal`` is the input's samples (``gain``, ``derivative``) or the output's
+    simulated ones (``cubic``, ``square``, ``coulomb``)."""
+    if kind == "offset":
+        return np.ones(len(seg))
+    if kind == "drift":
+        return seg.t - seg.t[0]
+    z = np.asarray(signal, dtype=float)
+    if kind == "derivative":
+        return np.gradient(z, seg.t)
+    if kind == "coulomb":
+        return np.sign(np.gradient(z, seg.t))
+    return {"gain": z, "cubic": z ** 3, "square": z ** 2}[kind]
+
+
+def system_residual_test(residuals, theta, residual, J, ar, dof):
+    """The scores of :class:`ResidualTest` for a refined fit of a linear system.
+
+    Each candidate of :func:`candidate_terms` is a term added to one equation's known
+    side (a constant, time, an input or its derivative; a power or the velocity's sign
+    of an output of that equation, at its simulated value): its direction is the
+    system's response to it, every measured output weighted as the residuals are.  The
+    output's shift is one per measured output (``-yhat_j'`` on its own rows).  The
+    warnings name the equation.
+
+    Parameters
+    ----------
+    residuals : algid.identification._system_refinement.SimulationResiduals
+        At the refined estimate (its segments, weights and fitted initial states).
+    theta : numpy.ndarray
+        The refined parameters.
+    residual : numpy.ndarray
+        The weighted simulation residuals (segment by segment, output by output).
+    J : numpy.ndarray
+        Their Jacobian in the parameters (initial states projected out).
+    ar : numpy.ndarray
+        The residuals' autoregressive polynomial.
+    dof : int
+        Residual degrees of freedom.
+
+    Returns
+    -------
+    ResidualTest
+    """
+    from algid.models._system import parse_system
+    from algid.simulation._system import (
+        StateSpace,
+        free_responses,
+        simulate_space,
+        state_space,
+    )
+
+    system = residuals.system
+    values = dict(zip(system.parameters, theta))
+    observed = residuals.observed
+    weights = np.array([1.0 / residuals.sigma[y] for y in observed])
+    taken = set(system.signals) | set(system.parameters)
+    names = [n for n in (f"z{k}" for k in range(len(taken) + len(system.equations)))
+             if n not in taken][:len(system.equations)]
+    extended = []
+    for model, name in zip(system.equations, names):
+        left, _, right = model.equation.partition("=")
+        extended.append(f"{left}= {right} + {name}")
+    space = state_space(parse_system(extended, system.parameters,
+                                     outputs=system.outputs), values)
+    base = state_space(system, values)
+    rows = [space.outputs.index(y) for y in observed]
+    fitted, free, free_bounds, outputs, at = [], [], [], [], 0
+    for seg, x0 in zip(residuals.segments, residuals.states):
+        inputs = {u: seg.values[u] for u in system.inputs}
+        fitted.append(simulate_space(base, seg.t, inputs, x0))   # every output
+        F = free_responses(base, seg.t)[:, rows] * weights[None, :, None]
+        free.append(F.reshape(len(F), -1).T)
+        free_bounds.append((at, at + len(rows) * len(seg)))
+        at += len(rows) * len(seg)
+        outputs.append(np.ravel([seg.values[y] * w for y, w in zip(observed, weights)]))
+
+    def stacked(responses):   # per segment, (outputs, samples) -> the residuals' rows
+        return [np.ravel(r[rows] * weights[:, None]) for r in responses]
+
+    directions = {}
+    for i, (model, name) in enumerate(zip(system.equations, names)):
+        channel = StateSpace(space.A, space.B[:, [space.channels.index(name)]], space.C,
+                             space.states, [name], space.outputs)
+        where = f"; in equation {i + 1}, {model.equation}"
+        own = [y for y in system.outputs if y in model.signals]
+        candidates = {}
+        for y in own:
+            for key, (_, message) in candidate_terms(y, system.inputs).items():
+                if key in ("cubic", "square", "coulomb"):
+                    key = f"{key}:{y}"
+                elif key == "delay" or key in candidates:
+                    continue
+                candidates[key] = message
+        for key, message in candidates.items():
+            kind, _, signal = key.partition(":")
+            if signal in system.inputs:
+                forcing = [_forcing(kind, seg, seg.values[signal])
+                           for seg in residuals.segments]
+            else:   # (an output's simulated samples, or none)
+                forcing = [_forcing(kind, seg, sim[system.outputs.index(signal)]
+                                    if signal else None)
+                           for seg, sim in zip(residuals.segments, fitted)]
+            with np.errstate(all="ignore"):
+                responses = [simulate_space(channel, seg.t, {name: z})
+                             for seg, z in zip(residuals.segments, forcing)]
+            directions[f"{key} in equation {i + 1}"] = (message + where, stacked(responses))
+    for j, y in enumerate(observed):
+        pieces = []
+        for seg, sim in zip(residuals.segments, fitted):
+            shift = np.zeros((len(rows), len(seg)))
+            shift[j] = -np.gradient(sim[system.outputs.index(y)], seg.t) * weights[j]
+            pieces.append(shift.ravel())
+        directions[f"delay of {y}"] = ("", pieces)
+    step = float(np.median(np.diff(residuals.segments[0].t)))
+    test, _ = score_directions(directions, outputs, residual, free, J, residuals.bounds(),
+                               ar, dof, step, free_bounds)
+    for y in observed:   # the shift, in samples: y(t) = yhat(t - tau)
+        tau = test.coefficients.get(f"delay of {y}")
+        if tau is not None:
+            test.messages[f"delay of {y}"] = (
+                f"follow {y} simulated {'delayed' if tau > 0 else 'advanced'} by about "
+                f"{abs(tau) / step:.2g} samples: a delay between the inputs and {y}?")
+    return test

@@ -59,6 +59,7 @@ from algid.identification._window_rule import (
     HAC_WINDOWS,
     WindowFit,
     check_multiplicities,
+    coarse_to_fine,
     independent_windows,
     longest_window,
     min_length,
@@ -121,7 +122,7 @@ class _Rows:
             M = maps.get(i)
             if M is not None:   # in the ratios to its pivot (module _homogeneous)
                 phi = phi @ M.T
-                total = np.einsum("ij,wjk,lk->wil", M, total, M)
+                total = M @ total @ M.T
             self.blocks[-1] = phi
             self.grams.append(total)
 
@@ -260,7 +261,7 @@ def _solve(problems, system, noisy, bounds, length, multiplicities, method):
         null = _null_direction(stacked[:, :P])
         misfits = []
         for g, r in zip(rows.grams, residuals):
-            weight = float(np.einsum("i,wij,j->", theta_bar, g, theta_bar))
+            weight = float(theta_bar @ g.sum(axis=0) @ theta_bar)
             energy = float(r @ r)
             misfits.append(0.0 if energy == 0 else (energy / weight if weight > 0
                                                     else np.inf))
@@ -313,28 +314,44 @@ def _choose_window(problems, system, noisy, bounds, multiplicities, method):
         raise InputDataError(f"the records are too short: windows of at least {n_min} "
                              f"samples must leave {needed_windows(grid_problem)} "
                              f"non-overlapping ones")
-    fits = {}
-    for n in grid:
-        try:
-            fit = _solve(problems, system, noisy, bounds, n, multiplicities, method)
-        except (np.linalg.LinAlgError, InputDataError):
-            continue
-        if fit.null is None:
-            fits[n] = fit
-    if not fits:
+    fits = {}   # length -> fit (None: not solvable, or a null direction)
+
+    def solve_at(lengths):
+        for n in lengths:
+            if n in fits:
+                continue
+            # (each equation's rows summed the window rule's cheaper way)
+            views = [problem.for_window_rule(n, every_window=True) for problem in problems]
+            try:
+                fit = _solve(views, system, noisy, bounds, n, multiplicities, method)
+            except (np.linalg.LinAlgError, InputDataError):
+                fit = None
+            fits[n] = fit if fit is not None and fit.null is None else None
+
+    def scores():
+        solved = {n: f for n, f in fits.items() if f is not None}
+        if not solved:
+            return {}
+        # the trivial solution of an equation without a known term (all its parameters
+        # zero, with zero scores) attracts the solves on windows so short that the
+        # noise dominates: such a fit, far from the longest window's by half a value and
+        # many standard errors, is left out (it would also make every other window look
+        # poor)
+        reference = solved[max(solved)]
+        solved = {n: f for n, f in solved.items() if _consistent(f, reference)}
+        trusted = {n: f for n, f in solved.items()
+                   if independent_windows(grid_problem, n) >= HAC_WINDOWS} or solved
+        return window_criterion(trusted)
+
+    def best():
+        criterion = scores()
+        return min(criterion, key=criterion.get) if criterion else None
+
+    coarse_to_fine(grid, solve_at, best)
+    criterion = scores()
+    if not criterion:
         return grid[len(grid) // 2], {}
-    # the trivial solution of an equation without a known term (all its parameters
-    # zero, with zero scores) attracts the solves on windows so short that the noise
-    # dominates: such a fit, far from the longest window's by half a value and many
-    # standard errors, is left out (it would also make every other window look poor)
-    reference = fits[max(fits)]
-    fits = {n: f for n, f in fits.items() if _consistent(f, reference)}
-    trusted = {n: f for n, f in fits.items()
-               if independent_windows(grid_problem, n) >= HAC_WINDOWS} or fits
-    scores = window_criterion(trusted)
-    if not scores:
-        return grid[len(grid) // 2], {}
-    return min(scores, key=scores.get), scores
+    return min(criterion, key=criterion.get), criterion
 
 
 def _consistent(fit, reference):
@@ -454,7 +471,11 @@ def identify_system(data, equations, parameters=None, *, time=None, rate=None,
     result = refine_system(result, segments, refine)
     if result.estimate == "refined":   # what the refined estimate determines
         theta = np.array([result.values[p] for p in system.parameters])
-        result.warnings = warnings + _weak(system, theta, result.covariance)
+        # its residual test's and what it determines; the algebraic fit's misfit
+        # warnings stay in result.algebraic (coloured output noise biases the algebraic
+        # estimates, not the refined ones)
+        result.warnings = result.refinement.residual_test.warnings() \
+            + _weak(system, theta, result.covariance)
     return result
 
 

@@ -28,6 +28,7 @@ import numpy as np
 
 from algid.errors import ModelError
 from algid.identification._refinement import Refinement, sandwich_covariance
+from algid.identification._residual_tests import system_residual_test
 from algid.identification._system_result import WEAK_RELATIVE_ERROR
 from algid.simulation._system import free_responses, simulate_space, state_space
 
@@ -197,12 +198,13 @@ def refine_system(result, segments, refine):
     n_states = len(residuals.states[0]) * len(segments)
     dof = len(r) - len(theta) - n_states
     covariance, ar = sandwich_covariance(J, r, residuals.bounds(), dof)
+    test = system_residual_test(residuals, theta, r, J, ar, dof)
     rms = residuals.per_output_rms(r)
     refinement = Refinement(True, "refined by output error", converged=converged,
                             evaluations=residuals.evaluations,
                             rms_before=float(np.sqrt(before / len(r))),
                             rms_after=float(np.sqrt(after / len(r))), noise_ar=tuple(ar),
-                            initial_states=list(residuals.states))
+                            initial_states=list(residuals.states), residual_test=test)
     if refine == "auto" and not after < before:
         return replace(result, refinement=replace(
             refinement, applied=False,

@@ -32,7 +32,7 @@ from algid.identification._window_basis import (
 )
 
 __all__ = ["WindowFit", "check_multiplicities", "window_grid", "grid_lengths",
-           "window_criterion",
+           "window_criterion", "coarse_to_fine",
            "choose_window", "window_advice", "noise_factor", "window_length", "min_length",
            "longest_window",
            "independent_windows", "needed_windows", "MIN_SPARE_WINDOWS", "NEGLIGIBLE_TERM",
@@ -437,16 +437,31 @@ def choose_window(problem, multiplicities, solve, *, n_max=None, method="ls",
                 except np.linalg.LinAlgError:
                     continue
 
-    # every RULE_COARSE-th length of the grid (its ends too), then the lengths between
-    # the best one's neighbours there: the criterion varies slowly with the length
-    coarse = grid[::RULE_COARSE] + grid[-1:]
-    solve_at(coarse)
-    if fits:
-        best = grid.index(_select(problem, fits)[0])
-        solve_at(grid[max(0, best - RULE_COARSE + 1):best + RULE_COARSE])
+    coarse_to_fine(grid, solve_at, lambda: _select(problem, fits)[0] if fits else None)
     if separations is not None:
         separations.update({n: f.separation for n, f in fits.items()})
     return _select(problem, fits)
+
+
+def coarse_to_fine(grid, solve_at, best):
+    """Solve every :data:`RULE_COARSE`-th length of ``grid`` (and its last), then the
+    lengths between the best one's neighbours there: the rule's criterion varies slowly
+    with the length.
+
+    Parameters
+    ----------
+    grid : list of int
+        The lengths the rule may keep, increasing.
+    solve_at : callable
+        ``solve_at(lengths)`` solves those of ``lengths`` not yet solved.
+    best : callable
+        ``best()`` -> the best length among those solved, or None (none solved).
+    """
+    solve_at(grid[::RULE_COARSE] + grid[-1:])
+    chosen = best()
+    if chosen is not None:
+        i = grid.index(chosen)
+        solve_at(grid[max(0, i - RULE_COARSE + 1):i + RULE_COARSE])
 
 
 def _select(problem, fits):
