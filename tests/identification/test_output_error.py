@@ -253,9 +253,10 @@ def test_refined_residuals_far_above_the_noise_are_named_or_said():
     nothing (only the misfit was said); the correlation under the alternative (the
     candidate's part removed) names the offset.  The misfit's own warning stays for
     residuals far above the noise along no candidate."""
+    from benchmarks.synthetic_records import linear_offsets
+
     from algid.identification._output_error import residual_noise_warning
     from algid.identification._records import prepare_records
-    from benchmarks.synthetic_records import linear_offsets
 
     record, _ = linear_offsets(0)
     fit = algid.identify(record, "y'' + B*y' + K*y = G*u", "B K G")

@@ -33,7 +33,8 @@ from algid.identification._refinement import ar_fit, ar_order_limit
 from algid.models._expression import Signal
 
 __all__ = ["ResidualTest", "residual_test", "nonlinear_residual_test", "score_directions",
-           "candidate_terms", "settles", "system_residual_test", "CHI2_LIMIT", "CANDIDATES", "DIRECTION_CHANGE"]
+           "candidate_terms", "settles", "system_residual_test", "CHI2_LIMIT", "CANDIDATES",
+           "DIRECTION_CHANGE"]
 
 #: The score beyond which a direction is a model error: chi-square(1) exceeded with
 #: probability 1e-4 (about 1e-3 over the candidates of a model with one input).
