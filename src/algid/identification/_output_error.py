@@ -42,15 +42,14 @@ from algid.identification._linear_simulation import (
     simulates_stably,
     step_points,
 )
-from algid.identification._records import UNIFORM_TOLERANCE, white_noise_floor
+from algid.identification._records import UNIFORM_TOLERANCE
 from algid.identification._refinement import Refinement, sandwich_covariance
 from algid.identification._residual_tests import residual_test, settles
 from algid.models._expression import Signal
 
 __all__ = ["OutputErrorData", "refinement_unavailable", "refine_linear",
            "refine_result", "check_refine", "stabilised", "jacobian",
-           "projected_jacobian", "prepare", "REFINE_CHOICES", "PRECISION_MARGIN",
-           "RESIDUAL_NOISE_LIMIT", "residual_noise_warning"]
+           "projected_jacobian", "prepare", "REFINE_CHOICES", "PRECISION_MARGIN"]
 
 #: Finite-difference step of the Jacobian, in algebraic standard errors.
 _JACOBIAN_STEP = 1e-3
@@ -343,41 +342,6 @@ def refine_linear(data, theta, scale, other=None):
 #: Values of ``refine`` that :func:`algid.identify` takes.
 REFINE_CHOICES = ("auto", True, False)
 
-#: A refined fit whose simulation residuals' rms exceeds this many times the white-noise
-#: floor of the output's differences does not explain the records (the floor bounds the
-#: white noise from above: the ratio is at least what is reported).
-RESIDUAL_NOISE_LIMIT = 3.0
-
-
-def residual_noise_warning(rms, segments, output):
-    """The warning of a refined fit whose residuals are far above the output's white
-    noise, or None.
-
-    Parameters
-    ----------
-    rms : float
-        The simulation residuals' rms.
-    segments : list of Segment
-        The records' runs.
-    output : str
-        The output signal.
-
-    Returns
-    -------
-    str or None
-    """
-    floors = [(white_noise_floor(seg.values[output])[1], len(seg)) for seg in segments]
-    floors = [(floor, n) for floor, n in floors if np.isfinite(floor)]
-    if not floors:
-        return None
-    noise = float(np.sqrt(np.average([f for f, _ in floors], weights=[n for _, n in floors])))
-    if not (noise > 0 and rms > RESIDUAL_NOISE_LIMIT * noise):
-        return None
-    return (f"the simulation residuals ({rms:.3g} rms) are {rms / noise:.3g} times the white "
-            f"output noise the samples' differences show ({noise:.3g}): the model does not "
-            f"explain the records (a missing term?), or their noise is not white")
-
-
 def check_refine(refine):
     """``refine`` as one of :data:`REFINE_CHOICES`, else an InputDataError."""
     if isinstance(refine, (bool, np.bool_)):
@@ -595,9 +559,6 @@ def refine_result(result, segments, step, refine, data_warnings=(), unavailable=
     # follows)
     warnings = info.residual_test.warnings() \
         + [w for w in result.warnings if w in data_warnings]
-    misfit = residual_noise_warning(info.rms_after, segments, model.output)
-    if misfit is not None and all(w in data_warnings for w in warnings):
-        warnings.append(misfit)   # no cause named, but the residuals are no noise
     return replace(result, values=values, covariance=covariance, estimate="refined",
                    numerical_error=dict(zip(model.parameters,
                                             info.numerical_error.tolist())),
