@@ -35,7 +35,7 @@ CASES = {
     "right, AR(1) noise": ({"colour": True}, None),
     "offset missing in equation 1": ({"offset": 0.5}, "offset"),
     "cubic spring missing in equation 1": ({"cubic": 300.0}, "x1**3"),
-    "x2 3 samples late": ({"shift": 3}, "delayed by about 3 samples"),
+    "x2 3 samples late": ({"shift": 3}, "x2 simulated delayed"),
     "slow drift of the force": ({"drift": 0.02}, "drift"),
 }
 
