@@ -316,11 +316,13 @@ def test_noise_meat_is_the_covariance_of_the_window_equations_noise(uniform):
     meat = noise_meat(problem, length, a, theta_bar, scores,
                       length // WINDOW_OVERLAP)
 
+    bound = problem.noise_bound()   # (the noise variance the cubic's mean loses, held)
+
     def equations(y_shift, s):
         seg = segments[s]
         saved = seg.values[model.output]
         seg.values[model.output] = saved + y_shift
-        problem.cache = ProblemCache()
+        problem.cache = ProblemCache(noise_bound=bound)
         A1, b1, ids1 = problem.rows(length, a)
         seg.values[model.output] = saved
         problem.cache = ProblemCache()

@@ -60,6 +60,7 @@ from algid.identification._window_problem import (
     factor_sensitivity,
     is_sign_factor,
     noise_bound_from_sums,
+    noise_curvature,
     spread_ranges,
     term_rows,
     window_stride,
@@ -499,6 +500,10 @@ class StreamedProblem(WindowProblem):
         """A factor's largest absolute sample, in its power of two."""
         return float(np.ldexp(self.scan.largest[factor], -self.factor_exponent(factor)))
 
+    def difference_sums(self):
+        """The output's :func:`difference_sums` from the scan (in its unit)."""
+        return self.scan.differences
+
     def noise_bound(self, signal=None):
         """The bound of :meth:`WindowProblem.noise_bound` from the scan's sums."""
         if self.cache.noise_bound is None:   # (the sums are in the output's unit)
@@ -533,7 +538,8 @@ class StreamedProblem(WindowProblem):
         rows = _RowPass(self.model, self.segments, keys, self.exponents()[2],
                         {f: self.factor_exponent(f) for f in self.scan.largest},
                         self.scan.signals, self.time_column, self.rate,
-                        None if self.uniform_noise else self.noise_paths())
+                        None if self.uniform_noise else self.noise_paths(),
+                        self.output_noise_variance())
         rows.clock = [self.scan.origin]
         for key, (A, b, ids, grams) in self.source.reduce(rows, self.columns,
                                                           self.chunk).finish().items():
@@ -558,7 +564,8 @@ class StreamedProblem(WindowProblem):
             return self.uniform_noise_meat(length, multiplicity, theta_bar, scores, stride)
         meat = _MeatPass(self.segments, self.windows(length), length, multiplicity,
                          theta_bar, scores, stride, self.noise_paths(), self.model,
-                         self.scan.signals, self.time_column, self.rate)
+                         self.scan.signals, self.time_column, self.rate,
+                         self.output_noise_variance())
         meat.clock = [self.scan.origin]
         return self.source.reduce(meat, self.columns, self.chunk).finish()
 
@@ -598,10 +605,12 @@ class _RowPass(_RunPass):
     record's chunks in order (:meth:`feed`): in this process, or along a chain of tasks
     on a cluster (it pickles; :meth:`take` hands over the rows made so far)."""
 
-    def __init__(self, model, runs, keys, shifts, units, signals, time, rate, paths=None):
+    def __init__(self, model, runs, keys, shifts, units, signals, time, rate, paths=None,
+                 variance=0.0):
         self.model, self.runs, self.keys, self.shifts = model, runs, keys, shifts
         self.units, self.signals, self.time, self.rate = units, signals, time, rate
         self.paths = paths                # the noise's paths (None: the same in every window)
+        self.variance = variance          # the output noise's (noise_curvature)
         self.clock = [None]               # the first time of a record of dates
         self.run = 0                      # the run being read
         self.buffer, self.origin, self.done = None, 0, None
@@ -618,10 +627,12 @@ class _RowPass(_RunPass):
         _check_uniform(run, t, row)
         for f, unit in self.units.items():
             with np.errstate(over="ignore", under="ignore", invalid="ignore"):
-                z = np.asarray(f.evaluate(values, t), dtype=float) * np.ones(len(t))
+                z = np.asarray(f.evaluate(values, t), dtype=float) * np.ones(len(t)) \
+                    - noise_curvature(f, self.model.output, values, t, self.variance,
+                                      1e-3 * max(run.output_largest, 1e-300))
             self.buffer[f] = np.concatenate([self.buffer[f], np.ldexp(z, -unit)])
         for f, z in _sensitivities(self.paths or (), self.model.output, values, t,
-                                   run).items():
+                                   run, self.variance).items():
             key = ("sensitivity", f)
             self.buffer[key] = np.concatenate([self.buffer[key], z])
         self._windows(run, end)
@@ -715,7 +726,7 @@ def _check_uniform(run, t, first):
             f"uniformly sampled (load it and pass it in memory, or resample it)")
 
 
-def _sensitivities(paths, output, values, t, run):
+def _sensitivities(paths, output, values, t, run, variance):
     """Per factor of ``paths``, its derivative with respect to the output's samples, in
     the units of the rows (as :meth:`WindowProblem.sensitivity`: the step of the central
     differences from the run's largest output sample)."""
@@ -726,8 +737,9 @@ def _sensitivities(paths, output, values, t, run):
         if factor == Signal(output):
             out[factor] = np.ones(len(t))
         else:
-            h = 1e-6 * max(run.output_largest, 1e-300)
-            out[factor] = np.ldexp(factor_sensitivity(factor, output, values, t, h), shift)
+            largest = max(run.output_largest, 1e-300)
+            out[factor] = np.ldexp(factor_sensitivity(factor, output, values, t, 1e-6 * largest,
+                                                      variance, largest), shift)
     return out
 
 
@@ -738,10 +750,11 @@ class _MeatPass(_RunPass):
     with the neighbours they share samples with."""
 
     def __init__(self, runs, counts, length, multiplicity, theta_bar, scores, stride, paths,
-                 model, signals, time, rate):
+                 model, signals, time, rate, variance=0.0):
         self.runs, self.counts, self.length, self.multiplicity = runs, counts, length, \
             multiplicity
         self.stride, self.paths, self.model = stride, paths, model
+        self.variance = variance          # the output noise's (noise_curvature)
         self.signals, self.time, self.rate = signals, time, rate
         self.scores = scores
         self.clock = [None]
@@ -757,7 +770,8 @@ class _MeatPass(_RunPass):
 
     def _piece(self, run, t, values, row, end, ended):
         """A run's samples at rows ``row ..``, its first ``end`` samples read so far."""
-        for f, z in _sensitivities(self.paths, self.model.output, values, t, run).items():
+        for f, z in _sensitivities(self.paths, self.model.output, values, t, run,
+                                   self.variance).items():
             self.buffer[f] = np.concatenate([self.buffer[f], z])
         self._windows(run, end, ended)
 

@@ -37,8 +37,9 @@ from algid.models._expression import Call, Constant, Signal
 from algid.signals._differentiation import algebraic_derivative
 
 __all__ = ["WindowProblem", "ProblemCache", "FactorSamples", "term_rows", "is_sign_factor",
-           "factor_sensitivity", "difference_noise_bound", "noise_bound_from_sums",
-           "DIFFERENCE_ORDERS", "add_derivatives",
+           "factor_sensitivity", "noise_curvature", "difference_noise_bound",
+           "difference_sums", "noise_bound_from_sums", "noise_variance_from_sums",
+           "DIFFERENCE_ORDERS", "FLAT_DIFFERENCES", "add_derivatives",
            "derivative_estimate", "MULTIPLICITIES", "WINDOW_OVERLAP", "window_stride",
            "spread_ranges", "RULE_WINDOWS", "RULE_EXCERPTS"]
 
@@ -121,6 +122,10 @@ def window_stride(length):
 #: Orders of the samples' differences that bound the variance of white noise on them.
 DIFFERENCE_ORDERS = range(1, 9)
 
+#: Three consecutive orders of differences whose noise bounds agree within this ratio
+#: show the output's noise, not its signal (:func:`noise_variance_from_sums`).
+FLAT_DIFFERENCES = 1.15
+
 
 class FactorSamples(NamedTuple):
     """A factor's samples per segment, over ``2**exponent`` (the power of two of the
@@ -144,6 +149,7 @@ class ProblemCache:
     # factor does not read it), in the units of the measured samples
     sensitivities: dict = field(default_factory=dict)
     noise_bound: float | None = None
+    noise_variance: float | None = None   # (output_noise_variance, in the output's unit)
     excited: bool = False   # check_excited passed
 
     def forget_factors(self, factors):
@@ -385,6 +391,9 @@ class WindowProblem:
                     with np.errstate(over="ignore", under="ignore", invalid="ignore"):
                         z = np.asarray(factor.evaluate(values, seg.t), dtype=float) \
                             * np.ones(len(seg))
+                        if which == "measured":
+                            z = z - noise_curvature(factor, self.model.output, values,
+                                                    seg.t, self.output_noise_variance())
                     steps.append(None)
                     crossings.append(None)
                 samples.append(z)
@@ -408,6 +417,21 @@ class WindowProblem:
                         for time, size, first, fit in crossings[s]]
             self.cache.samples[key] = FactorSamples(samples, e)
         return self.cache.samples[key].values
+
+    def output_noise_variance(self):
+        """The output noise's variance, in the output's own units squared, where the
+        samples' differences show it (:func:`noise_variance_from_sums`; else 0): what
+        :func:`noise_curvature` removes the mean of."""
+        if self.cache.noise_variance is None:
+            self.cache.noise_variance = noise_variance_from_sums(self.difference_sums())
+        with np.errstate(over="ignore"):   # (signals near the floating-point range)
+            variance = np.ldexp(self.cache.noise_variance, 2 * self.output_exponent)
+        return float(variance) if np.isfinite(variance) else 0.0
+
+    def difference_sums(self):
+        """:func:`difference_sums` of the output on the segments, in its unit."""
+        return difference_sums([np.ldexp(seg.values[self.model.output],
+                                         -self.output_exponent) for seg in self.segments])
 
     def factor_exponent(self, factor, which="measured"):
         """The power of two of a factor's largest sample (that of :meth:`factor_samples`)."""
@@ -538,8 +562,10 @@ class WindowProblem:
             elif factor == Signal(signal):
                 cache[key] = [np.ones(len(seg)) for seg in self.segments]
             else:
+                variance = self.output_noise_variance() \
+                    if signal == self.model.output else 0.0
                 cache[key] = [np.ldexp(factor_sensitivity(factor, signal, seg.values,
-                                                          seg.t), shift)
+                                                          seg.t, variance=variance), shift)
                               for seg in self.user_segments]
         return cache[key]
 
@@ -645,21 +671,58 @@ def is_sign_factor(factor):
     return isinstance(factor, Call) and factor.function == "sign"
 
 
-def difference_noise_bound(y):
-    """The bound of :meth:`WindowProblem.noise_bound` on samples ``y`` (one array per segment)."""
+def difference_sums(y):
+    """The sums of squares and counts of the differences of every order of
+    :data:`DIFFERENCE_ORDERS` of samples ``y`` (one array per segment)."""
     sums = []
     for k in DIFFERENCE_ORDERS:
         d = [np.diff(v, k) for v in y if len(v) > k]
         sums.append((sum(float(v @ v) for v in d), sum(len(v) for v in d)))
-    return noise_bound_from_sums(sums)
+    return sums
+
+
+def difference_noise_bound(y):
+    """The bound of :meth:`WindowProblem.noise_bound` on samples ``y`` (one array per segment)."""
+    return noise_bound_from_sums(difference_sums(y))
+
+
+def _order_bounds(sums):
+    return [total / count / comb(2 * k, k) if count else np.inf
+            for (total, count), k in zip(sums, DIFFERENCE_ORDERS)]
 
 
 def noise_bound_from_sums(sums):
     """The noise bound from the sums of squares and counts of the differences of each
     order of :data:`DIFFERENCE_ORDERS` (accumulated over a record or a stream)."""
-    bounds = [total / count / comb(2 * k, k)
-              for (total, count), k in zip(sums, DIFFERENCE_ORDERS) if count]
+    bounds = [b for b in _order_bounds(sums) if np.isfinite(b)]
     return min(bounds) if bounds else np.inf
+
+
+def noise_variance_from_sums(sums):
+    """The output noise's variance where the differences show it, else 0.
+
+    White noise gives every order ``k`` of differences the variance ``C(2k, k) var``,
+    so its bounds (:func:`noise_bound_from_sums`) agree from order to order; where the
+    signal's own differences make the smallest one (a noise-free or undersampled
+    record), they do not.  The smallest bound is taken as the variance where it and its
+    neighbours (three consecutive orders) agree within :data:`FLAT_DIFFERENCES`.
+
+    Parameters
+    ----------
+    sums : list of (float, int)
+        As in :func:`noise_bound_from_sums`.
+
+    Returns
+    -------
+    float
+    """
+    bounds = _order_bounds(sums)
+    best = int(np.argmin(bounds))
+    lo = min(max(best - 1, 0), len(bounds) - 3)
+    near = bounds[lo:lo + 3]
+    if not (np.all(np.isfinite(near)) and bounds[best] > 0):
+        return 0.0
+    return float(bounds[best]) if max(near) <= FLAT_DIFFERENCES * bounds[best] else 0.0
 
 
 def term_rows(model, integrals, shifts, n_win):
@@ -677,16 +740,67 @@ def term_rows(model, integrals, shifts, n_win):
     return A, b
 
 
-def factor_sensitivity(factor, output, values, t, h=None):
-    """Derivative of a factor's samples with respect to the output's (central differences
-    of step ``h``, by default 1e-6 of the largest output sample)."""
+def noise_curvature(factor, output, values, t, variance, h=None):
+    """What white output noise of ``variance`` adds to a factor's mean, to remove from its
+    samples: ``variance / 2`` times its second derivative in the output.
+
+    ``E[f(y + e)] = f(y) + f''(y) var / 2 + ...``: a cubic spring's ``y**3`` on a noisy
+    output has the mean ``y**3 + 3 var y``, a term in ``y`` that biases the linear
+    stiffness by ``-3 var K3`` (on a Duffing record at 25 dB, 0.8 of the Cramér–Rao
+    bound).  The second difference (step ``1e-3`` of the largest output sample) is exact
+    for powers up to 3, so ``y**3 - 3 var y`` and ``y**2 - var`` are unbiased; other
+    smooth factors keep a bias of order ``var**2``.  Factors that do not read the output,
+    read it plainly or read its derivatives (whose noise is the differentiator's, not
+    the samples') are left as they are (0 is returned).
+
+    Parameters
+    ----------
+    factor : Expression
+    output : str
+    values : mapping
+        The signals' samples (the factor's arguments).
+    t : numpy.ndarray
+    variance : float
+        The output noise's variance, in the output's units squared.
+    h : float, optional
+        The step of the second difference; by default ``1e-3`` of the largest output
+        sample of ``values`` (a record read in chunks gives its run's).
+
+    Returns
+    -------
+    numpy.ndarray or float
+    """
+    if not variance > 0 or output not in factor.signals() or factor == Signal(output) \
+            or any(name == output for name, _ in factor.derivatives()):
+        return 0.0
     y = values[output]
-    h = 1e-6 * max(float(np.max(np.abs(y))), 1e-300) if h is None else h
-    up, down = dict(values), dict(values)
-    up[output], down[output] = y + h, y - h
-    difference = (np.asarray(factor.evaluate(up, t), dtype=float)
-                  - np.asarray(factor.evaluate(down, t), dtype=float))
-    return difference / (2 * h) * np.ones(len(t))
+    h = 1e-3 * max(float(np.max(np.abs(y))), 1e-300) if h is None else h
+    f = []
+    for k in (-1, 0, 1):
+        shifted = dict(values)
+        shifted[output] = y + k * h
+        f.append(np.asarray(factor.evaluate(shifted, t), dtype=float))
+    second = f[2] - 2 * f[1] + f[0]
+    if np.all(np.abs(second) <= 64 * np.finfo(float).eps * (np.abs(f[2]) + np.abs(f[0]))):
+        return 0.0   # linear in the output (y*u): round-off, not curvature
+    return 0.5 * variance * second / h ** 2
+
+
+def factor_sensitivity(factor, output, values, t, h=None, variance=0.0, largest=None):
+    """Derivative of a factor's samples with respect to the output's (central differences
+    of step ``h``, by default 1e-6 of the largest output sample); with ``variance``, of
+    the factor less its :func:`noise_curvature` (its step from ``largest``, the largest
+    output sample of the segment, by default of ``values``)."""
+    y = values[output]
+    largest = max(float(np.max(np.abs(y))), 1e-300) if largest is None else largest
+    h = 1e-6 * largest if h is None else h
+    sides = []
+    for shift in (h, -h):
+        moved = dict(values)
+        moved[output] = y + shift
+        sides.append(np.asarray(factor.evaluate(moved, t), dtype=float)
+                     - noise_curvature(factor, output, moved, t, variance, 1e-3 * largest))
+    return (sides[0] - sides[1]) / (2 * h) * np.ones(len(t))
 
 
 def add_derivatives(model, segments, estimator):
