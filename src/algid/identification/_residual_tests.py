@@ -511,6 +511,7 @@ def system_residual_test(residuals, theta, residual, J, ar, dof):
     -------
     ResidualTest
     """
+    from algid.errors import AlgidError
     from algid.models._system import parse_system
     from algid.simulation._system import (
         StateSpace,
@@ -530,9 +531,12 @@ def system_residual_test(residuals, theta, residual, J, ar, dof):
     for model, name in zip(system.equations, names):
         left, _, right = model.equation.partition("=")
         extended.append(f"{left}= {right} + {name}")
-    space = state_space(parse_system(extended, system.parameters,
-                                     outputs=system.outputs), values)
-    base = state_space(system, values)
+    try:
+        space = state_space(parse_system(extended, system.parameters,
+                                         outputs=system.outputs), values)
+        base = state_space(system, values)
+    except AlgidError:   # (a system the grammar or the simulator takes only as it is)
+        return ResidualTest()
     rows = [space.outputs.index(y) for y in observed]
     fitted, free, free_bounds, outputs, at = [], [], [], [], 0
     for seg, x0 in zip(residuals.segments, residuals.states):
