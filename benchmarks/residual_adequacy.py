@@ -91,32 +91,42 @@ def record(clean, seed, colour=False):
     return {"t": t, "u": u, "y": clean + np.sqrt(np.mean(clean ** 2)) / 31.6 * e}
 
 
+def tally(name, results, cause, runs):
+    """One class's row: of ``results`` (identify's, one per record), those that warn,
+    those whose first warning holds ``cause`` (None: a right model), those refined."""
+    warned = named = refined = 0
+    for r in results:
+        refined += r.estimate == "refined"
+        warned += bool(r.warnings)
+        named += bool(cause and r.warnings and cause in r.warnings[0])
+    print(f"{name:36} warned {warned:3d}/{runs}  cause named first {named:3d}  "
+          f"refined {refined:3d}", flush=True)
+    return {"runs": runs, "warned": warned, "named": named, "refined": refined,
+            "right": cause is None}
+
+
 def study(runs, names=None):
     """Per class: warned, named (the first warning names the cause), refined."""
     out = {}
     for name in names or CASES:
         truth_eq, values, model, options, cause = CASES[name]
         clean = None if truth_eq is None else clean_output(truth_eq, values, options)
-        warned = named = refined = 0
-        for seed in range(runs):
-            if truth_eq is None:
-                rec, _ = friction_loop(seed, n=30000, noise=1e-6)
-            else:
-                rec = record(clean, seed, options.get("colour", False))
-            r = algid.identify(rec, *model)
-            refined += r.estimate == "refined"
-            warned += bool(r.warnings)
-            named += bool(cause and r.warnings and cause in r.warnings[0])
-        out[name] = {"runs": runs, "warned": warned, "named": named, "refined": refined,
-                     "right": cause is None}
-        print(f"{name:24} warned {warned:3d}/{runs}  cause named first {named:3d}  "
-              f"refined {refined:3d}", flush=True)
+
+        def records(clean=clean, truth_eq=truth_eq, options=options):
+            for seed in range(runs):
+                if truth_eq is None:
+                    yield friction_loop(seed, n=30000, noise=1e-6)[0]
+                else:
+                    yield record(clean, seed, options.get("colour", False))
+
+        out[name] = tally(name, (algid.identify(rec, *model) for rec in records()), cause,
+                          runs)
     return out
 
 
-def main(argv=None):
-    """Print the table (and write it with ``--json FILE``)."""
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+def command_line(study, doc, argv=None):
+    """The command line of an adequacy study: ``--runs``, ``--cases``, ``--json``."""
+    parser = argparse.ArgumentParser(description=doc.splitlines()[0])
     parser.add_argument("--runs", type=int, default=30)
     parser.add_argument("--cases", nargs="*", default=None)
     parser.add_argument("--json", default=None)
@@ -126,6 +136,11 @@ def main(argv=None):
         with open(args.json, "w") as f:
             json.dump(out, f, indent=1)
     return out
+
+
+def main(argv=None):
+    """Print the table (and write it with ``--json FILE``)."""
+    return command_line(study, __doc__, argv)
 
 
 if __name__ == "__main__":

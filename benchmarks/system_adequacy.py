@@ -16,15 +16,13 @@ DOP853 at 1e-11 on a cubic spline of the input.
 
 from __future__ import annotations
 
-import argparse
-import json
-
 import numpy as np
 from scipy.integrate import solve_ivp
 from scipy.interpolate import CubicSpline
 from scipy.signal import lfilter
 
 import algid
+from benchmarks.residual_adequacy import command_line, tally
 from benchmarks.systems_study import RATE, SNR_DB, SYSTEMS
 
 SPEC = SYSTEMS["two_mass"]
@@ -81,32 +79,15 @@ def study(runs, names=None):
     for name in names or CASES:
         changes, cause = CASES[name]
         clean = clean_record(**changes)
-        warned = named = refined = 0
-        for seed in range(1000, 1000 + runs):
-            result = algid.identify(record(clean, seed, **changes), SPEC["equations"],
-                                    list(SPEC["truth"]))
-            refined += result.estimate == "refined"
-            warned += bool(result.warnings)
-            named += bool(cause and result.warnings and cause in result.warnings[0])
-        out[name] = {"runs": runs, "warned": warned, "named": named, "refined": refined,
-                     "right": cause is None}
-        print(f"{name:36} warned {warned:3d}/{runs}  cause named first {named:3d}  "
-              f"refined {refined:3d}", flush=True)
+        results = (algid.identify(record(clean, seed, **changes), SPEC["equations"],
+                                  list(SPEC["truth"])) for seed in range(1000, 1000 + runs))
+        out[name] = tally(name, results, cause, runs)
     return out
 
 
 def main(argv=None):
     """Print the table (and write it with ``--json FILE``)."""
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--runs", type=int, default=30)
-    parser.add_argument("--cases", nargs="*", default=None)
-    parser.add_argument("--json", default=None)
-    args = parser.parse_args(argv)
-    out = study(args.runs, args.cases)
-    if args.json:
-        with open(args.json, "w") as f:
-            json.dump(out, f, indent=1)
-    return out
+    return command_line(study, __doc__, argv)
 
 
 if __name__ == "__main__":
