@@ -467,3 +467,45 @@ def test_values_of_your_choosing_simulate_as_identified_ones():
         given.with_parameters({"nope": 1.0})
     with pytest.raises(InputDataError, match="mapping"):
         algid.IdentificationResult.from_values(LINEAR_EQUATION[0], [1.0, 2.0])
+
+
+def test_the_noise_s_mean_in_a_nonlinear_factor_is_removed_exactly():
+    """``E[(y + e)**3] = y**3 + 3 var y``: the cubic loses ``3 var y``, the square
+    ``var``; a factor linear in the output (``y*u``), the output itself, a derivative's
+    power and a factor without the output lose nothing."""
+    from algid.identification._window_problem import noise_curvature
+    from algid.models._grammar import parse_equation
+
+    t = np.linspace(0.0, 1.0, 101)
+    y, u = np.sin(3 * t) + 0.2, np.cos(5 * t)
+    values = {"y": y, "u": u, ("y", 1): 3 * np.cos(3 * t)}
+    model = parse_equation("y'' + a*y' + b*y + c*y**3 + e*y**2 + f*y*u + g*y'**3 = u",
+                           "a b c e f g")
+    factors = {str(term.factor): term.factor for term in model.terms}
+    var = 0.01
+    np.testing.assert_allclose(noise_curvature(factors["y**3"], "y", values, t, var),
+                               3 * var * y, rtol=1e-9)
+    np.testing.assert_allclose(noise_curvature(factors["y**2"], "y", values, t, var),
+                               var, rtol=1e-9)
+    for name in ("y", "u*y", "y'**3", "u"):
+        assert np.all(noise_curvature(factors[name], "y", values, t, var) == 0.0), name
+
+
+def test_the_noise_variance_is_taken_only_where_the_differences_show_it():
+    """White noise: every order of differences gives its variance, which is taken; a
+    noise-free record (its differences the signal's): none, where the bound alone
+    would have made one of the signal."""
+    from algid.identification._window_problem import (
+        difference_sums,
+        noise_bound_from_sums,
+        noise_variance_from_sums,
+    )
+
+    t = np.arange(20000) / 1000.0
+    signal = np.sin(2 * np.pi * 1.3 * t) + 0.3 * np.sin(2 * np.pi * 4.1 * t)
+    noisy = signal + 0.02 * np.random.default_rng(0).standard_normal(len(t))
+    assert abs(noise_variance_from_sums(difference_sums([noisy])) / 0.02 ** 2 - 1) < 0.05
+    for clean in (signal, signal[::25]):   # 1 kHz, and 40 Hz: few samples per period
+        sums = difference_sums([clean])
+        assert noise_bound_from_sums(sums) > 0
+        assert noise_variance_from_sums(sums) == 0.0
