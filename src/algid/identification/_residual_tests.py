@@ -495,7 +495,8 @@ def system_residual_test(residuals, theta, residual, J, ar, dof):
     Parameters
     ----------
     residuals : algid.identification._system_refinement.SimulationResiduals
-        At the refined estimate (its segments, weights and fitted initial states).
+        Last called at the refined estimate (its segments, weights, fitted initial
+        states and free responses).
     theta : numpy.ndarray
         The refined parameters.
     residual : numpy.ndarray
@@ -513,12 +514,7 @@ def system_residual_test(residuals, theta, residual, J, ar, dof):
     """
     from algid.errors import AlgidError
     from algid.models._system import parse_system
-    from algid.simulation._system import (
-        StateSpace,
-        free_responses,
-        simulate_space,
-        state_space,
-    )
+    from algid.simulation._system import StateSpace, simulate_space, state_space
 
     system = residuals.system
     values = dict(zip(system.parameters, theta))
@@ -538,12 +534,10 @@ def system_residual_test(residuals, theta, residual, J, ar, dof):
     except AlgidError:   # (a system the grammar or the simulator takes only as it is)
         return ResidualTest()
     rows = [space.outputs.index(y) for y in observed]
-    fitted, free, free_bounds, outputs, at = [], [], [], [], 0
+    fitted, free_bounds, outputs, at = [], [], [], 0
     for seg, x0 in zip(residuals.segments, residuals.states):
         inputs = {u: seg.values[u] for u in system.inputs}
         fitted.append(simulate_space(base, seg.t, inputs, x0))   # every output
-        F = free_responses(base, seg.t)[:, rows] * weights[None, :, None]
-        free.append(F.reshape(len(F), -1).T)
         free_bounds.append((at, at + len(rows) * len(seg)))
         at += len(rows) * len(seg)
         outputs.append(np.ravel([seg.values[y] * w for y, w in zip(observed, weights)]))
@@ -586,8 +580,8 @@ def system_residual_test(residuals, theta, residual, J, ar, dof):
             pieces.append(shift.ravel())
         directions[f"delay of {y}"] = ("", pieces)
     step = float(np.median(np.diff(residuals.segments[0].t)))
-    test, _ = score_directions(directions, outputs, residual, free, J, residuals.bounds(),
-                               ar, dof, step, free_bounds)
+    test, _ = score_directions(directions, outputs, residual, residuals.bases, J,
+                               residuals.bounds(), ar, dof, step, free_bounds)
     for y in observed:   # the shift, in samples: y(t) = yhat(t - tau)
         tau = test.coefficients.get(f"delay of {y}")
         if tau is not None:

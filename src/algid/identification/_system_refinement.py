@@ -48,7 +48,8 @@ class SimulationResiduals:
         self.segments = segments
         self.sigma = sigma
         self.evaluations = 0
-        self.states = []
+        self.states = []   # per segment, the fitted initial state (of the last call)
+        self.bases = []    # per segment, the weighted free responses (rows x states)
 
     def __call__(self, theta):
         self.evaluations += 1
@@ -63,7 +64,7 @@ class SimulationResiduals:
             return None
 
     def _residuals(self, space):
-        blocks, states = [], []
+        blocks, states, bases = [], [], []
         outputs = self.observed
         rows = [space.outputs.index(y) for y in outputs]
         with np.errstate(over="ignore", invalid="ignore"):
@@ -79,8 +80,9 @@ class SimulationResiduals:
                     return None
                 x0 = np.linalg.lstsq(basis, rhs, rcond=None)[0]
                 states.append(x0)
+                bases.append(basis)
                 blocks.append(rhs - basis @ x0)
-        self.states = states
+        self.states, self.bases = states, bases
         r = np.concatenate(blocks)
         return r if np.all(np.isfinite(r)) else None
 
