@@ -1,18 +1,17 @@
 """Least squares with the bias that white output noise causes removed (Koopmans'
 estimator), for the window equations of :func:`algid.identify` and its systems.
 
-:class:`algid.Tracker` solves the same estimator window after window in its loops
-(``_tracker_solve._koopmans``: the same equilibration, eligibility, top eigenpair and
-correction of the bound, its generalised eigenproblem by a Cholesky reduction and
-Jacobi rotations where this module calls LAPACK's ``sygvd``); the two agree to
-round-off, which the Tracker's tests check against identify."""
+The estimator itself is written once, in loops,
+:func:`algid.identification._tracker_solve.koopmans`, which :class:`algid.Tracker` runs
+window after window (compiled by numba when installed); :func:`koopmans` here calls it
+on a problem's sums, as Python unless the Tracker has compiled it in the process: the
+same operations in the same order, the same numbers."""
 
 from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["bias_compensated", "least_squares", "koopmans", "koopmans_stack",
-           "solve_equilibrated"]
+__all__ = ["bias_compensated", "least_squares", "koopmans", "solve_equilibrated"]
 
 
 def bias_compensated(A, b, grams, bound=np.inf):
@@ -59,18 +58,16 @@ def bias_compensated(A, b, grams, bound=np.inf):
         The noise variance of the correction: the eigenvalue, or ``bound`` where the
         eigenvalue exceeds it (the misfit is not only output noise); None where no
         correction was made (plain least squares).
-    capped : bool
-        Whether the variance is the cap ``bound``.
     """
     p = A.shape[1]
     phi = np.column_stack([A, b])
     noise = grams.sum(axis=0)
-    theta_bar, variance, capped = koopmans(phi.T @ phi, noise, bound)
+    theta_bar, variance = koopmans(phi.T @ phi, noise, bound)
     if theta_bar is None:
         return least_squares(A, b, grams, bound)
     theta = theta_bar[:p]
     scores = A * (b - A @ theta)[:, None] + variance * (grams @ theta_bar)[:, :p]
-    return theta, scores, A.T @ A - variance * noise[:p, :p], variance, capped
+    return theta, scores, A.T @ A - variance * noise[:p, :p], variance
 
 
 def least_squares(A, b, grams=None, bound=None):
@@ -90,18 +87,13 @@ def least_squares(A, b, grams=None, bound=None):
     theta, scores, jacobian : numpy.ndarray
         The estimate, its estimating equations per window and their derivative.
     variance : None
-    capped : bool
-        False.
     """
     theta = np.linalg.lstsq(A, b, rcond=None)[0]
-    return theta, A * (b - A @ theta)[:, None], A.T @ A, None, False
+    return theta, A * (b - A @ theta)[:, None], A.T @ A, None
 
 
 def koopmans(normal, noise, bound=np.inf):
     """The solve of :func:`bias_compensated` from the sums of its equations.
-
-    :func:`koopmans_stack` on a stack of one, its generalised eigenproblem solved by
-    LAPACK's ``sygvd`` (:func:`scipy.linalg.eigh`).
 
     Parameters
     ----------
@@ -118,116 +110,25 @@ def koopmans(normal, noise, bound=np.inf):
         ``(theta, -1)``; None where no correction applies (plain least squares).
     variance : float or None
         As in :func:`bias_compensated`.
-    capped : bool
-        Whether the variance is the cap ``bound``.
-    """
-    theta_bar, variance, capped = koopmans_stack(normal[None], noise[None],
-                                                 np.array([bound], dtype=float))
-    if np.isnan(variance[0]):
-        return None, None, False
-    return theta_bar[0], variance[0], bool(capped[0])
-
-
-def koopmans_stack(normal, noise, bound):
-    """Koopmans' estimator on a stack of problems.
-
-    Per problem: the top eigenpair ``(mu, v)`` of the pencil ``(noise, normal)``, both
-    equilibrated by the square roots of ``diag(normal)``, gives ``theta_bar = -v /
-    v[-1]`` and the variance ``1 / mu`` when that is at most ``bound``; above it, the
-    correction of ``bound`` (least squares with a known variance); no correction where
-    the noise is zero, ``bound`` is not positive or ``normal`` is not positive definite.
-    Each problem's result is independent of the others in the stack.
-
-    Parameters
-    ----------
-    normal, noise : numpy.ndarray, shape (k, p + 1, p + 1)
-        As in :func:`koopmans`, per problem.
-    bound : numpy.ndarray, shape (k,)
-        Upper bounds on the output noise variance.
-
-    Returns
-    -------
-    theta_bar : numpy.ndarray, shape (k, p + 1)
-        ``(theta, -1)``, NaN where no correction applies.
-    variance : numpy.ndarray, shape (k,)
-        The noise variance of the correction, NaN where none.
-    capped : numpy.ndarray of bool, shape (k,)
-        Whether the variance is the cap ``bound``.
 
     Examples
     --------
     >>> import numpy as np
-    >>> normal = np.array([[[2.0, 1.0], [1.0, 2.0]]])
-    >>> theta_bar, variance, capped = koopmans_stack(normal, np.eye(2)[None],
-    ...                                              np.array([np.inf]))
-    >>> theta_bar.round(6).tolist(), variance.round(6).tolist(), capped.tolist()
-    ([[1.0, -1.0]], [1.0], [False])
+    >>> theta_bar, variance = koopmans(np.array([[2.0, 1.0], [1.0, 2.0]]), np.eye(2))
+    >>> theta_bar.round(6).tolist(), round(variance, 6)
+    ([1.0, -1.0], 1.0)
     """
-    k, q1, _ = normal.shape
-    p = q1 - 1
-    theta_bar = np.full((k, q1), np.nan)
-    variance = np.full(k, np.nan)
-    capped = np.zeros(k, bool)
-    diagonal = np.sqrt(np.einsum("kii->ki", normal))
-    diagonal[diagonal == 0] = 1.0
-    eligible = np.any(noise != 0, axis=(1, 2)) & (bound > 0)
-    top, v, ok = _pencil_lapack(normal, noise, diagonal, eligible)
-    eligible &= ok
-    if not np.any(eligible):
-        return theta_bar, variance, capped
-    with np.errstate(divide="ignore", invalid="ignore"):
-        eigen = eligible & (top > 0) & (np.abs(v[:, -1]) * diagonal[:, -1] > 1e-8) \
-            & (1.0 / top <= bound)
-        theta_bar[eigen] = -v[eigen] / v[eigen, -1:]
-        variance[eigen] = 1.0 / top[eigen]
-    over = np.flatnonzero(eligible & ~eigen & (top > 0) & np.isfinite(bound))
-    if over.size:   # the eigenvalue exceeds the bound: the correction of the bound
-        cap = bound[over, None, None]
-        H = normal[over, :p, :p] - cap * noise[over, :p, :p]
-        g = normal[over, :p, p] - cap[:, :, 0] * noise[over, :p, p]
-        d = np.sqrt(np.abs(np.einsum("kii->ki", H)))
-        d[d == 0] = 1.0
-        H = H / d[:, :, None] / d[:, None, :]
-        solvable = np.isfinite(H).all(axis=(1, 2)) & np.isfinite(g).all(axis=1)
-        H[~solvable] = np.eye(p)
-        rhs = np.where(solvable[:, None], g / d, 0.0)[:, :, None]
-        try:
-            theta = np.linalg.solve(H, rhs)[:, :, 0] / d
-        except np.linalg.LinAlgError:   # some singular: one at a time
-            theta = np.zeros((len(over), p))
-            for i in range(len(over)):
-                try:
-                    theta[i] = np.linalg.solve(H[i], rhs[i])[:, 0] / d[i]
-                except np.linalg.LinAlgError:
-                    solvable[i] = False
-        keep = over[solvable]
-        theta_bar[keep, :p] = theta[solvable]
-        theta_bar[keep, p] = -1.0
-        variance[keep] = bound[keep]
-        capped[keep] = True
-    return theta_bar, variance, capped
+    # looked up at each call: Python until the Tracker compiles the loops in this
+    # process, compiled from then on (the same numbers; numba is not imported for this)
+    from algid.identification._tracker_solve import koopmans as koopmans_loops
 
-
-def _pencil_lapack(normal, noise, diagonal, eligible):
-    """Top eigenpairs of the equilibrated pencils ``(noise, normal)`` of a stack, by
-    LAPACK's ``sygvd`` one problem at a time.
-
-    Returns the top eigenvalues, their eigenvectors in the unscaled columns and which
-    problems were solved (``normal`` positive definite), for :func:`koopmans_stack`.
-    """
-    from scipy.linalg import eigh
-
-    k, q1, _ = normal.shape
-    top, v, ok = np.full(k, np.nan), np.full((k, q1), np.nan), np.zeros(k, bool)
-    for i in np.flatnonzero(eligible):
-        d = diagonal[i]
-        try:
-            mu, vectors = eigh(noise[i] / d[:, None] / d[None, :],
-                               normal[i] / d[:, None] / d[None, :])
-        except np.linalg.LinAlgError:     # exact equations (no noise): least squares
-            continue
-        top[i], v[i], ok[i] = mu[-1], vectors[:, -1] / d, True
-    return top, v, ok
+    normal = np.ascontiguousarray(normal, dtype=float)
+    noise = np.ascontiguousarray(noise, dtype=float)
+    theta_bar = np.empty(normal.shape[0])
+    variance = koopmans_loops(normal, noise, float(bound), theta_bar)
+    if np.isnan(variance):
+        return None, None
+    return theta_bar, float(variance)
 
 
 def solve_equilibrated(H, g):

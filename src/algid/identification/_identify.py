@@ -131,7 +131,6 @@ class _Solution(NamedTuple):
     scores: np.ndarray         # the estimating equations per window
     jacobian: np.ndarray       # their derivative
     variance: float | None     # the noise variance of a correction (None: none)
-    capped: bool               # whether that variance is the noise bound
     weights: np.ndarray        # the regressors or instruments of the scores
     separation: object         # the separability check (highest multiplicity), or None
     grams: np.ndarray | None   # per-window noise covariances of [A | b] in the basis
@@ -153,16 +152,16 @@ def _solve_multiplicity(problem, length, a, top, instruments=None, method="ls"):
         separation = separability(basis, problem.exact_columns, grams.sum(axis=0))
         if separation.proportional:
             raise ModelError(separation.message(problem.parameters))
-    variance, capped = None, False
+    variance = None
     weights = basis.A
     if instruments is not None:
         Z = weights = basis.instruments(instruments)
         phi = solve_equilibrated(Z.T @ basis.A, Z.T @ basis.b)
         scores, jacobian = Z * (basis.b - basis.A @ phi)[:, None], Z.T @ basis.A
     else:
-        phi, scores, jacobian, variance, capped = METHODS[method].solve(
+        phi, scores, jacobian, variance = METHODS[method].solve(
             basis.A, basis.b, grams, problem.noise_bound())
-    return _Solution(phi, basis, ids, scores, jacobian, variance, capped, weights,
+    return _Solution(phi, basis, ids, scores, jacobian, variance, weights,
                      separation, grams)
 
 
@@ -181,19 +180,19 @@ def _solve(problem, length, multiplicities, instruments=None, method="ls"):
             solution = current
     del current
     phi, basis, ids = solution.phi, solution.basis, solution.ids
-    variance, capped = solution.variance, solution.capped
+    variance = solution.variance
     r = basis.b - basis.A @ phi
     bread = np.linalg.pinv(solution.jacobian)
     theta_s = basis.theta(phi)
     theta_bar = np.append(theta_s, -1.0)   # in the units of the rows (noise_meat)
     stride = window_stride(length)
     noise = None
-    if variance is None and not capped:  # least squares: misfit per unit noise variance
+    if variance is None:  # least squares: misfit per unit noise variance
         weight = float(np.einsum("i,wij,j->", np.append(phi, -1.0), solution.grams,
                                  np.append(phi, -1.0)))
         variance = float(r @ r) / weight if weight > 0 else np.inf
         if not variance <= problem.noise_bound():
-            variance, capped = problem.noise_bound(), True
+            variance = problem.noise_bound()
     # the per-window noise matrices: their memory for noise_meat's
     solution = solution._replace(grams=None)
     if variance is not None and np.isfinite(variance) and variance > 0:

@@ -22,10 +22,10 @@ class Method(NamedTuple):
     Attributes
     ----------
     solve : callable
-        ``solve(A, b, grams, bound)`` -> ``theta, scores, jacobian, variance, capped``,
-        as :func:`algid.identification._bias_compensation.bias_compensated`: the
-        estimate, its estimating equations per window and their derivative, the noise
-        variance of its correction (None: none) and whether that is the bound.
+        ``solve(A, b, grams, bound)`` -> ``theta, scores, jacobian, variance``, as
+        :func:`algid.identification._bias_compensation.bias_compensated`: the estimate,
+        its estimating equations per window and their derivative, and the noise
+        variance of its correction (None: none).
     instrumental : bool
         Whether instrumental variables from the output simulated by ``solve``'s estimate
         refine it (``identify``'s ``iterations``).

@@ -193,7 +193,7 @@ def solve_normal(normal, noise, method):
     ``"ls"``."""
     P = normal.shape[0] - 1
     if method == "bc":
-        theta_bar, variance, _ = koopmans(normal, noise, 1.0)
+        theta_bar, variance = koopmans(normal, noise, 1.0)
         if theta_bar is not None:
             return theta_bar, variance
     d = np.sqrt(np.diag(normal)[:P])

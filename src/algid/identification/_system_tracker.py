@@ -52,6 +52,7 @@ from algid.identification._homogeneous import divisions, row_map, to_physical
 from algid.identification._records import GAP_FACTOR, Segment
 from algid.identification._system_identify import solve_normal
 from algid.identification._system_result import WEAK_RELATIVE_ERROR
+from algid.identification._tracker_kernels import compile_loops
 from algid.identification._tracker_state import (
     WARMUP_DOUBLINGS,
     TrackUpdate,
@@ -122,6 +123,7 @@ class SystemTracker:
             raise InputDataError(f"method must be 'bc' or 'ls' for a tracker, got {method!r}")
         check_seconds(window_or_none=window, half_life_or_none=half_life, warmup=warmup,
                       false_alarm_rate=false_alarm_rate, every_or_none=every)
+        compile_loops()   # its bias compensation, solved at every report
         self.system = system
         self.parameters = tuple(system.parameters)
         self.models = [m for m in system.equations if m.parameters]

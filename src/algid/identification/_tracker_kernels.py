@@ -34,9 +34,9 @@ from typing import NamedTuple
 
 import numpy as np
 
-from algid.identification._tracker_jit import USE_NUMBA, declined, jit
+from algid.identification._tracker_jit import USE_NUMBA, compile_marked, compiled, declined
 
-__all__ = ["Kernels", "window_sums", "window_scores", "kernels"]
+__all__ = ["Kernels", "window_sums", "window_scores", "compile_loops", "kernels"]
 
 
 class Kernels(NamedTuple):
@@ -222,6 +222,15 @@ def window_scores(rows, ends, decays, half_life, bars, lag_weights, U, ring_rows
         out_trace[w] = trace
 
 
+def compile_loops():
+    """Compile the loops of :mod:`algid.identification._tracker_solve` (when numba is
+    used): from then on, in this process, identify's bias compensation
+    (:func:`~algid.identification._tracker_solve.koopmans`) runs compiled too."""
+    import algid.identification._tracker_solve  # noqa: F401  (defines and marks the loops)
+
+    compile_marked()
+
+
 @cache
 def kernels():
     """The tracker's per-window loops, compiled when numba is used.
@@ -232,6 +241,7 @@ def kernels():
         The functions of this module and of
         :mod:`algid.identification._tracker_solve`.
     """
+    compile_loops()   # from here, the module's names are the compiled loops
     from algid.identification._tracker_solve import (
         difference_squares,
         noise_bounds,
@@ -245,5 +255,6 @@ def kernels():
         print("algid: numba is not installed, so the Tracker's loops run as Python, tens to "
               "hundreds of times slower than compiled (pip install 'algid[fast]' compiles "
               "them)", file=sys.stderr, flush=True)
-    return Kernels(jit(window_sums), jit(window_scores), window_rows, step_integrals,
-                   difference_squares, noise_bounds, solve_windows, window_stderr)
+    return Kernels(compiled(window_sums), compiled(window_scores), window_rows,
+                   step_integrals, difference_squares, noise_bounds, solve_windows,
+                   window_stderr)

@@ -9,8 +9,9 @@ arrays (so that it compiles, and can be written in C99):
   (columns scaled by powers of two, the triangular inverse), the check that the
   equations separate the parameters (one-sided Jacobi SVD), the parameters determined
   when some columns are proportional (a Givens QR of the kept columns), and the
-  bias compensation (Cholesky reduction of the generalised eigenproblem, cyclic Jacobi
-  eigenvalues, or the correction of the noise bound);
+  bias compensation, :func:`koopmans` (Cholesky reduction of the generalised
+  eigenproblem, cyclic Jacobi eigenvalues, or the correction of the noise bound), which
+  identify calls too;
 - :func:`window_rows`, :func:`step_integrals`: the window equations and their noise
   covariances (quadrature weights of uniform windows, exact integrals of steps);
 - :func:`difference_squares`, :func:`noise_bounds`: identify's bound on the output
@@ -21,7 +22,7 @@ arrays (so that it compiles, and can be written in C99):
 
 Each window's result depends on that window's sums alone, so the outputs do not depend
 on how the stream is cut into chunks; they agree with :func:`algid.identify` on the same
-windows to round-off (LAPACK there, Jacobi rotations here).
+windows to round-off (identify's least-squares parts call LAPACK).
 """
 
 from __future__ import annotations
@@ -34,7 +35,7 @@ from algid.identification._tracker_jit import jit as _jit
 from algid.identification._window_basis import DETERMINED_LEAK, ROUNDOFF_SEPARABILITY
 from algid.identification._window_covariance import INDEFINITE_RTOL
 
-__all__ = ["solve_windows", "window_stderr", "window_rows", "step_integrals",
+__all__ = ["koopmans", "solve_windows", "window_stderr", "window_rows", "step_integrals",
            "difference_squares", "noise_bounds"]
 
 
@@ -242,16 +243,43 @@ def _lu_inverse(A, out):
 
 
 @_jit
-def _koopmans(normal, noise, bound, theta_bar):
-    """The bias-compensated solution ``(theta, -1)`` of one window (``theta_bar``) and
-    the noise variance of the correction (NaN: none).
+def koopmans(normal, noise, bound, theta_bar):
+    """Koopmans' estimator from the sums of the window equations: the one implementation,
+    for :func:`algid.identify`, its systems and :class:`algid.Tracker`.
 
-    identify's estimator, ``koopmans_stack`` of
-    :mod:`algid.identification._bias_compensation`, in loops: the same equilibration,
-    eligibility, choice of the top eigenpair and correction of the bound.  The pencil
-    is reduced by the Cholesky factor of the equilibrated normal matrix and solved by
-    Jacobi rotations (LAPACK's ``sygvd`` there), so the two agree to round-off, not bit
-    for bit; a change to the estimator is made in both.
+    The top eigenpair ``(mu, v)`` of the pencil ``(noise, normal)``, both equilibrated by
+    the square roots of ``diag(normal)``, gives ``theta_bar = -v / v[p]`` and the noise
+    variance ``1 / mu`` when that is at most ``bound``; above it, the correction of
+    ``bound`` (least squares with a known variance).  No correction where the noise is
+    zero, ``bound`` is not positive or ``normal`` is not positive definite.  The pencil is
+    reduced by the Cholesky factor of the equilibrated ``normal`` and solved by cyclic
+    Jacobi rotations.
+
+    Parameters
+    ----------
+    normal : numpy.ndarray, shape (p + 1, p + 1)
+        ``Phi^T Phi`` of the window equations ``Phi = [A | b]`` (C-contiguous float64).
+    noise : numpy.ndarray, shape (p + 1, p + 1)
+        The sum of their per-window noise covariances.
+    bound : float
+        Upper bound on the output noise variance.
+    theta_bar : numpy.ndarray, shape (p + 1,)
+        Receives ``(theta, -1)`` where a correction applies.
+
+    Returns
+    -------
+    float
+        The noise variance of the correction: the eigenvalue, or ``bound`` where the
+        eigenvalue exceeds it; NaN where no correction applies (plain least squares).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> theta_bar = np.empty(2)
+    >>> variance = koopmans(np.array([[2.0, 1.0], [1.0, 2.0]]), np.eye(2), np.inf,
+    ...                     theta_bar)
+    >>> theta_bar.round(6).tolist(), round(variance, 6)
+    ([1.0, -1.0], 1.0)
     """
     q = normal.shape[0]
     p = q - 1
@@ -411,7 +439,7 @@ def _solve_full(R, G, bound, bc, separability, theta, full, jacobian, mapping):
     variance = 0.0
     if bc:
         theta_bar = np.empty(q)
-        corrected = _koopmans(normal, noise, bound, theta_bar)
+        corrected = koopmans(normal, noise, bound, theta_bar)
         if math.isfinite(corrected):
             variance = corrected
             for i in range(p):
