@@ -202,9 +202,11 @@ class SystemResult(ResultRow):
     def simulate(self, data, *, time=None, rate=None, fit_samples=None):
         """Simulate the coupled system on a record, driven by its measured inputs.
 
-        Exact for inputs linear between samples (:mod:`algid.simulation._system`); the
-        initial state is fitted on the first ``fit_samples`` samples of every output,
-        which are left out of the errors.
+        A linear system is simulated exactly for inputs linear between samples
+        (:mod:`algid.simulation._system`), a nonlinear one by DOP853 on interpolated
+        inputs (:func:`algid.simulation.simulate_system`); the initial state is fitted
+        on the first ``fit_samples`` samples of every output, which are left out of the
+        errors.
 
         Parameters
         ----------
@@ -224,9 +226,15 @@ class SystemResult(ResultRow):
         Raises
         ------
         ModelError
-            A nonlinear system, or a simulation that diverges.
+            A system that cannot be simulated (a top derivative inside a nonlinear
+            factor), or a simulation that diverges.
         """
         from algid.simulation._system import fit_initial_state, state_space
+        from algid.simulation._system_equations import (
+            SystemEquations,
+            fit_nonlinear_initial_state,
+            simulate_nonlinear_system,
+        )
 
         time = self.time if time is None and rate is None else time
         rate = self.rate if time is None and rate is None else rate
@@ -235,7 +243,9 @@ class SystemResult(ResultRow):
         if len(segments) != 1:
             raise InputDataError("simulate needs one record without gaps or NaN")
         seg = segments[0]
-        space = state_space(self.system, self.values)
+        linear = self.system.is_linear
+        space = state_space(self.system, self.values) if linear else \
+            SystemEquations(self.system, self.values)
         order = max(k for _, k in space.states) + 1
         if fit_samples is None and self.hidden:
             fit_samples = len(seg) // 2
@@ -243,9 +253,14 @@ class SystemResult(ResultRow):
         measured = {y: seg.values[y] for y in self.measured}
         inputs = {u: seg.values[u] for u in self.system.inputs}
         with np.errstate(over="ignore", invalid="ignore"):
-            x0, forced, free = fit_initial_state(space, seg.t, inputs, measured,
+            if linear:
+                x0, forced, free = fit_initial_state(space, seg.t, inputs, measured,
+                                                     fit_samples)
+                simulated = forced + np.tensordot(x0, free, axes=1)
+            else:
+                x0 = fit_nonlinear_initial_state(space, seg.t, inputs, measured,
                                                  fit_samples)
-            simulated = forced + np.tensordot(x0, free, axes=1)
+                simulated = simulate_nonlinear_system(space, seg.t, inputs, x0)
         if not np.all(np.isfinite(simulated)):
             raise ModelError("the simulated outputs diverge with parameters "
                              + ", ".join(f"{p}={v:.6g}" for p, v in self.values.items()))
@@ -269,12 +284,15 @@ class SystemResult(ResultRow):
         Raises
         ------
         ModelError
-            A nonlinear system (no state-space form; not offered for systems yet).
+            A nonlinear system (no state-space form: :meth:`to_nlsys` exports it).
         """
         import control as ct
 
         from algid.simulation._system import ONE, TIME, state_space
 
+        if not self.system.is_linear:
+            raise ModelError("to_control: this system is not linear in its signals, so it "
+                             "has no state-space form; to_nlsys() exports it")
         space = state_space(self.system, self.values)
         names = {ONE: "one", TIME: "time"}
         states = [y if k == 0 else f"{y}{chr(39) * k}" for y, k in space.states]
@@ -282,3 +300,38 @@ class SystemResult(ResultRow):
                                                           len(space.channels))),
                      inputs=[names.get(c, c) for c in space.channels],
                      outputs=list(space.outputs), states=states)
+
+    def to_nlsys(self):
+        """The identified system as a python-control nonlinear I/O system (MIMO).
+
+        Linear or not in its signals.  States: each output and its derivatives below its
+        order; inputs: the measured inputs; outputs: every equation's output.
+
+        Returns
+        -------
+        control.NonlinearIOSystem
+
+        Raises
+        ------
+        ModelError
+            A system that cannot be simulated (a top derivative inside a nonlinear
+            factor, a derivative of an input).
+        """
+        import control as ct
+
+        from algid.simulation._system_equations import SystemEquations
+
+        equations = SystemEquations(self.system, self.values)
+        rows = [equations.states.index((y, 0)) for y in equations.outputs]
+
+        def update(t, x, u, params):
+            return np.array(equations.derivative(t, [float(v) for v in x],
+                                                 [float(v) for v in np.atleast_1d(u)]))
+
+        def output(t, x, u, params):
+            return np.asarray(x, dtype=float)[rows]
+
+        states = [y if k == 0 else f"{y}{chr(39) * k}" for y, k in equations.states]
+        return ct.nlsys(update, output, inputs=list(equations.inputs),
+                        outputs=list(equations.outputs), states=states,
+                        name="identified_system")

@@ -52,7 +52,7 @@ from algid.simulation._interpolation import Interpolant
 from algid.simulation._switching import integrate_switched
 
 __all__ = ["simulate_model", "fit_initial_state", "differentiate", "known_term_values",
-           "check_time_and_inputs", "as_floats",
+           "check_time_and_inputs", "as_floats", "integrate", "is_uniform",
            "METHODS", "MAX_EVALUATIONS", "MAX_STALLED_EVALUATIONS"]
 
 #: Bound on the right-hand-side evaluations of the adaptive solvers, per sample on
@@ -188,14 +188,15 @@ def check_time_and_inputs(time, inputs, names):
     return t, columns
 
 
-def _is_uniform(t):
+def is_uniform(t):
+    """Whether the sample times are uniform (their steps equal to 1e-6 of their mean)."""
     steps = np.diff(t)
     return np.ptp(steps) <= 1e-6 * np.mean(steps)
 
 
 def differentiate(values, t, order):
     """The algebraic differentiator's estimate (default settings) on the samples."""
-    if _is_uniform(t):
+    if is_uniform(t):
         return algebraic_derivative(values, (t[-1] - t[0]) / (len(t) - 1), derivative=order)
     return algebraic_derivative(values, time=t, derivative=order)
 
@@ -235,7 +236,7 @@ class _OutputEquation:
         if scale == 0:
             raise ModelError("cannot simulate: the coefficient of the highest derivative "
                              "of the output is zero")
-        if interpolation == "bandlimited" and not _is_uniform(t):
+        if interpolation == "bandlimited" and not is_uniform(t):
             interpolation = "cubic"
         self.output, self.interpolation = output, interpolation
         splines = {name: Interpolant(t, values, interpolation)
@@ -416,7 +417,32 @@ def _check_integrator(method, rtol, atol, substeps, n_samples):
                    what=f"RK4 with {substeps} substeps", unit="steps")
 
 
-def _integrate(equation, t, initial_state, method, rtol, atol, substeps=4):
+def integrate(equation, t, initial_state, method, rtol, atol, substeps=4):
+    """Integrate a right-hand side over the sample times.
+
+    Parameters
+    ----------
+    equation : object
+        ``order`` (states), ``plain_switches`` (switches located within the step, or
+        none) and ``equation(time, state)`` -> the state's derivative; ``method="RK4"``
+        needs :func:`simulate_model`'s equation.
+    t : numpy.ndarray
+        Sample times.
+    initial_state : array_like or None
+        The state at ``t[0]`` (zero by default).
+    method, rtol, atol, substeps
+        As in :func:`simulate_model`.
+
+    Returns
+    -------
+    numpy.ndarray, shape (order, samples)
+        The states; NaN from where the integration failed.
+
+    Raises
+    ------
+    ModelError
+        The integration stopped by its bound on evaluations.
+    """
     _check_integrator(method, rtol, atol, substeps, len(t))
     state = np.zeros(equation.order) if initial_state is None else \
         as_floats(initial_state, "initial_state").ravel()
@@ -554,7 +580,7 @@ def simulate_model(model, parameters, time, inputs, *, initial_state=None, outpu
     0.432332
     """
     equation, t = _prepare(model, parameters, time, inputs, output, interpolation)
-    states = _integrate(equation, t, initial_state, method, rtol, atol, substeps)
+    states = integrate(equation, t, initial_state, method, rtol, atol, substeps)
     return states if return_states else states[0]
 
 
@@ -611,7 +637,7 @@ def fit_initial_state(model, parameters, time, inputs, measured_output, n_sample
     scale = np.std(y[:m]) + np.max(np.abs(y[:m])) + 1e-300
 
     def residual(state):
-        simulated = _integrate(equation, head, state, method, rtol, atol, substeps)[0]
+        simulated = integrate(equation, head, state, method, rtol, atol, substeps)[0]
         return np.where(np.isfinite(simulated), simulated - y[:m], 1e6 * scale)
 
     from scipy.optimize import least_squares

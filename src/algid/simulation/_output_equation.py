@@ -16,7 +16,7 @@ import math
 from algid.errors import ModelError
 from algid.models._expression import Call, Constant, Power, Product, Signal, Sum, Time
 
-__all__ = ["OutputEquation"]
+__all__ = ["OutputEquation", "scalar_function"]
 
 _SCALAR_FUNCTIONS = {
     "sign": lambda v: (v > 0) - (v < 0),
@@ -26,9 +26,21 @@ _SCALAR_FUNCTIONS = {
 }
 
 
-def _scalar(expr, slot):
-    """A function of (state, inputs, t) -> float for ``expr``; ``slot(signal)`` gives
-    ``("x", index)`` for an output derivative or ``("u", index)`` for an input value."""
+def scalar_function(expr, slot):
+    """A function ``(x, u, t) -> float`` evaluating ``expr``.
+
+    Parameters
+    ----------
+    expr : algid.models._expression.Expression
+        A factor of a model term.
+    slot : callable
+        ``slot(signal)`` -> ``("x", index)`` for a signal read from the state, or
+        ``("u", index)`` for one read from the inputs.
+
+    Returns
+    -------
+    callable
+    """
     if isinstance(expr, Constant):
         value = float(expr.value)
         return lambda x, u, t: value
@@ -40,16 +52,17 @@ def _scalar(expr, slot):
             return lambda x, u, t: x[index]
         return lambda x, u, t: u[index]
     if isinstance(expr, Call):
-        f, arg = _SCALAR_FUNCTIONS[expr.function], _scalar(expr.args[0], slot)
+        f, arg = _SCALAR_FUNCTIONS[expr.function], scalar_function(expr.args[0], slot)
         return lambda x, u, t: f(arg(x, u, t))
     if isinstance(expr, Power):
-        base, exponent = _scalar(expr.base, slot), float(expr.exponent)
+        base, exponent = scalar_function(expr.base, slot), float(expr.exponent)
         if exponent == int(exponent):
             e = int(exponent)
             return lambda x, u, t: base(x, u, t) ** e
         return lambda x, u, t: base(x, u, t) ** exponent
     if isinstance(expr, (Sum, Product)):
-        parts = [_scalar(p, slot) for p in (expr.terms if isinstance(expr, Sum) else expr.factors)]
+        parts = [scalar_function(p, slot)
+                 for p in (expr.terms if isinstance(expr, Sum) else expr.factors)]
         if isinstance(expr, Sum):
             return lambda x, u, t: sum(p(x, u, t) for p in parts)
 
@@ -118,7 +131,7 @@ class OutputEquation:
                 if not isinstance(factor, Signal):
                     raise ModelError(f"cannot simulate a derivative of {factor}")
                 factor = Signal(factor.name, term.derivative)
-            self.terms.append((-weight / self.scale, _scalar(factor, slot)))
+            self.terms.append((-weight / self.scale, scalar_function(factor, slot)))
         self.inputs = tuple(inputs)
 
     def __call__(self, x, u, t):

@@ -78,8 +78,8 @@ def state_space(system, values):
         undifferentiated only, or top derivatives that the equations do not determine.
     """
     if not system.is_linear:
-        raise ModelError("this system is not linear in its signals: only linear systems "
-                         "are simulated")
+        raise ModelError("this system is not linear in its signals: it has no "
+                         "state-space form")
     outputs = system.outputs
     orders = {y: 0 for y in outputs}
     channels = []
@@ -201,10 +201,14 @@ def _propagate(Ad, drive, x0):
 
 
 def simulate_system(equations, values, time, inputs, *, initial_state=None):
-    """Simulate a linear system of model equations driven by sampled inputs.
+    """Simulate a system of model equations driven by sampled inputs.
 
-    Each input is held linear between samples (first-order hold), for which the
-    simulation is exact (:mod:`algid.simulation._system`).
+    A linear system holds each input linear between samples (first-order hold), for
+    which the simulation is exact (:mod:`algid.simulation._system`).  A system
+    nonlinear in its signals (``x1**3``, ``sign(x2')``) is integrated by DOP853 with
+    relative tolerance 1e-8, its inputs interpolated as band-limited signals (a cubic
+    spline on a non-uniform grid), as :func:`algid.simulation.simulate_model` does
+    (:mod:`algid.simulation._system_equations`).
 
     Parameters
     ----------
@@ -228,7 +232,8 @@ def simulate_system(equations, values, time, inputs, *, initial_state=None):
     Raises
     ------
     ModelError, InputDataError
-        A nonlinear system, a missing or non-finite input, bad times.
+        A top derivative inside a nonlinear factor, a missing or non-finite input, bad
+        times.
 
     Examples
     --------
@@ -255,6 +260,16 @@ def simulate_system(equations, values, time, inputs, *, initial_state=None):
         checked[p] = float(v)
     values = checked
     t, inputs = check_time_and_inputs(time, inputs, system.inputs)
+    if not system.is_linear:
+        from algid.simulation._system_equations import (
+            SystemEquations,
+            simulate_nonlinear_system,
+        )
+
+        equations = SystemEquations(system, values)
+        with np.errstate(over="ignore", invalid="ignore"):
+            outputs = simulate_nonlinear_system(equations, t, inputs, initial_state)
+        return dict(zip(equations.outputs, outputs))
     space = state_space(system, values)
     if initial_state is not None:
         initial_state = np.asarray(initial_state, dtype=float).ravel()

@@ -1,0 +1,255 @@
+"""A system of equations, linear or not in its signals, solved for the highest
+derivatives of its outputs, as a right-hand side.
+
+Every output ``y_j`` of order ``n_j`` (its highest derivative in a plain term of any
+equation) gives the states ``y_j, ..., y_j^(n_j - 1)``.  The top derivatives enter
+linearly, in plain terms: ``M y_top = -r(x, u, t)``, ``M`` their coefficients (one row
+per equation, invertible) and ``r`` every other term, nonlinear factors included
+(``x1**3``, ``sign(x2')``, ``x1*x2``), evaluated by closures over the expression tree
+(:func:`algid.simulation._output_equation.scalar_function`).  A linear system is
+simulated exactly by :mod:`algid.simulation._system`; a nonlinear one by
+:func:`simulate_nonlinear_system` (DOP853 on interpolated inputs, as
+:func:`algid.simulation.simulate_model`), and both export to python-control through
+:meth:`SystemEquations.derivative`.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from algid.errors import InputDataError, ModelError
+from algid.models._expression import Signal
+from algid.simulation._output_equation import scalar_function
+
+__all__ = ["SystemEquations", "simulate_nonlinear_system", "fit_nonlinear_initial_state"]
+
+
+class SystemEquations:
+    """A system of equations solved for the highest derivatives of its outputs.
+
+    Parameters
+    ----------
+    system : algid.models.SystemModel
+    values : mapping
+        Parameter name -> value.
+
+    Attributes
+    ----------
+    states : list of (str, int)
+        Per state, the output and its derivative order (output by output).
+    inputs : tuple of str
+        The measured inputs, in the order :meth:`derivative` reads them.
+    outputs : tuple of str
+
+    Raises
+    ------
+    ModelError
+        An output never differentiated in a plain term, a top derivative inside a
+        nonlinear factor, a derivative of an input, or top derivatives that the
+        equations do not determine.
+
+    Examples
+    --------
+    >>> from algid.models import parse_system
+    >>> system = parse_system(["x1' + a*x1**3 = u", "x2' + x2 = x1"], ["a"])
+    >>> equations = SystemEquations(system, {"a": 2.0})
+    >>> equations.states, equations.inputs
+    ([('x1', 0), ('x2', 0)], ('u',))
+    >>> equations.derivative(0.0, [1.0, 0.5], [3.0])
+    [1.0, 0.5]
+    """
+
+    def __init__(self, system, values):
+        self.outputs = tuple(system.outputs)
+        self.inputs = tuple(system.inputs)
+        orders = {y: 0 for y in self.outputs}
+        for model in system.equations:
+            for term in model.terms:
+                if isinstance(term.factor, Signal) and term.factor.name in orders:
+                    name = term.factor.name
+                    orders[name] = max(orders[name], term.derivative + term.factor.derivative)
+        for y, n in orders.items():
+            if n == 0:
+                raise ModelError(f"the output {y} is not differentiated in a plain term: "
+                                 f"an algebraic equation has no state to simulate")
+        self.states = [(y, k) for y in self.outputs for k in range(orders[y])]
+        where = {s: i for i, s in enumerate(self.states)}
+        self._tops = [where[(y, orders[y] - 1)] for y in self.outputs]
+        self._chains = [(i, where[(y, k + 1)]) for (y, k), i in where.items()
+                        if k + 1 < orders[y]]
+
+        def slot(signal):
+            if signal.name in orders:
+                if signal.derivative >= orders[signal.name]:
+                    raise ModelError(f"cannot simulate: {signal} appears inside a nonlinear "
+                                     f"factor (the top derivatives enter in plain terms only)")
+                return ("x", where[(signal.name, signal.derivative)])
+            if signal.derivative:
+                raise ModelError(f"cannot simulate: {signal} is a derivative of an input (a "
+                                 f"system is simulated from its inputs only)")
+            return ("u", self.inputs.index(signal.name))
+
+        m = len(self.outputs)
+        top = np.zeros((m, m))
+        self._terms = [[] for _ in range(m)]   # per equation: (weight, closure)
+        for i, model in enumerate(system.equations):
+            for term in model.terms:
+                weight = term.coefficient * (1.0 if term.parameter is None
+                                             else float(values[term.parameter]))
+                factor = term.factor
+                if term.derivative:
+                    if not isinstance(factor, Signal):
+                        raise ModelError(f"cannot simulate a derivative of {factor}")
+                    factor = Signal(factor.name, factor.derivative + term.derivative)
+                if isinstance(factor, Signal) and factor.name in orders \
+                        and factor.derivative == orders[factor.name]:
+                    top[i, self.outputs.index(factor.name)] += weight
+                else:
+                    self._terms[i].append((weight, scalar_function(factor, slot)))
+        if not np.all(np.isfinite(top)) or np.linalg.cond(top) > 1e12:
+            raise ModelError("the equations do not determine the highest derivatives of "
+                             f"{', '.join(self.outputs)} at these parameters (their "
+                             f"coefficients form a singular matrix)")
+        self._solve = -np.linalg.inv(top)
+
+    def derivative(self, t, x, u):
+        """The state's derivative (for python-control and SciPy's integrators).
+
+        Parameters
+        ----------
+        t : float
+            Time.
+        x : sequence of float
+            The state, as :attr:`states`.
+        u : sequence of float
+            The inputs, as :attr:`inputs`.
+
+        Returns
+        -------
+        list of float
+        """
+        rest = np.array([sum(w * f(x, u, t) for w, f in terms) for terms in self._terms],
+                        dtype=float)
+        derivative = [0.0] * len(self.states)
+        for i, j in self._chains:
+            derivative[i] = float(x[j])
+        for i, value in zip(self._tops, self._solve @ rest):
+            derivative[i] = float(value)
+        return derivative
+
+
+def simulate_nonlinear_system(equations, t, inputs, initial_state=None, rtol=1e-8,
+                              atol=1e-12):
+    """Simulate a system of equations by DOP853, its inputs interpolated.
+
+    Parameters
+    ----------
+    equations : SystemEquations
+    t : numpy.ndarray
+        Sample times (increasing).
+    inputs : mapping
+        Input name -> samples at ``t``.
+    initial_state : numpy.ndarray, optional
+        As :attr:`SystemEquations.states` (zero by default).
+    rtol, atol : float
+        Tolerances of the integrator.
+
+    Returns
+    -------
+    numpy.ndarray, shape (outputs, samples)
+        NaN from where the integration failed (a diverging system).
+
+    Raises
+    ------
+    ModelError
+        An integration stopped by its bound on evaluations (a stiff system, or one that
+        switches too often).
+    """
+    n = len(equations.states)
+    x0 = np.zeros(n) if initial_state is None else np.asarray(initial_state, dtype=float)
+    if x0.shape != (n,) or not np.all(np.isfinite(x0)):
+        raise InputDataError(f"initial_state must hold {n} finite values "
+                             f"({', '.join(y + chr(39) * k for y, k in equations.states)})")
+    return _outputs(equations, _splines(equations, t, inputs), t, x0, rtol, atol)
+
+
+def _splines(equations, t, inputs):
+    """The inputs' interpolants on the whole record (band-limited on a uniform grid)."""
+    from algid.simulation._interpolation import Interpolant
+    from algid.simulation._model import is_uniform
+
+    kind = "bandlimited" if is_uniform(t) else "cubic"
+    return [Interpolant(t, np.asarray(inputs[u], dtype=float), kind)
+            for u in equations.inputs]
+
+
+def _outputs(equations, splines, t, x0, rtol=1e-8, atol=1e-12):
+    """The simulated outputs at ``t`` (DOP853 on the interpolants ``splines``)."""
+    from algid.simulation._model import integrate
+
+    states = integrate(_Sampled(equations, splines), t, x0, "DOP853", rtol, atol)
+    return states[[equations.states.index((y, 0)) for y in equations.outputs]]
+
+
+def fit_nonlinear_initial_state(equations, t, inputs, measured, fit_samples):
+    """The initial state whose simulation best fits the measured outputs on the first
+    samples: least squares over the measured outputs, each weighted by the inverse of
+    its spread, started from a polynomial fit of each output's first samples.
+
+    Parameters
+    ----------
+    equations : SystemEquations
+    t : numpy.ndarray
+    inputs : mapping
+    measured : mapping
+        Output name -> measured samples (of some or all outputs; an unmeasured output
+        starts from rest).
+    fit_samples : int
+
+    Returns
+    -------
+    numpy.ndarray
+        As :attr:`SystemEquations.states`.
+    """
+    import math
+
+    from scipy.optimize import least_squares
+
+    head = t[:fit_samples]
+    guess = np.zeros(len(equations.states))
+    for i, (y, k) in enumerate(equations.states):
+        if y in measured:
+            degree = min(max(kk for yy, kk in equations.states if yy == y) + 2,
+                         fit_samples - 1)
+            start = np.polynomial.polynomial.polyfit(head - head[0],
+                                                     measured[y][:fit_samples], degree)
+            guess[i] = start[k] * math.factorial(k) if k <= degree else 0.0
+    scales = {y: float(np.std(v)) or 1.0 for y, v in measured.items()}
+    rows = {y: equations.outputs.index(y) for y in measured}
+    splines = _splines(equations, t, inputs)   # on the whole record, as it is simulated
+
+    def residual(state):
+        simulated = _outputs(equations, splines, head, state)
+        r = np.concatenate([(simulated[rows[y]] - measured[y][:fit_samples]) / scales[y]
+                            for y in measured])
+        return np.where(np.isfinite(r), r, 1e6)
+
+    return least_squares(residual, guess, x_scale="jac").x
+
+
+class _Sampled:
+    """:class:`SystemEquations` driven by interpolated inputs, as
+    :func:`algid.simulation._model.integrate` integrates an equation."""
+
+    plain_switches = ()
+
+    def __init__(self, equations, splines):
+        self.equations, self.splines = equations, splines
+        self.order = len(equations.states)
+
+    def __call__(self, time, state):
+        try:
+            return np.array(self.equations.derivative(
+                time, state, [float(s(time)) for s in self.splines]))
+        except (ArithmeticError, ValueError):   # outside a function's domain: stop
+            return np.full(self.order, np.nan)
