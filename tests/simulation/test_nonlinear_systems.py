@@ -94,9 +94,33 @@ def test_a_nonlinear_system_exports_to_nlsys_not_to_control(cubic_fit):
     (["x1'' + a*x1'*x2'' + x1 = u", "x2'' + x2 = x1"], "x2'' appears inside a nonlinear"),
     (["x1'' + a*x1**3 = u'", "x2' + x2 = x1"], "derivative of an input"),
     (["a*x1'' + x1**3 = u", "x2' + x2 = x1"], "do not determine the highest"),
+    (["x1'' + a*sign(x1') + x1 - x2 = u", "x2'' + x2 = x1"], "sign\\(\\) of the output x1"),
 ])
 def test_nonlinear_systems_that_cannot_be_simulated_are_refused(equations, message):
     t = np.linspace(0, 1, 101)
     a = 0.0 if "a*x1''" in equations[0] else 1.0
     with pytest.raises((ModelError, InputDataError), match=message):
         simulate_system(equations, {"a": a}, t, {"u": np.sin(t)})
+
+
+def test_a_function_outside_its_domain_stops_the_simulation_not_its_sign():
+    """``u**0.5`` of a negative input is no real number: the outputs are NaN from there,
+    not the real part of a complex root."""
+    t = np.linspace(0, 5, 501)
+    out = simulate_system(["x1' + a*x1 = b*u**0.5", "x2' + x2 = x1"], {"a": 1.0, "b": 1.0},
+                          t, {"u": np.sin(t)})
+    negative = t[np.argmax(np.sin(t) < 0)]   # pi
+    assert np.all(np.isfinite(out["x1"][t < negative - 0.05]))
+    assert not np.any(np.isfinite(out["x1"][t > negative + 0.05]))
+
+
+def test_nonlinear_system_initial_states_read_as_numbers():
+    t = np.linspace(0, 1, 101)
+    equations = ["x1' + a*x1**3 = sign(u)", "x2' + x2 = x1"]
+    column = simulate_system(equations, {"a": 1.0}, t, {"u": np.sin(t - 0.5)},
+                             initial_state=[[0.5], [0.1]])
+    flat = simulate_system(equations, {"a": 1.0}, t, {"u": np.sin(t - 0.5)},
+                           initial_state=[0.5, 0.1])
+    assert np.array_equal(column["x1"], flat["x1"]) and np.isfinite(flat["x2"]).all()
+    with pytest.raises(InputDataError, match="initial_state must be numbers"):
+        simulate_system(equations, {"a": 1.0}, t, {"u": np.sin(t)}, initial_state={"x1": 1})

@@ -4,14 +4,21 @@ estimator), for the window equations of :func:`algid.identify` and its systems.
 The estimator itself is written once, in loops,
 :func:`algid.identification._tracker_solve.koopmans`, which :class:`algid.Tracker` runs
 window after window (compiled by numba when installed); :func:`koopmans` here calls it
-on a problem's sums, as Python unless the Tracker has compiled it in the process: the
-same operations in the same order, the same numbers."""
+on a problem's sums, as Python unless a tracker has compiled it in the process, or the
+problem is large (:data:`COMPILE_FROM`): the same operations in the same order, the
+same numbers."""
 
 from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["bias_compensated", "least_squares", "koopmans", "solve_equilibrated"]
+__all__ = ["bias_compensated", "least_squares", "koopmans", "solve_equilibrated",
+           "COMPILE_FROM"]
+
+#: Columns from which identify has the loops compiled (when numba is installed): as
+#: Python a solve costs about 7 ms at 10 columns and grows as their cube, so past this
+#: size a few dozen solves outweigh numba's import (about 0.35 s, once per process).
+COMPILE_FROM = 10
 
 
 def bias_compensated(A, b, grams, bound=np.inf):
@@ -118,8 +125,12 @@ def koopmans(normal, noise, bound=np.inf):
     >>> theta_bar.round(6).tolist(), round(variance, 6)
     ([1.0, -1.0], 1.0)
     """
-    # looked up at each call: Python until the Tracker compiles the loops in this
-    # process, compiled from then on (the same numbers; numba is not imported for this)
+    # looked up at each call: Python until a tracker or a large problem compiles the
+    # loops in this process, compiled from then on (the same numbers either way)
+    if normal.shape[0] >= COMPILE_FROM:
+        from algid.identification._tracker_kernels import compile_loops
+
+        compile_loops()
     from algid.identification._tracker_solve import koopmans as koopmans_loops
 
     normal = np.ascontiguousarray(normal, dtype=float)

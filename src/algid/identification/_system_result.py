@@ -262,7 +262,8 @@ class SystemResult(ResultRow):
                                                  fit_samples)
                 simulated = simulate_nonlinear_system(space, seg.t, inputs, x0)
         if not np.all(np.isfinite(simulated)):
-            raise ModelError("the simulated outputs diverge with parameters "
+            raise ModelError("the simulated outputs are not finite (the system diverges, or "
+                             "leaves a function's domain) with parameters "
                              + ", ".join(f"{p}={v:.6g}" for p, v in self.values.items()))
         simulated = dict(zip(self.outputs, simulated))
         return SystemValidation(seg.t, measured, {y: simulated[y] for y in measured}, x0,

@@ -278,7 +278,7 @@ def koopmans(normal, noise, bound, theta_bar):
     >>> theta_bar = np.empty(2)
     >>> variance = koopmans(np.array([[2.0, 1.0], [1.0, 2.0]]), np.eye(2), np.inf,
     ...                     theta_bar)
-    >>> theta_bar.round(6).tolist(), round(variance, 6)
+    >>> theta_bar.round(6).tolist(), round(float(variance), 6)
     ([1.0, -1.0], 1.0)
     """
     q = normal.shape[0]

@@ -417,7 +417,8 @@ def _check_integrator(method, rtol, atol, substeps, n_samples):
                    what=f"RK4 with {substeps} substeps", unit="steps")
 
 
-def integrate(equation, t, initial_state, method, rtol, atol, substeps=4):
+def integrate(equation, t, initial_state, method, rtol, atol, substeps=4,
+              remedy="use method='RK4' (fixed steps) or a stiff method ('LSODA')"):
     """Integrate a right-hand side over the sample times.
 
     Parameters
@@ -432,6 +433,8 @@ def integrate(equation, t, initial_state, method, rtol, atol, substeps=4):
         The state at ``t[0]`` (zero by default).
     method, rtol, atol, substeps
         As in :func:`simulate_model`.
+    remedy : str
+        What the error says to try when the integration stops.
 
     Returns
     -------
@@ -473,8 +476,7 @@ def integrate(equation, t, initial_state, method, rtol, atol, substeps=4):
         raise ModelError(
             f"simulation by {method} stopped at t = {stop.time:.6g} s after {stop.count} "
             f"right-hand-side evaluations ({stop.reason}): the model is stiff or switches "
-            f"too often for it; use method='RK4' (fixed steps) or a stiff method "
-            f"('LSODA')") from None
+            f"too often for it; {remedy}") from None
     out = np.full((equation.order, len(t)), np.nan)
     # a diverging model stops early (SciPy gives a list when no sample was reached): NaN after
     reached = np.asarray(solution.y, dtype=float).reshape(equation.order, -1)

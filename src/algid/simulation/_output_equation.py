@@ -59,7 +59,8 @@ def scalar_function(expr, slot):
         if exponent == int(exponent):
             e = int(exponent)
             return lambda x, u, t: base(x, u, t) ** e
-        return lambda x, u, t: base(x, u, t) ** exponent
+        # (math.pow: a ValueError for a negative base, where ** gives a complex number)
+        return lambda x, u, t: math.pow(base(x, u, t), exponent)
     if isinstance(expr, (Sum, Product)):
         parts = [scalar_function(p, slot)
                  for p in (expr.terms if isinstance(expr, Sum) else expr.factors)]

@@ -227,7 +227,8 @@ def simulate_system(equations, values, time, inputs, *, initial_state=None):
     Returns
     -------
     dict
-        Output name -> simulated samples.
+        Output name -> simulated samples; for a nonlinear system, NaN from where the
+        integration failed (the system diverges, or leaves a function's domain).
 
     Raises
     ------

@@ -5,8 +5,10 @@ Every output ``y_j`` of order ``n_j`` (its highest derivative in a plain term of
 equation) gives the states ``y_j, ..., y_j^(n_j - 1)``.  The top derivatives enter
 linearly, in plain terms: ``M y_top = -r(x, u, t)``, ``M`` their coefficients (one row
 per equation, invertible) and ``r`` every other term, nonlinear factors included
-(``x1**3``, ``sign(x2')``, ``x1*x2``), evaluated by closures over the expression tree
-(:func:`algid.simulation._output_equation.scalar_function`).  A linear system is
+(``x1**3``, ``tanh(x2')``, ``x1*x2``, ``sign(u)``), evaluated by closures over the
+expression tree (:func:`algid.simulation._output_equation.scalar_function`).  A
+``sign()`` of an output (friction, which sticks) is refused: one equation has the
+switching integrator for it (:mod:`algid.simulation._switching`).  A linear system is
 simulated exactly by :mod:`algid.simulation._system`; a nonlinear one by
 :func:`simulate_nonlinear_system` (DOP853 on interpolated inputs, as
 :func:`algid.simulation.simulate_model`), and both export to python-control through
@@ -15,10 +17,12 @@ simulated exactly by :mod:`algid.simulation._system`; a nonlinear one by
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from algid.errors import InputDataError, ModelError
-from algid.models._expression import Signal
+from algid.models._expression import Call, Power, Product, Signal, Sum
 from algid.simulation._output_equation import scalar_function
 
 __all__ = ["SystemEquations", "simulate_nonlinear_system", "fit_nonlinear_initial_state"]
@@ -78,6 +82,16 @@ class SystemEquations:
         self._chains = [(i, where[(y, k + 1)]) for (y, k), i in where.items()
                         if k + 1 < orders[y]]
 
+        switched = set()   # signals read inside a sign()
+        for model in system.equations:
+            for term in model.terms:
+                _signed(term.factor, switched)
+        for y in self.outputs:
+            if y in switched:
+                raise ModelError(f"cannot simulate: sign() of the output {y} in a system "
+                                 f"(friction: its sticking needs the switching integrator "
+                                 f"that simulates one equation)")
+
         def slot(signal):
             if signal.name in orders:
                 if signal.derivative >= orders[signal.name]:
@@ -128,8 +142,12 @@ class SystemEquations:
         -------
         list of float
         """
-        rest = np.array([sum(w * f(x, u, t) for w, f in terms) for terms in self._terms],
-                        dtype=float)
+        x, u, t = [float(v) for v in x], [float(v) for v in u], float(t)
+        try:
+            rest = np.array([sum(w * f(x, u, t) for w, f in terms)
+                             for terms in self._terms], dtype=float)
+        except (ArithmeticError, ValueError):   # outside a function's domain
+            return [math.nan] * len(self.states)
         derivative = [0.0] * len(self.states)
         for i, j in self._chains:
             derivative[i] = float(x[j])
@@ -157,7 +175,8 @@ def simulate_nonlinear_system(equations, t, inputs, initial_state=None, rtol=1e-
     Returns
     -------
     numpy.ndarray, shape (outputs, samples)
-        NaN from where the integration failed (a diverging system).
+        NaN from where the integration failed (a diverging system, or one that leaves
+        a function's domain, such as the square root of a negative number).
 
     Raises
     ------
@@ -165,8 +184,11 @@ def simulate_nonlinear_system(equations, t, inputs, initial_state=None, rtol=1e-
         An integration stopped by its bound on evaluations (a stiff system, or one that
         switches too often).
     """
+    from algid.simulation._model import as_floats
+
     n = len(equations.states)
-    x0 = np.zeros(n) if initial_state is None else np.asarray(initial_state, dtype=float)
+    x0 = np.zeros(n) if initial_state is None else \
+        as_floats(initial_state, "initial_state").ravel()
     if x0.shape != (n,) or not np.all(np.isfinite(x0)):
         raise InputDataError(f"initial_state must hold {n} finite values "
                              f"({', '.join(y + chr(39) * k for y, k in equations.states)})")
@@ -187,7 +209,9 @@ def _outputs(equations, splines, t, x0, rtol=1e-8, atol=1e-12):
     """The simulated outputs at ``t`` (DOP853 on the interpolants ``splines``)."""
     from algid.simulation._model import integrate
 
-    states = integrate(_Sampled(equations, splines), t, x0, "DOP853", rtol, atol)
+    states = integrate(_Sampled(equations, splines), t, x0, "DOP853", rtol, atol,
+                       remedy="check that the system is stable with these parameters, or "
+                              "express time in other units")
     return states[[equations.states.index((y, 0)) for y in equations.outputs]]
 
 
@@ -248,8 +272,23 @@ class _Sampled:
         self.order = len(equations.states)
 
     def __call__(self, time, state):
-        try:
-            return np.array(self.equations.derivative(
-                time, state, [float(s(time)) for s in self.splines]))
-        except (ArithmeticError, ValueError):   # outside a function's domain: stop
-            return np.full(self.order, np.nan)
+        return np.array(self.equations.derivative(time, state,
+                                                  [s(time) for s in self.splines]))
+
+
+def _signed(expression, found):
+    """Add to ``found`` the signals read inside a ``sign()`` of ``expression``."""
+    if isinstance(expression, Call) and expression.function == "sign":
+        found.update(expression.args[0].signals())
+    for part in _parts(expression):
+        _signed(part, found)
+
+
+def _parts(expression):
+    if isinstance(expression, Call):
+        return expression.args
+    if isinstance(expression, Power):
+        return (expression.base,)
+    if isinstance(expression, (Sum, Product)):
+        return expression.terms if isinstance(expression, Sum) else expression.factors
+    return ()
