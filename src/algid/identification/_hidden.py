@@ -34,10 +34,19 @@ from algid.errors import InputDataError, ModelError
 from algid.models._expression import Constant, Signal
 
 __all__ = ["Elimination", "eliminate", "check_identifiable", "physical_parameters",
-           "STARTS"]
+           "STARTS", "NEAR_COST", "MAX_CANDIDATES"]
 
 #: Starting points of the least-squares map from the coefficients to the parameters.
-STARTS = 24
+STARTS = 64
+
+#: Distinct solutions of that map whose weighted cost is within this much of the best
+#: (a chi-square difference of 3 standard errors in one direction) are candidates too:
+#: the coefficients' noise can favour a wrong set, and the output-error fit on the full
+#: system chooses between them.
+NEAR_COST = 9.0
+
+#: At most this many such candidates besides the best.
+MAX_CANDIDATES = 2
 
 #: Relative rank tolerance of the coefficient map's Jacobian at generic values.
 RANK_TOLERANCE = 1e-8
@@ -276,6 +285,9 @@ def physical_parameters(elimination, parameters, values, covariance, seed=0):
         By the delta method.
     others : list of numpy.ndarray
         Further parameter sets that fit the coefficients as well (several solutions).
+    candidates : list of (numpy.ndarray, numpy.ndarray)
+        Further distinct sets that fit them nearly as well (within :data:`NEAR_COST`),
+        with their covariances, best first: for the output-error fit to choose from.
     """
     from scipy.optimize import least_squares
 
@@ -312,6 +324,19 @@ def physical_parameters(elimination, parameters, values, covariance, seed=0):
                 all(np.max(np.abs(x - o) / np.maximum(np.abs(o), 1e-300)) > 1e-4
                     for o in others):
             others.append(x)
-    J = jacobian(theta)
-    information = J.T @ np.linalg.solve(covariance, J)
-    return theta, np.linalg.pinv(information), others
+    def distinct(x, sets):
+        return all(np.max(np.abs(x - o) / np.maximum(np.abs(o), 1e-300)) > 1e-4
+                   for o in sets)
+
+    candidates = []
+    for cost, x in fits[1:]:
+        if len(candidates) < MAX_CANDIDATES and cost <= best_cost + NEAR_COST and \
+                distinct(x, [theta, *others, *candidates]):
+            candidates.append(x)
+
+    def delta_method(x):
+        J = jacobian(x)
+        return np.linalg.pinv(J.T @ np.linalg.solve(covariance, J))
+
+    return (theta, delta_method(theta), others,
+            [(x, delta_method(x)) for x in candidates])

@@ -510,28 +510,72 @@ def _identify_hidden(data, system, hidden, *, time, rate, window, method, multip
     io = identify_system(data, elimination.equations, elimination.coefficients, **options)
     # (the system of the input-output equations has the coefficients as its parameters,
     # in their order)
-    theta, theta_covariance, others = physical_parameters(
+    theta, theta_covariance, others, candidates = physical_parameters(
         elimination, system.parameters, io.values, io.covariance)
     warnings = [f"input-output equation: {w}" for w in io.warnings]
     for other in others:
         warnings.append("the coefficients fit another parameter set as well: "
-                        + ", ".join(f"{p}={v:.6g}" for p, v in zip(system.parameters, other)))
+                        + _listed(system, other))
     measured = [s for s in system.signals if s not in hidden]
     segments, _, _ = prepare_records(data, measured, time=time, rate=rate,
                                      min_length=min_length(multiplicities))
-    result = SystemResult(
-        system=system, values=dict(zip(system.parameters, theta.tolist())),
-        covariance=theta_covariance, window=io.window, n_samples=io.n_samples,
-        n_windows=io.n_windows, method=method, multiplicities=io.multiplicities,
-        time=time, rate=rate, window_scores=io.window_scores,
-        warnings=warnings + _weak(system, theta, theta_covariance), hidden=hidden,
-        elimination=elimination)
-    result = refine_system(result, segments, refine)
-    if result.estimate == "refined":   # (the coefficients' warnings were the start's)
-        theta = np.array([result.values[p] for p in system.parameters])
-        result.warnings = warnings[len(io.warnings):] + _weak(system, theta,
-                                                               result.covariance)
+
+    def refined_from(theta, theta_covariance):
+        result = SystemResult(
+            system=system, values=dict(zip(system.parameters, theta.tolist())),
+            covariance=theta_covariance, window=io.window, n_samples=io.n_samples,
+            n_windows=io.n_windows, method=method, multiplicities=io.multiplicities,
+            time=time, rate=rate, window_scores=io.window_scores,
+            warnings=warnings + _weak(system, theta, theta_covariance), hidden=hidden,
+            elimination=elimination)
+        result = refine_system(result, segments, refine)
+        if result.estimate == "refined":   # (the coefficients' warnings were the start's)
+            theta = np.array([result.values[p] for p in system.parameters])
+            result.warnings = warnings[len(io.warnings):] + _weak(system, theta,
+                                                                   result.covariance)
+        return result
+
+    result = refined_from(theta, theta_covariance)
+    if candidates and result.estimate == "refined":
+        result = _best_of_candidates(result, candidates, refined_from)
+    elif candidates:
+        result.warnings.append("the coefficients fit another parameter set nearly as "
+                               "well: " + _listed(system, candidates[0][0]))
     return result
+
+
+def _listed(system, theta):
+    return ", ".join(f"{p}={v:.6g}" for p, v in zip(system.parameters, theta))
+
+
+def _best_of_candidates(result, candidates, refined_from):
+    """Of the output-error fits from the best solution of the coefficient map and from
+    the others that fit the coefficients nearly as well, the one that fits the records
+    best; a warning where another fits them about as well (chi-square within
+    :data:`~algid.identification._hidden.NEAR_COST`)."""
+    from algid.identification._hidden import NEAR_COST
+
+    fits = [result]
+    for theta, covariance in candidates:
+        try:
+            fit = refined_from(theta, covariance)
+        except ModelError:   # (refine=True: a candidate that does not refine)
+            continue
+        if fit.estimate == "refined":
+            fits.append(fit)
+    # chi-square of each fit's simulation residuals in the first fit's noise levels
+    sigma = result.noise_rms
+    costs = [result.n_samples * sum(fit.noise_rms[y] ** 2 / sigma[y] ** 2 for y in sigma)
+             for fit in fits]
+    order = np.argsort(costs, kind="stable")
+    best = fits[order[0]]
+    for k in order[1:]:
+        if costs[k] - costs[order[0]] <= NEAR_COST:
+            best.warnings.append(
+                f"another parameter set fits the records about as well (chi-square "
+                f"{costs[k] - costs[order[0]]:.2g} higher): "
+                + _listed(best.system, [fits[k].values[p] for p in best.system.parameters]))
+    return best
 
 
 def _weak(system, theta, covariance):
