@@ -306,6 +306,15 @@ def test_a_hidden_system_s_near_solutions_are_settled_by_the_output_error_fit():
         assert abs(result.values[p] - true) < 4 * result.stderr[p], p
 
 
+def test_a_hidden_signal_whose_elimination_exceeds_the_limits_says_so():
+    record = three_mass_record(seed=0)
+    del record["x3"]
+    with pytest.raises(ModelError, match="hiding x3 leaves input-output equations with 14 "
+                                         "coefficients.*measure it"):
+        algid.identify(record, ["m1*" + THREE_MASS[0], *THREE_MASS[1:]],
+                       ["m1", *THREE_MASS_TRUE], hidden=["x3"])
+
+
 def test_hidden_set_that_the_measured_signals_cannot_determine_is_refused():
     with pytest.raises(ModelError, match=r"determine only 5 combinations of the 6 "
                                          r"parameters \(.*k1\*k2/\(m1\*m2\).*fix one of m1"):

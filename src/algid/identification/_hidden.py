@@ -32,6 +32,7 @@ import numpy as np
 
 from algid.errors import InputDataError, ModelError
 from algid.models._expression import Constant, Signal
+from algid.models._grammar import LIMITS
 
 __all__ = ["Elimination", "eliminate", "check_identifiable", "physical_parameters",
            "STARTS", "NEAR_COST", "MAX_CANDIDATES"]
@@ -202,6 +203,12 @@ def eliminate(system, hidden):
                     tex.append(_tex(expr, channel, k))
         equations.append(" + ".join(pieces).replace("+ -", "- ") + " = 0")
         latex.append(" + ".join(tex) + " = 0")
+    if len(coefficients) > LIMITS["parameters"]:
+        raise ModelError(f"hiding {', '.join(hidden)} leaves input-output equations with "
+                         f"{len(coefficients)} coefficients to identify, more than the "
+                         f"{LIMITS['parameters']} parameters a system may have: measure "
+                         f"{'it' if len(hidden) == 1 else 'one of them'}, or hide another "
+                         f"output instead")
     for name in coefficients:
         if name in system.signals:
             raise ModelError(f"a signal is named {name}, as a coefficient of the eliminated "
