@@ -323,21 +323,16 @@ def physical_parameters(elimination, parameters, values, covariance, seed=0):
                              "the eliminated equations")
     fits.sort(key=lambda f: f[0])
     best_cost, theta = fits[0]
-    others = []
-    for cost, x in fits[1:]:
-        if cost <= best_cost + 1e-6 * (1 + best_cost) + 1e-9 and \
-                np.all(np.isfinite(x)) and \
-                np.max(np.abs(x - theta) / np.maximum(np.abs(theta), 1e-300)) > 1e-4 and \
-                all(np.max(np.abs(x - o) / np.maximum(np.abs(o), 1e-300)) > 1e-4
-                    for o in others):
-            others.append(x)
-    def distinct(x, sets):
+    def distinct(x, sets):   # (by more than 1e-4 relative in some parameter)
         return all(np.max(np.abs(x - o) / np.maximum(np.abs(o), 1e-300)) > 1e-4
                    for o in sets)
 
-    candidates = []
-    for cost, x in fits[1:]:
-        if len(candidates) < MAX_CANDIDATES and cost <= best_cost + NEAR_COST and \
+    others, candidates = [], []
+    for cost, x in fits[1:]:   # (all finite)
+        if cost <= best_cost + 1e-6 * (1 + best_cost) + 1e-9 and \
+                distinct(x, [theta, *others]):
+            others.append(x)
+        elif len(candidates) < MAX_CANDIDATES and cost <= best_cost + NEAR_COST and \
                 distinct(x, [theta, *others, *candidates]):
             candidates.append(x)
 
