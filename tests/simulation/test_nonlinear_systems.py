@@ -124,3 +124,14 @@ def test_nonlinear_system_initial_states_read_as_numbers():
     assert np.array_equal(column["x1"], flat["x1"]) and np.isfinite(flat["x2"]).all()
     with pytest.raises(InputDataError, match="initial_state must be numbers"):
         simulate_system(equations, {"a": 1.0}, t, {"u": np.sin(t)}, initial_state={"x1": 1})
+
+
+def test_a_single_equation_s_right_hand_side_is_nan_outside_a_function_s_domain():
+    """``to_nlsys``'s right-hand side of one equation: NaN (which stops an integrator)
+    where ``u**0.5`` has a negative input, not a complex number or a raw error."""
+    from algid.models import parse_equation
+    from algid.simulation._output_equation import OutputEquation
+
+    equation = OutputEquation(parse_equation("x' + a*x = u**0.5", "a"), {"a": 1.0})
+    assert equation.derivative(0.0, [0.0], [4.0]) == [2.0]
+    assert np.isnan(equation.derivative(0.0, [0.0], [-1.0])[0])

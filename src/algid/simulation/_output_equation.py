@@ -154,6 +154,12 @@ class OutputEquation:
         Returns
         -------
         list of float
+            NaN where a function is outside its domain (``u**0.5`` of a negative
+            input), which stops an integrator.
         """
-        return list(x[1:]) + [self(x, u, t)]
+        try:
+            top = self(x, u, t)
+        except (ArithmeticError, ValueError):
+            top = math.nan
+        return list(x[1:]) + [top]
 
