@@ -56,6 +56,24 @@ def test_a_nonlinear_system_is_simulated_as_an_independent_integrator_does():
         assert np.max(np.abs(simulated[y] - record[y])) < 1e-6 * np.ptp(record[y])
 
 
+def test_the_fast_simulation_of_a_system_agrees_with_dop853():
+    """The compiled fixed-step simulator (four Runge-Kutta steps per sample) that the
+    refinement runs gives the outputs of the tight DOP853 integration."""
+    pytest.importorskip("numba")
+    from algid.models import parse_system
+    from algid.simulation._fast_simulation import FastSystemSimulation
+
+    record = cubic_record(duration=6.0)
+    system = parse_system(CUBIC_TWO_MASS, list(CUBIC_TRUE))
+    fast = FastSystemSimulation(system, record["t"], record, outputs=["x2", "x1"])
+    theta = [CUBIC_TRUE[p] for p in system.parameters]
+    x2, x1 = fast.run(theta, START)
+    for name, simulated in (("x1", x1), ("x2", x2)):
+        assert np.max(np.abs(simulated - record[name])) < 1e-6 * np.ptp(record[name])
+    singular = dict(CUBIC_TRUE, m1=0.0)
+    assert np.all(np.isnan(fast.run([singular[p] for p in system.parameters], START)))
+
+
 @pytest.fixture(scope="module")
 def cubic_fit():
     record = cubic_record(noise_db=40.0)
@@ -70,6 +88,28 @@ def test_a_nonlinear_system_fit_is_simulated_on_its_record(cubic_fit):
     # 40 dB of white noise caps the fit at 99 %
     assert all(98.5 < f < 99.2 for f in validation.fit_percent.values()), \
         validation.fit_percent
+
+
+def test_a_nonlinear_system_is_refined_by_output_error(cubic_fit):
+    """Every output simulated, the initial states iterated with the parameters: the
+    refined estimate is reported where it is the more precise, the algebraic one kept."""
+    pytest.importorskip("numba")
+    record, fit = cubic_fit
+    assert fit.estimate == "refined", fit.refinement.reason
+    algebraic = fit.algebraic
+    for i, (p, v) in enumerate(CUBIC_TRUE.items()):
+        # (at 40 dB the algebraic standard errors are 3-15 times the refined ones)
+        assert fit.stderr[p] < 0.6 * np.sqrt(algebraic["covariance"][i, i]), p
+        assert abs(fit.values[p] - v) < 4 * fit.stderr[p], p
+        assert abs(algebraic["values"][p] - v) < 4 * np.sqrt(algebraic["covariance"][i, i])
+        assert fit.numerical_error[p] < fit.stderr[p]
+    assert set(fit.noise_rms) == {"x1", "x2"}
+    for y in ("x1", "x2"):   # the noise drawn: 1 % of each output's spread
+        assert 0.9 < fit.noise_rms[y] / (0.01 * np.std(cubic_record()[y])) < 1.1
+    assert len(fit.refinement.initial_states) == 1
+    assert fit.refinement.initial_states[0] == pytest.approx(START, abs=0.01)
+    plain = algid.identify(record, CUBIC_TWO_MASS, list(CUBIC_TRUE), refine=False)
+    assert plain.estimate == "algebraic" and plain.values == algebraic["values"]
 
 
 def test_a_nonlinear_system_exports_to_nlsys_not_to_control(cubic_fit):

@@ -15,6 +15,12 @@ samples), then polished by Gauss–Newton steps with central differences.  The c
 is the same sandwich form on the Jacobian of the parameters with the initial states
 projected out (the parameters' block of the inverse Fisher information, the initial
 states as nuisance).
+
+A system of equations nonlinear in its signals is fitted the same way
+(:func:`prepare_nonlinear_system`): every output simulated at once
+(:class:`algid.simulation._fast_simulation.FastSystemSimulation`), each weighted by the
+inverse of its noise level, so that one segment's rows are its outputs one after the
+other.
 """
 
 from __future__ import annotations
@@ -24,9 +30,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from algid.identification._refinement import Refinement, sandwich_covariance
-from algid.identification._residual_tests import nonlinear_residual_test
+from algid.identification._residual_tests import ResidualTest, nonlinear_residual_test
 
-__all__ = ["NonlinearData", "prepare_nonlinear", "refine_nonlinear"]
+__all__ = ["NonlinearData", "prepare_nonlinear", "prepare_nonlinear_system",
+           "refine_nonlinear"]
 
 #: Finite-difference step of the Jacobian, in units of each variable's scale.
 _JACOBIAN_STEP = 1e-3
@@ -57,6 +64,9 @@ class NonlinearData:
         The segments simulated.
     interpolation : str
         The inputs between samples.
+    runs : int
+        Outputs per segment (a system's: each segment's rows are ``runs`` equal runs,
+        one per output, weighted by the inverse of its noise level).
     """
 
     model: object
@@ -66,6 +76,7 @@ class NonlinearData:
     start_scale: list
     segments: list
     interpolation: str
+    runs: int = 1
 
     @property
     def order(self):
@@ -120,6 +131,54 @@ def prepare_nonlinear(model, segments, interpolation="bandlimited"):
         scale.append(error)
     return NonlinearData(model, simulations, outputs, start, scale, list(segments),
                          interpolation)
+
+
+def prepare_nonlinear_system(system, segments, sigma, interpolation="bandlimited"):
+    """:class:`NonlinearData` of a system of equations on uniformly sampled segments.
+
+    Parameters
+    ----------
+    system : algid.models.SystemModel
+        Every output measured.
+    segments : list of Segment
+    sigma : mapping
+        Output name -> its noise level (each output's residuals are divided by it).
+    interpolation : {"bandlimited", "cubic"}
+        The inputs between samples.
+
+    Returns
+    -------
+    NonlinearData
+    """
+    from algid.simulation._fast_simulation import FastSystemSimulation
+
+    weights = np.array([1.0 / sigma[y] for y in system.outputs])
+    simulations, outputs, start, scale = [], [], [], []
+    for seg in segments:
+        t = np.asarray(seg.t, dtype=float)
+        columns = {name: np.asarray(seg.values[name], dtype=float) for name in system.inputs}
+        simulation = FastSystemSimulation(system, t, columns, interpolation=interpolation)
+        simulations.append(_Weighted(simulation, weights))
+        measured = [np.asarray(seg.values[y], dtype=float) for y in system.outputs]
+        outputs.append(np.concatenate([y * w for y, w in zip(measured, weights)]))
+        guesses = [_initial_guess(t, y, sum(1 for name, _ in simulation.states if name == o))
+                   for o, y in zip(system.outputs, measured)]
+        start.append(np.concatenate([value for value, _ in guesses]))
+        scale.append(np.concatenate([error for _, error in guesses]))
+    return NonlinearData(system, simulations, outputs, start, scale, list(segments),
+                         interpolation, runs=len(system.outputs))
+
+
+class _Weighted:
+    """A system's simulation as one run of rows: its outputs one after the other, each
+    times its weight."""
+
+    def __init__(self, simulation, weights):
+        self.simulation, self.weights = simulation, weights
+        self.order = simulation.order
+
+    def run(self, theta, x0):
+        return (self.simulation.run(theta, x0) * self.weights[:, None]).ravel()
 
 
 def _residual(data, theta, states):
@@ -231,10 +290,14 @@ def refine_nonlinear(data, theta, scale, other=None):
     theta_hat, states = start.split(z)
     Jp, bounds = _projected(J, data, p)
     dof = len(r) - len(z)
-    covariance, ar = sandwich_covariance(Jp, r, bounds, dof)
+    runs = [(a + k * (b - a) // data.runs, a + (k + 1) * (b - a) // data.runs)
+            for a, b in bounds for k in range(data.runs)]   # (one noise run per output)
+    covariance, ar = sandwich_covariance(Jp, r, runs, dof)
     n = data.order
     free = [J[a:b, p + s * n:p + (s + 1) * n] for s, (a, b) in enumerate(bounds)]
-    test = nonlinear_residual_test(data, theta_hat, states, r, free, Jp, bounds, ar, dof)
+    # (the residual test's candidate terms are of one equation)
+    test = nonlinear_residual_test(data, theta_hat, states, r, free, Jp, bounds, ar, dof) \
+        if data.runs == 1 else ResidualTest()
     covariance = covariance * np.outer(scale, scale)
     numerical = np.full(p, np.nan)
     if other is not None:

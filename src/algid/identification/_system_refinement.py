@@ -1,5 +1,5 @@
-"""Output-error refinement of a linear system of equations: every measured output
-simulated, the shared parameters fitted to all of them at once.
+"""Output-error refinement of a system of equations: every measured output simulated,
+the shared parameters fitted to all of them at once.
 
 The algebraic estimate of :mod:`algid.identification._system_identify` starts a
 Levenberg–Marquardt iteration (:func:`scipy.optimize.least_squares`) on the residuals
@@ -18,6 +18,12 @@ linear equation; the simulation is exact, so no precision margin is asked of it:
 algebraic standard errors, from the residuals' own covariance, vary by a factor of two
 between noise realisations); else the algebraic estimate, with the reason in
 ``result.refinement``.
+
+A system nonlinear in its signals is simulated by the compiled fixed-step integrator
+(:class:`algid.simulation._fast_simulation.FastSystemSimulation`) and fitted by
+:func:`~algid.identification._output_error_nonlinear.refine_nonlinear`, its initial
+states iterated with the parameters (:func:`_refine_nonlinear`); ``"auto"`` reports it
+under the rules of one nonlinear equation.
 """
 
 from __future__ import annotations
@@ -153,11 +159,6 @@ def refine_system(result, segments, refine):
     result = replace(result, algebraic=algebraic)
     if refine is False:
         return replace(result, refinement=Refinement(False, "refine=False"))
-    if not system.is_linear:
-        reason = "the system is not linear in its signals: not refined"
-        if refine is True:
-            raise ModelError(f"refine=True: {reason}")
-        return replace(result, refinement=Refinement(False, reason))
     start = np.array([result.values[p] for p in system.parameters])
     se = np.sqrt(np.maximum(np.diag(result.covariance), 0.0))
     weak = [p for p, v, s in zip(system.parameters, start, se)
@@ -172,6 +173,8 @@ def refine_system(result, segments, refine):
                                             f"is started from it (refine=True refines "
                                             f"anyway)")
     scale = np.where(se > 0, se, np.maximum(np.abs(start), 1.0) * 1e-6)
+    if not system.is_linear:
+        return _refine_nonlinear(result, segments, refine, start, scale)
     sigma = {y: 1.0 for y in observed}
     residuals = SimulationResiduals(system, segments, sigma, observed)
     r0 = residuals(start)
@@ -214,6 +217,92 @@ def refine_system(result, segments, refine):
     return replace(result, values=dict(zip(system.parameters, theta.tolist())),
                    covariance=covariance, estimate="refined", refinement=refinement,
                    noise_rms=rms, numerical_error={})
+
+
+def _refine_nonlinear(result, segments, refine, start, scale):
+    """:func:`refine_system` of a system nonlinear in its signals (every output measured:
+    a hidden signal is eliminated only from a linear system): the output-error fit of
+    :func:`~algid.identification._output_error_nonlinear.refine_nonlinear`, its initial
+    states iterated with the parameters, reported by ``"auto"`` under the rules of one
+    nonlinear equation."""
+    from algid.identification._output_error import PRECISION_MARGIN
+    from algid.identification._output_error_nonlinear import (
+        prepare_nonlinear_system,
+        refine_nonlinear,
+    )
+    from algid.identification._records import UNIFORM_TOLERANCE
+    from algid.simulation._fast_simulation import fast_simulation_unavailable
+
+    system = result.system
+    unavailable = fast_simulation_unavailable(None)
+    if unavailable is not None:
+        return _not_refined(result, refine, f"{unavailable}: not refined")
+    if not np.all(np.isfinite(start)):
+        return _not_refined(result, refine, "the algebraic estimate is not finite")
+    step = segments[0].step
+    if any(abs(seg.step - step) > UNIFORM_TOLERANCE * step for seg in segments):
+        return _not_refined(result, refine, "the output-error refinement needs records of "
+                                            "one sampling step")
+    sigma = {y: 1.0 for y in system.outputs}
+    theta, covariance, info = start, None, None
+    with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+        for _ in range(PASSES):   # (each output weighted by its residuals' rms)
+            data = prepare_nonlinear_system(system, segments, sigma)
+            if info is None:
+                first = _output_rms(data, theta, data.start)
+                if first is None:
+                    return _not_refined(result, refine, "the algebraic estimate does not "
+                                                        "simulate stably on these records")
+                sigma = first
+                data = prepare_nonlinear_system(system, segments, sigma)
+            theta, covariance, info = refine_nonlinear(
+                data, theta, scale, prepare_nonlinear_system(system, segments, sigma,
+                                                             "cubic"))
+            if not np.all(np.isfinite(theta)):
+                return _not_refined(result, refine, "the refinement diverged")
+            sigma = _output_rms(data, theta, info.initial_states)
+    algebraic_se = np.sqrt(np.maximum(np.diag(result.covariance), 0.0))
+    refined_se = np.sqrt(np.maximum(np.diag(covariance), 0.0))
+    numerical = np.asarray(info.numerical_error, dtype=float)
+    why = None
+    if not (np.all(np.isfinite(covariance)) and info.rms_after < info.rms_before):
+        why = "the refinement did not lower the simulation error"
+    elif refine == "auto" and np.any(numerical > refined_se):
+        worst = int(np.argmax(numerical / np.maximum(refined_se, 1e-300)))
+        why = (f"the simulation's own error (its interpolation of the inputs) exceeds the "
+               f"noise's: {system.parameters[worst]} moves by {numerical[worst]:.2g} with "
+               f"another interpolation, over its standard error (refine=True refines "
+               f"anyway)")
+    elif refine == "auto" and np.any(refined_se > PRECISION_MARGIN * algebraic_se):
+        worst = int(np.argmax(refined_se / np.maximum(algebraic_se, 1e-300)))
+        why = (f"the output-error fit is much less precise than the algebraic estimate "
+               f"({system.parameters[worst]}: standard error {refined_se[worst]:.2g} "
+               f"against {algebraic_se[worst]:.2g}): its residuals are mostly the "
+               f"system's error, not noise (refine=True refines anyway)")
+    if why is not None:
+        if refine is True and why.startswith("the refinement did not"):
+            raise ModelError(f"refine=True: {why}")
+        return replace(result, refinement=replace(info, applied=False, reason=why))
+    refinement = replace(info, applied=True, reason="refined by output error")
+    return replace(result, values=dict(zip(system.parameters, theta.tolist())),
+                   covariance=covariance, estimate="refined", refinement=refinement,
+                   noise_rms=sigma,
+                   numerical_error=dict(zip(system.parameters, numerical.tolist())))
+
+
+def _output_rms(data, theta, states):
+    """Output name -> rms of its simulation residuals (in its own units), or None where
+    a segment does not simulate."""
+    outputs = data.model.outputs
+    sums, counts = dict.fromkeys(outputs, 0.0), dict.fromkeys(outputs, 0)
+    for simulation, measured, x0 in zip(data.simulations, data.outputs, states):
+        r = (measured - simulation.run(theta, x0)).reshape(len(outputs), -1)
+        if not np.all(np.isfinite(r)):
+            return None
+        for y, row, w in zip(outputs, r, simulation.weights):
+            sums[y] += float(row @ row) / w ** 2
+            counts[y] += len(row)
+    return {y: float(np.sqrt(sums[y] / counts[y])) for y in outputs}
 
 
 def _not_refined(result, refine, reason):

@@ -38,7 +38,8 @@ import numpy as np
 from algid.errors import ModelError
 from algid.models._expression import Call, Constant, Power, Product, Signal, Sum, Time
 
-__all__ = ["Program", "program", "FastSimulation", "fast_simulation_unavailable",
+__all__ = ["Program", "program", "FastSimulation", "FastSystemSimulation",
+           "fast_simulation_unavailable",
            "FUNCTION_CODES", "SUBSTEPS"]
 
 #: Runge-Kutta steps per sampling step.
@@ -78,17 +79,20 @@ class Program:
         self.inputs, self.switches, self.depth = [], [], 1
 
 
-def program(factors, output, order):
+def program(factors, output, order, states=None):
     """Stack-machine code of the factors that read the output.
 
     Parameters
     ----------
     factors : sequence of Expr
         The factors of the state terms.
-    output : str
-        The simulated signal.
+    output : str or None
+        The simulated signal (None for a system).
     order : int
         The highest derivative of the output (the state holds the lower ones).
+    states : mapping, optional
+        For a system: ``(output, k)`` -> the index of its state (the structure refused
+        already what cannot be simulated).
 
     Returns
     -------
@@ -109,7 +113,9 @@ def program(factors, output, order):
         elif isinstance(expr, Time):
             _op(code, _TIME, 0.0)
         elif isinstance(expr, Signal):
-            if expr.name == output:
+            if states is not None and (expr.name, expr.derivative) in states:
+                _op(code, _STATE, float(states[(expr.name, expr.derivative)]))
+            elif expr.name == output:
                 if expr.derivative >= order:
                     raise ModelError(f"cannot simulate: {expr} appears inside a nonlinear "
                                      f"factor")
@@ -162,7 +168,8 @@ def fast_simulation_unavailable(model):
 
     Parameters
     ----------
-    model : algid.models._model.Model
+    model : algid.models._model.Model or None
+        None: only whether the fast simulators can run at all (numba).
 
     Returns
     -------
@@ -173,6 +180,8 @@ def fast_simulation_unavailable(model):
         import numba  # noqa: F401
     except ImportError:
         return "the fast simulator needs numba (pip install 'algid[fast]')"
+    if model is None:
+        return None
     try:
         _Structure(model)
     except ModelError as error:
@@ -227,35 +236,16 @@ class FastSimulation:
     """
 
     def __init__(self, model, t, columns, interpolation="bandlimited", substeps=SUBSTEPS):
-        from algid.simulation._interpolation import UPSAMPLING, Interpolant, bandlimited_samples
         from algid.simulation._model import differentiate, known_term_values
         from algid.simulation._rk4_kernel import simulate_output
 
         structure = _Structure(model)
         self.order = structure.order
-        self.t = np.asarray(t, dtype=float)
-        self.step = (self.t[-1] - self.t[0]) / (len(self.t) - 1)
-        self.substeps = int(substeps)
-        if UPSAMPLING % (2 * self.substeps):
-            raise ModelError(f"substeps must divide {UPSAMPLING // 2}, got {substeps}")
+        grid = _FineGrid(t, columns, interpolation, substeps)
+        self.t, self.step, self.substeps = grid.t, grid.step, grid.substeps
         self._kernel = simulate_output
-        points = (len(self.t) - 1) * 2 * self.substeps + 1
-        fine = self.t[0] + np.arange(points) * (self.step / (2 * self.substeps))
-        fine[-1] = self.t[-1]
-
-        def on_fine(values):
-            # (the band-limited points are a subset of its upsampled ones: no spline)
-            if interpolation == "bandlimited":
-                return bandlimited_samples(values)[::UPSAMPLING // (2 * self.substeps)]
-            return Interpolant(self.t, values, interpolation, scalar=False).spline(fine)
-
-        class Splines(dict):   # made where a known term differentiates an input
-            def __missing__(splines, name):
-                splines[name] = Interpolant(self.t, np.asarray(columns[name], dtype=float),
-                                            interpolation, scalar=False)
-                return splines[name]
-
-        splines = Splines()
+        on_fine, fine = grid.on_fine, grid.points
+        splines = grid.splines
         known = []
         for term in structure.known:
             values = known_term_values(term, columns, splines, self.t)
@@ -298,6 +288,166 @@ class FastSimulation:
                          self.code.depth, np.asarray(x0, dtype=float).copy(),
                          float(self.t[0]), self.step, self.substeps, len(self.t), out)
         return out
+
+
+class _FineGrid:
+    """The points a fixed-step simulation reads its inputs at (every Runge-Kutta step and
+    half step), and the inputs there."""
+
+    def __init__(self, t, columns, interpolation, substeps):
+        from algid.simulation._interpolation import UPSAMPLING, Interpolant, bandlimited_samples
+
+        self.t = np.asarray(t, dtype=float)
+        self.step = (self.t[-1] - self.t[0]) / (len(self.t) - 1)
+        self.substeps = int(substeps)
+        if UPSAMPLING % (2 * self.substeps):
+            raise ModelError(f"substeps must divide {UPSAMPLING // 2}, got {substeps}")
+        count = (len(self.t) - 1) * 2 * self.substeps + 1
+        self.points = self.t[0] + np.arange(count) * (self.step / (2 * self.substeps))
+        self.points[-1] = self.t[-1]
+        self._interpolation = interpolation
+        self._bandlimited = bandlimited_samples
+        self._decimation = UPSAMPLING // (2 * self.substeps)
+        grid = self
+
+        class Splines(dict):   # made where a known term differentiates an input
+            def __missing__(splines, name):
+                splines[name] = Interpolant(grid.t, np.asarray(columns[name], dtype=float),
+                                            interpolation, scalar=False)
+                return splines[name]
+
+        self.splines = Splines()
+
+    def on_fine(self, values):
+        """Samples at :attr:`t` -> values at :attr:`points`."""
+        # (the band-limited points are a subset of its upsampled ones: no spline)
+        if self._interpolation == "bandlimited":
+            return self._bandlimited(values)[::self._decimation]
+        from algid.simulation._interpolation import Interpolant
+
+        return Interpolant(self.t, values, self._interpolation, scalar=False).spline(
+            self.points)
+
+
+class FastSystemSimulation:
+    """The outputs of a system of equations simulated on one uniformly sampled run of its
+    inputs, as :class:`FastSimulation` simulates one equation.
+
+    The system is solved for its top derivatives (:class:`SystemStructure`); its state
+    terms run as one stack-machine program, its other terms are sampled once on the
+    fine grid.  A ``sign()`` of an output is refused (as by :class:`SystemEquations`).
+
+    Parameters
+    ----------
+    system : algid.models.SystemModel
+    t : numpy.ndarray
+        The sample times (uniform).
+    columns : mapping
+        Each input of the system -> its samples.
+    outputs : sequence of str, optional
+        The outputs :meth:`run` returns (default: all).
+    interpolation : {"bandlimited", "cubic"}
+        The inputs between samples.
+    substeps : int
+        Runge-Kutta steps per sampling step.
+
+    Attributes
+    ----------
+    order : int
+        The number of states.
+    states : list of (str, int)
+        Per state, the output and its derivative order.
+
+    Raises
+    ------
+    ModelError
+        A system that cannot be simulated (:class:`SystemStructure`).
+    """
+
+    def __init__(self, system, t, columns, outputs=None, interpolation="bandlimited",
+                 substeps=SUBSTEPS):
+        from algid.simulation._rk4_kernel import simulate_system_outputs
+        from algid.simulation._system_equations import SystemStructure
+
+        structure = SystemStructure(system)
+        self._outputs = tuple(structure.outputs)
+        self.states, self.order = structure.states, len(structure.states)
+        grid = _FineGrid(t, columns, interpolation, substeps)
+        self.t, self.step, self.substeps = grid.t, grid.step, grid.substeps
+        self._kernel = simulate_system_outputs
+        read = set(self._outputs)
+        state_terms = [term for term in structure.other_terms
+                       if read & set(term[3].signals())]
+        known_terms = [term for term in structure.other_terms
+                       if not read & set(term[3].signals())]
+        where = {s: i for i, s in enumerate(self.states)}
+        self.code = program([factor for *_, factor in state_terms], None, 0, states=where)
+        values = {name: np.asarray(columns[name], dtype=float) for name in structure.inputs}
+        self.known = np.array([grid.on_fine(np.broadcast_to(
+            np.asarray(factor.evaluate(values, time=self.t), dtype=float), self.t.shape))
+            for *_, factor in known_terms]).reshape(len(known_terms), len(grid.points))
+        self.inputs = np.array([grid.on_fine(values[name]) for name, _ in self.code.inputs]
+                               ).reshape(len(self.code.inputs), len(grid.points))
+        names = system.parameters
+        self._top_map = (np.array([[i, j] for i, j, *_ in structure.top_terms], dtype=np.int64),
+                         _weights_map([_Weight(c, p) for *_, c, p in structure.top_terms],
+                                      names))
+        self._state_map = (np.array([i for i, *_ in state_terms], dtype=np.int64),
+                           _weights_map([_Weight(c, p) for _, c, p, _ in state_terms], names))
+        self._known_map = (np.array([i for i, *_ in known_terms], dtype=np.int64),
+                           _weights_map([_Weight(c, p) for _, c, p, _ in known_terms], names))
+        self._tops = np.array(structure.tops, dtype=np.int64)
+        self._chains = np.array(structure.chains, dtype=np.int64).reshape(-1, 2)
+        chosen = self._outputs if outputs is None else tuple(outputs)
+        self._read = np.array([where[(y, 0)] for y in chosen], dtype=np.int64)
+
+    def run(self, theta, x0):
+        """The simulated outputs at the samples (NaN from where they diverge, all NaN
+        where the parameters do not determine the top derivatives).
+
+        Parameters
+        ----------
+        theta : numpy.ndarray
+            The parameters, in ``system.parameters`` order.
+        x0 : numpy.ndarray
+            The initial state, as :attr:`states`.
+
+        Returns
+        -------
+        numpy.ndarray, shape (outputs, samples)
+        """
+        from algid.simulation._system_equations import solve_tops
+
+        theta = np.asarray(theta, dtype=float)
+        m = len(self._outputs)
+        out = np.full((len(self._read), len(self.t)), np.nan)
+        top = np.zeros((m, m))
+        rows, weights = self._top_map
+        np.add.at(top, (rows[:, 0], rows[:, 1]), _weights(weights, theta))
+        try:
+            solve = solve_tops(top, self._outputs)
+        except ModelError:
+            return out
+        gain = np.zeros((m, len(self._state_map[0])))
+        gain[self._state_map[0], np.arange(gain.shape[1])] = _weights(self._state_map[1], theta)
+        known = np.zeros((m, len(self._known_map[0])))
+        known[self._known_map[0], np.arange(known.shape[1])] = _weights(self._known_map[1],
+                                                                         theta)
+        with np.errstate(all="ignore"):
+            self._kernel(self.code.ops, self.code.args, self.code.starts,
+                         np.ascontiguousarray(solve @ gain),
+                         np.ascontiguousarray(solve @ (known @ self.known)), self.inputs,
+                         self._tops, self._chains, self._read, self.code.depth,
+                         np.asarray(x0, dtype=float).copy(), float(self.t[0]), self.step,
+                         self.substeps, len(self.t), out)
+        return out
+
+
+class _Weight:
+    """A term's coefficient and parameter, as :func:`_weights_map` reads them."""
+
+    def __init__(self, coefficient, parameter):
+        self.coefficient, self.parameter = coefficient, parameter
 
 
 def _weights_map(terms, names):

@@ -1,4 +1,5 @@
-"""The compiled loop of :class:`algid.simulation._fast_simulation.FastSimulation`.
+"""The compiled loops of :class:`algid.simulation._fast_simulation.FastSimulation` and
+:class:`~algid.simulation._fast_simulation.FastSystemSimulation`.
 
 Classical Runge-Kutta steps of a model solved for the highest derivative of its output,
 its state terms run as stack-machine code (:func:`algid.simulation._fast_simulation.program`),
@@ -17,7 +18,7 @@ from algid._compile_notice import watch
 
 watch()   # a line on stderr while numba compiles these for more than a second
 
-__all__ = ["simulate_output"]
+__all__ = ["simulate_output", "simulate_system_outputs"]
 
 _jit = numba.njit(cache=True, nogil=True, error_model="numpy")
 _inline = numba.njit(cache=True, nogil=True, error_model="numpy", inline="always")
@@ -439,4 +440,102 @@ def simulate_output(ops, args, starts, weights, top_weight, forcing, inputs, swi
                         out[r] = math.nan
                     return g // substeps
             out[g // substeps] = x[0]
+    return n_samples
+
+
+@_inline
+def _system_flow(ops, args, starts, gain, forcing, inputs, point, tops, chains, x, time,
+                 modes, stack, u, g, dx):
+    """The derivative of a system's state at fine point ``point`` into ``dx``."""
+    for j in range(inputs.shape[0]):
+        u[j] = inputs[j, point]
+    for j in range(g.shape[0]):
+        g[j] = _term(ops, args, starts[j], starts[j + 1], x, u, time, modes, stack)
+    for c in range(chains.shape[0]):
+        dx[chains[c, 0]] = x[chains[c, 1]]
+    for o in range(tops.shape[0]):
+        total = forcing[o, point]
+        for j in range(g.shape[0]):
+            total += gain[o, j] * g[j]
+        dx[tops[o]] = total
+
+
+@_jit
+def simulate_system_outputs(ops, args, starts, gain, forcing, inputs, tops, chains, outputs,
+                            depth, x0, t0, step, substeps, n_samples, out):
+    """Simulate a system solved for its top derivatives, writing its outputs at the
+    samples into ``out``; NaN once it diverges.
+
+    Parameters
+    ----------
+    ops, args, starts : numpy.ndarray
+        The state terms' stack-machine code
+        (:class:`~algid.simulation._fast_simulation.Program`).
+    gain : numpy.ndarray, shape (outputs, terms)
+        Each state term's weight in each top derivative (the equations solved).
+    forcing : numpy.ndarray, shape (outputs, (n_samples - 1) * 2 * substeps + 1)
+        The terms that do not read an output, solved likewise, at every step and half
+        step.
+    inputs : numpy.ndarray, shape (m, same)
+        The inputs the state terms read, at the same points.
+    tops : numpy.ndarray of int64
+        Per output, the state that its top derivative is the derivative of.
+    chains : numpy.ndarray of int64, shape (c, 2)
+        ``(i, j)``: state ``i``'s derivative is state ``j``.
+    outputs : numpy.ndarray of int64
+        The states written into ``out``.
+    depth : int
+        Stack depth.
+    x0 : numpy.ndarray
+        The initial state.
+    t0, step : float
+        The first sample's time, the sampling step.
+    substeps : int
+        Runge-Kutta steps per sampling step.
+    n_samples : int
+    out : numpy.ndarray, shape (len(outputs), n_samples)
+
+    Returns
+    -------
+    int
+        The number of samples simulated (``n_samples`` unless it diverged).
+    """
+    n = x0.shape[0]
+    x = x0.copy()
+    stack = np.zeros(depth + 1)
+    u = np.zeros(inputs.shape[0])
+    g = np.zeros(starts.shape[0] - 1)
+    modes = np.zeros(0)
+    k1, k2, k3, k4, tmp = np.zeros(n), np.zeros(n), np.zeros(n), np.zeros(n), np.zeros(n)
+    h = step / substeps
+    for o in range(outputs.shape[0]):
+        out[o, 0] = x[outputs[o]]
+    for k in range(1, n_samples):
+        for j in range(substeps):
+            p = 2 * ((k - 1) * substeps + j)
+            time = t0 + ((k - 1) * substeps + j) * h
+            _system_flow(ops, args, starts, gain, forcing, inputs, p, tops, chains, x, time,
+                         modes, stack, u, g, k1)
+            for i in range(n):
+                tmp[i] = x[i] + 0.5 * h * k1[i]
+            _system_flow(ops, args, starts, gain, forcing, inputs, p + 1, tops, chains, tmp,
+                         time + 0.5 * h, modes, stack, u, g, k2)
+            for i in range(n):
+                tmp[i] = x[i] + 0.5 * h * k2[i]
+            _system_flow(ops, args, starts, gain, forcing, inputs, p + 1, tops, chains, tmp,
+                         time + 0.5 * h, modes, stack, u, g, k3)
+            for i in range(n):
+                tmp[i] = x[i] + h * k3[i]
+            _system_flow(ops, args, starts, gain, forcing, inputs, p + 2, tops, chains, tmp,
+                         time + h, modes, stack, u, g, k4)
+            for i in range(n):
+                x[i] += h / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i])
+        for i in range(n):
+            if not abs(x[i]) < 1e150:
+                for q in range(k, n_samples):
+                    for o in range(outputs.shape[0]):
+                        out[o, q] = math.nan
+                return k
+        for o in range(outputs.shape[0]):
+            out[o, k] = x[outputs[o]]
     return n_samples

@@ -25,7 +25,150 @@ from algid.errors import InputDataError, ModelError
 from algid.models._expression import Call, Power, Product, Signal, Sum
 from algid.simulation._output_equation import scalar_function
 
-__all__ = ["SystemEquations", "simulate_nonlinear_system", "fit_nonlinear_initial_state"]
+__all__ = ["SystemStructure", "solve_tops", "SystemEquations", "simulate_nonlinear_system",
+           "fit_nonlinear_initial_state"]
+
+
+class SystemStructure:
+    """A system's states and its terms sorted for solving the top derivatives: what
+    :class:`SystemEquations` and the fast simulator of systems
+    (:class:`algid.simulation._fast_simulation.FastSystemSimulation`) share.
+
+    Parameters
+    ----------
+    system : algid.models.SystemModel
+
+    Attributes
+    ----------
+    outputs, inputs : tuple of str
+    orders : dict
+        Output -> the order of its highest derivative.
+    states : list of (str, int)
+        Per state, the output and its derivative order (output by output).
+    tops : list of int
+        Per output, the state whose derivative is its top derivative.
+    chains : list of (int, int)
+        ``(i, j)``: state ``i``'s derivative is state ``j``.
+    top_terms : list of (int, int, float, str or None)
+        ``(equation, output, coefficient, parameter)`` of every term in a top
+        derivative.
+    other_terms : list of (int, float, str or None, Expr)
+        ``(equation, coefficient, parameter, factor)`` of every other term, a term's
+        derivative of an output taken into its factor.
+
+    Raises
+    ------
+    ModelError
+        An output never differentiated in a plain term, a ``sign()`` of an output, a top
+        derivative inside a nonlinear factor, or a derivative of an input.
+    """
+
+    def __init__(self, system):
+        self.outputs = tuple(system.outputs)
+        self.inputs = tuple(system.inputs)
+        orders = {y: 0 for y in self.outputs}
+        for model in system.equations:
+            for term in model.terms:
+                if isinstance(term.factor, Signal) and term.factor.name in orders:
+                    name = term.factor.name
+                    orders[name] = max(orders[name], term.derivative + term.factor.derivative)
+        for y, n in orders.items():
+            if n == 0:
+                raise ModelError(f"the output {y} is not differentiated in a plain term: "
+                                 f"an algebraic equation has no state to simulate")
+        self.orders = orders
+        self.states = [(y, k) for y in self.outputs for k in range(orders[y])]
+        self._where = where = {s: i for i, s in enumerate(self.states)}
+        self.tops = [where[(y, orders[y] - 1)] for y in self.outputs]
+        self.chains = [(i, where[(y, k + 1)]) for (y, k), i in where.items()
+                       if k + 1 < orders[y]]
+
+        switched = set()   # signals read inside a sign()
+        for model in system.equations:
+            for term in model.terms:
+                _signed(term.factor, switched)
+        for y in self.outputs:
+            if y in switched:
+                raise ModelError(f"cannot simulate: sign() of the output {y} in a system "
+                                 f"(friction: its sticking needs the switching integrator "
+                                 f"that simulates one equation)")
+        self.top_terms, self.other_terms = [], []
+        for i, model in enumerate(system.equations):
+            for term in model.terms:
+                factor = term.factor
+                if term.derivative:
+                    if not isinstance(factor, Signal):
+                        raise ModelError(f"cannot simulate a derivative of {factor}")
+                    factor = Signal(factor.name, factor.derivative + term.derivative)
+                if isinstance(factor, Signal) and factor.name in orders \
+                        and factor.derivative == orders[factor.name]:
+                    self.top_terms.append((i, self.outputs.index(factor.name),
+                                           term.coefficient, term.parameter))
+                else:
+                    for signal in _signals_of(factor):
+                        self.slot(signal)   # (refuses what cannot be simulated)
+                    self.other_terms.append((i, term.coefficient, term.parameter, factor))
+
+    def slot(self, signal):
+        """Where a signal of a factor is read: ``("x", state)`` or ``("u", input)``.
+
+        Parameters
+        ----------
+        signal : algid.models._expression.Signal
+
+        Returns
+        -------
+        tuple of (str, int)
+
+        Raises
+        ------
+        ModelError
+            A top derivative of an output, or a derivative of an input.
+        """
+        if signal.name in self.orders:
+            if signal.derivative >= self.orders[signal.name]:
+                raise ModelError(f"cannot simulate: {signal} appears inside a nonlinear "
+                                 f"factor (the top derivatives enter in plain terms only)")
+            return ("x", self._where[(signal.name, signal.derivative)])
+        if signal.derivative:
+            raise ModelError(f"cannot simulate: {signal} is a derivative of an input (a "
+                             f"system is simulated from its inputs only)")
+        return ("u", self.inputs.index(signal.name))
+
+
+def solve_tops(top, outputs):
+    """``-inv(top)``: the top derivatives from the other terms' sums, one per equation.
+
+    Parameters
+    ----------
+    top : numpy.ndarray, shape (m, m)
+        The top derivatives' coefficients, one row per equation.
+    outputs : sequence of str
+
+    Returns
+    -------
+    numpy.ndarray
+
+    Raises
+    ------
+    ModelError
+        A singular (or not finite) ``top``.
+    """
+    if not np.all(np.isfinite(top)) or np.linalg.cond(top) > 1e12:
+        raise ModelError("the equations do not determine the highest derivatives of "
+                         f"{', '.join(outputs)} at these parameters (their "
+                         f"coefficients form a singular matrix)")
+    return -np.linalg.inv(top)
+
+
+def _value(parameter, values):
+    return 1.0 if parameter is None else float(values[parameter])
+
+
+def _signals_of(factor):
+    """Every signal (and derivative of one) that ``factor`` reads."""
+    return [Signal(name) for name in factor.signals()] \
+        + [Signal(name, k) for name, k in factor.derivatives()]
 
 
 class SystemEquations:
@@ -64,67 +207,19 @@ class SystemEquations:
     """
 
     def __init__(self, system, values):
-        self.outputs = tuple(system.outputs)
-        self.inputs = tuple(system.inputs)
-        orders = {y: 0 for y in self.outputs}
-        for model in system.equations:
-            for term in model.terms:
-                if isinstance(term.factor, Signal) and term.factor.name in orders:
-                    name = term.factor.name
-                    orders[name] = max(orders[name], term.derivative + term.factor.derivative)
-        for y, n in orders.items():
-            if n == 0:
-                raise ModelError(f"the output {y} is not differentiated in a plain term: "
-                                 f"an algebraic equation has no state to simulate")
-        self.states = [(y, k) for y in self.outputs for k in range(orders[y])]
-        where = {s: i for i, s in enumerate(self.states)}
-        self._tops = [where[(y, orders[y] - 1)] for y in self.outputs]
-        self._chains = [(i, where[(y, k + 1)]) for (y, k), i in where.items()
-                        if k + 1 < orders[y]]
-
-        switched = set()   # signals read inside a sign()
-        for model in system.equations:
-            for term in model.terms:
-                _signed(term.factor, switched)
-        for y in self.outputs:
-            if y in switched:
-                raise ModelError(f"cannot simulate: sign() of the output {y} in a system "
-                                 f"(friction: its sticking needs the switching integrator "
-                                 f"that simulates one equation)")
-
-        def slot(signal):
-            if signal.name in orders:
-                if signal.derivative >= orders[signal.name]:
-                    raise ModelError(f"cannot simulate: {signal} appears inside a nonlinear "
-                                     f"factor (the top derivatives enter in plain terms only)")
-                return ("x", where[(signal.name, signal.derivative)])
-            if signal.derivative:
-                raise ModelError(f"cannot simulate: {signal} is a derivative of an input (a "
-                                 f"system is simulated from its inputs only)")
-            return ("u", self.inputs.index(signal.name))
-
+        structure = SystemStructure(system)
+        self.outputs, self.inputs = structure.outputs, structure.inputs
+        self.states = structure.states
+        self._tops, self._chains = structure.tops, structure.chains
         m = len(self.outputs)
         top = np.zeros((m, m))
         self._terms = [[] for _ in range(m)]   # per equation: (weight, closure)
-        for i, model in enumerate(system.equations):
-            for term in model.terms:
-                weight = term.coefficient * (1.0 if term.parameter is None
-                                             else float(values[term.parameter]))
-                factor = term.factor
-                if term.derivative:
-                    if not isinstance(factor, Signal):
-                        raise ModelError(f"cannot simulate a derivative of {factor}")
-                    factor = Signal(factor.name, factor.derivative + term.derivative)
-                if isinstance(factor, Signal) and factor.name in orders \
-                        and factor.derivative == orders[factor.name]:
-                    top[i, self.outputs.index(factor.name)] += weight
-                else:
-                    self._terms[i].append((weight, scalar_function(factor, slot)))
-        if not np.all(np.isfinite(top)) or np.linalg.cond(top) > 1e12:
-            raise ModelError("the equations do not determine the highest derivatives of "
-                             f"{', '.join(self.outputs)} at these parameters (their "
-                             f"coefficients form a singular matrix)")
-        self._solve = -np.linalg.inv(top)
+        for i, j, coefficient, parameter in structure.top_terms:
+            top[i, j] += coefficient * _value(parameter, values)
+        for i, coefficient, parameter, factor in structure.other_terms:
+            self._terms[i].append((coefficient * _value(parameter, values),
+                                   scalar_function(factor, structure.slot)))
+        self._solve = solve_tops(top, self.outputs)
 
     def derivative(self, t, x, u):
         """The state's derivative (for python-control and SciPy's integrators).
