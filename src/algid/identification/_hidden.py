@@ -173,14 +173,16 @@ def eliminate(system, hidden):
             return name, expr
         return None, expr
 
+    most = 0   # (the coefficients of one eliminated equation, at most)
     for y in measured:
         j = outputs.index(y)
-        pieces, tex = [], []
+        pieces, tex, used = [], [], set()
         for k in range(order, -1, -1):
             a = det_poly.coeff_monomial(s ** k)
             if a == 0:
                 continue
             name, expr = coefficient(f"a{k}", a)
+            used.add(name)
             pieces.append(_term(name, expr, y, k))
             tex.append(_tex(expr, y, k))
         coupled = sp.expand(adjugate[j, :] * Q) if Q.shape[1] else sp.zeros(1, 0)
@@ -195,6 +197,7 @@ def eliminate(system, hidden):
                 label = "one" if channel == "1" else channel
                 suffix = f"_{y}" if len(measured) > 1 else ""
                 name, expr = coefficient(f"b{k}_{label}{suffix}", b)
+                used.add(name)
                 if channel == "1":
                     pieces.append(name if name else _number(expr))
                     tex.append(sp.latex(expr))
@@ -203,12 +206,18 @@ def eliminate(system, hidden):
                     tex.append(_tex(expr, channel, k))
         equations.append(" + ".join(pieces).replace("+ -", "- ") + " = 0")
         latex.append(" + ".join(tex) + " = 0")
-    if len(coefficients) > LIMITS["parameters"]:
-        raise ModelError(f"hiding {', '.join(hidden)} leaves input-output equations with "
-                         f"{len(coefficients)} coefficients to identify, more than the "
-                         f"{LIMITS['parameters']} parameters a system may have: measure "
+        most = max(most, len(used - {None}))
+    if most > LIMITS["parameters"]:
+        raise ModelError(f"hiding {', '.join(hidden)} leaves an input-output equation with "
+                         f"{most} coefficients to identify, more than the "
+                         f"{LIMITS['parameters']} an equation may have: measure "
                          f"{'it' if len(hidden) == 1 else 'one of them'}, or hide another "
                          f"output instead")
+    if len(coefficients) > LIMITS["system_parameters"]:
+        raise ModelError(f"hiding {', '.join(hidden)} leaves input-output equations with "
+                         f"{len(coefficients)} coefficients to identify, more than the "
+                         f"{LIMITS['system_parameters']} a system may have: measure "
+                         f"{'it' if len(hidden) == 1 else 'one of them'}")
     for name in coefficients:
         if name in system.signals:
             raise ModelError(f"a signal is named {name}, as a coefficient of the eliminated "

@@ -70,7 +70,15 @@ from algid.identification._window_rule import (
 )
 from algid.models._system import SystemModel, parse_system
 
-__all__ = ["identify_system", "solve_normal", "column_units", "SYSTEM_METHODS"]
+__all__ = ["identify_system", "solve_normal", "equation_weight", "column_units",
+           "SYSTEM_METHODS", "EXACT_RESIDUAL"]
+
+#: An equation's residual below this fraction of its rows is exact (round-off and the
+#: quadrature's error, not noise): its weight is that of this residual.  Without the
+#: floor, a noise-free record gave equations without a known term weights 1e6 to 1e8
+#: times the others', whose squares the normal equations could not hold: a chain of
+#: three masses fell to the trivial solution of its second and third equations.
+EXACT_RESIDUAL = 1e-9
 
 #: Methods offered for systems (instrumental variables need a simulation of every
 #: output: not for systems).
@@ -208,11 +216,26 @@ def _weights(rows, method):
     equation's rows have unit norm."""
     first = [1.0 / max(np.linalg.norm(phi), 1e-300) for phi in rows.blocks]
     _, _, _, _, residuals = _solve_rows(rows, first, method)
-    weights = []
-    for w, r in zip(first, residuals):
-        rms = float(np.sqrt(np.mean(r ** 2)))
-        weights.append(1.0 / rms if rms > 0 else w * np.sqrt(len(r)))
-    return weights
+    return [equation_weight(w, r) for w, r in zip(first, residuals)]
+
+
+def equation_weight(unit, residuals):
+    """An equation's weight in the stacked solve: the inverse rms of its residuals, at
+    most that of :data:`EXACT_RESIDUAL` of its rows.
+
+    Parameters
+    ----------
+    unit : float
+        The inverse norm of the equation's rows (their weight in the first solve).
+    residuals : numpy.ndarray
+        Its residuals at the first solve, one per row (unweighted).
+
+    Returns
+    -------
+    float
+    """
+    rms = float(np.sqrt(np.mean(residuals ** 2)))
+    return 1.0 / max(rms, EXACT_RESIDUAL / (unit * np.sqrt(len(residuals))))
 
 
 def _columns(system, problem):

@@ -50,7 +50,7 @@ from algid.identification._change_detection import (
 )
 from algid.identification._homogeneous import divisions, row_map, to_physical
 from algid.identification._records import GAP_FACTOR, Segment
-from algid.identification._system_identify import solve_normal
+from algid.identification._system_identify import equation_weight, solve_normal
 from algid.identification._system_result import WEAK_RELATIVE_ERROR
 from algid.identification._tracker_kernels import compile_loops
 from algid.identification._tracker_state import (
@@ -505,12 +505,8 @@ class SystemTracker:
         rows = list(zip(*self._first))   # per equation: [(phi, grams)] over windows
         first = [1.0 / max(np.linalg.norm([r[0] for r in eq]), 1e-300) for eq in rows]
         theta_bar = self._koopmans(max(MULTIPLICITIES), first)[0]
-        weights = []
-        for w0, eq in zip(first, rows):
-            r = np.array([row[0] @ theta_bar for row in eq])
-            rms = float(np.sqrt(np.mean(r ** 2)))
-            weights.append(1.0 / rms if rms > 0 else w0 * np.sqrt(len(r)))
-        self._weights = weights
+        self._weights = [equation_weight(w0, np.array([row[0] @ theta_bar for row in eq]))
+                         for w0, eq in zip(first, rows)]
         for window in self._first:
             self._score(window)
         self._first = []

@@ -61,6 +61,7 @@ LIMITS = {
     "exponent": 16,       # |exponent| of a power of a signal expression
     "derivative": 8,      # primes after a name
     "parameters": 12,     # unknown parameters
+    "system_parameters": 96,   # unknown parameters of a system (12 in each equation)
     "channels": 64,       # distinct factors (signals, 1, t, nonlinear factors)
     "name": 64,           # characters of a name
 }
@@ -491,7 +492,7 @@ def chain_operands(node):
     return node.left, [(link.op, link.right) for link in reversed(links)]
 
 
-def _check_parameters(parameters, equation):
+def _check_parameters(parameters, equation, most):
     if isinstance(parameters, str):
         parameters = parameters.replace(",", " ").split()
     if not isinstance(parameters, (list, tuple)):
@@ -500,8 +501,8 @@ def _check_parameters(parameters, equation):
     parameters = tuple(parameters)
     if not parameters:
         _fail(equation, "no unknown parameters given")
-    if len(parameters) > LIMITS["parameters"]:
-        _fail(equation, f"{len(parameters)} parameters (at most {LIMITS['parameters']})")
+    if len(parameters) > most:
+        _fail(equation, f"{len(parameters)} parameters (at most {most})")
     for name in parameters:
         if not isinstance(name, str) or not _IDENTIFIER.fullmatch(name):
             _fail(equation, f"parameter name {name!r} is not an identifier")
@@ -632,7 +633,8 @@ def parse_equation(text, parameters, *, output=None, name="custom", signals=None
     """
     equation = check_text(text)
     check_name(name, "model name")
-    parameters = _check_parameters(parameters, equation)
+    parameters = _check_parameters(parameters, equation, LIMITS[
+        "system_parameters" if within_system else "parameters"])
     if signals is not None:
         signals = tuple(check_name(signal, "signal name") for signal in signals)
         clash = set(signals) & set(parameters)
@@ -649,6 +651,9 @@ def parse_equation(text, parameters, *, output=None, name="custom", signals=None
     used = {term.parameter for term in terms}
     if within_system:   # (an equation of the system may be fully known)
         parameters = tuple(p for p in parameters if p in used)
+        if len(parameters) > LIMITS["parameters"]:
+            _fail(equation, f"{len(parameters)} parameters in this equation (at most "
+                            f"{LIMITS['parameters']} in each equation of a system)")
     for parameter in parameters:
         if parameter not in used:
             _fail(equation, f"parameter {parameter} does not appear (or its terms cancel)")
