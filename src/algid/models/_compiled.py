@@ -23,6 +23,7 @@ from algid._signal_checks import positive_number
 from algid.errors import InputDataError, ModelError
 from algid.models._grammar import parse_equation
 from algid.models._model import channel_names
+from algid.models._system import SystemModel, is_system, parse_system
 
 __all__ = ["compile_equation", "channel_stream", "ChannelStream", "model_of"]
 
@@ -60,7 +61,10 @@ def compile_equation(equation, parameters, *, output=None, name="custom"):
     >>> module.CHANNELS, module.FACTORS
     (('y', 'z1', 'u', 'one'), {'z1': 'y**3', 'one': '1'})
     """
-    model = parse_equation(equation, parameters, output=output, name=name)
+    if is_system(equation):
+        model = parse_system(equation, parameters, outputs=output, name=name)
+    else:
+        model = parse_equation(equation, parameters, output=output, name=name)
     try:
         from algid.symbolic._channels import ChannelModel
         from algid.symbolic._codegen import compile_model
@@ -68,6 +72,8 @@ def compile_equation(equation, parameters, *, output=None, name="custom"):
     except ImportError:
         raise ModelError("compiling an equation needs SymPy: pip install 'algid[derive]'") \
             from None
+    if isinstance(model, SystemModel):
+        return compile_model(derive(model))
     return compile_model(derive(ChannelModel(model)))
 
 
@@ -81,10 +87,14 @@ def model_of(module):
 
     Returns
     -------
-    Model
+    Model or SystemModel
         Read again from the module's equation and parameters (the generated text is
-        self-describing).
+        self-describing); a :class:`~algid.models.SystemModel` of the equations it
+        estimates from for a system's module.
     """
+    if hasattr(module, "EQUATIONS"):
+        return parse_system(module.EQUATIONS, module.PARAMETERS, outputs=module.OUTPUTS,
+                            name=module.MODEL)
     return parse_equation(module.EQUATION, module.PARAMETERS, output=module.OUTPUT,
                           name=module.MODEL)
 

@@ -26,7 +26,7 @@ from dataclasses import dataclass
 import sympy as sp
 
 from algid.errors import ModelError
-from algid.models._model import Model
+from algid.models._model import Model, channel_names
 from algid.models._system import SystemModel
 from algid.symbolic._channels import ChannelModel
 from algid.symbolic._linear_system import (
@@ -346,7 +346,9 @@ def derive(model, *, extra_equations: int = 0) -> Derivation:
     if extra_equations < 0:
         raise ValueError("extra_equations must be >= 0")
     if isinstance(model, SystemModel):
-        return stack_system(model, [derive(ChannelModel(m), extra_equations=extra_equations)
+        names = channel_names(model)  # one identifier per factor in the whole system
+        return stack_system(model, [derive(ChannelModel(m, names=names),
+                                           extra_equations=extra_equations)
                                     if m.parameters else None for m in model.equations])
     if isinstance(model, Model):
         model = ChannelModel(model)
