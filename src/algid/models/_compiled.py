@@ -73,7 +73,13 @@ def compile_equation(equation, parameters, *, output=None, name="custom"):
         raise ModelError("compiling an equation needs SymPy: pip install 'algid[derive]'") \
             from None
     if isinstance(model, SystemModel):
-        return compile_model(derive(model))
+        derivation = derive(model)
+        named = derivation.inseparable()
+        if named:
+            raise ModelError(f"no data can separate {', '.join(named)}: only a combination "
+                             f"of them is determined (their terms are proportional in "
+                             f"every equation; keep one of them)")
+        return compile_model(derivation)
     return compile_model(derive(ChannelModel(model)))
 
 

@@ -13,6 +13,7 @@ which is why the rows are solved together.
 
 from __future__ import annotations
 
+import random
 from dataclasses import dataclass
 
 import sympy as sp
@@ -79,6 +80,28 @@ class SystemDerivation:
     def square(self) -> bool:
         """Whether the stacked system has as many rows as unknowns."""
         return self.P.shape[0] == self.P.shape[1]
+
+    def inseparable(self) -> tuple:
+        """The parameters that no data can separate: those of a combination that the
+        stacked ``P`` maps to zero whatever the signals (terms proportional in every
+        equation, ``a*y + b*y``), or ``()``.
+
+        ``P`` is evaluated with every kernel an independent random integer (a fixed
+        seed), exactly: a combination it cannot separate there is one it cannot
+        separate for any signals.
+
+        Returns
+        -------
+        tuple of str
+            The parameters with a weight in the combination, in the system's order.
+        """
+        rng = random.Random(0)
+        values = {symbol: sp.Integer(rng.randint(1, 10**6))
+                  for symbol in self.kernel_symbols().values()}
+        null = self.P.xreplace(self.kernel_symbols()).xreplace(values).nullspace()
+        if not null:
+            return ()
+        return tuple(str(p) for p, weight in zip(self.parameters, null[0]) if weight != 0)
 
     def chains(self) -> tuple:
         """The integrator chains that realise the kernels of every equation, sorted.
