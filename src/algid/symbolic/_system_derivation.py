@@ -82,11 +82,10 @@ class SystemDerivation:
         return self.P.shape[0] == self.P.shape[1]
 
     def inseparable(self) -> tuple:
-        """The parameters that no data can separate: those of a combination that the
-        stacked ``P`` maps to zero whatever the signals (terms proportional in every
-        equation, ``a*y + b*y``), or ``()``.
+        """The parameters that no data can separate, or ``()``.
 
-        ``P`` is evaluated with every kernel an independent random integer (a fixed
+        Those of a combination that the stacked ``P`` maps to zero whatever the signals
+        (terms proportional in every equation, ``a*y + b*y``).  ``P`` is evaluated with every kernel an independent random integer (a fixed
         seed), exactly: a combination it cannot separate there is one it cannot
         separate for any signals.
 
@@ -123,7 +122,8 @@ class SystemDerivation:
         return kernel_symbols(self.kernels)
 
     def entry_symbols(self):
-        """Symbols ``p_i_j`` and ``q_i`` for the entries of the stacked ``P`` and ``Q``;
+        """Symbols ``p_i_j`` and ``q_i`` for the entries of the stacked ``P`` and ``Q``.
+
         0 for an entry that is zero whatever the data (a parameter absent from a row's
         equation, the known side of an equation without a known term).
 
