@@ -29,30 +29,42 @@ __all__ = ["compile_equation", "channel_stream", "ChannelStream", "model_of"]
 
 
 def compile_equation(equation, parameters, *, output=None, name="custom"):
-    """The generated estimator of a user equation, built in memory.
+    """The generated estimator of a user equation or system of equations, built in memory.
+
+    A system (a list of equations sharing parameters, :func:`algid.models.parse_system`)
+    gives one estimator of the stacked rows of every equation's ``P theta = Q``
+    (:class:`algid.symbolic.SystemDerivation`), in the channels of all the equations;
+    where they outnumber the parameters, it solves the normal equations ``P^T P theta =
+    P^T Q`` at every instant by Cramer's rule, as one equation's estimator solves its
+    own.  Equations without parameters are left out.
 
     Parameters
     ----------
-    equation : str
+    equation : str or list of str
         The model, e.g. ``"y'' + B*y' + K*y + K3*y**3 = G*u + d"``; see
-        :func:`algid.models.parse_equation`.
+        :func:`algid.models.parse_equation`.  A list (or a
+        :class:`~algid.models.SystemModel`): a system of equations.
     parameters : str or sequence of str
-        The unknown parameters.
-    output : str, optional
-        The output signal (default: the signal of highest derivative order).
+        The unknown parameters (of the whole system).
+    output : str or list of str, optional
+        The output signal (default: the signal of highest derivative order); for a
+        system, one per equation.
     name : str, optional
         Label of the model (an identifier).
 
     Returns
     -------
     module
-        The generated estimator (``CHANNELS``, ``FACTORS``, ``PARAMETERS``, the algebra);
-        pass it as ``model`` to :func:`algid.estimate` with ``signals=``.
+        The generated estimator (``CHANNELS``, ``FACTORS``, ``PARAMETERS``, the algebra;
+        for a system also ``EQUATIONS``, ``OUTPUTS`` and ``ROWS``, the equation of every
+        row); pass it as ``model`` to :func:`algid.estimate` (``signals=`` or a record)
+        or :class:`algid.OnlineEstimator`.
 
     Raises
     ------
     ModelError
-        A bad equation, or SymPy is missing.
+        A bad equation or system (also: parameters that no data can separate), or SymPy
+        is missing.
 
     Examples
     --------
@@ -60,6 +72,22 @@ def compile_equation(equation, parameters, *, output=None, name="custom"):
     >>> module = compile_equation("y'' + B*y' + K*y + K3*y**3 = G*u + d", "B K K3 G d")
     >>> module.CHANNELS, module.FACTORS
     (('y', 'z1', 'u', 'one'), {'z1': 'y**3', 'one': '1'})
+
+    A DC motor, whose two equations share the torque constant ``K``:
+
+    >>> import numpy as np
+    >>> import algid
+    >>> motor = ["L*i' + R*i + K*w = u", "J*w' + b*w = K*i"]
+    >>> module = compile_equation(motor, "L R K J b")
+    >>> module.CHANNELS, module.N_EQUATIONS, module.ROWS
+    (('i', 'w', 'u'), 6, (1, 1, 1, 2, 2, 2))
+    >>> t = np.arange(0, 10, 1e-3)
+    >>> u = np.sin(2 * t) + np.sin(7.1 * t)
+    >>> true = {"L": 0.5, "R": 2.0, "K": 0.8, "J": 0.2, "b": 0.1}
+    >>> record = {"t": t, "u": u, **algid.simulate_system(motor, true, t, {"u": u})}
+    >>> r = algid.estimate(record, module)
+    >>> {p: round(v, 4) for p, v in r.final().items()}
+    {'L': 0.5, 'R': 2.0, 'K': 0.8, 'J': 0.2, 'b': 0.1}
     """
     if is_system(equation):
         model = parse_system(equation, parameters, outputs=output, name=name)

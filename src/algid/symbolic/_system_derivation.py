@@ -85,9 +85,9 @@ class SystemDerivation:
         """The parameters that no data can separate, or ``()``.
 
         Those of a combination that the stacked ``P`` maps to zero whatever the signals
-        (terms proportional in every equation, ``a*y + b*y``).  ``P`` is evaluated with every kernel an independent random integer (a fixed
-        seed), exactly: a combination it cannot separate there is one it cannot
-        separate for any signals.
+        (terms proportional in every equation, ``a*y + b*y``).  ``P`` is evaluated with
+        every kernel an independent random integer (a fixed seed), exactly: a
+        combination it cannot separate there is one it cannot separate for any signals.
 
         Returns
         -------
