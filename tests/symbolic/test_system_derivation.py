@@ -140,3 +140,34 @@ def test_initial_conditions_of_signals_with_underscores_are_named_right():
 
     report = derivation_report(parse_equation("x_d'' + a*x_d' = u", "a"))
     assert "unknown symbols (x_d(0), x_d'(0))" in report
+
+
+def test_normal_equations_program_gives_the_parameters_on_closed_form_signals():
+    """The program of the generated cramer() (normal equations of the 6 by 5 stacked
+    system, structural zeros left out) returns the motor's parameters from the exact
+    kernels of closed-form signals."""
+    d = derive(parse_system(*MOTOR))
+    steps, numerators, denominator = d.cramer_program()
+    assert str(steps[0][0]) == "n_0_0" and not d.square
+    Ps, Qs = d.entry_symbols()
+    assert Ps[0, 3] == 0 and Qs[4] == 0   # J is not in the first equation; no known term
+    signals = _motor_signals()
+    kernels = {k.expression(): evaluate_kernel(k, signals).subs(TIME, sp.Rational(3, 2))
+               for k in d.kernels}
+    values = {}
+    for i in range(Ps.shape[0]):
+        values[Qs[i]] = d.Q[i].xreplace(kernels)
+        for j in range(Ps.shape[1]):
+            values[Ps[i, j]] = d.P[i, j].xreplace(kernels)
+    for symbol, expression in steps:
+        values[symbol] = expression.xreplace(values)
+    den = denominator.xreplace(values)
+    for p, numerator in zip(d.parameters, numerators):
+        assert float(sp.N(numerator.xreplace(values) / den, 30)) == \
+            pytest.approx(float(MOTOR_VALUES[str(p)]), rel=1e-12), p
+
+
+def test_inseparable_parameters_are_named():
+    assert derive(parse_system(*MOTOR)).inseparable() == ()
+    d = derive(parse_system(["y' + a*y + b*y = u", "z' + c*z = y"], "a b c"))
+    assert d.inseparable() == ("a", "b")

@@ -79,6 +79,14 @@ def _linear_maps(module):
     return np.stack(columns_p, axis=-1), np.stack(columns_q, axis=-1)
 
 
+@cache
+def _with_terms(module):
+    """Masks of the entries of ``P`` and ``Q`` that have terms (of a system's stacked
+    rows, the others are zero whatever the data)."""
+    map_p, map_q = _linear_maps(module)
+    return np.any(map_p != 0, axis=-1), np.any(map_q != 0, axis=-1)
+
+
 def _entries(module, values, sizes):
     """``P``, ``Q`` from the kernels' values, and the sizes their terms could have."""
     map_p, map_q = _linear_maps(module)
@@ -218,9 +226,11 @@ def undetermined(module, channels, dt, *, rtol=IDENTIFIABILITY_RTOL, state=None)
             f"a power of two, before any division by the mass): express the signals in "
             f"other units")
     tiny = np.finfo(float).tiny
-    if nonzero and (np.any(size_p < tiny) or np.any(size_q < tiny)):
+    held_p, held_q = _with_terms(module)
+    if nonzero and (np.any(size_p[held_p] < tiny) or np.any(size_q[held_q] < tiny)):
         # no channel is zero, yet an entry's size is subnormal or 0: it underflowed and
-        # lost its digits (the verdict would call it unexcited)
+        # lost its digits (the verdict would call it unexcited); an entry without
+        # terms (a parameter absent from a system's equation) is 0 whatever the data
         raise InputDataError(
             f"the estimator's integrals underflow over a time span of {span:.4g} s (step "
             f"{dt:.4g} s): express the time in other units")

@@ -182,7 +182,8 @@ def _model_arguments(equation, parameters, options, index_name):
                         f"{unknown[0]!r} (identify's options: {', '.join(known)})")
     given = {**known, **options}
     check_refine(given["refine"])
-    if isinstance(equation, (list, tuple)) or given["hidden"] is not None:
+    if isinstance(equation, (list, tuple)) or given["hidden"] is not None or \
+            hasattr(equation, "EQUATIONS"):  # (a compiled system)
         raise ModelError("identify_many takes one equation; identify a system of equations "
                          "record by record with algid.identify")
     if isinstance(equation, types.ModuleType):  # a compiled model: its own equation

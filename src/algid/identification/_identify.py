@@ -454,6 +454,8 @@ def identify(data, equation, parameters=None, *, time=None, rate=None, output=No
     """
     from algid.identification._output_error import check_refine
 
+    if isinstance(equation, types.ModuleType):  # a compiled model: its own equation(s)
+        equation = model_of(estimator_module(equation, parameters))
     if is_system(equation):   # several equations sharing parameters
         from algid.identification._system_identify import identify_system
 
@@ -472,8 +474,6 @@ def identify(data, equation, parameters=None, *, time=None, rate=None, output=No
         raise ModelError("hidden: a single equation's signals are all measured; hidden "
                          "signals belong to a system of equations (a list)")
     refine = check_refine(refine)
-    if isinstance(equation, types.ModuleType):  # a compiled model: its own equation
-        equation = model_of(estimator_module(equation, parameters))
     multiplicities = check_arguments(
         equation, parameters, time=time, rate=rate, output=output, window=window,
         method=method, methods=METHODS, multiplicities=multiplicities, name=name,

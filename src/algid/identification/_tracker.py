@@ -167,6 +167,8 @@ class Tracker:
     def __new__(cls, equation=None, parameters=None, *, rate=None, time=None, output=None,
                 window=None, half_life=None, method="bc", warmup=DEFAULT_WARMUP,
                 false_alarm_rate=DEFAULT_FALSE_ALARM_RATE, every=None):
+        if isinstance(equation, types.ModuleType) and hasattr(equation, "EQUATIONS"):
+            equation = model_of(estimator_module(equation, parameters))  # a compiled system
         if not is_system(equation):
             return super().__new__(cls)
         # a system of equations: the joint window equations on the stream

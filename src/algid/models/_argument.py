@@ -19,13 +19,14 @@ def estimator_module(model, parameters=None, *, output=None):
 
     Parameters
     ----------
-    model : str or module
-        A built-in model's name (``"msd"``), equation text (with ``parameters``), or a
-        generated module (built-in or from :func:`algid.compile_equation`).
+    model : str, list of str or module
+        A built-in model's name (``"msd"``), equation text (with ``parameters``), a list
+        of equations sharing ``parameters`` (a system), or a generated module (built-in
+        or from :func:`algid.compile_equation`).
     parameters : str or sequence of str, optional
         The unknown parameters of equation text; with a module, they must be its own.
-    output : str, optional
-        The output signal of equation text.
+    output : str or list of str, optional
+        The output signal of equation text (one per equation of a system).
 
     Returns
     -------
@@ -50,12 +51,12 @@ def estimator_module(model, parameters=None, *, output=None):
             return load_model(model)
         raise ModelError(f"the equation {model!r} needs its parameters after it, "
                          f"e.g. \"B K\"")
-    if isinstance(model, str):
+    if isinstance(model, (str, list, tuple)):  # (a list: a system of equations)
         from algid.models._compiled import compile_equation
 
         return compile_equation(model, parameters, output=output)
-    raise ModelError(f"model must be a built-in model's name, equation text or a compiled "
-                     f"model, got {type(model).__name__}")
+    raise ModelError(f"model must be a built-in model's name, equation text (a list of them "
+                     f"for a system) or a compiled model, got {type(model).__name__}")
 
 
 def takes_pair(module) -> bool:

@@ -23,35 +23,48 @@ from algid._signal_checks import positive_number
 from algid.errors import InputDataError, ModelError
 from algid.models._grammar import parse_equation
 from algid.models._model import channel_names
+from algid.models._system import SystemModel, is_system, parse_system
 
 __all__ = ["compile_equation", "channel_stream", "ChannelStream", "model_of"]
 
 
 def compile_equation(equation, parameters, *, output=None, name="custom"):
-    """The generated estimator of a user equation, built in memory.
+    """The generated estimator of a user equation or system of equations, built in memory.
+
+    A system (a list of equations sharing parameters, :func:`algid.models.parse_system`)
+    gives one estimator of the stacked rows of every equation's ``P theta = Q``
+    (:class:`algid.symbolic.SystemDerivation`), in the channels of all the equations;
+    where they outnumber the parameters, it solves the normal equations ``P^T P theta =
+    P^T Q`` at every instant by Cramer's rule, as one equation's estimator solves its
+    own.  Equations without parameters are left out.
 
     Parameters
     ----------
-    equation : str
+    equation : str or list of str
         The model, e.g. ``"y'' + B*y' + K*y + K3*y**3 = G*u + d"``; see
-        :func:`algid.models.parse_equation`.
+        :func:`algid.models.parse_equation`.  A list (or a
+        :class:`~algid.models.SystemModel`): a system of equations.
     parameters : str or sequence of str
-        The unknown parameters.
-    output : str, optional
-        The output signal (default: the signal of highest derivative order).
+        The unknown parameters (of the whole system).
+    output : str or list of str, optional
+        The output signal (default: the signal of highest derivative order); for a
+        system, one per equation.
     name : str, optional
         Label of the model (an identifier).
 
     Returns
     -------
     module
-        The generated estimator (``CHANNELS``, ``FACTORS``, ``PARAMETERS``, the algebra);
-        pass it as ``model`` to :func:`algid.estimate` with ``signals=``.
+        The generated estimator (``CHANNELS``, ``FACTORS``, ``PARAMETERS``, the algebra;
+        for a system also ``EQUATIONS``, ``OUTPUTS`` and ``ROWS``, the equation of every
+        row); pass it as ``model`` to :func:`algid.estimate` (``signals=`` or a record)
+        or :class:`algid.OnlineEstimator`.
 
     Raises
     ------
     ModelError
-        A bad equation, or SymPy is missing.
+        A bad equation or system (also: parameters that no data can separate), or SymPy
+        is missing.
 
     Examples
     --------
@@ -59,8 +72,27 @@ def compile_equation(equation, parameters, *, output=None, name="custom"):
     >>> module = compile_equation("y'' + B*y' + K*y + K3*y**3 = G*u + d", "B K K3 G d")
     >>> module.CHANNELS, module.FACTORS
     (('y', 'z1', 'u', 'one'), {'z1': 'y**3', 'one': '1'})
+
+    A DC motor, whose two equations share the torque constant ``K``:
+
+    >>> import numpy as np
+    >>> import algid
+    >>> motor = ["L*i' + R*i + K*w = u", "J*w' + b*w = K*i"]
+    >>> module = compile_equation(motor, "L R K J b")
+    >>> module.CHANNELS, module.N_EQUATIONS, module.ROWS
+    (('i', 'w', 'u'), 6, (1, 1, 1, 2, 2, 2))
+    >>> t = np.arange(0, 10, 1e-3)
+    >>> u = np.sin(2 * t) + np.sin(7.1 * t)
+    >>> true = {"L": 0.5, "R": 2.0, "K": 0.8, "J": 0.2, "b": 0.1}
+    >>> record = {"t": t, "u": u, **algid.simulate_system(motor, true, t, {"u": u})}
+    >>> r = algid.estimate(record, module)
+    >>> {p: round(v, 4) for p, v in r.final().items()}
+    {'L': 0.5, 'R': 2.0, 'K': 0.8, 'J': 0.2, 'b': 0.1}
     """
-    model = parse_equation(equation, parameters, output=output, name=name)
+    if is_system(equation):
+        model = parse_system(equation, parameters, outputs=output, name=name)
+    else:
+        model = parse_equation(equation, parameters, output=output, name=name)
     try:
         from algid.symbolic._channels import ChannelModel
         from algid.symbolic._codegen import compile_model
@@ -68,6 +100,14 @@ def compile_equation(equation, parameters, *, output=None, name="custom"):
     except ImportError:
         raise ModelError("compiling an equation needs SymPy: pip install 'algid[derive]'") \
             from None
+    if isinstance(model, SystemModel):
+        derivation = derive(model)
+        named = derivation.inseparable()
+        if named:
+            raise ModelError(f"no data can separate {', '.join(named)}: only a combination "
+                             f"of them is determined (their terms are proportional in "
+                             f"every equation; keep one of them)")
+        return compile_model(derivation)
     return compile_model(derive(ChannelModel(model)))
 
 
@@ -81,10 +121,14 @@ def model_of(module):
 
     Returns
     -------
-    Model
+    Model or SystemModel
         Read again from the module's equation and parameters (the generated text is
-        self-describing).
+        self-describing); a :class:`~algid.models.SystemModel` of the equations it
+        estimates from for a system's module.
     """
+    if hasattr(module, "EQUATIONS"):
+        return parse_system(module.EQUATIONS, module.PARAMETERS, outputs=module.OUTPUTS,
+                            name=module.MODEL)
     return parse_equation(module.EQUATION, module.PARAMETERS, output=module.OUTPUT,
                           name=module.MODEL)
 

@@ -576,7 +576,8 @@ def check_text(text):
     if isinstance(text, (list, tuple)):
         raise ModelError(f"an equation is one text, got a {type(text).__name__} of "
                          f"{len(text)}: a system of equations goes to algid.identify, "
-                         f"algid.Tracker or algid.symbolic.derive (algid.models.parse_system)")
+                         f"algid.Tracker, algid.compile_equation or algid.symbolic.derive "
+                         f"(algid.models.parse_system)")
     if not isinstance(text, str):
         raise ModelError(f"an equation is a text such as \"y' + a*y = u\", got "
                          f"{type(text).__name__}")

@@ -167,7 +167,9 @@ def channel_names(model: Model) -> dict:
 
     Parameters
     ----------
-    model : Model
+    model : Model or algid.models.SystemModel
+        For a system, the factors of all its equations, named once for the system (a
+        factor keeps its identifier in every equation; two factors never share one).
 
     Returns
     -------

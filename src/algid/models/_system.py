@@ -61,6 +61,17 @@ class SystemModel:
         return tuple(dict.fromkeys(s for model in self.equations for s in model.signals))
 
     @property
+    def channels(self) -> tuple:
+        """Every factor of the equations, in order of first appearance."""
+        return tuple(dict.fromkeys(f for model in self.equations for f in model.channels))
+
+    @property
+    def needs_derivatives(self) -> tuple:
+        """Every ``(signal, order)`` estimated numerically inside a factor, once."""
+        return tuple(dict.fromkeys(pair for model in self.equations
+                                   for pair in model.needs_derivatives))
+
+    @property
     def inputs(self) -> tuple:
         """Measured signals that are no equation's output."""
         return tuple(s for s in self.signals if s not in self.outputs)

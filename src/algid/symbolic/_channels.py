@@ -30,6 +30,10 @@ class ChannelModel:
         From :func:`algid.models.parse_equation`.
     description : str, optional
         One line shown in reports and generated code.
+    names : dict, optional
+        Factor -> channel identifier, for an equation of a system: the system's names
+        (:func:`algid.models._model.channel_names` of the system), so that a channel
+        means one factor in every equation.  Default: the equation's own.
 
     Attributes
     ----------
@@ -44,12 +48,13 @@ class ChannelModel:
         Highest derivative applied to a channel.
     """
 
-    def __init__(self, model: Model, *, description: str = ""):
+    def __init__(self, model: Model, *, description: str = "", names=None):
         self.model = model
         self.name = model.name
         self.description = description
         self.parameters = tuple(sp.Symbol(p) for p in model.parameters)
-        names = channel_names(model)
+        names = channel_names(model) if names is None else \
+            {factor: names[factor] for factor in model.channels}
         self.channels = tuple(names.values())
         self.factors = {name: factor for factor, name in names.items()}
         self._names = names

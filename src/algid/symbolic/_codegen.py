@@ -20,6 +20,7 @@ from algid.models._grammar import check_name
 from algid.models._registry import module_from_source
 from algid.symbolic._derivation import Derivation
 from algid.symbolic._printing import double_constants
+from algid.symbolic._system_derivation import SystemDerivation
 
 __all__ = ["numpy_module_source", "registry_source", "compile_model", "HEADER"]
 
@@ -98,40 +99,22 @@ def numpy_module_source(derivation: Derivation, *, mass_scaled=None, mass_divide
     >>> [line for line in source.splitlines() if line.startswith(("PARAMETERS", "CHANNELS"))]
     ["PARAMETERS = ('B', 'K')", "CHANNELS = ('f', 'x')"]
     """
-    model = derivation.model
-    params = [str(p) for p in model.parameters]
     ksyms = derivation.kernel_symbols()
     P = derivation.P.xreplace(ksyms)
     Q = derivation.Q.xreplace(ksyms)
     n_eq, n_par = P.shape
     steps, nums, den = derivation.cramer_program()
-    # a model of several signals or nonlinear factors names its channels; the
-    # input/output models of the paper are driven by the input and the output
-    channels = tuple(model.estimator_channels)
-    factors = model.factor_texts()
-    _check_identifiers(model, derivation)
-    lines = [f'"""Algebraic estimator of the model {model.name!r}: '
-             f'{_docstring_text(model.equation_text())}.', ""]
-    if model.description:
-        description = _docstring_text(model.description)
-        lines += [description[0].upper() + description[1:] + ".", ""]
-    lines += [HEADER, '"""', "", f"MODEL = {model.name!r}",
-              f"EQUATION = {model.equation_text()!r}",
-              f"DESCRIPTION = {model.description!r}",
-              f"PARAMETERS = {tuple(params)!r}",
-              f"INPUT = {model.input!r}", f"OUTPUT = {model.output!r}",
-              "#: Signals that drive the integrator chains: the rows of the channels the core",
-              "#: (algid.estimation._core.advance) takes, in this order.",
-              f"CHANNELS = {channels!r}",
-              "#: Channels that are not a measured signal: identifier -> factor of the model.",
-              f"FACTORS = {factors!r}",
-              "#: With a known mass m: estimated quantity -> the parameter it is m times.",
-              f"MASS_SCALED = {dict(mass_scaled or {})!r}",
-              "#: With a known mass: the channels given as forces, divided by the mass.",
-              f"MASS_DIVIDED = {tuple(mass_divided)!r}",
-              f"ORDER = {model.order}",
-              f"N_EQUATIONS = {n_eq}", "",
-              "#: (signal, power, order): the order-fold integral from 0 to t of t**power * signal.",
+    params = [str(p) for p in derivation.parameters]
+    if isinstance(derivation, SystemDerivation):
+        if mass_scaled or mass_divided:
+            raise ModelError("a system of equations takes no known mass")
+        lines = _system_header(derivation, n_eq)
+        solved = "``det(P^T P)``, of the normal equations ``P^T P theta = P^T Q``." \
+            if n_eq > n_par else "``det P``."
+    else:
+        lines = _model_header(derivation, params, n_eq, mass_scaled, mass_divided)
+        solved = "``det P``."
+    lines += ["#: (signal, power, order): the order-fold integral from 0 to t of t**power * signal.",
               "KERNELS = ("]
     for k in derivation.kernels:
         lines.append(f"    ({k.signal!r}, {k.power}, {k.order}),  # {k.name}")
@@ -175,7 +158,7 @@ def numpy_module_source(derivation: Derivation, *, mass_scaled=None, mass_divide
               "    Parameters", "    ----------", "    P : rows of arrays", "    Q : arrays", "",
               "    Returns", "    -------", "    numerators : tuple of arrays",
               f"        In the order of PARAMETERS {tuple(params)}.", "    denominator : array",
-              "        ``det P``.", '    """']
+              f"        {solved}", '    """']
     unpack_rows = ", ".join("(" + ", ".join(f"p_{i}_{j}" for j in range(n_par)) + ",)" for i in range(n_eq))
     lines.append(f"    ({unpack_rows},) = P")
     lines.append(f"    ({qs},) = Q")
@@ -186,6 +169,82 @@ def numpy_module_source(derivation: Derivation, *, mass_scaled=None, mass_divide
         lines.append(f"    numerator_{p} = {_code(num)}")
     lines.append("    return (" + ", ".join(f"numerator_{p}" for p in params) + ",), denominator")
     return "\n".join(lines) + "\n"
+
+
+def _model_header(derivation, params, n_eq, mass_scaled, mass_divided):
+    """The docstring and the tables of one equation's module, up to ``N_EQUATIONS``."""
+    model = derivation.model
+    # a model of several signals or nonlinear factors names its channels; the
+    # input/output models of the paper are driven by the input and the output
+    channels = tuple(model.estimator_channels)
+    factors = model.factor_texts()
+    _check_identifiers(model, derivation)
+    lines = [f'"""Algebraic estimator of the model {model.name!r}: '
+             f'{_docstring_text(model.equation_text())}.', ""]
+    if model.description:
+        description = _docstring_text(model.description)
+        lines += [description[0].upper() + description[1:] + ".", ""]
+    return lines + [
+        HEADER, '"""', "", f"MODEL = {model.name!r}",
+        f"EQUATION = {model.equation_text()!r}",
+        f"DESCRIPTION = {model.description!r}",
+        f"PARAMETERS = {tuple(params)!r}",
+        f"INPUT = {model.input!r}", f"OUTPUT = {model.output!r}",
+        "#: Signals that drive the integrator chains: the rows of the channels the core",
+        "#: (algid.estimation._core.advance) takes, in this order.",
+        f"CHANNELS = {channels!r}",
+        "#: Channels that are not a measured signal: identifier -> factor of the model.",
+        f"FACTORS = {factors!r}",
+        "#: With a known mass m: estimated quantity -> the parameter it is m times.",
+        f"MASS_SCALED = {dict(mass_scaled or {})!r}",
+        "#: With a known mass: the channels given as forces, divided by the mass.",
+        f"MASS_DIVIDED = {tuple(mass_divided)!r}",
+        f"ORDER = {model.order}",
+        f"N_EQUATIONS = {n_eq}", ""]
+
+
+def _system_header(sd, n_eq):
+    """The docstring and the tables of a system's module, up to ``N_EQUATIONS``: the
+    tables of one equation's, for the stacked system, and the equations kept."""
+    system = sd.system
+    if not sd.equations:
+        raise ModelError("no equation of the system has a parameter: nothing to estimate")
+    check_name(system.name, "model name")
+    channels, factors = {}, {}
+    for d in sd.equations:
+        _check_identifiers(d.model, d)
+        channels.update(dict.fromkeys(d.model.estimator_channels))
+        factors.update(d.model.factor_texts())
+    kept = tuple(d.model.model for d in sd.equations)
+    equations = tuple(m.equation for m in kept)
+    first = sd.equations[0].model
+    rows = tuple(sd.numbers[e] for e, _ in sd.rows)
+    lines = [f'"""Algebraic estimator of the system {system.name!r}: '
+             f'{_docstring_text("; ".join(equations))}.', ""]
+    if sd.skipped:
+        lines += [f"Left out (no parameter): {_docstring_text('; '.join(sd.skipped))}.", ""]
+    return lines + [
+        HEADER, '"""', "", f"MODEL = {system.name!r}",
+        f"EQUATION = {'; '.join(equations)!r}",
+        "#: The equations estimated from, and their outputs (the system's equations",
+        "#: without parameters left out).",
+        f"EQUATIONS = {equations!r}",
+        f"OUTPUTS = {tuple(m.output for m in kept)!r}",
+        "#: For every row of P and Q: the number of its equation in the system (from 1).",
+        f"ROWS = {rows!r}",
+        "DESCRIPTION = ''",
+        f"PARAMETERS = {tuple(str(p) for p in sd.parameters)!r}",
+        f"INPUT = {(system.inputs[0] if system.inputs else first.input)!r}",
+        f"OUTPUT = {first.output!r}",
+        "#: Signals that drive the integrator chains: the rows of the channels the core",
+        "#: (algid.estimation._core.advance) takes, in this order.",
+        f"CHANNELS = {tuple(channels)!r}",
+        "#: Channels that are not a measured signal: identifier -> factor of the model.",
+        f"FACTORS = {factors!r}",
+        "MASS_SCALED = {}",
+        "MASS_DIVIDED = ()",
+        f"ORDER = {max(d.model.order for d in sd.equations)}",
+        f"N_EQUATIONS = {n_eq}", ""]
 
 
 def registry_source(names) -> str:
@@ -234,7 +293,9 @@ def compile_model(derivation: Derivation, *, mass_scaled=None, mass_divided=()):
     source = numpy_module_source(derivation, mass_scaled=mass_scaled,
                                  mass_divided=mass_divided)
     digest = hashlib.sha256(source.encode()).hexdigest()[:16]
-    name = f"algid._generated.user_{derivation.model.name}_{digest}"
+    label = derivation.system.name if isinstance(derivation, SystemDerivation) \
+        else derivation.model.name
+    name = f"algid._generated.user_{label}_{digest}"
     if name in sys.modules:
         return sys.modules[name]
     from algid.symbolic._codegen_numba import numba_module_source

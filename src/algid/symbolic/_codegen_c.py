@@ -49,6 +49,7 @@ from algid.estimation._numerical_error import WINDOW, companion_options
 from algid.estimation._options import DEFAULT_QUADRATURE_POINTS
 from algid.signals._quadrature import QUADRATURE_POINTS
 from algid.symbolic._derivation import Derivation
+from algid.symbolic._system_derivation import SystemDerivation
 
 __all__ = ["c_sources", "write_c_sources", "quadrature_weights", "C_HEADER",
            "DEFAULT_FILTER_ORDER", "DEFAULT_QUADRATURE_ORDER", "QUADRATURE_ORDERS"]
@@ -138,6 +139,9 @@ def _comment_text(text) -> str:
 
 
 def _check(derivation, name, filter_order, quadrature_order):
+    if isinstance(derivation, SystemDerivation):
+        raise ModelError("the C estimator is generated for one equation; a system's "
+                         "estimator runs in Python (algid.compile_equation with the list)")
     if not isinstance(derivation, Derivation):
         raise ModelError(f"expected a Derivation, got {type(derivation).__name__}")
     if not isinstance(name, str) or not _C_NAME.fullmatch(name):

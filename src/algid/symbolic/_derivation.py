@@ -20,16 +20,23 @@ The steps are those of Fliess and Sira-Ramirez, each kept as a field of
 
 from __future__ import annotations
 
-import itertools
 import math
 from dataclasses import dataclass
 
 import sympy as sp
 
 from algid.errors import ModelError
-from algid.models._model import Model
+from algid.models._model import Model, channel_names
 from algid.models._system import SystemModel
 from algid.symbolic._channels import ChannelModel
+from algid.symbolic._linear_system import (
+    EXPANDED_CRAMER_MAX,
+    cramer_program,
+    entry_symbols,
+    expanded_cramer,
+    kernel_chains,
+    kernel_symbols,
+)
 from algid.symbolic._model import LAPLACE, TIME, LinearODEModel
 from algid.symbolic._system_derivation import stack_system
 
@@ -37,11 +44,6 @@ __all__ = ["IteratedIntegral", "Kernel", "Derivation", "derive", "evaluate_kerne
            "EXPANDED_CRAMER_MAX"]
 
 s, t = LAPLACE, TIME
-
-#: Largest number of unknowns whose Cramer numerators and denominator are expanded
-#: (``n!`` products each); larger systems are solved through shared minors.
-EXPANDED_CRAMER_MAX = 5
-
 
 class IteratedIntegral(sp.Function):
     """``IteratedIntegral(g, k)``: the ``k``-fold integral of ``g`` from 0 to ``t``.
@@ -199,11 +201,7 @@ class Derivation:
             integral of ``t**power`` times the channel; ``depth`` is the deepest level
             a kernel needs.
         """
-        depth = {}
-        for k in self.kernels:
-            key = (k.signal, k.power)
-            depth[key] = max(depth.get(key, 0), k.order)
-        return tuple((sig, power, d) for (sig, power), d in sorted(depth.items()))
+        return kernel_chains(self.kernels)
 
     def kernel_symbols(self):
         """Map each kernel expression to a plain symbol named after the kernel.
@@ -213,7 +211,7 @@ class Derivation:
         dict
             :class:`IteratedIntegral` -> :class:`sympy.Symbol` (``x_t2_i1``, ...).
         """
-        return {k.expression(): sp.Symbol(k.name) for k in self.kernels}
+        return kernel_symbols(self.kernels)
 
     def entry_symbols(self):
         """Symbols ``p_i_j`` and ``q_i`` standing for the entries of ``P`` and ``Q``.
@@ -223,10 +221,7 @@ class Derivation:
         P, Q : sympy.Matrix
             Matrices of symbols of the shapes of ``P`` and ``Q``.
         """
-        n, m = self.P.shape
-        Ps = sp.Matrix(n, m, lambda i, j: sp.Symbol(f"p_{i}_{j}"))
-        Qs = sp.Matrix(n, 1, lambda i, j: sp.Symbol(f"q_{i}"))
-        return Ps, Qs
+        return entry_symbols(self.P.shape)
 
     def cramer(self):
         """Cramer's rule on symbolic entries.
@@ -253,13 +248,7 @@ class Derivation:
             raise ModelError(f"the expanded Cramer solution of {Ps.shape[1]} unknowns has "
                              f"{math.factorial(Ps.shape[1])} products per determinant; use "
                              f"cramer_program()")
-        den = sp.expand(Ps.det(method="berkowitz"))
-        nums = []
-        for j in range(Ps.shape[1]):
-            Pj = Ps.copy()
-            Pj[:, j] = Qs
-            nums.append(sp.expand(Pj.det(method="berkowitz")))
-        return tuple(nums), den
+        return expanded_cramer(Ps, Qs)
 
     def cramer_program(self):
         """Cramer's rule as a straight-line program on the entries ``p_i_j``, ``q_i``.
@@ -281,34 +270,7 @@ class Derivation:
         denominator : sympy.Expr
             ``det P``.
         """
-        Ps, Qs = self.entry_symbols()
-        n = Ps.shape[1]
-        if Ps.shape[0] != n:
-            raise ValueError("Cramer's rule needs as many equations as unknowns")
-        if n <= EXPANDED_CRAMER_MAX:
-            return ((), *self.cramer())
-
-        def entry(row, column):
-            return Ps[row, column] if column < n else Qs[row]
-
-        minors = {1 << c: entry(0, c) for c in range(n + 1)}
-        steps = []
-        for k in range(2, n + 1):
-            level = {}
-            for columns in itertools.combinations(range(n + 1), k):
-                bits = sum(1 << c for c in columns)
-                value = sp.Add(*(
-                    (-1) ** (k - 1 + i) * entry(k - 1, c) * minors[bits & ~(1 << c)]
-                    for i, c in enumerate(columns)))
-                symbol = sp.Symbol(f"m{k}_{bits}")
-                steps.append((symbol, value))
-                level[bits] = symbol
-            minors = level
-        every = (1 << (n + 1)) - 1
-        den = minors[every & ~(1 << n)]
-        # column j of P replaced by Q: Q moved from the last place to place j
-        nums = tuple((-1) ** (n - 1 - j) * minors[every & ~(1 << j)] for j in range(n))
-        return tuple(steps), nums, den
+        return cramer_program(*self.entry_symbols())
 
     def solution(self):
         """The closed-form estimate of each parameter in terms of the kernels.
@@ -384,7 +346,9 @@ def derive(model, *, extra_equations: int = 0) -> Derivation:
     if extra_equations < 0:
         raise ValueError("extra_equations must be >= 0")
     if isinstance(model, SystemModel):
-        return stack_system(model, [derive(ChannelModel(m), extra_equations=extra_equations)
+        names = channel_names(model)  # one identifier per factor in the whole system
+        return stack_system(model, [derive(ChannelModel(m, names=names),
+                                           extra_equations=extra_equations)
                                     if m.parameters else None for m in model.equations])
     if isinstance(model, Model):
         model = ChannelModel(model)

@@ -13,11 +13,19 @@ which is why the rows are solved together.
 
 from __future__ import annotations
 
+import random
 from dataclasses import dataclass
 
 import sympy as sp
 
 from algid.models._system import SystemModel
+from algid.symbolic._linear_system import (
+    cramer_program,
+    entry_symbols,
+    kernel_chains,
+    kernel_symbols,
+    normal_equations,
+)
 
 __all__ = ["SystemDerivation", "stack_system"]
 
@@ -72,6 +80,89 @@ class SystemDerivation:
     def square(self) -> bool:
         """Whether the stacked system has as many rows as unknowns."""
         return self.P.shape[0] == self.P.shape[1]
+
+    def inseparable(self) -> tuple:
+        """The parameters that no data can separate, or ``()``.
+
+        Those of a combination that the stacked ``P`` maps to zero whatever the signals
+        (terms proportional in every equation, ``a*y + b*y``).  ``P`` is evaluated with
+        every kernel an independent random integer (a fixed seed), exactly: a
+        combination it cannot separate there is one it cannot separate for any signals.
+
+        Returns
+        -------
+        tuple of str
+            The parameters with a weight in the combination, in the system's order.
+        """
+        rng = random.Random(0)
+        values = {symbol: sp.Integer(rng.randint(1, 10**6))
+                  for symbol in self.kernel_symbols().values()}
+        null = self.P.xreplace(self.kernel_symbols()).xreplace(values).nullspace()
+        if not null:
+            return ()
+        return tuple(str(p) for p, weight in zip(self.parameters, null[0]) if weight != 0)
+
+    def chains(self) -> tuple:
+        """The integrator chains that realise the kernels of every equation, sorted.
+
+        Returns
+        -------
+        tuple of (str, int, int)
+            As :meth:`algid.symbolic.Derivation.chains`.
+        """
+        return kernel_chains(self.kernels)
+
+    def kernel_symbols(self) -> dict:
+        """Each kernel's expression mapped to a plain symbol named after the kernel.
+
+        Returns
+        -------
+        dict
+        """
+        return kernel_symbols(self.kernels)
+
+    def entry_symbols(self):
+        """Symbols ``p_i_j`` and ``q_i`` for the entries of the stacked ``P`` and ``Q``.
+
+        0 for an entry that is zero whatever the data (a parameter absent from a row's
+        equation, the known side of an equation without a known term).
+
+        Returns
+        -------
+        P, Q : sympy.Matrix
+        """
+        Ps, Qs = entry_symbols(self.P.shape)
+        for i in range(Ps.shape[0]):
+            for j in range(Ps.shape[1]):
+                if self.P[i, j] == 0:
+                    Ps[i, j] = 0
+            if self.Q[i] == 0:
+                Qs[i] = 0
+        return Ps, Qs
+
+    def cramer_program(self):
+        """The solution of the stacked system as a straight-line program.
+
+        A square stacked system is solved by Cramer's rule
+        (:func:`algid.symbolic._linear_system.cramer_program`); one of more rows than
+        unknowns by Cramer's rule on its normal equations ``P^T P theta = P^T Q``, whose
+        entries are the first steps (:func:`algid.symbolic._linear_system.normal_equations`).
+        Either way every row holds at the true parameters on exact data, and so does
+        the solution.
+
+        Returns
+        -------
+        steps : tuple of (sympy.Symbol, sympy.Expr)
+        numerators : tuple of sympy.Expr
+        denominator : sympy.Expr
+            ``det P``, or ``det(P^T P)``.
+        """
+        Ps, Qs = self.entry_symbols()
+        if self.square:
+            return cramer_program(Ps, Qs)
+        normal, N, b = normal_equations(Ps, Qs)
+        steps, numerators, denominator = cramer_program(N, b)
+        return normal + steps, numerators, denominator
 
 
 def stack_system(system, derivations) -> SystemDerivation:
