@@ -143,6 +143,9 @@ def test_a_factor_has_one_channel_in_the_whole_system():
      "no data can separate a, b"),
     (["y' + a*y = u", "z' + b*z = 0"], "a b c", ModelError, "parameter c appears in no"),
     (["y' + a*y = u", "z' + b*z = y"], "a b", ModelError, None),
+    ([f"y{i}' + a{i}*y{i} + b{i}*y{i + 1} = u" for i in range(7)] + ["y7' = u"],
+     " ".join(f"a{i} b{i}" for i in range(7)), ModelError,
+     "a system of 14 parameters: its generated estimator solves at most 12"),
 ])
 def test_a_bad_system_is_one_line(equations, parameters, error, match):
     if match is None:   # a good system, for contrast

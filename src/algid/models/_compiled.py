@@ -21,7 +21,7 @@ import numpy as np
 
 from algid._signal_checks import positive_number
 from algid.errors import InputDataError, ModelError
-from algid.models._grammar import parse_equation
+from algid.models._grammar import LIMITS, parse_equation
 from algid.models._model import channel_names
 from algid.models._system import SystemModel, is_system, parse_system
 
@@ -91,6 +91,12 @@ def compile_equation(equation, parameters, *, output=None, name="custom"):
     """
     if is_system(equation):
         model = parse_system(equation, parameters, outputs=output, name=name)
+        if len(model.parameters) > LIMITS["parameters"]:
+            # (Cramer's rule on the normal equations: its code grows as 2^n)
+            raise ModelError(f"a system of {len(model.parameters)} parameters: its generated "
+                             f"estimator solves at most {LIMITS['parameters']} at once "
+                             f"(algid.identify and algid.Tracker take up to "
+                             f"{LIMITS['system_parameters']})")
     else:
         model = parse_equation(equation, parameters, output=output, name=name)
     try:
