@@ -33,7 +33,7 @@ from algid.identification._refinement import Refinement, sandwich_covariance
 from algid.identification._residual_tests import ResidualTest, nonlinear_residual_test
 
 __all__ = ["NonlinearData", "prepare_nonlinear", "prepare_nonlinear_system",
-           "refine_nonlinear"]
+           "fit_initial_states", "refine_nonlinear"]
 
 #: Finite-difference step of the Jacobian, in units of each variable's scale.
 _JACOBIAN_STEP = 1e-3
@@ -167,6 +167,38 @@ def prepare_nonlinear_system(system, segments, sigma, interpolation="bandlimited
         scale.append(np.concatenate([error for _, error in guesses]))
     return NonlinearData(system, simulations, outputs, start, scale, list(segments),
                          interpolation, runs=len(system.outputs))
+
+
+def fit_initial_states(data, theta):
+    """Each segment's initial state fitted alone, the parameters held at ``theta``, from
+    :attr:`NonlinearData.start`: a start near the optimum for :func:`refine_nonlinear`
+    (whose polynomial guess of a velocity on noisy samples can be far off, and from
+    there the joint iteration can wander to a wrong minimum).
+
+    Parameters
+    ----------
+    data : NonlinearData
+    theta : numpy.ndarray
+
+    Returns
+    -------
+    list of numpy.ndarray
+        Per segment, the fitted state (the guess where a simulation diverges).
+    """
+    from scipy.optimize import least_squares
+
+    states = []
+    for simulation, y, start, scale in zip(data.simulations, data.outputs, data.start,
+                                           data.start_scale):
+        def residual(z, simulation=simulation, y=y, start=start, scale=scale):
+            r = y - simulation.run(theta, start + z * scale)
+            return np.where(np.isfinite(r), r, 1e150)
+
+        fit = least_squares(residual, np.zeros(len(start)), method="lm",
+                            diff_step=_JACOBIAN_STEP, max_nfev=50 * (len(start) + 1))
+        good = np.all(np.isfinite(simulation.run(theta, start + fit.x * scale)))
+        states.append(start + fit.x * scale if good else start)
+    return states
 
 
 class _Weighted:

@@ -227,6 +227,7 @@ def _refine_nonlinear(result, segments, refine, start, scale):
     nonlinear equation."""
     from algid.identification._output_error import PRECISION_MARGIN
     from algid.identification._output_error_nonlinear import (
+        fit_initial_states,
         prepare_nonlinear_system,
         refine_nonlinear,
     )
@@ -244,23 +245,31 @@ def _refine_nonlinear(result, segments, refine, start, scale):
         return _not_refined(result, refine, "the output-error refinement needs records of "
                                             "one sampling step")
     sigma = {y: 1.0 for y in system.outputs}
-    theta, covariance, info = start, None, None
+    theta, covariance, info, states = start, None, None, None
     with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
         for _ in range(PASSES):   # (each output weighted by its residuals' rms)
             data = prepare_nonlinear_system(system, segments, sigma)
-            if info is None:
-                first = _output_rms(data, theta, data.start)
+            if info is None:   # (the initial states fitted to the algebraic estimate)
+                states = start_states = fit_initial_states(data, theta)
+                first = _output_rms(data, theta, states)
                 if first is None:
                     return _not_refined(result, refine, "the algebraic estimate does not "
                                                         "simulate stably on these records")
                 sigma = first
                 data = prepare_nonlinear_system(system, segments, sigma)
+            data.start = states
             theta, covariance, info = refine_nonlinear(
                 data, theta, scale, prepare_nonlinear_system(system, segments, sigma,
                                                              "cubic"))
             if not np.all(np.isfinite(theta)):
                 return _not_refined(result, refine, "the refinement diverged")
-            sigma = _output_rms(data, theta, info.initial_states)
+            states = info.initial_states
+            sigma = _output_rms(data, theta, states)
+    # (the last pass starts where the first ended: against the algebraic start, in the
+    # last pass's weights)
+    before = np.concatenate([y - simulation.run(start, x0) for simulation, y, x0
+                             in zip(data.simulations, data.outputs, start_states)])
+    info = replace(info, rms_before=float(np.sqrt(np.mean(before ** 2))))
     algebraic_se = np.sqrt(np.maximum(np.diag(result.covariance), 0.0))
     refined_se = np.sqrt(np.maximum(np.diag(covariance), 0.0))
     numerical = np.asarray(info.numerical_error, dtype=float)
