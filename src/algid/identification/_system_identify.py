@@ -496,9 +496,11 @@ def identify_system(data, equations, parameters=None, *, time=None, rate=None,
         theta = np.array([result.values[p] for p in system.parameters])
         # its residual test's and what it determines; the algebraic fit's misfit
         # warnings stay in result.algebraic (coloured output noise biases the algebraic
-        # estimates, not the refined ones)
-        result.warnings = result.refinement.residual_test.warnings() \
-            + _weak(system, theta, result.covariance)
+        # estimates, not the refined ones), unless no test of the residuals replaces
+        # them (a nonlinear system's)
+        named = result.refinement.residual_test.warnings() if system.is_linear else \
+            [w for w in result.algebraic["warnings"] if " is poorly determined " not in w]
+        result.warnings = named + _weak(system, theta, result.covariance)
     return result
 
 

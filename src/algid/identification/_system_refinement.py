@@ -265,6 +265,9 @@ def _refine_nonlinear(result, segments, refine, start, scale):
                 return _not_refined(result, refine, "the refinement diverged")
             states = info.initial_states
             sigma = _output_rms(data, theta, states)
+            if sigma is None:
+                return _not_refined(result, refine, "the refined estimate does not "
+                                                    "simulate stably")
     # (the last pass starts where the first ended: against the algebraic start, in the
     # last pass's weights)
     before = np.concatenate([y - simulation.run(start, x0) for simulation, y, x0
