@@ -175,3 +175,18 @@ def test_a_single_equation_s_right_hand_side_is_nan_outside_a_function_s_domain(
     equation = OutputEquation(parse_equation("x' + a*x = u**0.5", "a"), {"a": 1.0})
     assert equation.derivative(0.0, [0.0], [4.0]) == [2.0]
     assert np.isnan(equation.derivative(0.0, [0.0], [-1.0])[0])
+
+
+def test_a_system_equation_that_lacks_a_power_of_its_output_is_named():
+    """The hardening spring written on the wrong mass: the first equation's misfit is
+    hundreds of times the noise's while its estimates hardly shift between windows; as
+    for one equation, a power of its output fitted beside it names what it lacks."""
+    record = cubic_record(noise_db=40.0)
+    wrong = ["m1*x1'' + c1*x1' + k1*x1 + k2*(x1 - x2) = u",
+             "m2*x2'' + c2*x2' + k3*x2**3 + k2*(x2 - x1) = 0"]
+    fit = algid.identify(record, wrong, list(CUBIC_TRUE), refine=False)
+    named = [w for w in fit.warnings if w.endswith("a missing term?")]
+    assert len(named) == 1 and "x1**3" in named[0] and named[0].startswith(
+        "the equation m1*x1''"), fit.warnings
+    right = algid.identify(record, CUBIC_TWO_MASS, list(CUBIC_TRUE), refine=False)
+    assert not right.warnings

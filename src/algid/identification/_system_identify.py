@@ -73,6 +73,9 @@ from algid.models._system import SystemModel, parse_system
 __all__ = ["identify_system", "solve_normal", "equation_weight", "column_units",
            "SYSTEM_METHODS", "EXACT_RESIDUAL"]
 
+#: How a warning that names a term an equation lacks ends.
+MISSING_TERM = "a missing term?"
+
 #: An equation's residual below this fraction of its rows is exact (round-off and the
 #: quadrature's error, not noise): its weight is that of this residual.  Without the
 #: floor, a noise-free record gave equations without a known term weights 1e6 to 1e8
@@ -482,6 +485,9 @@ def identify_system(data, equations, parameters=None, *, time=None, rate=None,
                                 f"records within the noise: its misfit is {misfit:.3g} "
                                 f"times the noise's and the estimates shift by {shift:.3g} "
                                 f"standard errors between windows")
+            # (as for one equation: would a power of its output explain it?)
+            warnings += _missing_term(model, misfit, limit, shift, segments, step, length,
+                                      multiplicities)
     values = dict(zip(system.parameters, fit.theta.tolist()))
     result = SystemResult(
         system=system, values=values, covariance=fit.covariance,
@@ -496,12 +502,31 @@ def identify_system(data, equations, parameters=None, *, time=None, rate=None,
         theta = np.array([result.values[p] for p in system.parameters])
         # its residual test's and what it determines; the algebraic fit's misfit
         # warnings stay in result.algebraic (coloured output noise biases the algebraic
-        # estimates, not the refined ones), unless no test of the residuals replaces
-        # them (a nonlinear system's)
+        # estimates, not the refined ones), except, where no test of the residuals
+        # replaces them (a nonlinear system's), those that name a missing term
         named = result.refinement.residual_test.warnings() if system.is_linear else \
-            [w for w in result.algebraic["warnings"] if " is poorly determined " not in w]
+            [w for w in result.algebraic["warnings"] if w.endswith(MISSING_TERM)]
         result.warnings = named + _weak(system, theta, result.covariance)
     return result
+
+
+def _missing_term(model, misfit, limit, shift, segments, step, length, multiplicities):
+    """The warning of an equation whose misfit a power of its output explains (fitted
+    alone by least squares, as one equation's adequacy test asks; an equation without a
+    known term cannot be, and is not asked)."""
+    from algid.identification._adequacy import Adequacy, missing_terms
+    from algid.identification._identify import least_squares_misfit
+
+    window = (length - 1) * step
+    found = missing_terms(
+        Adequacy(misfit, limit, shift, None, window, window), model,
+        lambda equation, names: least_squares_misfit(segments, step, equation, names,
+                                                     model.output, length, multiplicities))
+    if not found.missing:
+        return []
+    return [f"the equation {model.equation} leaves a misfit {misfit:.3g} times what output "
+            f"noise allows, and a term in {' and '.join(found.missing)} would explain most "
+            f"of it (the misfit falls to {found.explained:.2g} of it): {MISSING_TERM}"]
 
 
 def _check_hidden(hidden):
