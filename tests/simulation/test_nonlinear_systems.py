@@ -190,3 +190,27 @@ def test_a_system_equation_that_lacks_a_power_of_its_output_is_named():
         "the equation m1*x1''"), fit.warnings
     right = algid.identify(record, CUBIC_TWO_MASS, list(CUBIC_TRUE), refine=False)
     assert not right.warnings
+
+
+def test_a_system_with_friction_keeps_its_algebraic_estimate_and_says_why():
+    """A sign() of an output cannot be simulated in a system (its sticking needs the
+    switching integrator of one equation): identify reports the algebraic estimate with
+    the reason, and refine=True refuses in one line."""
+    from algid.models import parse_equation
+    from algid.simulation import simulate_model
+
+    t = np.arange(0, 10, 1e-3)
+    u = 3 * np.sin(2 * np.pi * 0.5 * t) + np.sin(2 * np.pi * 1.3 * t)
+    x1 = simulate_model(parse_equation("x1'' + c*x1' + f*sign(x1') + k*x1 = u", "c f k"),
+                        {"c": 1.0, "f": 0.5, "k": 5.0}, t, {"u": u})
+    x2 = simulate_model(parse_equation("x2' + a*x2 = a*x1", "a"), {"a": 3.0}, t, {"x1": x1})
+    rng = np.random.default_rng(0)
+    record = {"t": t, "u": u, "x1": x1 + 1e-3 * rng.standard_normal(len(t)),
+              "x2": x2 + 1e-3 * rng.standard_normal(len(t))}
+    equations = ["x1'' + c*x1' + f*sign(x1') + k*x1 = u", "x2' + a*x2 = a*x1"]
+    fit = algid.identify(record, equations, "c f k a")
+    assert fit.estimate == "algebraic" and "sign() of the output x1" in fit.refinement.reason
+    assert abs(fit.values["f"] - 0.5) < 4 * fit.stderr["f"]
+    with pytest.raises(ModelError, match="refine=True: cannot simulate: sign\\(\\) of the "
+                                         "output x1"):
+        algid.identify(record, equations, "c f k a", refine=True)

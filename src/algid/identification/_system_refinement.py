@@ -233,11 +233,16 @@ def _refine_nonlinear(result, segments, refine, start, scale):
     )
     from algid.identification._records import UNIFORM_TOLERANCE
     from algid.simulation._fast_simulation import fast_simulation_unavailable
+    from algid.simulation._system_equations import SystemStructure
 
     system = result.system
     unavailable = fast_simulation_unavailable(None)
     if unavailable is not None:
         return _not_refined(result, refine, f"{unavailable}: not refined")
+    try:
+        SystemStructure(system)
+    except ModelError as error:   # (a sign() of an output, a derivative of an input)
+        return _not_refined(result, refine, f"{error}: not refined")
     if not np.all(np.isfinite(start)):
         return _not_refined(result, refine, "the algebraic estimate is not finite")
     step = segments[0].step
