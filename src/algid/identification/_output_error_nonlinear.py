@@ -133,7 +133,8 @@ def prepare_nonlinear(model, segments, interpolation="bandlimited"):
                          interpolation)
 
 
-def prepare_nonlinear_system(system, segments, sigma, interpolation="bandlimited"):
+def prepare_nonlinear_system(system, segments, sigma, interpolation="bandlimited",
+                             substeps=None):
     """:class:`NonlinearData` of a system of equations on uniformly sampled segments.
 
     Parameters
@@ -145,6 +146,9 @@ def prepare_nonlinear_system(system, segments, sigma, interpolation="bandlimited
         Output name -> its noise level (each output's residuals are divided by it).
     interpolation : {"bandlimited", "cubic"}
         The inputs between samples.
+    substeps : int, optional
+        Runge-Kutta steps per sample (default that of
+        :class:`~algid.simulation._fast_simulation.FastSystemSimulation`).
 
     Returns
     -------
@@ -157,7 +161,9 @@ def prepare_nonlinear_system(system, segments, sigma, interpolation="bandlimited
     for seg in segments:
         t = np.asarray(seg.t, dtype=float)
         columns = {name: np.asarray(seg.values[name], dtype=float) for name in system.inputs}
-        simulation = FastSystemSimulation(system, t, columns, interpolation=interpolation)
+        simulation = FastSystemSimulation(system, t, columns, interpolation=interpolation,
+                                          **({} if substeps is None else
+                                             {"substeps": substeps}))
         simulations.append(_Weighted(simulation, weights))
         measured = [np.asarray(seg.values[y], dtype=float) for y in system.outputs]
         outputs.append(np.concatenate([y * w for y, w in zip(measured, weights)]))

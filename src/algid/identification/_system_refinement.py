@@ -43,6 +43,10 @@ __all__ = ["refine_system", "SimulationResiduals", "central_jacobian"]
 #: Reweighting passes (``sigma_j`` from the residuals of the previous fit).
 PASSES = 2
 
+#: Runge-Kutta steps per sample of the second simulation of a nonlinear system, whose
+#: optimum's distance is the refined estimate's numerical error.
+OTHER_SUBSTEPS = 8
+
 
 class SimulationResiduals:
     """Weighted simulation residuals of every output on every segment, the initial
@@ -245,6 +249,9 @@ def _refine_nonlinear(result, segments, refine, start, scale):
         return _not_refined(result, refine, f"{error}: not refined")
     if not np.all(np.isfinite(start)):
         return _not_refined(result, refine, "the algebraic estimate is not finite")
+    if any(seg.step is None for seg in segments):
+        return _not_refined(result, refine, "the output-error refinement needs uniformly "
+                                            "sampled records")
     step = segments[0].step
     if any(abs(seg.step - step) > UNIFORM_TOLERANCE * step for seg in segments):
         return _not_refined(result, refine, "the output-error refinement needs records of "
@@ -263,9 +270,11 @@ def _refine_nonlinear(result, segments, refine, start, scale):
                 sigma = first
                 data = prepare_nonlinear_system(system, segments, sigma)
             data.start = states
+            # (the numerical error: the optimum with the inputs interpolated otherwise
+            # and twice the steps, which sees a jump of sign(u) within a step too)
             theta, covariance, info = refine_nonlinear(
                 data, theta, scale, prepare_nonlinear_system(system, segments, sigma,
-                                                             "cubic"))
+                                                             "cubic", OTHER_SUBSTEPS))
             if not np.all(np.isfinite(theta)):
                 return _not_refined(result, refine, "the refinement diverged")
             states = info.initial_states

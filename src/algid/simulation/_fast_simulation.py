@@ -382,11 +382,16 @@ class FastSystemSimulation:
                        if not read & set(term[3].signals())]
         where = {s: i for i, s in enumerate(self.states)}
         self.code = program([factor for *_, factor in state_terms], None, 0, states=where)
-        values = {name: np.asarray(columns[name], dtype=float) for name in structure.inputs}
-        self.known = np.array([grid.on_fine(np.broadcast_to(
-            np.asarray(factor.evaluate(values, time=self.t), dtype=float), self.t.shape))
-            for *_, factor in known_terms]).reshape(len(known_terms), len(grid.points))
-        self.inputs = np.array([grid.on_fine(values[name]) for name, _ in self.code.inputs]
+        # (the inputs interpolated, then every factor of them evaluated on the fine grid,
+        # as the system's integrator does: a sign(u) interpolated from its samples would
+        # ring where it jumps)
+        fine = {name: grid.on_fine(np.asarray(columns[name], dtype=float))
+                for name in structure.inputs}
+        with np.errstate(all="ignore"):
+            self.known = np.array([np.broadcast_to(np.asarray(
+                factor.evaluate(fine, time=grid.points), dtype=float), grid.points.shape)
+                for *_, factor in known_terms]).reshape(len(known_terms), len(grid.points))
+        self.inputs = np.array([fine[name] for name, _ in self.code.inputs]
                                ).reshape(len(self.code.inputs), len(grid.points))
         names = system.parameters
         self._top_map = (np.array([[i, j] for i, j, *_ in structure.top_terms], dtype=np.int64),
