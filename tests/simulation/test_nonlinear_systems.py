@@ -23,9 +23,10 @@ def _force(t):
     return 3 * np.sum(np.sin(2 * np.pi * freqs[:, None] * t + phases[:, None]), axis=0)
 
 
-def cubic_record(noise_db=None, seed=1, duration=12.0, rate=500.0):
+def cubic_record(noise_db=None, seed=1, duration=12.0, rate=500.0, offset=0.0):
     """Both positions by SciPy's DOP853 at 1e-11 (not algid's simulator), the force
-    interpolated by a cubic spline; ``noise_db`` of white noise on each position."""
+    interpolated by a cubic spline (plus ``offset`` on the first mass, which the
+    equations lack); ``noise_db`` of white noise on each position."""
     p = CUBIC_TRUE
     t = np.arange(0, duration, 1 / rate)
     u = _force(t)
@@ -33,7 +34,7 @@ def cubic_record(noise_db=None, seed=1, duration=12.0, rate=500.0):
 
     def rhs(time, x):
         x1, v1, x2, v2 = x
-        return [v1, (spline(time) - p["c1"] * v1 - p["k1"] * x1 - p["k3"] * x1 ** 3
+        return [v1, (spline(time) + offset - p["c1"] * v1 - p["k1"] * x1 - p["k3"] * x1 ** 3
                      - p["k2"] * (x1 - x2)) / p["m1"],
                 v2, (-p["c2"] * v2 - p["k2"] * (x2 - x1)) / p["m2"]]
 
@@ -106,6 +107,7 @@ def test_a_nonlinear_system_is_refined_by_output_error(cubic_fit):
     assert set(fit.noise_rms) == {"x1", "x2"}
     for y in ("x1", "x2"):   # the noise drawn: 1 % of each output's spread
         assert 0.9 < fit.noise_rms[y] / (0.01 * np.std(cubic_record()[y])) < 1.1
+    assert not fit.warnings   # (its residual test: nothing missing)
     assert len(fit.refinement.initial_states) == 1
     assert fit.refinement.initial_states[0] == pytest.approx(START, abs=0.01)
     plain = algid.identify(record, CUBIC_TWO_MASS, list(CUBIC_TRUE), refine=False)
@@ -214,3 +216,12 @@ def test_a_system_with_friction_keeps_its_algebraic_estimate_and_says_why():
     with pytest.raises(ModelError, match="refine=True: cannot simulate: sign\\(\\) of the "
                                          "output x1"):
         algid.identify(record, equations, "c f k a", refine=True)
+
+
+def test_a_refined_nonlinear_system_s_residuals_name_what_it_lacks():
+    """The records have a constant force on the first mass that the equations lack: the
+    refined fit's residuals name an offset in equation 1."""
+    record = cubic_record(noise_db=40.0, offset=0.5)
+    fit = algid.identify(record, CUBIC_TWO_MASS, list(CUBIC_TRUE))
+    assert fit.warnings and "an offset missing?" in fit.warnings[0] \
+        and "in equation 1" in fit.warnings[0], fit.warnings

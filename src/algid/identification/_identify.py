@@ -88,7 +88,7 @@ from algid.models._system import is_system
 
 __all__ = ["identify", "check_chunk", "METHODS", "MULTIPLICITIES", "AGREEMENT", "CROSSING_PASSES",
            "STREAM_SAMPLES", "CHUNK_SAMPLES", "EXCERPT_SAMPLES", "EXCERPTS",
-           "window_criterion", "window_grid", "least_squares_misfit"]
+           "window_criterion", "window_grid"]
 
 
 #: The covariance of output noise through the kernels replaces the residuals' own (HAC)
@@ -348,26 +348,8 @@ def _excerpt_window(problem, multiplicities, method, separations):
                          separations=separations)
 
 
-def least_squares_misfit(segments, step, equation, parameters, output, length, multiplicities):
-    """Misfit of another equation on the same signals, fitted by least squares.
-
-    Parameters
-    ----------
-    segments : list of Segment
-    step : float
-        Sampling step.
-    equation : str
-    parameters : sequence of str
-    output : str
-    length : int
-        Window length (samples).
-    multiplicities : tuple of int
-
-    Returns
-    -------
-    float
-        As :func:`algid.identification._adequacy.misfit_ratio`.
-    """
+def _least_squares_misfit(segments, step, equation, parameters, output, length, multiplicities):
+    """Misfit of another equation on the same signals, fitted by least squares."""
     problem = WindowProblem(parse_equation(equation, parameters, output=output), segments, step)
     return _misfit_of(problem, length, multiplicities)
 
@@ -534,7 +516,7 @@ def identify(data, equation, parameters=None, *, time=None, rate=None, output=No
             fit = _solve(problem, length, multiplicities, instruments)
     return _result(problem, fit, length, method=method, multiplicities=multiplicities,
                    scores=scores, separations=separations, n_samples=n_samples, time=time,
-                   rate=rate, refine=refine, missing=lambda eq, names: least_squares_misfit(
+                   rate=rate, refine=refine, missing=lambda eq, names: _least_squares_misfit(
                        segments, step, eq, names, model.output, length, multiplicities),
                    idle=_idle_records(data, segments, length, step), segments=segments)
 

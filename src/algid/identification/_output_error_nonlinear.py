@@ -30,7 +30,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from algid.identification._refinement import Refinement, sandwich_covariance
-from algid.identification._residual_tests import ResidualTest, nonlinear_residual_test
+from algid.identification._residual_tests import (
+    nonlinear_residual_test,
+    nonlinear_system_residual_test,
+)
 
 __all__ = ["NonlinearData", "prepare_nonlinear", "prepare_nonlinear_system",
            "fit_initial_states", "refine_nonlinear"]
@@ -154,7 +157,7 @@ def prepare_nonlinear_system(system, segments, sigma, interpolation="bandlimited
     -------
     NonlinearData
     """
-    from algid.simulation._fast_simulation import FastSystemSimulation
+    from algid.simulation._fast_simulation import FastSystemSimulation, WeightedRows
 
     weights = np.array([1.0 / sigma[y] for y in system.outputs])
     simulations, outputs, start, scale = [], [], [], []
@@ -164,7 +167,7 @@ def prepare_nonlinear_system(system, segments, sigma, interpolation="bandlimited
         simulation = FastSystemSimulation(system, t, columns, interpolation=interpolation,
                                           **({} if substeps is None else
                                              {"substeps": substeps}))
-        simulations.append(_Weighted(simulation, weights))
+        simulations.append(WeightedRows(simulation, weights))
         measured = [np.asarray(seg.values[y], dtype=float) for y in system.outputs]
         outputs.append(np.concatenate([y * w for y, w in zip(measured, weights)]))
         guesses = [_initial_guess(t, y, sum(1 for name, _ in simulation.states if name == o))
@@ -205,18 +208,6 @@ def fit_initial_states(data, theta):
         good = np.all(np.isfinite(simulation.run(theta, start + fit.x * scale)))
         states.append(start + fit.x * scale if good else start)
     return states
-
-
-class _Weighted:
-    """A system's simulation as one run of rows: its outputs one after the other, each
-    times its weight."""
-
-    def __init__(self, simulation, weights):
-        self.simulation, self.weights = simulation, weights
-        self.order = simulation.order
-
-    def run(self, theta, x0):
-        return (self.simulation.run(theta, x0) * self.weights[:, None]).ravel()
 
 
 def _residual(data, theta, states):
@@ -333,9 +324,11 @@ def refine_nonlinear(data, theta, scale, other=None):
     covariance, ar = sandwich_covariance(Jp, r, runs, dof)
     n = data.order
     free = [J[a:b, p + s * n:p + (s + 1) * n] for s, (a, b) in enumerate(bounds)]
-    # (the residual test's candidate terms are of one equation)
-    test = nonlinear_residual_test(data, theta_hat, states, r, free, Jp, bounds, ar, dof) \
-        if data.runs == 1 else ResidualTest()
+    if data.runs == 1:
+        test = nonlinear_residual_test(data, theta_hat, states, r, free, Jp, bounds, ar, dof)
+    else:
+        test = nonlinear_system_residual_test(data, theta_hat, states, r, free, Jp, bounds,
+                                              runs, ar, dof)
     covariance = covariance * np.outer(scale, scale)
     numerical = np.full(p, np.nan)
     if other is not None:

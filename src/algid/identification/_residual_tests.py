@@ -33,8 +33,8 @@ from algid.identification._refinement import ar_fit, ar_order_limit
 from algid.models._expression import Signal
 
 __all__ = ["ResidualTest", "residual_test", "nonlinear_residual_test", "score_directions",
-           "candidate_terms", "settles", "system_residual_test", "CHI2_LIMIT", "CANDIDATES",
-           "DIRECTION_CHANGE"]
+           "candidate_terms", "settles", "system_residual_test",
+           "nonlinear_system_residual_test", "CHI2_LIMIT", "CANDIDATES", "DIRECTION_CHANGE"]
 
 #: The score beyond which a direction is a model error: chi-square(1) exceeded with
 #: probability 1e-4 (about 1e-3 over the candidates of a model with one input).
@@ -279,6 +279,129 @@ def nonlinear_residual_test(data, theta, states, residual, free, J, bounds, ar, 
                                        ar, dof, step)
     _one_of_delay_and_derivative(test, projected, _linear_part(model, theta))
     return test
+
+
+def nonlinear_system_residual_test(data, theta, states, residual, free, J, bounds, runs, ar,
+                                   dof):
+    """The scores of :class:`ResidualTest` for a refined fit of a nonlinear system.
+
+    As :func:`nonlinear_residual_test` for one equation: each candidate of
+    :func:`candidate_terms` is a term added to one equation's known side (in the outputs
+    of that equation, or the inputs), its direction the system's response to it along
+    the fitted trajectory (central differences of the compiled simulation in the term's
+    coefficient), every output weighted as the residuals are; the output's shift is one
+    per output (``-yhat_j'`` on its own rows).  A candidate the simulator cannot take
+    (a ``sign()`` of an output, a derivative of an input) is left out.  The warnings
+    name the equation.
+
+    Parameters
+    ----------
+    data : algid.identification._output_error_nonlinear.NonlinearData
+        Of a system (``data.runs`` outputs per segment).
+    theta : numpy.ndarray
+        The refined parameters.
+    states : list of numpy.ndarray
+        Per segment, the fitted initial state.
+    residual, free, J, bounds
+        As in :func:`nonlinear_residual_test` (``bounds``: the segments' rows).
+    runs : list of (int, int)
+        The rows of each output of each segment.
+    ar : numpy.ndarray
+        The residuals' autoregressive polynomial.
+    dof : int
+        Residual degrees of freedom.
+
+    Returns
+    -------
+    ResidualTest
+    """
+    system = data.model
+    weights = data.simulations[0].weights
+    simulated = [y - residual[a:b] for y, (a, b) in zip(data.outputs, bounds)]
+    step = data.simulations[0].step
+    added, simulations = _system_with_terms(data)
+    directions = {}
+    with np.errstate(all="ignore"):
+        for k, (i, key, message) in enumerate(added):
+            pieces = _term_direction(simulations, theta, states, simulated, k, len(added))
+            if pieces is not None:
+                directions[f"{key} in equation {i + 1}"] = (
+                    f"{message}; in equation {i + 1}, {system.equations[i].equation}",
+                    pieces)
+    m = len(system.outputs)
+    for j, y in enumerate(system.outputs):
+        pieces = []
+        for sim in simulated:
+            rows = sim.reshape(m, -1)
+            shift = np.zeros_like(rows)
+            shift[j] = -np.gradient(rows[j] / weights[j], step) * weights[j]
+            pieces.append(shift.ravel())
+        directions[f"delay of {y}"] = ("", pieces)
+    test, _ = score_directions(directions, data.outputs, residual, free, J, runs, ar, dof,
+                               step, free_bounds=bounds)
+    for y in system.outputs:   # the shift, in samples: y(t) = yhat(t - tau)
+        tau = test.coefficients.get(f"delay of {y}")
+        if tau is not None:
+            test.messages[f"delay of {y}"] = (
+                f"follow {y} simulated {'delayed' if tau > 0 else 'advanced'} by about "
+                f"{abs(tau) / step:.2g} samples: a delay between the inputs and {y}?")
+    return test
+
+
+def _system_with_terms(data):
+    """The candidate terms that a system's simulation takes, each added with a fresh
+    coefficient (last among the parameters, in order) to one equation's known side, as
+    ``(equation, candidate, message)``; per segment, the weighted simulation of the
+    system with all of them."""
+    from algid.errors import AlgidError
+    from algid.models._system import parse_system
+    from algid.simulation._fast_simulation import FastSystemSimulation, WeightedRows
+    from algid.simulation._system_equations import SystemStructure
+
+    system = data.model
+    candidates = []
+    for i, model in enumerate(system.equations):
+        own = [y for y in system.outputs if y in model.signals]
+        found = {}
+        for y in own:
+            for key, (term, message) in candidate_terms(y, system.inputs).items():
+                if term is None:
+                    continue
+                if key in ("cubic", "square", "coulomb"):
+                    key = f"{key}:{y}"
+                found.setdefault(key, (term, message))
+        candidates += [(i, key, term, message) for key, (term, message) in found.items()]
+    taken = set(system.parameters) | set(system.signals)
+    names = [n for n in (f"c{k}" for k in range(len(candidates) + len(taken)))
+             if n not in taken][:len(candidates)]
+    equations = [model.equation for model in system.equations]
+
+    def extended(chosen):
+        texts = list(equations)
+        for name, (i, _, term, _) in zip(names, chosen):
+            left, _, right = texts[i].partition("=")
+            texts[i] = f"{left}= {right} + {name}*({term})"
+        other = parse_system(texts, (*system.parameters, *names[:len(chosen)]),
+                             outputs=system.outputs)
+        SystemStructure(other)   # (refuses what the simulator cannot take)
+        return other
+
+    chosen, other = [], None
+    for candidate in candidates:
+        try:
+            other = extended([*chosen, candidate])
+        except AlgidError:
+            continue
+        chosen.append(candidate)
+    if other is None:
+        return [], []
+    simulations = []
+    for seg, base in zip(data.segments, data.simulations):
+        columns = {n: seg.values[n] for n in system.inputs}
+        simulations.append(WeightedRows(
+            FastSystemSimulation(other, seg.t, columns, interpolation=data.interpolation),
+            base.weights))
+    return [(i, key, message) for i, key, _, message in chosen], simulations
 
 
 def settles(model, values):

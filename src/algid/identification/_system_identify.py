@@ -73,9 +73,6 @@ from algid.models._system import SystemModel, parse_system
 __all__ = ["identify_system", "solve_normal", "equation_weight", "column_units",
            "SYSTEM_METHODS", "EXACT_RESIDUAL"]
 
-#: How a warning that names a term an equation lacks ends.
-MISSING_TERM = "a missing term?"
-
 #: An equation's residual below this fraction of its rows is exact (round-off and the
 #: quadrature's error, not noise): its weight is that of this residual.  Without the
 #: floor, a noise-free record gave equations without a known term weights 1e6 to 1e8
@@ -486,8 +483,8 @@ def identify_system(data, equations, parameters=None, *, time=None, rate=None,
                                 f"times the noise's and the estimates shift by {shift:.3g} "
                                 f"standard errors between windows")
             # (as for one equation: would a power of its output explain it?)
-            warnings += _missing_term(model, misfit, limit, shift, segments, step, length,
-                                      multiplicities)
+            warnings += _missing_term(system, problems, model, misfit, limit, shift, noisy,
+                                      bounds, length, multiplicities)
     values = dict(zip(system.parameters, fit.theta.tolist()))
     result = SystemResult(
         system=system, values=values, covariance=fit.covariance,
@@ -502,31 +499,40 @@ def identify_system(data, equations, parameters=None, *, time=None, rate=None,
         theta = np.array([result.values[p] for p in system.parameters])
         # its residual test's and what it determines; the algebraic fit's misfit
         # warnings stay in result.algebraic (coloured output noise biases the algebraic
-        # estimates, not the refined ones), except, where no test of the residuals
-        # replaces them (a nonlinear system's), those that name a missing term
-        named = result.refinement.residual_test.warnings() if system.is_linear else \
-            [w for w in result.algebraic["warnings"] if w.endswith(MISSING_TERM)]
-        result.warnings = named + _weak(system, theta, result.covariance)
+        # estimates, not the refined ones)
+        result.warnings = result.refinement.residual_test.warnings() \
+            + _weak(system, theta, result.covariance)
     return result
 
 
-def _missing_term(model, misfit, limit, shift, segments, step, length, multiplicities):
-    """The warning of an equation whose misfit a power of its output explains (fitted
-    alone by least squares, as one equation's adequacy test asks; an equation without a
-    known term cannot be, and is not asked)."""
+def _missing_term(system, problems, model, misfit, limit, shift, noisy, bounds, length,
+                  multiplicities):
+    """The warning of an equation whose misfit a power of its output explains: as one
+    equation's adequacy test asks, the equation with the term added (a fresh parameter)
+    against the equation as it is, the system around it, both fitted by least squares on
+    the same windows."""
     from algid.identification._adequacy import Adequacy, missing_terms
-    from algid.identification._identify import least_squares_misfit
+
+    segments, step = problems[0].segments, problems[0].step
+    where = [p.model for p in problems].index(model)
+    texts = [m.equation for m in system.equations]
+    position = texts.index(model.equation)
+
+    def refit(equation, names):
+        texts[position] = equation
+        other = parse_system(texts, (*system.parameters,
+                                     *[n for n in names if n not in system.parameters]),
+                             outputs=system.outputs)
+        others = [WindowProblem(m, segments, step) for m in other.equations if m.parameters]
+        return _solve(others, other, noisy, bounds, length, multiplicities, "ls").misfits[where]
 
     window = (length - 1) * step
-    found = missing_terms(
-        Adequacy(misfit, limit, shift, None, window, window), model,
-        lambda equation, names: least_squares_misfit(segments, step, equation, names,
-                                                     model.output, length, multiplicities))
+    found = missing_terms(Adequacy(misfit, limit, shift, None, window, window), model, refit)
     if not found.missing:
         return []
     return [f"the equation {model.equation} leaves a misfit {misfit:.3g} times what output "
             f"noise allows, and a term in {' and '.join(found.missing)} would explain most "
-            f"of it (the misfit falls to {found.explained:.2g} of it): {MISSING_TERM}"]
+            f"of it (the misfit falls to {found.explained:.2g} of it): a missing term?"]
 
 
 def _check_hidden(hidden):

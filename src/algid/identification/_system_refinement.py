@@ -308,7 +308,14 @@ def _refine_nonlinear(result, segments, refine, start, scale):
     if why is not None:
         if refine is True and why.startswith("the refinement did not"):
             raise ModelError(f"refine=True: {why}")
-        return replace(result, refinement=replace(info, applied=False, reason=why))
+        warnings = list(result.warnings)
+        if "mostly the system's error" in why:   # (what the fit's residuals name, or that)
+            warnings = [f"not refined, the system misses the records: {w}"
+                        for w in info.residual_test.warnings()] \
+                or [f"not refined: {why}"]
+            warnings += result.warnings
+        return replace(result, refinement=replace(info, applied=False, reason=why),
+                       warnings=warnings)
     refinement = replace(info, applied=True, reason="refined by output error")
     return replace(result, values=dict(zip(system.parameters, theta.tolist())),
                    covariance=covariance, estimate="refined", refinement=refinement,

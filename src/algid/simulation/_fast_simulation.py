@@ -38,7 +38,7 @@ import numpy as np
 from algid.errors import ModelError
 from algid.models._expression import Call, Constant, Power, Product, Signal, Sum, Time
 
-__all__ = ["Program", "program", "FastSimulation", "FastSystemSimulation",
+__all__ = ["Program", "program", "FastSimulation", "FastSystemSimulation", "WeightedRows",
            "fast_simulation_unavailable",
            "FUNCTION_CODES", "SUBSTEPS"]
 
@@ -446,6 +446,43 @@ class FastSystemSimulation:
                          np.asarray(x0, dtype=float).copy(), float(self.t[0]), self.step,
                          self.substeps, len(self.t), out)
         return out
+
+
+class WeightedRows:
+    """A system's simulation as one run of rows, as an output-error fit stacks them: its
+    outputs one after the other, each times its weight.
+
+    Parameters
+    ----------
+    simulation : FastSystemSimulation
+    weights : numpy.ndarray
+        One per output :meth:`FastSystemSimulation.run` returns.
+
+    Attributes
+    ----------
+    order : int
+        The number of states.
+    step : float
+        The sampling step.
+    """
+
+    def __init__(self, simulation, weights):
+        self.simulation, self.weights = simulation, np.asarray(weights, dtype=float)
+        self.order, self.step = simulation.order, simulation.step
+
+    def run(self, theta, x0):
+        """The weighted outputs, one after the other (NaN where they diverge).
+
+        Parameters
+        ----------
+        theta, x0 : numpy.ndarray
+            As :meth:`FastSystemSimulation.run`.
+
+        Returns
+        -------
+        numpy.ndarray
+        """
+        return (self.simulation.run(theta, x0) * self.weights[:, None]).ravel()
 
 
 class _Weight:
