@@ -208,6 +208,8 @@ def test_refine_false_keeps_the_algebraic_estimate(two_mass_fit):
     (["x1' + " + " + ".join(f"a{k}*x1**{k + 1}" for k in range(13)) + " = u",
       "x2' + b*x2 = x1"], " ".join(f"a{k}" for k in range(13)) + " b",
      "13 parameters in this equation \\(at most 12 in each equation of a system\\)"),
+    (["x1' + a0*x1 = u"], " ".join(f"a{k}" for k in range(97)),
+     "a system of 97 parameters \\(at most 96, and 12 in each equation\\)"),
 ])
 def test_bad_systems_are_refused_in_one_line(equations, parameters, message):
     with pytest.raises((ModelError, InputDataError), match=message):

@@ -113,7 +113,7 @@ class SimulationResiduals:
                                                   for y in self.observed]):
             sums[y] += float(r[a:b] @ r[a:b]) * self.sigma[y] ** 2
             counts[y] += b - a
-        return {y: np.sqrt(sums[y] / counts[y]) for y in sums}
+        return {y: float(np.sqrt(sums[y] / counts[y])) for y in sums}
 
 
 def central_jacobian(residuals, theta, scale):
@@ -291,7 +291,8 @@ def _refine_nonlinear(result, segments, refine, start, scale):
     refined_se = np.sqrt(np.maximum(np.diag(covariance), 0.0))
     numerical = np.asarray(info.numerical_error, dtype=float)
     why = None
-    if not (np.all(np.isfinite(covariance)) and info.rms_after < info.rms_before):
+    if not (np.all(np.isfinite(covariance))
+            and info.rms_after < info.rms_before * (1 - 1e-9)):
         why = "the refinement did not lower the simulation error"
     elif refine == "auto" and np.any(numerical > refined_se):
         worst = int(np.argmax(numerical / np.maximum(refined_se, 1e-300)))

@@ -14,7 +14,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from algid.errors import ModelError
-from algid.models._grammar import parse_equation
+from algid.models._grammar import LIMITS, parse_equation
 from algid.models._model import Model
 
 __all__ = ["SystemModel", "parse_system", "is_system", "MAX_EQUATIONS"]
@@ -165,6 +165,11 @@ def parse_system(equations, parameters, *, outputs=None, name="custom") -> Syste
         parameters = tuple(dict.fromkeys(p for e in equations for p in e.parameters))
     if parameters is None:
         raise ModelError("parameters: name the unknown parameters of the system")
+    names = parameters.replace(",", " ").split() if isinstance(parameters, str) else \
+        parameters
+    if isinstance(names, (list, tuple)) and len(names) > LIMITS["system_parameters"]:
+        raise ModelError(f"a system of {len(names)} parameters (at most "
+                         f"{LIMITS['system_parameters']}, and 12 in each equation)")
     models = []
     for i, equation in enumerate(equations):
         if isinstance(equation, Model):
