@@ -11,8 +11,10 @@ the right system.  The cubic two masses of :mod:`benchmarks.systems_study`
 (``two_mass_cubic``: a hardening spring ``k3*x1**3``, 12 s at 500 Hz; refined by the
 compiled simulation) likewise, with an offset in the first equation, ``x2`` 3 samples
 late, a ``tanh`` damping of the first mass (``+ 0.3*tanh(3*x1')``) or a quadratic one
-of the second (``+ 0.3*x2'*|x2'|``) that the equations lack (the last two are no
-candidate of the test: their cause is "the system misses the records").  Per class,
+of the second (``+ 0.3*x2'*|x2'|``), or a quintic spring on the first (``+
+500*x1**5``) that the equations lack (none of the last three is a candidate of the
+test: the cause of the first two is "the system misses the records", the third's is
+never named).  Per class,
 ``--runs`` noise realisations (seeds 1000 ..) identified with the default
 ``refine="auto"``; a row counts the records whose result warns and those whose first
 warning names the class's cause (right systems must stay silent).  The records come from
@@ -48,11 +50,13 @@ CASES = {
         {"system": "two_mass_cubic", "tanh": 0.3}, "the system misses the records"),
     "cubic system: quadratic damping missing in equation 2": (
         {"system": "two_mass_cubic", "quadratic": 0.3}, "the system misses the records"),
+    "cubic system: quintic spring missing in equation 1": (
+        {"system": "two_mass_cubic", "quintic": 500.0}, "x1**5"),
 }
 
 
 def clean_record(offset=0.0, cubic=0.0, drift=0.0, system="two_mass", tanh=0.0,
-                 quadratic=0.0, **_):
+                 quadratic=0.0, quintic=0.0, **_):
     """The noise-free record of the system with the class's changes."""
     spec = SYSTEMS[system]
     truth = dict(spec["truth"])
@@ -66,7 +70,8 @@ def clean_record(offset=0.0, cubic=0.0, drift=0.0, system="two_mass", tanh=0.0,
     def rhs(time_, x):
         x1, v1, x2, v2 = x
         force = spline(time_) + offset + drift * time_ - truth["c1"] * v1 - truth["k1"] * x1 \
-            - cubic * x1 ** 3 - truth["k2"] * (x1 - x2) - tanh * np.tanh(3 * v1)
+            - cubic * x1 ** 3 - truth["k2"] * (x1 - x2) - tanh * np.tanh(3 * v1) \
+            - quintic * x1 ** 5
         return [v1, force / truth["m1"], v2,
                 (-truth["c2"] * v2 - truth["k2"] * (x2 - x1) - quadratic * v2 * abs(v2))
                 / truth["m2"]]
