@@ -34,7 +34,8 @@ from algid.models._expression import Signal
 
 __all__ = ["ResidualTest", "residual_test", "nonlinear_residual_test", "score_directions",
            "candidate_terms", "settles", "system_residual_test",
-           "nonlinear_system_residual_test", "CHI2_LIMIT", "CANDIDATES", "DIRECTION_CHANGE"]
+           "nonlinear_system_residual_test", "equation_candidates", "CHI2_LIMIT", "CANDIDATES",
+           "DIRECTION_CHANGE"]
 
 #: The score beyond which a direction is a model error: chi-square(1) exceeded with
 #: probability 1e-4 (about 1e-3 over the candidates of a model with one input).
@@ -339,12 +340,7 @@ def nonlinear_system_residual_test(data, theta, states, residual, free, J, bound
         directions[f"delay of {y}"] = ("", pieces)
     test, _ = score_directions(directions, data.outputs, residual, free, J, runs, ar, dof,
                                step, free_bounds=bounds)
-    for y in system.outputs:   # the shift, in samples: y(t) = yhat(t - tau)
-        tau = test.coefficients.get(f"delay of {y}")
-        if tau is not None:
-            test.messages[f"delay of {y}"] = (
-                f"follow {y} simulated {'delayed' if tau > 0 else 'advanced'} by about "
-                f"{abs(tau) / step:.2g} samples: a delay between the inputs and {y}?")
+    _name_delays(test, system.outputs, step)
     return test
 
 
@@ -359,18 +355,8 @@ def _system_with_terms(data):
     from algid.simulation._system_equations import SystemStructure
 
     system = data.model
-    candidates = []
-    for i, model in enumerate(system.equations):
-        own = [y for y in system.outputs if y in model.signals]
-        found = {}
-        for y in own:
-            for key, (term, message) in candidate_terms(y, system.inputs).items():
-                if term is None:
-                    continue
-                if key in ("cubic", "square", "coulomb"):
-                    key = f"{key}:{y}"
-                found.setdefault(key, (term, message))
-        candidates += [(i, key, term, message) for key, (term, message) in found.items()]
+    candidates = [(i, key, term, message) for i, model in enumerate(system.equations)
+                  for key, (term, message) in equation_candidates(system, model).items()]
     taken = set(system.parameters) | set(system.signals)
     names = [n for n in (f"c{k}" for k in range(len(candidates) + len(taken)))
              if n not in taken][:len(candidates)]
@@ -673,15 +659,8 @@ def system_residual_test(residuals, theta, residual, J, ar, dof):
         channel = StateSpace(space.A, space.B[:, [space.channels.index(name)]], space.C,
                              space.states, [name], space.outputs)
         where = f"; in equation {i + 1}, {model.equation}"
-        own = [y for y in system.outputs if y in model.signals]
-        candidates = {}
-        for y in own:
-            for key, (_, message) in candidate_terms(y, system.inputs).items():
-                if key in ("cubic", "square", "coulomb"):
-                    key = f"{key}:{y}"
-                elif key == "delay" or key in candidates:
-                    continue
-                candidates[key] = message
+        candidates = {key: message for key, (_, message)
+                      in equation_candidates(system, model).items()}
         for key, message in candidates.items():
             kind, _, signal = key.partition(":")
             if signal in system.inputs:
@@ -705,10 +684,42 @@ def system_residual_test(residuals, theta, residual, J, ar, dof):
     step = float(np.median(np.diff(residuals.segments[0].t)))
     test, _ = score_directions(directions, outputs, residual, residuals.bases, J,
                                residuals.bounds(), ar, dof, step, free_bounds)
-    for y in observed:   # the shift, in samples: y(t) = yhat(t - tau)
+    _name_delays(test, observed, step)
+    return test
+
+
+def equation_candidates(system, model):
+    """The candidate terms of one equation of a system: those of :func:`candidate_terms`
+    in each of its outputs (a power or a velocity's sign per output; the others once),
+    without the shift in time (one per output, for the whole system).
+
+    Parameters
+    ----------
+    system : algid.models.SystemModel
+    model : algid.models._model.Model
+        One of its equations.
+
+    Returns
+    -------
+    dict
+        Candidate -> (its term, its message).
+    """
+    found = {}
+    for y in (y for y in system.outputs if y in model.signals):
+        for key, (term, message) in candidate_terms(y, system.inputs).items():
+            if term is None:
+                continue
+            if key in ("cubic", "square", "coulomb"):
+                key = f"{key}:{y}"
+            found.setdefault(key, (term, message))
+    return found
+
+
+def _name_delays(test, outputs, step):
+    """The messages of each output's shift, in samples: ``y(t) = yhat(t - tau)``."""
+    for y in outputs:
         tau = test.coefficients.get(f"delay of {y}")
         if tau is not None:
             test.messages[f"delay of {y}"] = (
                 f"follow {y} simulated {'delayed' if tau > 0 else 'advanced'} by about "
                 f"{abs(tau) / step:.2g} samples: a delay between the inputs and {y}?")
-    return test
