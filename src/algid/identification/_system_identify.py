@@ -53,6 +53,7 @@ from algid.identification._window_problem import (
     WindowProblem,
     add_derivatives,
     derivative_estimate,
+    difference_noise_bound,
     window_stride,
 )
 from algid.identification._window_rule import (
@@ -73,12 +74,18 @@ from algid.models._system import SystemModel, parse_system
 __all__ = ["identify_system", "solve_normal", "equation_weight", "column_units",
            "SYSTEM_METHODS", "EXACT_RESIDUAL"]
 
-#: An equation's residual below this fraction of its rows is exact (round-off and the
-#: quadrature's error, not noise): its weight is that of this residual.  Without the
-#: floor, a noise-free record gave equations without a known term weights 1e6 to 1e8
+#: An equation's residual below this fraction of its largest term is exact (round-off
+#: and the quadrature's error, not noise): its weight is that of this residual.  Without
+#: the floor, a noise-free record gave equations without a known term weights 1e6 to 1e8
 #: times the others', whose squares the normal equations could not hold: a chain of
-#: three masses fell to the trivial solution of its second and third equations.
-EXACT_RESIDUAL = 1e-9
+#: three masses fell to the trivial solution of its second and third equations.  (At
+#: 40 dB the residual is 3e-3 of the largest term or more; noise-free, the quadrature's
+#: error is up to 5e-5 of it and round-off 1e-13.)
+EXACT_RESIDUAL = 1e-6
+
+#: Output noise below this fraction of an output's spread is none, for the question of
+#: the term an equation lacks (:func:`_noise_free`).
+NOISE_FREE = 1e-6
 
 #: Methods offered for systems (instrumental variables need a simulation of every
 #: output: not for systems).
@@ -215,27 +222,31 @@ def _weights(rows, method):
     """Per equation, the inverse rms of its residuals at a first solve in which every
     equation's rows have unit norm."""
     first = [1.0 / max(np.linalg.norm(phi), 1e-300) for phi in rows.blocks]
-    _, _, _, _, residuals = _solve_rows(rows, first, method)
-    return [equation_weight(w, r) for w, r in zip(first, residuals)]
+    theta_bar, _, _, _, residuals = _solve_rows(rows, first, method)
+    return [equation_weight(r, phi, theta_bar) for r, phi in zip(residuals, rows.blocks)]
 
 
-def equation_weight(unit, residuals):
-    """An equation's weight in the stacked solve: the inverse rms of its residuals, at
-    most that of :data:`EXACT_RESIDUAL` of its rows.
+def equation_weight(residuals, phi, theta_bar):
+    """An equation's weight in the stacked solve: the inverse rms of its residuals at a
+    first solve, that rms at least :data:`EXACT_RESIDUAL` of its largest term's.
 
     Parameters
     ----------
-    unit : float
-        The inverse norm of the equation's rows (their weight in the first solve).
     residuals : numpy.ndarray
-        Its residuals at the first solve, one per row (unweighted).
+        Its residuals at the first solve, one per row.
+    phi : numpy.ndarray, shape (rows, p + 1)
+        The equation's rows, in the system's columns.
+    theta_bar : numpy.ndarray
+        The first solve, ``(theta, -1)``.
 
     Returns
     -------
     float
     """
     rms = float(np.sqrt(np.mean(residuals ** 2)))
-    return 1.0 / max(rms, EXACT_RESIDUAL / (unit * np.sqrt(len(residuals))))
+    # (each column times its parameter: the terms whose sum the residual is)
+    largest = float(np.max(np.sqrt(np.mean((phi * theta_bar) ** 2, axis=0))))
+    return 1.0 / max(rms, EXACT_RESIDUAL * largest, 1e-300)
 
 
 def _columns(system, problem):
@@ -514,6 +525,8 @@ def _missing_term(system, problems, model, misfit, limit, shift, noisy, bounds, 
     from algid.identification._adequacy import Adequacy, missing_terms
 
     segments, step = problems[0].segments, problems[0].step
+    if _noise_free(model, system, segments):
+        return []
     where = [p.model for p in problems].index(model)
     texts = [m.equation for m in system.equations]
     position = texts.index(model.equation)
@@ -533,6 +546,20 @@ def _missing_term(system, problems, model, misfit, limit, shift, noisy, bounds, 
     return [f"the equation {model.equation} leaves a misfit {misfit:.3g} times what output "
             f"noise allows, and a term in {' and '.join(found.missing)} would explain most "
             f"of it (the misfit falls to {found.explained:.2g} of it): a missing term?"]
+
+
+def _noise_free(model, system, segments):
+    """Whether every output an equation reads is free of noise to :data:`NOISE_FREE` of
+    its spread (a simulated record): its misfit is then the quadrature's error, of which
+    a term fitted beside it may take half without the equation lacking it (a noise-free
+    chain of four masses: ``x1**3`` took 0.52 of the first equation's)."""
+    for y in system.outputs:
+        if y in model.signals:
+            values = [seg.values[y] for seg in segments]
+            spread = float(np.std(np.concatenate(values)))
+            if not difference_noise_bound(values) <= (NOISE_FREE * spread) ** 2:
+                return False
+    return True
 
 
 def _check_hidden(hidden):

@@ -505,8 +505,9 @@ class SystemTracker:
         rows = list(zip(*self._first))   # per equation: [(phi, grams)] over windows
         first = [1.0 / max(np.linalg.norm([r[0] for r in eq]), 1e-300) for eq in rows]
         theta_bar = self._koopmans(max(MULTIPLICITIES), first)[0]
-        self._weights = [equation_weight(w0, np.array([row[0] @ theta_bar for row in eq]))
-                         for w0, eq in zip(first, rows)]
+        self._weights = [equation_weight(np.array([row[0] @ theta_bar for row in eq]),
+                                         np.array([row[0] for row in eq]), theta_bar)
+                         for eq in rows]
         for window in self._first:
             self._score(window)
         self._first = []
