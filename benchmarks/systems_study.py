@@ -20,6 +20,8 @@ own level), the same input in every run (a multisine), the noise drawn anew:
   ``k3*x1**3`` on the first (k3 200, about three times k1's force at the record's
   spread), both positions measured, 12 s at 500 Hz, the multisine three times larger.
 
+``--ar-pole 0.9`` makes the output noise AR(1) of that pole (the same variance).
+
 ``--holdout`` runs the same three with other values, inputs and noise (30 dB): two
 masses m1 2, c1 0.2, k1 50, k2 10, m2 0.5, c2 0.6 on 15 s of 10 lines from 0.1 to
 4.2 Hz (with ``x1`` hidden, ``m1 = 2`` known), a motor L 0.05, R 1.2, K 0.3, J 0.01,
@@ -51,6 +53,7 @@ import time
 import numpy as np
 from scipy.integrate import solve_ivp
 from scipy.interpolate import CubicSpline
+from scipy.signal import lfilter
 
 import algid
 from algid.identification._records import prepare_records
@@ -194,8 +197,9 @@ def _nonlinear_cramer_rao(system, record, theta, x0, sigma):
     return np.sqrt(np.diag(np.linalg.inv(J.T @ J))[:len(theta)])
 
 
-def study(spec, runs, snr_db=SNR_DB):
-    """The Monte Carlo of one system (a value of :data:`SYSTEMS`)."""
+def study(spec, runs, snr_db=SNR_DB, pole=0.0):
+    """The Monte Carlo of one system (a value of :data:`SYSTEMS`); ``pole``: the output
+    noise AR(1) of that pole, of the same variance (0: white)."""
     clean, outputs = noise_free(spec)
     sigma = {y: 10 ** (-snr_db / 20) * float(np.std(clean[y])) for y in outputs}
     bound = cramer_rao(spec, clean, outputs, sigma)
@@ -205,7 +209,10 @@ def study(spec, runs, snr_db=SNR_DB):
         rng = np.random.default_rng(1000 + run)
         record = dict(clean)
         for y in outputs:
-            record[y] = clean[y] + sigma[y] * rng.standard_normal(len(clean[y]))
+            e = rng.standard_normal(len(clean[y]))
+            if pole:
+                e = lfilter([np.sqrt(1 - pole ** 2)], [1.0, -pole], e)
+            record[y] = clean[y] + sigma[y] * e
         for y in spec.get("hidden", ()):
             del record[y]
         start = time.process_time()
@@ -252,6 +259,8 @@ def main(argv=None):
     parser.add_argument("--systems", nargs="+", choices=list(SYSTEMS),
                         default=list(DEFAULT_SYSTEMS))
     parser.add_argument("--json", default=None)
+    parser.add_argument("--ar-pole", type=float, default=0.0,
+                        help="AR(1) output noise of this pole, same variance (0: white)")
     parser.add_argument("--holdout", action="store_true",
                         help="other values, inputs and noise (30 dB)")
     args = parser.parse_args(argv)
@@ -260,7 +269,7 @@ def main(argv=None):
         parser.error(f"--holdout has {', '.join(HOLDOUT)} only")
     out = {}
     for name in args.systems:
-        out[name] = result = study(specs[name], args.runs, snr_db)
+        out[name] = result = study(specs[name], args.runs, snr_db, args.ar_pole)
         print(f"{name}: {args.runs} runs, refined in {result['refined_runs']}, median CPU "
               f"{result['median_cpu_s']:.2f} s")
         for kind in ("algebraic", "reported"):
