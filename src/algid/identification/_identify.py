@@ -42,6 +42,7 @@ from algid.identification._adequacy import misfit_ratio, missing_terms, model_ad
 from algid.identification._arguments import check_arguments, check_memory, check_model_columns
 from algid.identification._bias_compensation import solve_equilibrated
 from algid.identification._methods import METHODS
+from algid.identification._model_velocity import settle_crossings
 from algid.identification._record_source import is_streamed_input, record_source
 from algid.identification._records import (
     check_factors,
@@ -348,6 +349,66 @@ def _excerpt_window(problem, multiplicities, method, separations):
                          separations=separations)
 
 
+def _local_crossings(problem, fit, solve):
+    """The fit with the steps of ``sign(q')`` at crossings placed by local fits of the
+    position (:mod:`algid.identification._sign_crossings`), :data:`CROSSING_PASSES`
+    times with the previous estimate (same window: re-chosen, it varied with the noise
+    and so did its quadrature bias)."""
+    model = problem.model
+    problem.velocity_crossings = False
+    for _ in range(CROSSING_PASSES):
+        problem.first_values = dict(zip(model.parameters, fit.theta))
+        problem.sign_jumps = crossing_jumps(model, problem.first_values)
+        if not problem.sign_jumps:
+            break
+        problem.cache.forget_factors(problem.sign_jumps)
+        fit = solve()
+    return fit
+
+
+def _place_crossings(problem, fit, length, solve):
+    """The fit with the steps of a ``sign(q')`` placed by the model: by local fits of
+    the position, or by the model's own velocity at the fixed point
+    (:func:`settle_crossings`), whichever leaves the smaller misfit of the window
+    equations.  A noisy position scatters the local fits (and its derivative's signs),
+    which the velocity does not read; a model that misses some of the records'
+    dynamics moves its velocity's crossings, which the local fits do not; the misfit
+    sees either.  The problem is left with the placement of the fit returned."""
+    if not crossing_jumps(problem.model, dict(zip(problem.parameters, fit.theta))):
+        return fit
+    top = max(fit.separate)
+    local = _local_crossings(problem, fit, solve)
+    local_values = problem.first_values
+    local_misfit = misfit_ratio(problem, length, top, problem.to_rows(local.theta))
+    settled = settle_crossings(problem, fit, solve)
+    if settled is not None and misfit_ratio(
+            problem, length, top, problem.to_rows(settled.fit.theta)) < local_misfit:
+        return settled.fit
+    problem.velocity_crossings = False
+    problem.first_values = local_values
+    problem.sign_jumps = crossing_jumps(problem.model, local_values)
+    problem.cache.forget_factors(problem.sign_jumps)
+    return local
+
+
+def _window_again(problem, multiplicities, method, length, scores, separations, fit):
+    """The automatic window chosen again on ``problem`` with its steps held, and the
+    fit settled there (:func:`settle_crossings`); where it does not settle, the
+    window, scores, checks and fit given, the steps placed back for them."""
+    checks = {}
+    again, again_scores = choose_window(problem, multiplicities, _solve, method=method,
+                                        separations=checks)
+    if again == length:
+        return length, scores, separations, fit
+    settled = settle_crossings(problem, fit, lambda: _solve(problem, again, multiplicities,
+                                                            method=method))
+    if settled is not None:
+        return again, again_scores, checks, settled.fit
+    settled = settle_crossings(problem, fit, lambda: _solve(problem, length, multiplicities,
+                                                            method=method))
+    return length, scores, separations, settled.fit
+
+
 def _least_squares_misfit(segments, step, equation, parameters, output, length, multiplicities):
     """Misfit of another equation on the same signals, fitted by least squares."""
     problem = WindowProblem(parse_equation(equation, parameters, output=output), segments, step)
@@ -498,15 +559,14 @@ def identify(data, equation, parameters=None, *, time=None, rate=None, output=No
     if length is None:
         length, scores = choose_window(problem, multiplicities, _solve, method=method,
                                        separations=separations)
-    fit = _solve(problem, length, multiplicities, method=method)
-    for _ in range(CROSSING_PASSES):  # again, crossings of sign(q') placed by the model
-        # (same window: re-chosen, it varied with the noise and so did its quadrature bias)
-        problem.first_values = dict(zip(model.parameters, fit.theta))
-        problem.sign_jumps = crossing_jumps(model, problem.first_values)
-        if not problem.sign_jumps:
-            break
-        problem.cache.forget_factors(problem.sign_jumps)
-        fit = _solve(problem, length, multiplicities, method=method)
+    fit = _place_crossings(problem, _solve(problem, length, multiplicities, method=method),
+                           length, lambda: _solve(problem, length, multiplicities,
+                                                  method=method))
+    if scores is not None and problem.velocity_crossings:
+        # the window chosen again with the steps the model places (the first rule saw
+        # the signs of a noisy derivative), and the fixed point settled on it
+        length, scores, separations, fit = _window_again(
+            problem, multiplicities, method, length, scores, separations, fit)
     if METHODS[method].instrumental:
         for _ in range(iterations):
             if not _simulated_values(problem, fit.theta, model):

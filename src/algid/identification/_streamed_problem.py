@@ -447,6 +447,7 @@ class StreamedProblem(WindowProblem):
         self.cache = ProblemCache()
         self._exponents = {}
         self.sign_jumps, self.first_values, self.crossings, self.steps = {}, {}, {}, {}
+        self.step_rests, self.velocity_crossings = {}, False
         self._rows = {}
         #: the kernel multiplicities whose rows one pass makes together
         self.multiplicities = ()

@@ -21,6 +21,11 @@ from typing import NamedTuple
 import numpy as np
 
 from algid.errors import InputDataError
+from algid.identification._model_velocity import (
+    initial_velocity,
+    simulate_velocity,
+    velocity_equation,
+)
 from algid.identification._records import Segment
 from algid.identification._sign_crossings import crossing_motion, sign_factor
 from algid.identification._window_basis import exponent
@@ -199,6 +204,13 @@ class WindowProblem:
         # of the fit, derivative of the time with respect to those samples)
         self.crossings = {}
         self.steps = {}  # (sign factor, which, segment) -> (first value, its steps' times, sizes)
+        # (sign factor, which, segment) -> samples of what the steps leave (the effective
+        # sign where the model's velocity sticks)
+        self.step_rests = {}
+        #: place the steps of ``sign(q')`` by the model's own velocity at
+        #: :attr:`first_values` (:mod:`algid.identification._model_velocity`), not by
+        #: local fits of ``q``
+        self.velocity_crossings = False
         #: whether the rows are direct sums and the noise's covariance, where it is the
         #: same in every window, made once per segment (:meth:`for_window_rule`)
         self.direct_sums = False
@@ -374,17 +386,23 @@ class WindowProblem:
         """Samples of a factor per segment, over the power of two of its largest."""
         key = (factor, which)
         if key not in self.cache.samples:
-            samples, steps, crossings = [], [], []
+            samples, steps, crossings, rests = [], [], [], {}
             for seg in self.user_segments:
                 values = seg.values if which == "measured" else seg.simulated
                 if is_sign_factor(factor):
                     refine = which == "measured" and factor in self.sign_jumps
-                    motion = crossing_motion(self.model, self.first_values, values,
-                                             seg.t) if refine else None
-                    z, step, crossing = sign_factor(
-                        factor.args[0].evaluate(values, seg.t), seg.t,
-                        position=values[self.model.output] if refine else None,
-                        jump=self.sign_jumps.get(factor), motion=motion)
+                    path = self._model_velocity(factor, values, seg.t) if refine else None
+                    if path is not None:   # the model's own velocity: no fit of q
+                        z, step, crossing, refine = path.sign, path.steps, None, False
+                        if np.any(path.rest):
+                            rests[len(samples)] = path.rest
+                    else:
+                        motion = crossing_motion(self.model, self.first_values, values,
+                                                 seg.t) if refine else None
+                        z, step, crossing = sign_factor(
+                            factor.args[0].evaluate(values, seg.t), seg.t,
+                            position=values[self.model.output] if refine else None,
+                            jump=self.sign_jumps.get(factor), motion=motion)
                     steps.append(step)
                     crossings.append(crossing if refine else None)
                 else:
@@ -406,6 +424,11 @@ class WindowProblem:
             moves = np.ldexp(1.0, self.output_exponent) / unit
             for s, seg in enumerate(self.user_segments):
                 samples[s] = np.ldexp(samples[s], -e)
+                self.steps.pop((factor, which, s), None)   # (an earlier placement's)
+                self.step_rests.pop((factor, which, s), None)
+                self.crossings.pop((factor, s), None)
+                if s in rests:
+                    self.step_rests[(factor, which, s)] = np.ldexp(rests[s], -e)
                 if steps[s] is not None:   # in the internal time and the factor's unit
                     level, times, sizes = steps[s]
                     self.steps[(factor, which, s)] = (
@@ -417,6 +440,19 @@ class WindowProblem:
                         for time, size, first, fit in crossings[s]]
             self.cache.samples[key] = FactorSamples(samples, e)
         return self.cache.samples[key].values
+
+    def _model_velocity(self, factor, values, t):
+        """The model's velocity on one segment at :attr:`first_values`
+        (:func:`simulate_velocity`), where :attr:`velocity_crossings` asks for it and the
+        estimate gives a stable, dissipative velocity; else None."""
+        if not self.velocity_crossings:
+            return None
+        equation = velocity_equation(self.model, self.first_values, values, t)
+        if equation is None:
+            return None
+        guess = float(np.asarray(factor.args[0].evaluate(values, t), dtype=float)[0])
+        start = initial_velocity(t, values[self.model.output], *equation, guess=guess)
+        return simulate_velocity(t, *equation, v0=start)
 
     def output_noise_variance(self):
         """The output noise's variance, in the output's own units squared, where the
@@ -485,6 +521,13 @@ class WindowProblem:
                 elif steps is not None:
                     w = step_window_integrals(seg.t, *steps, length, multiplicity,
                                               term.derivative, stride)
+                    rest = self.step_rests.get((term.factor, which, s))
+                    if rest is not None:   # (what is not a step: where the mass sticks)
+                        w = w + (window_integrals(rest, seg.t, length, multiplicity,
+                                                  term.derivative, stride)
+                                 if seg.step is None else uniform_window_integrals(
+                                     rest, seg.step, length, multiplicity,
+                                     term.derivative, stride))
                 elif seg.step is not None:
                     w = uniform_window_integrals(z, seg.step, length, multiplicity,
                                                  term.derivative, stride)
