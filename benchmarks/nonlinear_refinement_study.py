@@ -2,8 +2,8 @@
 the Cramér–Rao bound (``PYTHONPATH=src:. python -m benchmarks.nonlinear_refinement_study
 --runs 100``).
 
-Two models, 30 s at 1 kHz, output noise at 30 dB SNR, white or AR(1) of pole 0.9 (the
-same variance):
+Two models, 30 s at 1 kHz, output noise at 30 dB SNR (``--snr``), white or AR(1) of
+pole 0.9 (the same variance):
 
 - ``duffing``: ``y'' + B*y' + K*y + K3*y**3 = G*u + d`` as in
   :mod:`benchmarks.window_rule_study` (a 1 Hz mode, the cubic spring about 25 % of the
@@ -97,14 +97,14 @@ def _noise(rng, n, sigma, colour):
     return sigma * lfilter([1.0], [1.0, -AR_POLE], e) * np.sqrt(1.0 - AR_POLE ** 2)
 
 
-def study(name, runs, colours=("white", "ar1"), timed=5):
-    """One model's table, as a dict."""
+def study(name, runs, colours=("white", "ar1"), timed=5, snr=SNR_DB):
+    """One model's table, as a dict (output noise at ``snr`` dB)."""
     spec = wr.DUFFING if name == "duffing" else FRICTION
     equation, parameters, truth = spec["equation"], spec["parameters"], spec["truth"]
     names = parameters.split()
     t, u, y = noise_free(name)
     signals = ("u", "y") if name == "duffing" else ("F", "q")
-    sigma = np.sqrt(np.mean(y ** 2)) / 10 ** (SNR_DB / 20)
+    sigma = np.sqrt(np.mean(y ** 2)) / 10 ** (snr / 20)
     bound = cramer_rao(name, sigma)
     exact = np.array([truth[p] for p in names])
     out = {"equation": equation, "crlb": dict(zip(names, bound.tolist())), "runs": runs}
@@ -154,14 +154,18 @@ def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--runs", type=int, default=100)
     parser.add_argument("--models", nargs="+", choices=MODELS, default=list(MODELS))
+    parser.add_argument("--snr", type=float, default=SNR_DB,
+                        help="output signal-to-noise ratio, dB (default %(default)s)")
+    parser.add_argument("--colours", nargs="+", choices=("white", "ar1"),
+                        default=["white", "ar1"])
     parser.add_argument("--json", default=None)
     args = parser.parse_args(argv)
     out = {}
     for name in args.models:
-        out[name] = result = study(name, args.runs)
+        out[name] = result = study(name, args.runs, tuple(args.colours), snr=args.snr)
         print(f"{name}: {result['equation']}")
         print(f"  CRLB: {', '.join(f'{p} {v:.3g}' for p, v in result['crlb'].items())}")
-        for colour in ("white", "ar1"):
+        for colour in args.colours:
             for kind in ("algebraic", "reported"):
                 row = result[colour][kind]
                 cells = "  ".join(f"{p}: bias {v['bias/crlb']:+.2f} rmse "

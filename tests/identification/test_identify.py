@@ -419,13 +419,10 @@ def test_noise_meat_counts_the_noise_of_the_refined_crossings():
 
     record, _ = friction_loop(0, n=1500)
     identification._solve = capture
-    settle = identification.settle_crossings   # (the local fits' placement, held)
-    identification.settle_crossings = lambda *args: None
-    try:
-        algid.identify(record, *FRICTION_EQUATION, window=0.1)
+    try:   # (the local fits' placement)
+        algid.identify(record, *FRICTION_EQUATION, window=0.1, crossings="local")
     finally:
         identification._solve = solve
-        identification.settle_crossings = settle
     problem, length = captured["problem"], captured["length"]
     a, stride = 12, window_stride(length)
     A, _, _ = problem.rows(length, a)

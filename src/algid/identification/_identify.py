@@ -38,7 +38,12 @@ import numpy as np
 
 from algid._memory import check_fits
 from algid.errors import InputDataError, ModelError
-from algid.identification._adequacy import misfit_ratio, missing_terms, model_adequacy
+from algid.identification._adequacy import (
+    misfit_limit,
+    misfit_ratio,
+    missing_terms,
+    model_adequacy,
+)
 from algid.identification._arguments import check_arguments, check_memory, check_model_columns
 from algid.identification._bias_compensation import solve_equilibrated
 from algid.identification._methods import METHODS
@@ -75,6 +80,7 @@ from algid.identification._window_rule import (
     WindowFit,
     check_multiplicities,
     choose_window,
+    grid_lengths,
     min_length,
     window_advice,
     window_criterion,
@@ -88,6 +94,7 @@ from algid.models._model import Model
 from algid.models._system import is_system
 
 __all__ = ["identify", "check_chunk", "METHODS", "MULTIPLICITIES", "AGREEMENT", "CROSSING_PASSES",
+           "CROSSINGS",
            "STREAM_SAMPLES", "CHUNK_SAMPLES", "EXCERPT_SAMPLES", "EXCERPTS",
            "window_criterion", "window_grid"]
 
@@ -99,6 +106,9 @@ AGREEMENT = 4.0
 #: Solves with the crossings of ``sign(q')`` placed by the model's motion (the second
 #: with the first's parameters: noise-free friction loop, M 1.3e-6 -> 5.8e-7).
 CROSSING_PASSES = 2
+
+#: How :func:`identify` may place the steps of a ``sign(q')`` (its ``crossings``).
+CROSSINGS = ("auto", "velocity", "local")
 
 #: Round-off standard error of the solution, per sample of a window, relative to the
 #: known side (in the orthonormal basis of :mod:`algid.identification._window_basis`).
@@ -366,47 +376,86 @@ def _local_crossings(problem, fit, solve):
     return fit
 
 
-def _place_crossings(problem, fit, length, solve):
+def _place_crossings(problem, fit, length, solve, final=True, restart=None,
+                     crossings="auto"):
     """The fit with the steps of a ``sign(q')`` placed by the model: by local fits of
     the position, or by the model's own velocity at the fixed point
-    (:func:`settle_crossings`), whichever leaves the smaller misfit of the window
-    equations.  A noisy position scatters the local fits (and its derivative's signs),
+    (:func:`settle_crossings`) unless its misfit of the window equations exceeds both
+    the local fits' and what output noise allows.  A noisy position scatters the local
+    fits (and its derivative's signs),
     which the velocity does not read; a model that misses some of the records'
     dynamics moves its velocity's crossings, which the local fits do not; the misfit
-    sees either.  The problem is left with the placement of the fit returned."""
+    sees either.  The problem is left with the placement of the fit returned
+    (``final``: as :func:`settle_crossings`; ``restart()``: where the fixed point does
+    not settle from ``fit``, one settled roughly elsewhere, its steps in place, or
+    None; ``crossings``: ``"local"`` or ``"velocity"`` keeps that placement, the
+    second where it settles).  Returns the fit and, for the velocity's placement, the
+    Jacobian of its fixed point (else None)."""
     if not crossing_jumps(problem.model, dict(zip(problem.parameters, fit.theta))):
-        return fit
+        return fit, None
     top = max(fit.separate)
-    local = _local_crossings(problem, fit, solve)
-    local_values = problem.first_values
-    local_misfit = misfit_ratio(problem, length, top, problem.to_rows(local.theta))
-    settled = settle_crossings(problem, fit, solve)
-    if settled is not None and misfit_ratio(
-            problem, length, top, problem.to_rows(settled.fit.theta)) < local_misfit:
-        return settled.fit
+    if crossings == "local":
+        return _local_crossings(problem, fit, solve), None
+    if crossings == "auto":
+        local = _local_crossings(problem, fit, solve)
+        local_values = problem.first_values
+        local_misfit = misfit_ratio(problem, length, top, problem.to_rows(local.theta))
+        # (where both are within what noise allows, as on short windows, the velocity's,
+        # which the noise does not scatter)
+        allowed = max(local_misfit, misfit_limit(local.n_windows, length, len(local.theta),
+                                                 window_stride(length)))
+    settled = settle_crossings(problem, fit, solve, final=final)
+    if settled is None and restart is not None:
+        settled = restart()   # (the window is chosen again: a start is enough)
+    if settled is not None and (crossings == "velocity" or misfit_ratio(
+            problem, length, top, problem.to_rows(settled.fit.theta)) <= allowed):
+        return settled.fit, settled.contraction
+    if crossings == "velocity":
+        return _local_crossings(problem, fit, solve), None
     problem.velocity_crossings = False
     problem.first_values = local_values
     problem.sign_jumps = crossing_jumps(problem.model, local_values)
     problem.cache.forget_factors(problem.sign_jumps)
-    return local
+    return local, None
 
 
-def _window_again(problem, multiplicities, method, length, scores, separations, fit):
+def _longest_window_start(problem, multiplicities, method):
+    """A first estimate for the fixed point of :func:`settle_crossings` from the
+    longest window the rule allows: on a noisy position the rule's first window, chosen
+    with the signs of a noisy derivative, can be so short that its estimate has no
+    velocity at all (a mass near zero, a negative damping).  The fixed point settled
+    roughly there (:class:`SettledFit`, its steps in place), or None."""
+    longest = max(grid_lengths(problem, multiplicities), default=None)
+    if longest is None:
+        return None
+    problem.velocity_crossings, problem.sign_jumps = False, {}
+    problem.cache.forget_factors({term.factor for term in problem.model.terms})
+    try:
+        first = _solve(problem, longest, multiplicities, method=method)
+    except (InputDataError, ModelError, np.linalg.LinAlgError):
+        return None
+    return settle_crossings(problem, first, lambda: _solve(
+        problem, longest, multiplicities, method=method), final=False)
+
+
+def _window_again(problem, multiplicities, method, length, scores, separations, fit,
+                  chord=None):
     """The automatic window chosen again on ``problem`` with its steps held, and the
-    fit settled there (:func:`settle_crossings`); where it does not settle, the
-    window, scores, checks and fit given, the steps placed back for them."""
+    fit settled there (:func:`settle_crossings`); where it does not settle, on the
+    window given (its scores and checks); where neither does, the local fits' placement
+    on the window given.  ``chord``: the Jacobian of the first window's fixed point."""
     checks = {}
     again, again_scores = choose_window(problem, multiplicities, _solve, method=method,
                                         separations=checks)
-    if again == length:
-        return length, scores, separations, fit
-    settled = settle_crossings(problem, fit, lambda: _solve(problem, again, multiplicities,
-                                                            method=method))
-    if settled is not None:
-        return again, again_scores, checks, settled.fit
-    settled = settle_crossings(problem, fit, lambda: _solve(problem, length, multiplicities,
-                                                            method=method))
-    return length, scores, separations, settled.fit
+    tries = [(again, again_scores, checks)] + ([] if again == length else
+                                               [(length, scores, separations)])
+    for size, size_scores, size_checks in tries:
+        settled = settle_crossings(problem, fit, lambda size=size: _solve(
+            problem, size, multiplicities, method=method), chord=chord)
+        if settled is not None:
+            return size, size_scores, size_checks, settled.fit
+    return length, scores, separations, _local_crossings(
+        problem, fit, lambda: _solve(problem, length, multiplicities, method=method))
 
 
 def _least_squares_misfit(segments, step, equation, parameters, output, length, multiplicities):
@@ -423,7 +472,7 @@ def _misfit_of(problem, length, multiplicities):
 
 def identify(data, equation, parameters=None, *, time=None, rate=None, output=None,
              window=None, method="bc", multiplicities=MULTIPLICITIES, name="custom",
-             iterations=3, refine="auto", hidden=None, chunk=None):
+             iterations=3, refine="auto", hidden=None, chunk=None, crossings="auto"):
     """Identify the parameters of a model equation on measured records.
 
     Parameters
@@ -489,6 +538,14 @@ def identify(data, equation, parameters=None, *, time=None, rate=None, output=No
         sampled runs,
         and is not refined; it is never held whole in memory.  Its automatic window is
         chosen on excerpts of the record (:data:`EXCERPT_SAMPLES` samples in all).
+    crossings : {"auto", "velocity", "local"}
+        How the steps of a ``sign(q')`` (friction) are placed: by the model's own
+        velocity, driven by the measured signals (unbiased on a noisy position, where
+        the model holds), or by local fits of the position (exact on a precise one,
+        and unmoved by dynamics the model leaves out); ``"auto"`` (default): the
+        velocity unless its window equations leave a misfit above both the local
+        fits' and what output noise allows (the user guide, "How identify works").
+        Ignored by models without ``sign(q')``.
 
     Returns
     -------
@@ -535,6 +592,9 @@ def identify(data, equation, parameters=None, *, time=None, rate=None, output=No
         raise ModelError("hidden: a single equation's signals are all measured; hidden "
                          "signals belong to a system of equations (a list)")
     refine = check_refine(refine)
+    if not (isinstance(crossings, str) and crossings in CROSSINGS):
+        raise ModelError(f"crossings must be one of {', '.join(map(repr, CROSSINGS))}, "
+                         f"not {crossings!r}")
     multiplicities = check_arguments(
         equation, parameters, time=time, rate=rate, output=output, window=window,
         method=method, methods=METHODS, multiplicities=multiplicities, name=name,
@@ -559,14 +619,22 @@ def identify(data, equation, parameters=None, *, time=None, rate=None, output=No
     if length is None:
         length, scores = choose_window(problem, multiplicities, _solve, method=method,
                                        separations=separations)
-    fit = _place_crossings(problem, _solve(problem, length, multiplicities, method=method),
-                           length, lambda: _solve(problem, length, multiplicities,
-                                                  method=method))
+    fit, chord = _place_crossings(
+        problem, _solve(problem, length, multiplicities, method=method), length,
+        lambda: _solve(problem, length, multiplicities, method=method), final=scores is None,
+        restart=None if scores is None else lambda: _longest_window_start(
+            problem, multiplicities, method), crossings=crossings)
+    notes = []
+    if crossings == "velocity" and not problem.velocity_crossings \
+            and problem.sign_jumps:
+        notes = ["crossings='velocity': the model's velocity did not settle on these "
+                 "records (no estimate on the way had a stable, dissipative one): the "
+                 "steps of sign() are placed by local fits of the position"]
     if scores is not None and problem.velocity_crossings:
         # the window chosen again with the steps the model places (the first rule saw
         # the signs of a noisy derivative), and the fixed point settled on it
         length, scores, separations, fit = _window_again(
-            problem, multiplicities, method, length, scores, separations, fit)
+            problem, multiplicities, method, length, scores, separations, fit, chord)
     if METHODS[method].instrumental:
         for _ in range(iterations):
             if not _simulated_values(problem, fit.theta, model):
@@ -578,7 +646,8 @@ def identify(data, equation, parameters=None, *, time=None, rate=None, output=No
                    scores=scores, separations=separations, n_samples=n_samples, time=time,
                    rate=rate, refine=refine, missing=lambda eq, names: _least_squares_misfit(
                        segments, step, eq, names, model.output, length, multiplicities),
-                   idle=_idle_records(data, segments, length, step), segments=segments)
+                   idle=_idle_records(data, segments, length, step) + notes,
+                   segments=segments)
 
 
 def _result(problem, fit, length, *, method, multiplicities, scores, separations, n_samples,

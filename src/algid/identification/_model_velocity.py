@@ -35,7 +35,8 @@ from algid.models._expression import Signal
 __all__ = ["VelocityPath", "SettledFit", "simulate_velocity", "velocity_equation",
            "initial_velocity", "settle_crossings", "BLOCK", "START_SAMPLES",
            "FIXED_POINT_ITERATIONS", "COULOMB_STARTS", "PICARD_GAP",
-           "FIXED_POINT_TOLERANCE", "JACOBIAN_STEP"]
+           "FIXED_POINT_TOLERANCE", "JACOBIAN_STEP",
+           "JACOBIAN_REUSE"]
 
 #: Samples of the sliding motion advanced at once between two events (the recursion is
 #: vectorized over a block; an event ends it early).
@@ -82,7 +83,7 @@ def velocity_equation(model, values, signals, t):
     tuple of (numpy.ndarray, float, float) or None
         ``(g, alpha, c)`` as in the module notes, or None where the model is not of
         that form or its estimate has no stable, dissipative velocity (``alpha < 0``
-        or ``c <= 0``, or not finite).
+        or ``c <= 0``, or not finite) or one that forgets its start within a sample.
     """
     jumps = crossing_jumps(model, values)
     motion = crossing_motion(model, values, signals, t)
@@ -90,9 +91,10 @@ def velocity_equation(model, values, signals, t):
         return None
     forcing, alpha = motion
     coulomb = -0.5 * next(iter(jumps.values()))
-    if not (np.isfinite(alpha) and alpha >= 0 and np.isfinite(coulomb) and coulomb > 0
-            and np.all(np.isfinite(forcing))):
-        return None
+    steps = np.diff(np.asarray(t, dtype=float))
+    if not (np.isfinite(alpha) and 0 <= alpha * np.max(steps, initial=0.0) <= _DECAY_SPAN
+            and np.isfinite(coulomb) and coulomb > 0 and np.all(np.isfinite(forcing))):
+        return None   # (nor one that forgets its start within a sample)
     return np.asarray(forcing, dtype=float), float(alpha), float(coulomb)
 
 
@@ -354,17 +356,18 @@ def _correct(sign, t, h, g, c, pieces, sliding):
 
 
 #: Gauss-Newton iterations of :func:`initial_velocity`.
-_START_ITERATIONS = 4
+_START_ITERATIONS = 6
 
 
-def initial_velocity(t, position, forcing, alpha, c, guess=0.0):
+def initial_velocity(t, position, forcing, alpha, c, guess=None):
     """The velocity at ``t[0]`` whose motion best fits the measured position.
 
-    The model's velocity forgets its start at the rate ``alpha`` and at every
-    sticking; until then the start matters.  It is fitted to the position samples of
-    that stretch (at least :data:`START_SAMPLES`, at most three decay times or the
-    segment), with an unknown position offset: a least-squares fit of the running
-    integral of the velocity, by Gauss-Newton with a difference derivative.
+    The model's velocity forgets its start at the rate ``alpha`` (and at a sticking);
+    until then the start matters.  It is fitted to the position samples of that
+    stretch (at least :data:`START_SAMPLES`, at most three decay times), with an
+    unknown position offset: a least-squares fit of the running integral of the
+    velocity, by Gauss-Newton with a difference derivative (the position where the
+    mass first sticks, say, moves with the start).
 
     Parameters
     ----------
@@ -372,8 +375,9 @@ def initial_velocity(t, position, forcing, alpha, c, guess=0.0):
         The segment's times, measured position and the velocity equation's forcing.
     alpha, c : float
         As in :func:`simulate_velocity`.
-    guess : float
-        The first guess.
+    guess : float, optional
+        The first guess (by default the slope of a parabola fitted to the first
+        :data:`START_SAMPLES` samples).
 
     Returns
     -------
@@ -386,26 +390,31 @@ def initial_velocity(t, position, forcing, alpha, c, guess=0.0):
     end = min(t.size, max(end, START_SAMPLES))
     t, q, g = t[:end], q[:end], g[:end]
     if end < 3:
-        return float(guess)
+        return 0.0 if guess is None else float(guess)
+    if guess is None:   # the slope of a parabola through the first samples
+        first = min(end, START_SAMPLES)
+        guess = np.polynomial.polynomial.polyfit(t[:first] - t[0], q[:first], 2)[1]
+    v0 = float(guess)
     h = np.diff(t)
 
-    def moved(v0):   # the position the velocity from v0 gives, from zero
-        v = simulate_velocity(t, g, alpha, c, v0).velocity
+    def moved(start):   # the position the velocity from start gives, from zero
+        v = simulate_velocity(t, g, alpha, c, start).velocity
         return np.concatenate(([0.0], np.cumsum(0.5 * h * (v[:-1] + v[1:]))))
 
-    v0 = float(guess)
-    scale = max(float(np.max(np.abs(g))) * (t[-1] - t[0]), c * (t[-1] - t[0]), 1e-300)
+    scale = max(float(np.max(np.abs(g))), c) * (t[-1] - t[0])
     for _ in range(_START_ITERATIONS):
-        delta = 1e-4 * max(abs(v0), scale)
+        delta = 1e-3 * max(abs(v0), scale, 1e-300)
         base = moved(v0)
-        slope = (moved(v0 + delta) - moved(v0 - delta)) / (2 * delta)
-        r = q - base
-        basis = np.column_stack([np.ones(end), slope])
-        coef, *_ = np.linalg.lstsq(basis, r, rcond=None)
+        basis = np.column_stack([np.ones(end), (moved(v0 + delta) - base) / delta])
+        if not (np.all(np.isfinite(basis)) and np.all(np.isfinite(base))):
+            break   # (an estimate far from any motion of these records)
+        coef, *_ = np.linalg.lstsq(basis, q - base, rcond=None)
         if not np.isfinite(coef[1]):
             break
-        v0 += float(coef[1])
-        if abs(coef[1]) <= 1e-9 * max(abs(v0), scale):
+        # (a step no larger than the speeds the forcing reaches over the stretch: where
+        # the start sticks, the derivative is about zero)
+        v0 += float(np.clip(coef[1], -scale, scale))
+        if abs(coef[1]) <= 1e-6 * max(abs(v0), scale):
             break
     return v0
 
@@ -420,6 +429,10 @@ FIXED_POINT_TOLERANCE = 1e-3
 #: starts from where the first estimate has no dissipative velocity.
 COULOMB_STARTS = (0.03, 0.1, 0.3, 1.0)
 
+#: A Jacobian of the iteration serves the covariance where it was made within this
+#: many standard errors of the fixed point.
+JACOBIAN_REUSE = 3.0
+
 #: Over this many standard errors between ``theta`` and ``G(theta)``, the fixed point
 #: is approached by plain steps ``theta <- G(theta)``.
 PICARD_GAP = 10.0
@@ -433,7 +446,7 @@ class SettledFit(NamedTuple):
 
     fit: object              # the WindowFit, its covariance through the placement
     iterations: int
-    contraction: np.ndarray  # the Jacobian of the map at the fixed point
+    contraction: object      # the map's Jacobian at the fixed point (None: not made)
 
 
 def _steps(theta, se):
@@ -441,7 +454,7 @@ def _steps(theta, se):
     return np.maximum(JACOBIAN_STEP * se, 1e-7 * np.maximum(np.abs(theta), 1e-300))
 
 
-def settle_crossings(problem, fit, solve):
+def settle_crossings(problem, fit, solve, *, final=True, chord=None):
     """The estimate that places the steps of its own ``sign(q')``: a fixed point.
 
     With the steps placed by the model's velocity at ``theta``, the window equations
@@ -465,6 +478,11 @@ def settle_crossings(problem, fit, solve):
         A first estimate (steps placed by the derivative estimate of ``q``).
     solve : callable
         ``solve()`` -> WindowFit of ``problem`` as it stands (one window, one method).
+    final : bool
+        Carry the placement into the covariance; else the covariance is that of ``G``
+        (a start for another window).
+    chord : numpy.ndarray, optional
+        A Jacobian of ``G`` to start the iteration with (another window's).
 
     Returns
     -------
@@ -474,10 +492,10 @@ def settle_crossings(problem, fit, solve):
         keeps its own placement).
     """
     problem.velocity_crossings = True
-    point = _FixedPoint(problem, solve)
+    point = _FixedPoint(problem, solve, final)
     theta = np.asarray(fit.theta, dtype=float)
     image = point.image(theta)
-    settled = None if image is None else point.newton(theta, image)
+    settled = None if image is None else point.newton(theta, image, chord)
     if settled is None:
         start, image = point.coulomb_start(theta)
         settled = None if image is None else point.newton(start, image)
@@ -487,25 +505,31 @@ def settle_crossings(problem, fit, solve):
 class _FixedPoint:
     """The map ``G`` of :func:`settle_crossings` and Newton's method on it."""
 
-    def __init__(self, problem, solve):
-        self.problem, self.solve = problem, solve
+    def __init__(self, problem, solve, final):
+        self.problem, self.solve, self.final = problem, solve, final
         self.model = problem.model
 
     def image(self, theta):
         """``G(theta)`` (a WindowFit), or None where ``theta`` has no dissipative
         velocity or its steps leave the equations unsolvable."""
         problem, model = self.problem, self.model
+        if not self.usable(theta):
+            return None
         values = dict(zip(model.parameters, theta.tolist()))
         jumps = crossing_jumps(model, values)
-        if not jumps or any(velocity_equation(model, values, seg.values, seg.t) is None
-                            for seg in problem.user_segments):
-            return None
         problem.first_values, problem.sign_jumps = values, jumps
         problem.cache.forget_factors(jumps)
         try:
             return self.solve()
         except (ModelError, InputDataError, np.linalg.LinAlgError):
             return None   # (a trial whose steps leave a column empty or proportional)
+
+    def usable(self, theta):
+        """Whether ``theta`` gives a stable, dissipative velocity on every segment."""
+        values = dict(zip(self.model.parameters, theta.tolist()))
+        return bool(crossing_jumps(self.model, values)) and all(
+            velocity_equation(self.model, values, seg.values, seg.t) is not None
+            for seg in self.problem.user_segments)
 
     def jacobian(self, theta, se):
         """``dG/dtheta`` by central differences (None where a side has no image)."""
@@ -537,12 +561,12 @@ class _FixedPoint:
                 best = (gap, trial, image)
         return best[1], best[2]
 
-    def newton(self, theta, current):
+    def newton(self, theta, current, chord=None):
         """Newton's (chord) iteration from ``theta`` and its image ``current``; a plain
         step ``theta <- G(theta)`` where the gap is over :data:`PICARD_GAP` standard
         errors or Newton's step does not shrink it (the map contracts near the fixed
         point: its Jacobian's eigenvalues were 0 to 0.5 on the friction records)."""
-        D, settled, iteration = None, False, 0
+        D, settled, iteration, where = chord, False, 0, None
         while iteration < FIXED_POINT_ITERATIONS:
             iteration += 1
             se = np.maximum(np.sqrt(np.diag(current.covariance)), 1e-300)
@@ -554,7 +578,7 @@ class _FixedPoint:
             after = None
             if size <= PICARD_GAP:
                 if D is None:   # a chord method: a new Jacobian where progress is slow
-                    D = self.jacobian(theta, se)
+                    D, where = self.jacobian(theta, se), theta
                 after, trial = self._newton_step(theta, gap, size, se, D)
             if after is None:   # the plain step
                 trial = current.theta
@@ -565,11 +589,15 @@ class _FixedPoint:
             theta, current = trial, after
             if new_size > 0.5 * size:
                 D = None
-        if not settled:
-            return None
-        D = self.jacobian(theta, np.sqrt(np.diag(current.covariance)))
-        if D is None:
-            return None
+        if not settled or not self.usable(current.theta):
+            return None   # (its image, within the tolerance, has no velocity)
+        if not self.final:
+            return SettledFit(current, iteration, D)
+        se = np.maximum(np.sqrt(np.diag(current.covariance)), 1e-300)
+        if where is None or np.max(np.abs(theta - where) / se) > JACOBIAN_REUSE:
+            D = self.jacobian(theta, se)
+            if D is None:
+                return None
         current = self.image(theta)   # (the placement at the fixed point, for the rows)
         A = np.linalg.inv(np.eye(len(theta)) - D)
         current.covariance = A @ current.covariance @ A.T

@@ -477,8 +477,10 @@ class Tracker:
         record = {name: self.state.warmup.signals[name][:len(t)] for name in self._signals}
         record["__t"] = t
         try:
+            # (the Tracker places the steps of a sign(q') by local fits: the window
+            # identify keeps for them)
             result = identify(record, self.model, time="__t", method=self.config["method"],
-                              refine=False)
+                              refine=False, crossings="local")
         except AlgidError:
             return None, False
         length = result.window / step + 1

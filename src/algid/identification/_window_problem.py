@@ -450,8 +450,7 @@ class WindowProblem:
         equation = velocity_equation(self.model, self.first_values, values, t)
         if equation is None:
             return None
-        guess = float(np.asarray(factor.args[0].evaluate(values, t), dtype=float)[0])
-        start = initial_velocity(t, values[self.model.output], *equation, guess=guess)
+        start = initial_velocity(t, values[self.model.output], *equation)
         return simulate_velocity(t, *equation, v0=start)
 
     def output_noise_variance(self):
