@@ -47,7 +47,7 @@ from algid.identification._adequacy import (
 from algid.identification._arguments import check_arguments, check_memory, check_model_columns
 from algid.identification._bias_compensation import solve_equilibrated
 from algid.identification._methods import METHODS
-from algid.identification._model_velocity import settle_crossings
+from algid.identification._model_velocity import has_velocity, settle_crossings
 from algid.identification._record_source import is_streamed_input, record_source
 from algid.identification._records import (
     check_factors,
@@ -379,16 +379,18 @@ def _local_crossings(problem, fit, solve):
 def _place_crossings(problem, fit, length, solve, final=True, restart=None,
                      crossings="auto"):
     """The fit with the steps of a ``sign(q')`` placed by the model: by local fits of
-    the position, or by the model's own velocity at the fixed point
-    (:func:`settle_crossings`) unless its misfit of the window equations exceeds both
-    the local fits' and what output noise allows.  A noisy position scatters the local
-    fits (and its derivative's signs),
-    which the velocity does not read; a model that misses some of the records'
-    dynamics moves its velocity's crossings, which the local fits do not; the misfit
-    sees either.  The problem is left with the placement of the fit returned
-    (``final``: as :func:`settle_crossings`; ``restart()``: where the fixed point does
-    not settle from ``fit``, one settled roughly elsewhere, its steps in place, or
-    None; ``crossings``: ``"local"`` or ``"velocity"`` keeps that placement, the
+    the position where they leave a misfit of the window equations within what output
+    noise allows (and an estimate with a dissipative velocity), else by the model's own
+    velocity at the fixed point (:func:`settle_crossings`) unless its misfit exceeds
+    both the local fits' and that limit.  A noisy position scatters the local fits (and
+    its derivative's signs), which the velocity does not read; a model that misses some
+    of the records' dynamics moves its velocity's crossings, which the local fits do
+    not; the misfit sees either.  On a precise position the local fits are exact where
+    the velocity, driven by a force linear between samples, places a step of a closed
+    loop's kinked force a few microseconds off.  The problem is left with the placement
+    of the fit returned (``final``: as :func:`settle_crossings`; ``restart()``: where
+    the fixed point does not settle from ``fit``, one settled roughly elsewhere, its
+    steps in place, or None; ``crossings``: ``"local"`` or ``"velocity"`` keeps that placement, the
     second where it settles).  Returns the fit and, for the velocity's placement, the
     Jacobian of its fixed point (else None)."""
     if not crossing_jumps(problem.model, dict(zip(problem.parameters, fit.theta))):
@@ -400,10 +402,13 @@ def _place_crossings(problem, fit, length, solve, final=True, restart=None,
         local = _local_crossings(problem, fit, solve)
         local_values = problem.first_values
         local_misfit = misfit_ratio(problem, length, top, problem.to_rows(local.theta))
+        limit = misfit_limit(local.n_windows, length, len(local.theta),
+                             window_stride(length))
+        if local_misfit <= limit and has_velocity(problem, local.theta):
+            return local, None   # (a precise position: its crossings are exact)
         # (where both are within what noise allows, as on short windows, the velocity's,
         # which the noise does not scatter)
-        allowed = max(local_misfit, misfit_limit(local.n_windows, length, len(local.theta),
-                                                 window_stride(length)))
+        allowed = max(local_misfit, limit)
     settled = settle_crossings(problem, fit, solve, final=final)
     if settled is None and restart is not None:
         settled = restart()   # (the window is chosen again: a start is enough)

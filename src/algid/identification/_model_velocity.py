@@ -33,6 +33,7 @@ from algid.identification._sign_crossings import crossing_jumps, crossing_motion
 from algid.models._expression import Signal
 
 __all__ = ["VelocityPath", "SettledFit", "simulate_velocity", "velocity_equation",
+           "has_velocity",
            "initial_velocity", "settle_crossings", "BLOCK", "START_SAMPLES",
            "FIXED_POINT_ITERATIONS", "COULOMB_STARTS", "PICARD_GAP",
            "FIXED_POINT_TOLERANCE", "JACOBIAN_STEP",
@@ -449,6 +450,16 @@ class SettledFit(NamedTuple):
     contraction: object      # the map's Jacobian at the fixed point (None: not made)
 
 
+def has_velocity(problem, theta):
+    """Whether the estimate ``theta`` gives a stable, dissipative velocity
+    (:func:`velocity_equation`) on every segment of ``problem``."""
+    model = problem.model
+    values = dict(zip(model.parameters, np.asarray(theta, dtype=float).tolist()))
+    return bool(crossing_jumps(model, values)) and all(
+        velocity_equation(model, values, seg.values, seg.t) is not None
+        for seg in problem.user_segments)
+
+
 def _steps(theta, se):
     """Difference steps of the fixed point's Jacobian."""
     return np.maximum(JACOBIAN_STEP * se, 1e-7 * np.maximum(np.abs(theta), 1e-300))
@@ -526,10 +537,7 @@ class _FixedPoint:
 
     def usable(self, theta):
         """Whether ``theta`` gives a stable, dissipative velocity on every segment."""
-        values = dict(zip(self.model.parameters, theta.tolist()))
-        return bool(crossing_jumps(self.model, values)) and all(
-            velocity_equation(self.model, values, seg.values, seg.t) is not None
-            for seg in self.problem.user_segments)
+        return has_velocity(self.problem, theta)
 
     def jacobian(self, theta, se):
         """``dG/dtheta`` by central differences (None where a side has no image)."""
