@@ -187,6 +187,19 @@ def test_results_table_shows_the_nonlinear_refinement_study():
         f"{ranges[0]} / {ranges[1]}; {min(coverage):.0f}–{max(coverage):.0f} %")
 
 
+def test_results_table_shows_the_algebraic_friction_estimate():
+    import json
+
+    study = json.loads((ROOT / "benchmarks" / "nonlinear_refinement_results.json").read_text(
+        encoding="utf-8"))
+    row = study["friction"]["white"]["algebraic"]
+    names = [p for p in row if p != "median_cpu_s"]
+    ratios = " ".join(f"{row[p]['rmse/crlb']:.2g}" for p in names)
+    coverage = [100 * row[p]["coverage"] for p in names]
+    assert results_table()["open-loop friction, 30 s, 30 dB, algebraic (`refine=False`)"] == (
+        f"{ratios}; {min(coverage):.0f}–{max(coverage):.0f} %")
+
+
 def test_results_table_shows_the_emps_estimates_against_the_published_values():
     import algid
     from algid import datasets

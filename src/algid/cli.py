@@ -239,6 +239,10 @@ def build_parser() -> argparse.ArgumentParser:
                           "white output noise); default: where it is safe (the model "
                           "simulates stably, the simulation error drops and the fit is "
                           "not less precise than the algebraic estimate)")
+    ide.add_argument("--crossings", choices=("auto", "velocity", "local"), default="auto",
+                     help="how the steps of a sign(q') are placed: by the model's own "
+                          "velocity (a noisy position), by local fits of the position "
+                          "(a precise one), or (default) by the misfit each leaves")
     ide.add_argument("--chunk", type=_positive_int, default=None, metavar="ROWS",
                      help="read the one record FILE (.csv or .parquet) in chunks of ROWS "
                           "rows, never whole (a .parquet record always is; see the user "
@@ -584,7 +588,7 @@ def _cmd_identify(args) -> int:
                                       optional) for path in args.files]
     result = identify(records, model, time=args.time, rate=args.rate, window=args.window,
                       method=args.method, refine="auto" if args.refine is None else args.refine,
-                      **options)
+                      crossings=args.crossings, **options)
     stderr = result.stderr
     source = args.files[0] if len(args.files) == 1 else f"{len(args.files)} records"
     source = "standard input" if source == "-" else source

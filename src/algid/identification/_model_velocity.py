@@ -15,10 +15,13 @@ model's ``S sign(q')`` is the force that holds it, ``-L g``: the *effective sign
 ``g / c``, in ``[-1, 1]``; with it the equation holds on the stuck stretches too.
 
 :func:`simulate_velocity` integrates it exactly for a forcing linear between the
-samples (each sample interval in closed form, the crossings by bisection of that form,
-the releases where the linear forcing reaches ``c``), and returns the effective sign
-as samples whose trapezoid sums integrate it exactly over every interval.
-:func:`velocity_equation` reads ``g``, ``alpha`` and ``c`` from a model and an estimate.
+samples, moved to have the smooth forcing's interval means (each sample interval in
+closed form, the crossings by regula falsi on that form, the releases where the linear
+forcing reaches ``c``), and returns the effective sign as steps (``sign(v)``, zero
+where the mass sticks) and samples of the rest, whose trapezoid sums integrate it
+exactly over every interval.  :func:`velocity_equation` reads ``g``, ``alpha`` and
+``c`` from a model and an estimate; :func:`initial_velocity` fits the start to the
+position; :func:`settle_crossings` finds the estimate that places its own steps.
 """
 
 from __future__ import annotations
@@ -194,7 +197,7 @@ def simulate_velocity(t, forcing, alpha, c, v0=0.0):
     t : array_like
         Increasing sample times of one segment.
     forcing : array_like
-        ``g`` at those times (linear between them).
+        ``g`` at those times (linear between them, after :func:`_interval_means`).
     alpha : float
         Damping, ``>= 0``.
     c : float
@@ -451,8 +454,20 @@ class SettledFit(NamedTuple):
 
 
 def has_velocity(problem, theta):
-    """Whether the estimate ``theta`` gives a stable, dissipative velocity
-    (:func:`velocity_equation`) on every segment of ``problem``."""
+    """Whether an estimate gives a stable, dissipative velocity on every segment.
+
+    Parameters
+    ----------
+    problem : WindowProblem
+        The problem (its model and segments).
+    theta : array_like
+        The estimate, in the order of the model's parameters.
+
+    Returns
+    -------
+    bool
+        Whether :func:`velocity_equation` has one on every segment.
+    """
     model = problem.model
     values = dict(zip(model.parameters, np.asarray(theta, dtype=float).tolist()))
     return bool(crossing_jumps(model, values)) and all(
