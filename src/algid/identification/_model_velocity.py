@@ -617,7 +617,7 @@ class _FixedPoint:
         if not self.final:
             return SettledFit(current, iteration, D)
         se = np.maximum(np.sqrt(np.diag(current.covariance)), 1e-300)
-        if where is None or np.max(np.abs(theta - where) / se) > JACOBIAN_REUSE:
+        if D is None or where is None or np.max(np.abs(theta - where) / se) > JACOBIAN_REUSE:
             D = self.jacobian(theta, se)
             if D is None:
                 return None
