@@ -547,10 +547,10 @@ def identify(data, equation, parameters=None, *, time=None, rate=None, output=No
         How the steps of a ``sign(q')`` (friction) are placed: by the model's own
         velocity, driven by the measured signals (unbiased on a noisy position, where
         the model holds), or by local fits of the position (exact on a precise one,
-        and unmoved by dynamics the model leaves out); ``"auto"`` (default): the
-        velocity unless its window equations leave a misfit above both the local
-        fits' and what output noise allows (the user guide, "How identify works").
-        Ignored by models without ``sign(q')``.
+        and unmoved by dynamics the model leaves out); ``"auto"`` (default): the local
+        fits where their window equations leave a misfit within what output noise
+        allows, else the velocity unless its misfit is larger still (the user guide,
+        "How identify works").  Ignored by models without ``sign(q')``.
 
     Returns
     -------
