@@ -475,25 +475,20 @@ def has_velocity(problem, theta):
         for seg in problem.user_segments)
 
 
-def _steps(theta, se):
-    """Difference steps of the fixed point's Jacobian."""
-    return np.maximum(JACOBIAN_STEP * se, 1e-7 * np.maximum(np.abs(theta), 1e-300))
-
-
 def settle_crossings(problem, fit, solve, *, final=True, chord=None):
     """The estimate that places the steps of its own ``sign(q')``: a fixed point.
 
     With the steps placed by the model's velocity at ``theta``, the window equations
-    give ``G(theta)``; the estimate is the ``theta`` with ``G(theta) = theta``, found by
-    Newton's method on ``theta - G(theta)`` (its Jacobian ``I - D`` by central
-    differences of ``G``, renewed where progress is slow).  Its covariance carries the
-    placement: ``(I - D)^-1 C (I - D)^-T``, ``C`` the covariance of ``G`` at the fixed
-    point (the steps held).  Where the first estimate has no dissipative velocity (on
-    a noisy position the signs of its derivative scatter, and the Coulomb term comes
-    out about zero or negative) or the iteration from it does not settle, it starts
-    again from that estimate with the Coulomb level
-    set to each of :data:`COULOMB_STARTS` times the forcing's rms, from the one whose
-    image is nearest.
+    give ``G(theta)``; the estimate is the ``theta`` with ``G(theta) = theta``: plain
+    steps ``theta <- G(theta)`` while far from it, then Newton's method on
+    ``theta - G(theta)`` (its Jacobian ``I - D`` by central differences of ``G``,
+    renewed where progress is slow).  Its covariance carries the placement:
+    ``(I - D)^-1 C (I - D)^-T``, ``C`` the covariance of ``G`` at the fixed point (the
+    steps held).  Where the first estimate has no dissipative velocity (on a noisy
+    position the signs of its derivative scatter, and the Coulomb term comes out about
+    zero or negative) or the iteration from it does not settle, it starts again from
+    that estimate with the Coulomb level set to each of :data:`COULOMB_STARTS` times
+    the forcing's rms, from the one whose image is nearest.
 
     Parameters
     ----------
