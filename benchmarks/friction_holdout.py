@@ -75,7 +75,9 @@ def main(argv=None):
     parser.add_argument("--crossings", choices=("auto", "velocity", "local"), default="auto")
     args = parser.parse_args(argv)
     out = study(args.runs, args.snr, args.crossings)
-    print(f"identified {out['identified']} of {out['runs']}; refused: {out['refused']}")
+    reasons = {r: out["refused"].count(r) for r in out["refused"]}
+    print(f"identified {out['identified']} of {out['runs']}; refused: "
+          + (", ".join(f"{n} ({r})" for r, n in reasons.items()) or "none"))
     for p in TRUTH:
         print(f"  {p:4} bias/sd {out['bias/sd'][p]:+.2f}  sd/se {out['sd/se'][p]:.2f}  "
               f"coverage {100 * out['coverage'][p]:.0f} %")
