@@ -7,8 +7,9 @@ another input (6 lines from 0.15 to 2.5 Hz of random amplitudes, 1.1 N rms), 20 
 500 Hz, at rest 9 % of the time; simulated by :func:`algid.simulate_model` (DOP853 at
 1e-10, the switches as events), white noise at 25 dB on the position (``--snr``), noise
 seeds from 1000.  Per parameter: the estimates' bias over their spread, their spread
-over the mean reported standard error, the coverage of ±2 reported standard errors, and
-the records refused; ``identify(refine=False)``, its steps of ``sign(q')`` placed as
+over the mean reported standard error, the coverage of ±2 reported standard errors, bias
+and RMSE over the Cramér–Rao bound (white noise, the initial state a nuisance), and the
+records refused; ``identify(refine=False)``, its steps of ``sign(q')`` placed as
 ``--crossings`` says (default ``auto``).
 """
 
@@ -39,6 +40,32 @@ def record():
     return t, F, q
 
 
+def cramer_rao(t, F, sigma, relative_step=1e-6):
+    """Standard deviations of the Cramér–Rao bound (white noise ``sigma``, the initial
+    state a nuisance), by central differences of the accurate simulator."""
+    model = parse_equation(EQUATION, " ".join(TRUTH))
+    x0 = np.array([0.0, -0.05])
+
+    def output(theta, state):
+        return algid.simulate_model(model, theta, t, {"F": F}, initial_state=state,
+                                    rtol=1e-10, atol=1e-13)
+
+    columns = []
+    for p in TRUTH:
+        h = relative_step * max(abs(TRUTH[p]), 1.0)
+        up, down = dict(TRUTH), dict(TRUTH)
+        up[p] += h
+        down[p] -= h
+        columns.append((output(up, x0) - output(down, x0)) / (2 * h))
+    for i in range(2):
+        up, down = x0.copy(), x0.copy()
+        up[i] += relative_step
+        down[i] -= relative_step
+        columns.append((output(TRUTH, up) - output(TRUTH, down)) / (2 * relative_step))
+    J = np.column_stack(columns)
+    return np.sqrt(np.diag(np.linalg.inv(J.T @ J)))[:len(TRUTH)] * sigma
+
+
 def study(runs, snr=25.0, crossings="auto"):
     """The table, as a dict."""
     t, F, q = record()
@@ -59,7 +86,11 @@ def study(runs, snr=25.0, crossings="auto"):
         errors.append([r.stderr[p] for p in TRUTH])
     values, errors = np.array(values), np.array(errors)
     spread = values.std(axis=0)
+    bound = cramer_rao(t, F, sigma)
     return {"runs": runs, "identified": len(values), "refused": refused,
+            "bias/crlb": dict(zip(TRUTH, ((values.mean(axis=0) - exact) / bound).tolist())),
+            "rmse/crlb": dict(zip(TRUTH, (np.sqrt(np.mean((values - exact) ** 2, axis=0))
+                                          / bound).tolist())),
             "bias/sd": dict(zip(TRUTH, ((values.mean(axis=0) - exact) / spread).tolist())),
             "sd/se": dict(zip(TRUTH, (spread / errors.mean(axis=0)).tolist())),
             "coverage": dict(zip(TRUTH, (np.abs(values - exact) <= 2 * errors)
@@ -80,7 +111,8 @@ def main(argv=None):
           + (", ".join(f"{n} ({r})" for r, n in reasons.items()) or "none"))
     for p in TRUTH:
         print(f"  {p:4} bias/sd {out['bias/sd'][p]:+.2f}  sd/se {out['sd/se'][p]:.2f}  "
-              f"coverage {100 * out['coverage'][p]:.0f} %")
+              f"coverage {100 * out['coverage'][p]:.0f} %  bias/CRLB "
+              f"{out['bias/crlb'][p]:+.2f}  RMSE/CRLB {out['rmse/crlb'][p]:.2f}")
     print(f"  median CPU {out['median_cpu_s']:.2f} s")
 
 
