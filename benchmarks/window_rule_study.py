@@ -16,7 +16,8 @@ The Cramér–Rao bound is that of white output noise with the initial state as 
 ``sigma^2 (J^T J)^-1`` restricted to the parameter block, ``J`` the sensitivities of the
 noise-free output to the parameters and the initial position and velocity (central
 finite differences of the simulation).  Per parameter and realisation the study records
-the algebraic estimate of ``identify`` (the default solver, ``refine=False``), its
+the algebraic estimate of ``identify`` (the default solver ``"bc"`` or ``--method``,
+``refine=False``), its
 reported standard error and the window chosen; it reports the bias, RMSE / CRLB, the rms
 of error / reported standard error and the fraction of realisations within two reported
 standard errors of the truth (±2σ coverage).  Targets: RMSE / CRLB at most 2 and
@@ -26,8 +27,9 @@ To compare the rule of another checkout, run this module with that checkout's ``
 first on ``PYTHONPATH`` (``PYTHONPATH=/other/src:. python -m benchmarks.window_rule_study``).
 
 Options: ``--runs N`` (default 50), ``--models linear duffing`` (default both),
-``--window SECONDS`` (a fixed window instead of the automatic rule), ``--out FILE``
-(JSON).
+``--window SECONDS`` (a fixed window instead of the automatic rule), ``--method
+{bc,ls,gls}`` (``gls``: the windows weighed by their noise; the count of records where
+it fell back to ``bc`` is ``reported_methods``), ``--out FILE`` (JSON).
 """
 
 from __future__ import annotations
@@ -159,24 +161,27 @@ def crlb(model, y, sigma, x0=(0.0, 0.0), relative_step=1e-5):
     return dict(zip(names, np.sqrt(np.diag(covariance))[:len(names)]))
 
 
-def study(name, runs, window=None):
-    """Monte Carlo figures of one model over ``runs`` noise realisations."""
+def study(name, runs, window=None, method="bc"):
+    """Monte Carlo figures of one model over ``runs`` noise realisations (``method`` of
+    :func:`algid.identify`)."""
     model = MODELS[name]
     truth = model["truth"]
     t, u, y = simulate(model)
     sigma = float(np.std(y)) * 10 ** (-SNR_DB / 20)
     bound = crlb(model, y, sigma)
     estimates, stderrs, windows, refused, warned = [], [], Counter(), [], Counter()
+    methods = Counter()
     start = time.perf_counter()
     for seed in range(runs):
         rng = np.random.default_rng(seed)
         record = {"t": t, "u": u, "y": y + sigma * rng.standard_normal(len(t))}
         try:
             r = algid.identify(record, model["equation"], model["parameters"], window=window,
-                               refine=False)
+                               refine=False, method=method)
         except AlgidError as error:
             refused.append(str(error))
             continue
+        methods[r.method] += 1
         estimates.append([r.values[p] for p in truth])
         stderrs.append([r.stderr[p] for p in truth])
         windows[round(r.window, 4)] += 1
@@ -195,7 +200,8 @@ def study(name, runs, window=None):
                    "z_rms": float(np.sqrt(np.mean((error / se[:, i]) ** 2))),
                    "coverage": float(np.mean(np.abs(error) <= 2 * se[:, i]))}
     return {"model": name, "runs": runs, "identified": len(est), "sigma": sigma,
-            "window": window, "parameters": rows,
+            "window": window, "method": method, "reported_methods": dict(methods),
+            "parameters": rows,
             "windows": {str(k): v for k, v in sorted(windows.items())},
             "refusals": len(refused), "refused": refused[:3], "warnings": dict(warned),
             "seconds": time.perf_counter() - start}
@@ -222,6 +228,7 @@ def main(argv=None):
     parser.add_argument("--runs", type=int, default=50)
     parser.add_argument("--models", nargs="*", default=list(MODELS), choices=list(MODELS))
     parser.add_argument("--window", type=float, default=None)
+    parser.add_argument("--method", default="bc", choices=("bc", "ls", "gls"))
     parser.add_argument("--out", default=None)
     args = parser.parse_args(argv)
     print(f"algid from {algid.__file__}; {RATE:g} Hz, {DURATION:g} s, {SNR_DB:g} dB SNR; "
@@ -229,7 +236,7 @@ def main(argv=None):
           f"(* missed)")
     results = []
     for name in args.models:
-        row = study(name, args.runs, args.window)
+        row = study(name, args.runs, args.window, args.method)
         results.append(row)
         print("\n".join(report(row)), flush=True)
     if args.out:

@@ -231,9 +231,11 @@ def build_parser() -> argparse.ArgumentParser:
                           "for a system, once per --equation, in their order")
     ide.add_argument("--window", type=_positive, default=None, metavar="SECONDS",
                      help="window length (default: chosen from the data)")
-    ide.add_argument("--method", choices=("bc", "ls", "iv"), default="bc",
-                     help="bias-compensated least squares (default), least squares or "
-                          "instrumental variables")
+    ide.add_argument("--method", choices=("bc", "ls", "iv", "gls"), default="bc",
+                     help="bias-compensated least squares (default), least squares, "
+                          "instrumental variables, or bias-compensated least squares "
+                          "with the windows weighed by their noise (nearer the "
+                          "Cramér–Rao bound where output noise is the misfit)")
     ide.add_argument("--refine", action=argparse.BooleanOptionalAction, default=None,
                      help="refine the algebraic estimate by output error (efficient under "
                           "white output noise); default: where it is safe (the model "

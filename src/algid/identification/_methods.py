@@ -31,19 +31,27 @@ class Method(NamedTuple):
         refine it (``identify``'s ``iterations``).
     tracked : bool
         Whether :class:`algid.Tracker` offers it (instruments need the whole record).
+    weighted : bool
+        Whether ``solve``'s first estimate weighs the windows by the inverse covariance
+        of their equations' noise, and the equations are solved again so weighted
+        (:mod:`algid.identification._window_weighting`; the whole record in memory).
     """
 
     solve: Callable
     instrumental: bool
     tracked: bool
+    weighted: bool = False
 
 
 #: Solvers: least squares, bias-compensated least squares (identify's default; Koopmans'
-#: estimator), instrumental variables (first estimated as "bc").
+#: estimator), instrumental variables (first estimated as "bc"), and bias-compensated
+#: generalised least squares (the windows weighed by their noise; first estimated as
+#: "bc").
 METHODS = {
     "ls": Method(least_squares, instrumental=False, tracked=True),
     "bc": Method(bias_compensated, instrumental=False, tracked=True),
     "iv": Method(bias_compensated, instrumental=True, tracked=False),
+    "gls": Method(bias_compensated, instrumental=False, tracked=False, weighted=True),
 }
 
 #: The methods of :class:`algid.Tracker`.
