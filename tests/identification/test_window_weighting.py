@@ -142,3 +142,11 @@ def test_gls_on_a_wrong_model_reports_the_unweighted_estimate():
     assert r.values == pytest.approx(plain.values, rel=1e-12)
     right = algid.identify(record, *CUBIC_EQUATION, method="gls", refine=False)
     assert right.method == "gls" and not any("method=" in w for w in right.warnings)
+
+
+def test_gls_refuses_a_model_with_sign():
+    t = np.arange(2000) / 100.0
+    record = {"t": t, "F": np.sin(t), "q": np.cos(t)}
+    with pytest.raises(ModelError, match="sign"):
+        algid.identify(record, "M*q'' + Fv*q' + Fc*sign(q') = F", "M Fv Fc",
+                       method="gls")

@@ -76,6 +76,7 @@ from algid.identification._window_problem import (
     WindowProblem,
     add_derivatives,
     derivative_estimate,
+    is_sign_factor,
     window_stride,
 )
 from algid.identification._window_rule import (
@@ -632,6 +633,10 @@ def identify(data, equation, parameters=None, *, time=None, rate=None, output=No
         equation, parameters, output=output, name=name)
     check_model_columns(model, time)
     multiplicities = check_multiplicities(model, multiplicities)
+    if METHODS[method].weighted and any(is_sign_factor(t.factor) for t in model.terms):
+        raise ModelError(f"method={method!r} weighs the windows by their output noise, "
+                         f"and the steps of sign() carry the error of their placement "
+                         f"as well: use method='bc' for this model")
     source = _streamed_source(data, model, method=method, refine=refine, chunk=chunk)
     if source is not None:   # read in chunks: a file, a Dask DataFrame or a long record
         return _identify_streamed(source, model, time=time, rate=rate, window=window,
