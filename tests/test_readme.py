@@ -223,3 +223,18 @@ def test_results_table_shows_the_systems_study():
         coverage += [100 * c for c in row["coverage_2se"]]
     assert results_table()["two masses (both measured / one hidden), DC motor, 40 dB"] == (
         f"{' / '.join(ranges)}; {min(coverage):.0f}–{max(coverage):.0f} %")
+
+
+def test_results_table_shows_the_weighted_algebraic_estimate():
+    import json
+
+    study = json.loads((ROOT / "benchmarks" / "window_rule_results.json").read_text(
+        encoding="utf-8"))["method gls"]
+    ranges, coverage = [], []
+    for name in ("linear", "duffing"):
+        row = next(r for r in study if r["model"] == name)["parameters"]
+        ratios = [v["rmse_over_crlb"] for v in row.values()]
+        coverage += [100 * v["coverage"] for v in row.values()]
+        ranges.append(f"{min(ratios):.2f}–{max(ratios):.2f}")
+    assert results_table()['linear / Duffing, 30 s, 30 dB, algebraic (`method="gls"`)'] == (
+        f"{ranges[0]} / {ranges[1]}; {min(coverage):.0f}–{max(coverage):.0f} %")
