@@ -76,7 +76,6 @@ from algid.identification._window_problem import (
     WindowProblem,
     add_derivatives,
     derivative_estimate,
-    is_sign_factor,
     window_stride,
 )
 from algid.identification._window_rule import (
@@ -540,9 +539,11 @@ def identify(data, equation, parameters=None, *, time=None, rate=None, output=No
         the output simulated by the current estimate (open-loop stable plants only;
         slower: it simulates the model at every iteration), or bias-compensated
         generalised least squares: the windows weighed by the inverse covariance of
-        the noise in their equations (closer to the Cramér–Rao bound where output noise
-        dominates the misfit; about 1.3 times the cost of "bc" at a given window, and
-        the record in memory).  See the user guide, "How identify works".
+        the noise in their equations (near the Cramér–Rao bound where the misfit is
+        white output noise; 1 to 4 times the cost of "bc" at a given window, the record
+        in memory, no ``sign()`` or derivative inside a nonlinear factor).  Where its
+        estimate and that of "bc" differ by more than output noise allows, the result
+        is that of "bc", with a warning.  See the user guide, "How identify works".
     multiplicities : tuple of int
         Kernel multiplicities stacked (each at least the model order).
     name : str
@@ -633,10 +634,12 @@ def identify(data, equation, parameters=None, *, time=None, rate=None, output=No
         equation, parameters, output=output, name=name)
     check_model_columns(model, time)
     multiplicities = check_multiplicities(model, multiplicities)
-    if METHODS[method].weighted and any(is_sign_factor(t.factor) for t in model.terms):
+    if METHODS[method].weighted and stream_refusal(model) is not None:
+        # (the models a record read in chunks refuses: sign() and derivatives inside
+        # nonlinear factors, whose errors are their placement's and differentiator's)
         raise ModelError(f"method={method!r} weighs the windows by their output noise, "
-                         f"and the steps of sign() carry the error of their placement "
-                         f"as well: use method='bc' for this model")
+                         f"and this model's equations carry other errors (a sign() or a "
+                         f"derivative inside a nonlinear factor): use method='bc'")
     source = _streamed_source(data, model, method=method, refine=refine, chunk=chunk)
     if source is not None:   # read in chunks: a file, a Dask DataFrame or a long record
         return _identify_streamed(source, model, time=time, rate=rate, window=window,
@@ -670,9 +673,15 @@ def identify(data, equation, parameters=None, *, time=None, rate=None, output=No
         length, scores, separations, fit = _window_again(
             problem, multiplicities, method, length, scores, separations, fit, chord)
     if METHODS[method].weighted:
-        fit, method, note = _weighed_if_consistent(problem, fit, length, multiplicities,
-                                                   method)
-        notes += note
+        rejected = _weighting_rejected(problem, fit, length, multiplicities, method)
+        if rejected:   # what method="bc" gives, said so
+            plain = identify(data, equation, parameters, time=time, rate=rate,
+                             output=output, window=window, method="bc",
+                             multiplicities=multiplicities, name=name,
+                             iterations=iterations, refine=refine, chunk=chunk,
+                             crossings=crossings)
+            plain.warnings.append(rejected)
+            return plain
     if METHODS[method].instrumental:
         for _ in range(iterations):
             if not _simulated_values(problem, fit.theta, model):
@@ -688,10 +697,11 @@ def identify(data, equation, parameters=None, *, time=None, rate=None, output=No
                    segments=segments)
 
 
-def _weighed_if_consistent(problem, fit, length, multiplicities, method):
-    """The weighted fit, or the unweighted ("bc") one where the two differ by more than
-    output noise allows (a Hausman test): where it is the misfit, the windows cannot be
-    weighed by the noise, and the weighting moves the estimate instead.
+def _weighting_rejected(problem, fit, length, multiplicities, method):
+    """Why the weighted fit is not kept, or "" where it is: where it differs from the
+    unweighted ("bc") one at its window by more than output noise allows (a Hausman
+    test), the misfit is not only noise, the windows cannot be weighed by it, and the
+    weighting moves the estimate instead.
 
     Under output noise both are consistent and the weighted one efficient, so their
     difference has the variance ``Var(bc) - Var(gls)`` (floored at
@@ -700,8 +710,8 @@ def _weighed_if_consistent(problem, fit, length, multiplicities, method):
 
     Returns
     -------
-    fit, method, notes
-        The fit kept, its method and a note where the weighting was rejected.
+    str
+        The warning to give with the estimate of method "bc" (its own window), or "".
     """
     plain = _solve(problem, length, multiplicities, method="bc")
     variance = np.diag(plain.covariance)
@@ -710,12 +720,12 @@ def _weighed_if_consistent(problem, fit, length, multiplicities, method):
     z = np.abs(fit.theta - plain.theta) / spread
     worst = int(np.argmax(z))
     if not z[worst] > WEIGHTING_Z:
-        return fit, method, []
-    return plain, "bc", [
-        f"method={method!r}: the weighted estimate of {problem.parameters[worst]} is "
-        f"{z[worst]:.1f} standard deviations from the unweighted one, more than output "
-        f"noise explains: the misfit is not only noise, so the windows are not weighed "
-        f"by it; the estimate of method='bc' is reported"]
+        return ""
+    return (f"method={method!r}: the weighted estimate of {problem.parameters[worst]} is "
+            f"{z[worst]:.1f} standard deviations from the unweighted one, more than "
+            f"output noise explains (a misfit that is not white output noise: a wrong "
+            f"model, coloured noise?), so the windows are not weighed by it: this is "
+            f"the estimate of method='bc'")
 
 
 def _result(problem, fit, length, *, method, multiplicities, scores, separations, n_samples,

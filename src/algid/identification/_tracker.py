@@ -187,7 +187,7 @@ class Tracker:
         if method not in TRACKER_METHODS:
             raise InputDataError(f"method must be {' or '.join(map(repr, TRACKER_METHODS))} "
                                  f"for a tracker, got {method!r} (instrumental variables "
-                                 f"need the whole record)")
+                                 f"and the weighting of 'gls' need the whole record)")
         if isinstance(equation, types.ModuleType):  # a compiled model: its own equation
             equation = model_of(estimator_module(equation, parameters))
         check_arguments(equation, parameters, time=time, rate=rate, output=output,
