@@ -705,8 +705,9 @@ def _weighting_rejected(problem, fit, length, multiplicities, method):
 
     Under output noise both are consistent and the weighted one efficient, so their
     difference has the variance ``Var(bc) - Var(gls)`` (floored at
-    :data:`WEIGHTING_FLOOR` of ``Var(bc)``); a parameter more than
-    :data:`WEIGHTING_Z` of its standard deviations off rejects the weighting.
+    :data:`WEIGHTING_FLOOR` of ``Var(bc)``; its standard deviation plus both numerical
+    errors); a parameter more than :data:`WEIGHTING_Z` of these off rejects the
+    weighting.
 
     Returns
     -------
@@ -715,8 +716,12 @@ def _weighting_rejected(problem, fit, length, multiplicities, method):
     """
     plain = _solve(problem, length, multiplicities, method="bc")
     variance = np.diag(plain.covariance)
+    # and the quadrature's share: each estimate's numerical error (the difference of
+    # its multiplicities), which a noise-free record's tiny misfit would not cover
+    numerical = sum((np.ptp(list(f.separate.values()), axis=0) for f in (fit, plain)),
+                    start=np.zeros(len(variance))) if len(multiplicities) > 1 else 0.0
     spread = np.sqrt(np.maximum(variance - np.diag(fit.covariance),
-                                WEIGHTING_FLOOR * variance))
+                                WEIGHTING_FLOOR * variance)) + numerical
     z = np.abs(fit.theta - plain.theta) / spread
     worst = int(np.argmax(z))
     if not z[worst] > WEIGHTING_Z:
