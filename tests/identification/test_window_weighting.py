@@ -83,9 +83,10 @@ def test_whitened_noise_is_that_of_the_noise_map(uniform, linear):
     problem.cache = ProblemCache()
     M = np.stack(maps, axis=2)                    # windows x (p + 1) x samples
     p = A.shape[1]
-    full = np.zeros((p + 1, p + 1))
-    full[:p, :p] = np.ldexp(np.linalg.inv(basis.R[:p, :p]), -basis.shifts[:, None])
-    full[p, p] = np.ldexp(1.0, -basis.b_shift)
+    full = np.zeros((p + 1, p + 1))   # [A | b] -> the basis, written out here
+    full[:p, :p] = np.linalg.inv(basis.R[:p, :p]) / 2.0 ** basis.shifts[:, None]
+    full[p, p] = 2.0 ** -basis.b_shift
+    assert np.array_equal(full, basis.change)
     Mb = np.einsum("wcn,cd->wdn", M, full)        # in the basis
     error = np.einsum("wdn,d->wn", M, theta_bar) * full[p, p]
     S_inv = np.linalg.inv(error @ error.T)

@@ -126,6 +126,15 @@ class WindowBasis:
             self._inverse = np.ldexp(inverse, (self.b_shift - self.shifts)[:, None])
         return self._inverse
 
+    @property
+    def change(self):
+        """``M`` with ``[A | b]`` in the basis ``= [A | b] M`` (``p + 1`` square)."""
+        p = len(self.shifts)
+        full = np.zeros((p + 1, p + 1))
+        full[:p, :p] = np.ldexp(np.linalg.inv(self.R[:p, :p]), -self.shifts[:, None])
+        full[p, p] = np.ldexp(1.0, -self.b_shift)
+        return full
+
     def grams(self, grams):
         """Per-window noise covariances of ``[A | b]`` in the basis.
 
@@ -140,10 +149,7 @@ class WindowBasis:
         numpy.ndarray
             ``grams``, in the basis.
         """
-        p = len(self.shifts)
-        full = np.zeros((p + 1, p + 1))
-        full[:p, :p] = np.ldexp(np.linalg.inv(self.R[:p, :p]), -self.shifts[:, None])
-        full[p, p] = np.ldexp(1.0, -self.b_shift)
+        full = self.change
         if not grams.flags.writeable and grams.strides[0] == 0:   # one for every window
             return np.broadcast_to(full.T @ grams[0] @ full, grams.shape)
         for start in range(0, len(grams), 4096):   # in place, in blocks: no full copies

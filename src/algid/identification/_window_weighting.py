@@ -61,24 +61,15 @@ def column_noise_weights(problem, s, length, multiplicity, stride):
     """
     seg = problem.segments[s]
     alike = problem.uniform_noise
-    p = len(problem.parameters)
-    index = {q: i for i, q in enumerate(problem.parameters)}
     columns = {}
-    for term in problem.model.terms:
-        sensitivity = problem.sensitivity(term.factor)
-        if sensitivity is None:
-            continue
-        weight = term.coefficient * problem.term_scale(term)
-        column = p if term.parameter is None else index[term.parameter]
-        if term.parameter is None:
-            weight = -weight
-        kernel = window_sample_weights(seg.t, seg.step, length, multiplicity,
-                                       term.derivative, stride)
+    for column, weight, derivative, factor, _ in problem.noise_paths():
+        kernel = window_sample_weights(seg.t, seg.step, length, multiplicity, derivative,
+                                       stride)
         if alike:
             product = weight * kernel[None, :]
         else:
-            windows = np.lib.stride_tricks.sliding_window_view(sensitivity[s],
-                                                               length)[::stride]
+            windows = np.lib.stride_tricks.sliding_window_view(
+                problem.sensitivity(factor)[s], length)[::stride]
             product = weight * windows * kernel
         if column in columns:
             columns[column] += product
@@ -200,9 +191,6 @@ class WhitenedEquations:
         lags = -(-length // stride)
         p = basis.A.shape[1]
         beta = np.ldexp(1.0, -basis.b_shift)
-        full = np.zeros((p + 1, p + 1))      # [A | b] of the rows -> of the basis
-        full[:p, :p] = np.ldexp(np.linalg.inv(basis.R[:p, :p]), -basis.shifts[:, None])
-        full[p, p] = beta
         self.usable = True
         self.A = np.empty_like(basis.A)
         self.b = np.empty_like(basis.b)
@@ -239,7 +227,7 @@ class WhitenedEquations:
                     lagged = first @ later.T
                 block += lagged if d == 0 else lagged + lagged.T
             noise[np.ix_(noisy, noisy)] += block
-        self.noise = full.T @ noise @ full
+        self.noise = basis.change.T @ noise @ basis.change
 
     def solve(self, bound=np.inf):
         """Koopmans' estimator on the whitened equations (plain least squares where it
@@ -317,8 +305,7 @@ def whitened_equations(problem, length, multiplicity, theta_bar, basis, ids, str
     -------
     WhitenedEquations or None
     """
-    if not any(problem.sensitivity(term.factor) is not None
-               for term in problem.model.terms):
+    if not problem.noise_paths():
         return None
     whitened = WhitenedEquations(problem, length, multiplicity, theta_bar, basis, ids,
                                  stride)
