@@ -718,8 +718,7 @@ def _weighting_rejected(problem, fit, length, multiplicities, method):
     variance = np.diag(plain.covariance)
     # and the quadrature's share: each estimate's numerical error (the difference of
     # its multiplicities), which a noise-free record's tiny misfit would not cover
-    numerical = sum((np.ptp(list(f.separate.values()), axis=0) for f in (fit, plain)),
-                    start=np.zeros(len(variance))) if len(multiplicities) > 1 else 0.0
+    numerical = sum(np.ptp(list(f.separate.values()), axis=0) for f in (fit, plain))
     spread = np.sqrt(np.maximum(variance - np.diag(fit.covariance),
                                 WEIGHTING_FLOOR * variance)) + numerical
     z = np.abs(fit.theta - plain.theta) / spread

@@ -32,9 +32,10 @@ class Method(NamedTuple):
     tracked : bool
         Whether :class:`algid.Tracker` offers it (instruments need the whole record).
     weighted : bool
-        Whether ``solve``'s first estimate weighs the windows by the inverse covariance
-        of their equations' noise, and the equations are solved again so weighted
-        (:mod:`algid.identification._window_weighting`; the whole record in memory).
+        Whether the windows are weighed by the inverse covariance of their equations'
+        noise: ``solve``'s estimate makes that covariance, and the equations are solved
+        again so weighted (:mod:`algid.identification._window_weighting`; the whole
+        record in memory).
     """
 
     solve: Callable
