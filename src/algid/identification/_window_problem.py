@@ -39,7 +39,7 @@ from algid.identification._window_kernels import (
     window_sample_weights,
 )
 from algid.models._expression import Call, Constant, Signal
-from algid.signals._differentiation import algebraic_derivative
+from algid.signals._differentiation import DEFAULT_WINDOW_STEPS, algebraic_derivative
 
 __all__ = ["WindowProblem", "ProblemCache", "FactorSamples", "term_rows", "is_sign_factor",
            "factor_sensitivity", "noise_curvature", "difference_noise_bound",
@@ -851,8 +851,13 @@ def add_derivatives(model, segments, estimator):
             seg.values[(name, k)] = estimator(seg.values[name], seg.t, k, seg.step)
 
 
-def derivative_estimate(y, t, order, step):
-    """Derivative inside a nonlinear factor: the algebraic differentiator."""
+def derivative_estimate(y, t, order, step, widen=1):
+    """Derivative inside a nonlinear factor: the algebraic differentiator, on its default
+    window or on one ``widen`` times as long (the differentiator's error check)."""
+    window = None
+    if widen != 1:
+        window = widen * DEFAULT_WINDOW_STEPS * (
+            step if step is not None else float(np.median(np.diff(t))))
     if step is not None:
-        return algebraic_derivative(y, step, derivative=order)
-    return algebraic_derivative(y, time=t, derivative=order)
+        return algebraic_derivative(y, step, derivative=order, window=window)
+    return algebraic_derivative(y, time=t, derivative=order, window=window)

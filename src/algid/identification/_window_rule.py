@@ -97,6 +97,9 @@ class WindowFit:
         self.residuals = residuals
         self.n_windows = n_windows
         self.separation = separation      # Separability of the highest multiplicity
+        # how far the estimate moves with the derivatives inside nonlinear factors
+        # estimated on twice as long a differentiator window (set by identify)
+        self.differentiator_error = 0.0
 
     @property
     def stderr(self):
@@ -105,9 +108,10 @@ class WindowFit:
 
     @property
     def numerical_error(self):
-        """Per parameter: the difference between the lowest and highest multiplicity."""
+        """Per parameter: the difference between the lowest and highest multiplicity,
+        plus :attr:`differentiator_error`."""
         values = [self.separate[a] for a in sorted(self.separate)]
-        return np.abs(values[-1] - values[0])
+        return np.abs(values[-1] - values[0]) + self.differentiator_error
 
     @property
     def negligible(self):
