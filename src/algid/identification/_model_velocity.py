@@ -32,7 +32,7 @@ from typing import NamedTuple
 import numpy as np
 
 from algid.errors import InputDataError, ModelError
-from algid.identification._sign_crossings import crossing_jumps, crossing_motion
+from algid.identification._sign_crossings import crossing_jumps, crossing_motion, term_weight
 from algid.models._expression import Signal
 
 __all__ = ["VelocityPath", "SettledFit", "simulate_velocity", "velocity_equation",
@@ -654,7 +654,7 @@ def _with_coulomb(model, theta, level, segment):
     if len(free) != 1:
         return None
     name = free.pop()
-    leading = sum(t.coefficient * (1.0 if t.parameter is None else values[t.parameter])
+    leading = sum(term_weight(t, values)
                   for t in model.terms if t.factor == plain and t.derivative == 2)
     known = sum(t.coefficient for t in signed if t.parameter is None)
     per_unit = sum(t.coefficient for t in signed if t.parameter == name)

@@ -35,7 +35,7 @@ from algid.identification._window_kernels import sign_changes, sign_samples
 from algid.models._expression import Call, Power, Product, Signal, Sum
 from algid.signals._differentiation import DEFAULT_WINDOW_STEPS
 
-__all__ = ["refine_crossings", "crossing_jumps", "crossing_motion", "sign_factor",
+__all__ = ["refine_crossings", "crossing_jumps", "crossing_motion", "sign_factor", "term_weight",
            "FIT_HALF_WIDTH", "SEARCH_SPAN"]
 
 #: Samples on each side of a crossing that the local fit of the position uses (on the
@@ -68,8 +68,19 @@ def _sign_calls(expr):
     return []
 
 
-def _weight(term, values):
-    """A term's coefficient times its parameter's value (1 for a known term)."""
+def term_weight(term, values):
+    """A term's coefficient times its parameter's value (1 for a known term).
+
+    Parameters
+    ----------
+    term : Term
+    values : mapping
+        Parameter name -> value.
+
+    Returns
+    -------
+    float
+    """
     return term.coefficient * (1.0 if term.parameter is None
                                else float(values[term.parameter]))
 
@@ -112,9 +123,9 @@ def crossing_jumps(model, values):
     if max(orders, default=0) != 2:
         return {}
 
-    leading = sum(_weight(term, values) for term in model.terms
+    leading = sum(term_weight(term, values) for term in model.terms
                   if term.factor == plain and term.derivative == 2)
-    coulomb = sum(_weight(term, values) for term, _ in discontinuous)
+    coulomb = sum(term_weight(term, values) for term, _ in discontinuous)
     jump = -2.0 * coulomb / leading if leading != 0 else np.nan
     return {factor: jump} if np.isfinite(jump) else {}
 
@@ -155,14 +166,14 @@ def crossing_motion(model, values, signals, t):
     for term in model.terms:
         if term.factor == plain and term.derivative in (1, 2):
             if term.derivative == 2:
-                leading += _weight(term, values)
+                leading += term_weight(term, values)
             else:
-                damping += _weight(term, values)
+                damping += term_weight(term, values)
         elif term.derivative != 0:
             return None
         elif term.factor != factor:
             samples = np.asarray(term.factor.evaluate(signals, t), dtype=float)
-            forcing -= _weight(term, values) * samples
+            forcing -= term_weight(term, values) * samples
     return forcing / leading, damping / leading
 
 
