@@ -535,3 +535,11 @@ def test_numerical_error_counts_the_differentiator_inside_a_nonlinear_factor():
         assert abs(r.values[p] - v) <= 2 * r.stderr[p] + r.numerical_error[p], p
     # (the multiplicities alone did not cover it: the differentiator's part is most)
     assert abs(r.values["B"] - 0.5) > 2 * r.stderr["B"]
+    # a segment of 30 samples between two gaps: shorter than the wider differentiator
+    # window (41 samples), longer than the default one; still identified
+    keep = np.ones(len(t), bool)
+    keep[1000:1010] = keep[1040:1050] = False
+    gapped = algid.identify({"t": t[keep], "u": u_of(t)[keep], "y": y[keep]},
+                            "y'' + B*abs(y')*y' + K*y = G*u", "B K G", refine=False)
+    assert abs(gapped.values["B"] - 0.5) <= 2 * gapped.stderr["B"] \
+        + gapped.numerical_error["B"]

@@ -721,8 +721,11 @@ def _differentiator_error(problem, fit, length, multiplicities, method):
     for seg in problem.user_segments:
         values = dict(seg.values)
         for name, k in model.needs_derivatives:
-            values[(name, k)] = derivative_estimate(seg.values[name], seg.t, k, seg.step,
-                                                    widen=2)
+            try:
+                values[(name, k)] = derivative_estimate(seg.values[name], seg.t, k,
+                                                        seg.step, widen=2)
+            except InputDataError:   # (a segment shorter than the wider window: as is)
+                pass
         segments.append(Segment(seg.record, seg.rows, seg.t, values, seg.step))
     wider = WindowProblem(model, segments, problem.step)
     wider.cache.noise_bound = problem.noise_bound()
