@@ -22,6 +22,7 @@ import numpy as np
 
 import algid
 from algid.models import parse_equation
+from benchmarks.window_rule_study import sensitivities
 
 EQUATION = "M*q'' + Fv*q' + Fc*sign(q') + off = F"
 TRUTH = {"M": 0.5, "Fv": 1.2, "Fc": 0.6, "off": 0.1}
@@ -44,25 +45,13 @@ def cramer_rao(t, F, sigma, relative_step=1e-6):
     """Standard deviations of the Cramér–Rao bound (white noise ``sigma``, the initial
     state a nuisance), by central differences of the accurate simulator."""
     model = parse_equation(EQUATION, " ".join(TRUTH))
-    x0 = np.array([0.0, -0.05])
+    x0 = [0.0, -0.05]
 
     def output(theta, state):
         return algid.simulate_model(model, theta, t, {"F": F}, initial_state=state,
                                     rtol=1e-10, atol=1e-13)
 
-    columns = []
-    for p in TRUTH:
-        h = relative_step * max(abs(TRUTH[p]), 1.0)
-        up, down = dict(TRUTH), dict(TRUTH)
-        up[p] += h
-        down[p] -= h
-        columns.append((output(up, x0) - output(down, x0)) / (2 * h))
-    for i in range(2):
-        up, down = x0.copy(), x0.copy()
-        up[i] += relative_step
-        down[i] -= relative_step
-        columns.append((output(TRUTH, up) - output(TRUTH, down)) / (2 * relative_step))
-    J = np.column_stack(columns)
+    J = sensitivities(output, TRUTH, x0, relative_step, [relative_step] * 2)
     return np.sqrt(np.diag(np.linalg.inv(J.T @ J)))[:len(TRUTH)] * sigma
 
 

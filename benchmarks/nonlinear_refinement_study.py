@@ -70,22 +70,9 @@ def cramer_rao(name, sigma, relative_step=1e-6):
     """Standard deviations of the Cramér–Rao bound (white noise ``sigma``, the initial
     state a nuisance), by central differences of the accurate simulator."""
     truth = (wr.DUFFING if name == "duffing" else FRICTION)["truth"]
-    x0 = np.array([0.0, 0.0] if name == "duffing" else [0.0, 0.1])
-    columns = []
-    for p in truth:
-        h = relative_step * max(abs(truth[p]), 1.0)
-        up, down = dict(truth), dict(truth)
-        up[p] += h
-        down[p] -= h
-        columns.append((noise_free(name, up, x0)[2] - noise_free(name, down, x0)[2]) / (2 * h))
-    for i in range(2):
-        h = relative_step * (1.0 if i == 0 else 6.0)
-        up, down = x0.copy(), x0.copy()
-        up[i] += h
-        down[i] -= h
-        columns.append((noise_free(name, truth, up)[2] - noise_free(name, truth, down)[2])
-                       / (2 * h))
-    J = np.column_stack(columns)
+    x0 = [0.0, 0.0] if name == "duffing" else [0.0, 0.1]
+    J = wr.sensitivities(lambda theta, state: noise_free(name, theta, state)[2], truth, x0,
+                         relative_step, [relative_step * 1.0, relative_step * 6.0])
     return np.sqrt(np.diag(np.linalg.inv(J.T @ J)))[:len(truth)] * sigma
 
 

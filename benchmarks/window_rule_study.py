@@ -45,7 +45,7 @@ from scipy.linalg import expm
 import algid
 from algid.errors import AlgidError
 
-__all__ = ["LINEAR", "DUFFING", "simulate", "crlb", "study", "main"]
+__all__ = ["LINEAR", "DUFFING", "simulate", "sensitivities", "crlb", "study", "main"]
 
 #: Sampling rate (Hz) and duration (s) of the records.
 RATE, DURATION = 1000.0, 30.0
@@ -132,6 +132,41 @@ def simulate(model, theta=None, x0=(0.0, 0.0), lines=None, *, rate=RATE, duratio
     return t, _input(t, lines), output(theta, x0, t, lines)
 
 
+def sensitivities(output, truth, x0, relative_step, state_steps):
+    """Sensitivities of a simulated output by central differences: one column per
+    parameter (step ``relative_step`` times its value, at least 1), then one per initial
+    state (steps ``state_steps``).
+
+    Parameters
+    ----------
+    output : callable
+        ``output(theta, x0)`` -> the output samples (``theta`` a dict).
+    truth : dict
+        Parameter name -> value, where the differences are taken.
+    x0 : sequence of float
+        Initial state there.
+    relative_step : float
+    state_steps : sequence of float
+
+    Returns
+    -------
+    numpy.ndarray, shape (samples, parameters + states)
+    """
+    columns = []
+    for p in truth:
+        h = relative_step * max(abs(truth[p]), 1.0)
+        up, down = dict(truth), dict(truth)
+        up[p] += h
+        down[p] -= h
+        columns.append((output(up, x0) - output(down, x0)) / (2 * h))
+    for i, h in enumerate(state_steps):
+        up, down = list(x0), list(x0)
+        up[i] += h
+        down[i] -= h
+        columns.append((output(truth, up) - output(truth, down)) / (2 * h))
+    return np.column_stack(columns)
+
+
 def crlb(model, y, sigma, x0=(0.0, 0.0), relative_step=1e-5):
     """Cramér–Rao bound (standard deviations) of the parameters under white output noise
     of standard deviation ``sigma``, the initial state a nuisance.
@@ -141,22 +176,10 @@ def crlb(model, y, sigma, x0=(0.0, 0.0), relative_step=1e-5):
     """
     truth = model["truth"]
     names = list(truth)
-    columns = []
-    for p in names:
-        h = relative_step * max(abs(truth[p]), 1.0)
-        up, down = dict(truth), dict(truth)
-        up[p] += h
-        down[p] -= h
-        columns.append((simulate(model, up, x0)[2] - simulate(model, down, x0)[2]) / (2 * h))
     scale = max(float(np.max(np.abs(y))), 1e-12)
-    for i in range(2):   # the initial position and velocity
-        h = relative_step * scale * (1 if i == 0 else 2 * np.pi)
-        up, down = list(x0), list(x0)
-        up[i] += h
-        down[i] -= h
-        columns.append((simulate(model, truth, up)[2] - simulate(model, truth, down)[2])
-                       / (2 * h))
-    J = np.column_stack(columns)
+    J = sensitivities(lambda theta, state: simulate(model, theta, state)[2], truth, x0,
+                      relative_step, [relative_step * scale * (1 if i == 0 else 2 * np.pi)
+                                      for i in range(2)])   # position, velocity
     covariance = sigma ** 2 * np.linalg.inv(J.T @ J)
     return dict(zip(names, np.sqrt(np.diag(covariance))[:len(names)]))
 
