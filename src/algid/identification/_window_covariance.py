@@ -26,8 +26,8 @@ import numpy as np
 
 from algid.identification._window_kernels import term_kernel, window_sample_weights
 
-__all__ = ["noise_meat", "hac_meat", "sandwich", "upper_envelope", "positive_definite",
-           "INDEFINITE_RTOL"]
+__all__ = ["noise_meat", "lagged_products", "hac_meat", "sandwich", "upper_envelope",
+           "positive_definite", "INDEFINITE_RTOL"]
 
 #: A middle of the sandwich whose smallest eigenvalue is below this fraction of its
 #: largest counts as indefinite.
@@ -114,9 +114,7 @@ def noise_meat(problem, length, multiplicity, theta_bar, scores, stride):
             weights += product
         # sum_n G_n G_n^T of the direct weights: windows that share samples, lag by lag
         for lag in range(min(n_win, -(-length // stride))):
-            shift = lag * stride
-            c = np.einsum("ij,ij->i", weights[:n_win - lag, shift:],
-                          weights[lag:, :length - shift])
+            c = lagged_products(weights, weights, lag, stride)
             cross = (g[:n_win - lag] * c[:, None]).T @ g[lag:]
             meat += cross if lag == 0 else cross + cross.T
         rows = np.flatnonzero(np.any(moved != 0, axis=1))
@@ -129,6 +127,27 @@ def noise_meat(problem, length, multiplicity, theta_bar, scores, stride):
             x = moved[rows]
             meat += direct.T @ x + x.T @ direct + x.T @ x
     return meat
+
+
+def lagged_products(first, second, lag, stride):
+    """Per window ``w``, the sum over the samples it shares with window ``w + lag`` of
+    ``first[w]`` times ``second[w + lag]`` (window ``w + lag`` starts ``lag * stride``
+    samples later): with both the noise weights of the samples, the covariance of the
+    two windows' noise.
+
+    Parameters
+    ----------
+    first, second : numpy.ndarray, shape (windows, length)
+        Per window, a weight per sample.
+    lag, stride : int
+
+    Returns
+    -------
+    numpy.ndarray, shape (windows - lag,)
+    """
+    shift = lag * stride
+    n = first.shape[0] - lag
+    return np.einsum("ij,ij->i", first[:n, shift:], second[lag:, :first.shape[1] - shift])
 
 
 def hac_meat(scores, ids, overlap):

@@ -28,6 +28,7 @@ import numpy as np
 from scipy.linalg import cholesky_banded, solve_banded
 
 from algid.identification._bias_compensation import koopmans
+from algid.identification._window_covariance import lagged_products
 from algid.identification._window_kernels import window_sample_weights
 
 __all__ = ["column_noise_weights", "equation_noise_band", "inverse_band",
@@ -78,14 +79,6 @@ def column_noise_weights(problem, s, length, multiplicity, stride):
     return columns
 
 
-def _lagged(first, second, lag, stride):
-    """Per window ``w``, the sum over samples of ``first[w] * second[w + lag]`` where
-    they overlap (window ``w + lag`` starts ``lag * stride`` samples later)."""
-    shift = lag * stride
-    n = first.shape[0] - lag
-    return np.einsum("wm,wm->w", first[:n, shift:], second[lag:, :first.shape[1] - shift])
-
-
 def equation_noise_band(weights, lags, stride, count):
     """The covariance of the windows' equation errors per unit noise variance, in the
     lower banded form of :func:`scipy.linalg.cholesky_banded`.
@@ -112,7 +105,7 @@ def equation_noise_band(weights, lags, stride, count):
             shift = d * stride
             band[d, :count - d] = weights[0, shift:] @ weights[0, :weights.shape[1] - shift]
         else:
-            band[d, :count - d] = _lagged(weights, weights, d, stride)
+            band[d, :count - d] = lagged_products(weights, weights, d, stride)
     return band
 
 
