@@ -19,9 +19,9 @@ Koopmans' estimator on the equations weighted by the inverse covariance of their
 The time and every column are scaled by powers of two and the equations solved in an
 orthonormal basis of their regressors (:mod:`algid.identification._window_basis`), so
 that any units give the same window and estimates.  Standard errors come from a
-sandwich over the window index: the residuals' own (HAC) covariance, or the covariance
-that white output noise puts into the equations where the two agree
-(:mod:`algid.identification._window_covariance`).  Without ``window`` the length is
+sandwich over the window index: the covariance that white output noise puts into the
+equations where the residuals' own (HAC) covariance agrees with it, else the smallest
+at least both (:mod:`algid.identification._window_covariance`).  Without ``window`` the length is
 chosen on a grid by the worst parameter's error (:func:`window_criterion`).  The
 crossings of a ``sign(q')`` are placed by fits of ``q`` with the motion the model gives
 it (:mod:`algid.identification._sign_crossings`), and the equations solved again.
