@@ -475,8 +475,8 @@ def _select(problem, fits):
     # are kept only where none of these separates the parameters (short records).  A
     # window that separates them reliably comes first from either: the best by the
     # criterion among the comparable ones was often one that separates them weakly
-    # (4 s records: 18 of 100 warned "poorly separated"; the weighted method's Duffing
-    # records: 45 of 100), whose standard errors are less reliable
+    # (benchmarks.short_records, 4 s: 16 of 100 warned "poorly separated"; the weighted
+    # method's Duffing records: 45 of 100), whose standard errors are less reliable
     trusted = {n: f for n, f in fits.items()
                if f.noise_model or independent_windows(problem, n) >= HAC_WINDOWS}
     for reliable in (True, False):
