@@ -8,8 +8,8 @@ standard error and ±2σ coverage per parameter of the algebraic estimate
 (``refine=False``), and the windows chosen.  To compare another checkout, put its
 ``src`` first on ``PYTHONPATH``.
 
-Options: ``--runs N`` (default 40), ``--method {bc,ls,gls}`` (default ``bc``), ``--out
-FILE`` (JSON).
+Options: ``--runs N`` (default 40), ``--method {bc,ls,gls}`` (default ``bc``),
+``--window S`` (default: automatic), ``--out FILE`` (JSON).
 """
 
 from __future__ import annotations
@@ -31,6 +31,7 @@ def main(argv=None):
     parser = argparse.ArgumentParser(prog="python -m benchmarks.window_rule_holdout")
     parser.add_argument("--runs", type=int, default=40)
     parser.add_argument("--method", default="bc", choices=("bc", "ls", "gls"))
+    parser.add_argument("--window", type=float, default=None)
     parser.add_argument("--out", default=None)
     args = parser.parse_args(argv)
     for name, truth in TRUTH.items():
@@ -44,7 +45,7 @@ def main(argv=None):
     print("held-out records: 500 Hz, 20 s, 25 dB, multisine 0.2-8 Hz (seed 7)")
     rows = []
     for name in TRUTH:
-        rows.append(study.study(name, args.runs, method=args.method))
+        rows.append(study.study(name, args.runs, window=args.window, method=args.method))
         print("\n".join(study.report(rows[-1])), flush=True)
     if args.out:
         with open(args.out, "w") as handle:
