@@ -511,6 +511,55 @@ def test_the_noise_variance_is_taken_only_where_the_differences_show_it():
         assert noise_variance_from_sums(sums) == 0.0
 
 
+def test_derivative_noise_gain_is_the_sum_of_the_squared_weights():
+    """The variance white noise of unit variance gives each derivative estimate: on a
+    non-uniform grid against the weights built impulse by impulse, on a uniform one
+    (and twice the window) against the interior taps."""
+    from algid.identification._window_problem import derivative_estimate, derivative_noise_gain
+
+    rng = np.random.default_rng(0)
+    t = np.cumsum(rng.uniform(0.8e-3, 1.2e-3, 150))
+    weights = np.column_stack([derivative_estimate(np.eye(len(t))[j], t, 1, None)
+                               for j in range(len(t))])
+    np.testing.assert_allclose(derivative_noise_gain(t, 1, None),
+                               np.sum(weights ** 2, axis=1), rtol=1e-10)
+    t = np.arange(400) * 1e-3
+    for widen in (1, 2):
+        impulse = np.zeros(len(t))
+        impulse[200] = 1.0
+        taps = derivative_estimate(impulse, t, 1, 1e-3, widen)
+        gain = derivative_noise_gain(t, 1, 1e-3, widen)
+        assert gain[200] == pytest.approx(np.sum(taps ** 2), rel=1e-10)
+
+
+def test_the_noise_of_a_derivative_inside_a_factor_does_not_bias_the_estimate():
+    """Quadratic damping ``B*abs(y')*y'`` at 30 dB: the differentiator's noise adds
+    ``var_d sign(y')`` to the factor's mean (its second derivative times half the
+    estimate's noise variance), which lowered the damping by 6.7 standard errors on
+    average; with it removed, the bias is within one (12 records)."""
+    from scipy.integrate import solve_ivp
+
+    t = np.arange(20001) / 1000.0
+    freqs, phases = np.linspace(0.2, 5.0, 12), np.linspace(0.0, 5.0, 12)
+
+    def u_of(s):
+        return np.sum(np.sin(2 * np.pi * freqs * np.atleast_1d(s)[:, None] + phases), axis=1)
+
+    y = solve_ivp(lambda s, x: [x[1], 40 * u_of(s)[0] - 0.5 * abs(x[1]) * x[1] - 40 * x[0]],
+                  (0, 20), [0, 0], method="DOP853", t_eval=t, rtol=1e-11, atol=1e-12,
+                  max_step=0.01).y[0]
+    sigma = np.std(y) * 10 ** (-30 / 20)
+    errors, stderrs = [], []
+    for seed in range(12):
+        noisy = y + sigma * np.random.default_rng(seed).standard_normal(len(t))
+        r = algid.identify({"t": t, "u": u_of(t), "y": noisy},
+                           "y'' + B*abs(y')*y' + K*y = G*u", "B K G", window=0.4,
+                           refine=False)
+        errors.append(r.values["B"] - 0.5)
+        stderrs.append(r.stderr["B"])
+    assert abs(np.mean(errors)) < np.mean(stderrs), (np.mean(errors), np.mean(stderrs))
+
+
 def test_numerical_error_counts_the_differentiator_inside_a_nonlinear_factor():
     """Quadratic damping ``B*abs(y')*y'`` on a noise-free record: the derivative inside
     the factor comes from the algebraic differentiator, which attenuates it, and both
