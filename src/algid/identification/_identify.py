@@ -157,9 +157,9 @@ class _Solution(NamedTuple):
     weights: np.ndarray        # the regressors or instruments of the scores
     separation: object         # the separability check (highest multiplicity), or None
     grams: np.ndarray | None   # per-window noise covariances of [A | b] in the basis
-    misfit: float | None       # the squared misfit of the solved (whitened) equations
-    trace: float | None        # what unit output noise makes of it before the fit
-    #                            (both None for instruments)
+    misfit: float              # the squared misfit of the solved (whitened) equations
+    trace: float               # what unit output noise makes of it before the fit
+    projection: bool           # whether the residuals are a projection (not instruments)
 
 
 def _solve_multiplicity(problem, length, a, top, instruments=None, method="ls"):
@@ -178,7 +178,7 @@ def _solve_multiplicity(problem, length, a, top, instruments=None, method="ls"):
         separation = separability(basis, problem.exact_columns, grams.sum(axis=0))
         if separation.proportional:
             raise ModelError(separation.message(problem.parameters))
-    variance = misfit = trace = None
+    variance = None
     weights = basis.A
     if instruments is not None:
         Z = weights = basis.instruments(instruments)
@@ -187,7 +187,6 @@ def _solve_multiplicity(problem, length, a, top, instruments=None, method="ls"):
     else:
         phi, scores, jacobian, variance = METHODS[method].solve(
             basis.A, basis.b, grams, problem.noise_bound())
-        misfit, trace = _misfit(basis.A, basis.b, phi, grams.sum(axis=0))
         if METHODS[method].weighted:
             whitened = whitened_equations(problem, length, a,
                                           np.append(basis.theta(phi), -1.0), basis, ids,
@@ -195,9 +194,13 @@ def _solve_multiplicity(problem, length, a, top, instruments=None, method="ls"):
             if whitened is not None:
                 phi, scores, jacobian, variance, weights = whitened.solve(
                     problem.noise_bound())
-                misfit, trace = _misfit(whitened.A, whitened.b, phi, whitened.noise)
-    return _Solution(phi, basis, ids, scores, jacobian, variance, weights,
-                     separation, grams, misfit, trace)
+                return _Solution(phi, basis, ids, scores, jacobian, variance, weights,
+                                 separation, grams,
+                                 *_misfit(whitened.A, whitened.b, phi, whitened.noise),
+                                 projection=True)
+    return _Solution(phi, basis, ids, scores, jacobian, variance, weights, separation,
+                     grams, *_misfit(basis.A, basis.b, phi, grams.sum(axis=0)),
+                     projection=instruments is None)
 
 
 def _misfit(A, b, phi, noise):
@@ -223,11 +226,11 @@ def _covariance_noise(problem, solution, variance, bread, meat):
     to first order the residuals are ``r = (I - A J^-1 W^T) e``, so ``E[r^T r] =
     sigma^2 (tr S - tr(J^-1 W^T S W))``, ``tr S`` the solution's ``trace`` and ``W^T S
     W`` the noise ``meat`` per unit variance; capped by the bound as before.  The HAC
-    sum of the residuals takes the same factor.  Instruments (``trace`` None: their
-    residuals are not a projection) keep ``variance`` and the HAC sum.
+    sum of the residuals takes the same factor.  Instruments (their residuals are not a
+    projection) keep ``variance`` and the HAC sum.
     """
     bound = problem.noise_bound()
-    if solution.trace is None or not solution.trace > 0:
+    if not solution.projection or not solution.trace > 0:
         return variance, 1.0
     fitted = float(np.trace(bread @ meat)) / solution.trace
     inflation = 1.0 / (1.0 - fitted) if 0.0 <= fitted < 1.0 else 1.0
@@ -260,9 +263,7 @@ def _solve(problem, length, multiplicities, instruments=None, method="ls"):
     stride = window_stride(length)
     noise = None
     if variance is None:  # least squares: misfit per unit noise variance
-        weight = float(np.einsum("i,wij,j->", np.append(phi, -1.0), solution.grams,
-                                 np.append(phi, -1.0)))
-        variance = float(r @ r) / weight if weight > 0 else np.inf
+        variance = solution.misfit / solution.trace if solution.trace > 0 else np.inf
         if not variance <= problem.noise_bound():
             variance = problem.noise_bound()
     # the per-window noise matrices: their memory for noise_meat's

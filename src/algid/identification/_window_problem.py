@@ -215,6 +215,7 @@ class WindowProblem:
         #: The differentiator window of the derivatives inside nonlinear factors, in
         #: multiples of its default (``derivative_estimate``'s ``widen``).
         self.derivative_widen = 1
+        self._derivative_gain = {}   # (segment, order) -> derivative_noise_gain
         #: whether the rows are direct sums and the noise's covariance, where it is the
         #: same in every window, made once per segment (:meth:`for_window_rule`)
         self.direct_sums = False
@@ -417,7 +418,7 @@ class WindowProblem:
                         if which == "measured" and variance > 0:
                             z = z - noise_curvature(
                                 factor, self.model.output, values, seg.t, variance,
-                                gains=self._derivative_gains(factor, seg))
+                                gains=self._derivative_gains(factor, len(samples)))
                     steps.append(None)
                     crossings.append(None)
                 samples.append(z)
@@ -469,18 +470,20 @@ class WindowProblem:
             variance = np.ldexp(self.cache.noise_variance, 2 * self.output_exponent)
         return float(variance) if np.isfinite(variance) else 0.0
 
-    def _derivative_gains(self, factor, seg):
+    def _derivative_gains(self, factor, s):
         """Per derivative of the output that ``factor`` reads, the noise gain of its
-        estimate on a segment (:func:`derivative_noise_gain`), or None."""
-        orders = [k for name, k in factor.derivatives() if name == self.model.output]
+        estimate on segment ``s`` (:func:`derivative_noise_gain`, once per segment and
+        order), or None."""
+        seg = self.user_segments[s]
         gains = {}
-        for k in orders:
-            try:
-                gains[(self.model.output, k)] = derivative_noise_gain(
-                    seg.t, k, seg.step, self.derivative_widen)
-            except InputDataError:   # a segment shorter than the wider window keeps
-                gains[(self.model.output, k)] = derivative_noise_gain(   # its derivative
-                    seg.t, k, seg.step)
+        for k in (k for name, k in factor.derivatives() if name == self.model.output):
+            if (s, k) not in self._derivative_gain:
+                try:
+                    gain = derivative_noise_gain(seg.t, k, seg.step, self.derivative_widen)
+                except InputDataError:   # a segment shorter than the wider window keeps
+                    gain = derivative_noise_gain(seg.t, k, seg.step)   # its derivative
+                self._derivative_gain[(s, k)] = gain
+            gains[(self.model.output, k)] = self._derivative_gain[(s, k)]
         return gains or None
 
     def difference_sums(self):
