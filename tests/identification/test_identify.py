@@ -592,3 +592,11 @@ def test_numerical_error_counts_the_differentiator_inside_a_nonlinear_factor():
                             "y'' + B*abs(y')*y' + K*y = G*u", "B K G", refine=False)
     assert abs(gapped.values["B"] - 0.5) <= 2 * gapped.stderr["B"] \
         + gapped.numerical_error["B"]
+    # a segment of 15 samples, shorter than the differentiator's window (21): dropped,
+    # as a segment shorter than a window is (it refused the record: "the record (15
+    # samples) is shorter than one window (21 samples)")
+    keep[1040:1050] = True
+    keep[1025:1035] = False
+    short = algid.identify({"t": t[keep], "u": u_of(t)[keep], "y": y[keep]},
+                           "y'' + B*abs(y')*y' + K*y = G*u", "B K G", refine=False)
+    assert short.n_samples == len(t) - 20 - 15

@@ -73,6 +73,7 @@ from algid.identification._window_basis import (
 )
 from algid.identification._window_covariance import hac_meat, sandwich
 from algid.identification._window_problem import (
+    DERIVATIVE_SAMPLES,
     MULTIPLICITIES,
     WindowProblem,
     add_derivatives,
@@ -694,8 +695,11 @@ def identify(data, equation, parameters=None, *, time=None, rate=None, output=No
                                   method=method, multiplicities=multiplicities,
                                   refine=refine, chunk=chunk)
     check_memory(data, model)
+    shortest = min_length(multiplicities)
+    if model.needs_derivatives:   # (segments too short for the differentiator: dropped)
+        shortest = max(shortest, DERIVATIVE_SAMPLES)
     segments, step, n_samples = prepare_records(data, model.signals, time=time, rate=rate,
-                                                min_length=min_length(multiplicities))
+                                                min_length=shortest)
     add_derivatives(model, segments, derivative_estimate)
     check_factors(model, segments)
     problem = WindowProblem(model, segments, step)

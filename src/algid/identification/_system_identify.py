@@ -49,6 +49,7 @@ from algid.identification._system_result import WEAK_RELATIVE_ERROR
 from algid.identification._window_basis import NAMED_WEIGHT, ROUNDOFF_SEPARABILITY
 from algid.identification._window_covariance import hac_meat, sandwich
 from algid.identification._window_problem import (
+    DERIVATIVE_SAMPLES,
     MULTIPLICITIES,
     WindowProblem,
     add_derivatives,
@@ -445,8 +446,11 @@ def identify_system(data, equations, parameters=None, *, time=None, rate=None,
     for model in system.equations:
         check_memory(data, model)
         multiplicities = check_multiplicities(model, multiplicities)
+    shortest = min_length(multiplicities)
+    if any(model.needs_derivatives for model in system.equations):
+        shortest = max(shortest, DERIVATIVE_SAMPLES)   # (as one equation's identify)
     segments, step, n_samples = prepare_records(data, system.signals, time=time, rate=rate,
-                                                min_length=min_length(multiplicities))
+                                                min_length=shortest)
     problems = []   # the equations with parameters (a fully known one informs none)
     for model in system.equations:
         add_derivatives(model, segments, derivative_estimate)

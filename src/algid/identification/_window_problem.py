@@ -45,7 +45,8 @@ __all__ = ["WindowProblem", "ProblemCache", "FactorSamples", "term_rows", "is_si
            "factor_sensitivity", "noise_curvature", "difference_noise_bound",
            "difference_sums", "noise_bound_from_sums", "noise_variance_from_sums",
            "DIFFERENCE_ORDERS", "FLAT_DIFFERENCES", "add_derivatives",
-           "derivative_estimate", "derivative_noise_gain", "MULTIPLICITIES",
+           "derivative_estimate", "derivative_noise_gain", "DERIVATIVE_SAMPLES",
+           "MULTIPLICITIES",
            "WINDOW_OVERLAP", "window_stride",
            "spread_ranges", "RULE_WINDOWS", "RULE_EXCERPTS"]
 
@@ -924,6 +925,12 @@ def factor_sensitivity(factor, output, values, t, h=None, variance=0.0, largest=
         sides.append(np.asarray(factor.evaluate(moved, t), dtype=float)
                      - noise_curvature(factor, output, moved, t, variance, 1e-3 * largest))
     return (sides[0] - sides[1]) / (2 * h) * np.ones(len(t))
+
+
+#: The fewest contiguous samples the differentiator of a derivative inside a nonlinear
+#: factor needs (its default window on a uniform grid): shorter segments are dropped,
+#: as those shorter than a window are.
+DERIVATIVE_SAMPLES = DEFAULT_WINDOW_STEPS + 1
 
 
 def add_derivatives(model, segments, estimator):
