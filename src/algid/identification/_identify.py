@@ -779,6 +779,7 @@ def _differentiator_error(problem, fit, length, multiplicities, method):
         segments.append(Segment(seg.record, seg.rows, seg.t, values, seg.step))
     wider = WindowProblem(model, segments, problem.step)
     wider.cache.noise_bound = problem.noise_bound()
+    wider.cache.noise_variance = problem.cache.noise_variance   # (the same samples')
     wider.derivative_widen = 2
     if METHODS[method].instrumental:   # (both by the first, bias-compensated, solve)
         fit = _solve(problem, length, multiplicities, method="bc")
